@@ -1,0 +1,447 @@
+//! The discrete framed curve: nodes, edges, reference and material frames, twist, rest state and
+//! boundary conditions of one rod.
+
+use bevy::math::{DVec2, DVec3};
+
+use super::error::RodError;
+use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
+use super::material::{RodMaterial, Stiffness};
+
+/// Edges shorter than this fraction of the rod's mean edge length are rejected as degenerate.
+const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
+
+/// The orthonormal material frame `(t, m1, m2)` of one edge.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MaterialFrame {
+    /// Unit tangent of the edge.
+    pub tangent: DVec3,
+    /// First material director: the direction of the cross-section's `semi_axis_1`.
+    pub m1: DVec3,
+    /// Second material director, `t × m1`.
+    pub m2: DVec3,
+}
+
+/// One elastic rod (a hair strand) in the Discrete Elastic Rods model (Bergou et al. 2008).
+///
+/// Nodes `x_0 … x_n` joined by edges `e^i = x_{i+1} − x_i`. Each edge carries a reference frame, kept
+/// adapted by parallel transport in space (at creation) and time (every step), and a twist angle `θ^i`
+/// giving its material frame. The shape the rod is created with is its rest shape: rest lengths,
+/// rest material curvatures and rest twists are measured from it, so it feels no elastic force there.
+///
+/// Positions are in m, velocities in m/s, angles in radians. Interior vertices `1 … n−1` carry
+/// curvature and twist; arrays indexed by vertex have one entry per node, the two ends unused.
+#[derive(Debug, Clone)]
+pub struct Rod {
+    pub(crate) positions: Vec<DVec3>,
+    pub(crate) velocities: Vec<DVec3>,
+    pub(crate) twist: Vec<f64>,
+    pub(crate) twist_rates: Vec<f64>,
+    pub(crate) reference_directors: Vec<DVec3>,
+    pub(crate) tangents: Vec<DVec3>,
+    pub(crate) reference_twist: Vec<f64>,
+    pub(crate) rest_lengths: Vec<f64>,
+    pub(crate) voronoi_lengths: Vec<f64>,
+    pub(crate) rest_curvature: Vec<DVec2>,
+    pub(crate) rest_twist: Vec<f64>,
+    pub(crate) masses: Vec<f64>,
+    pub(crate) twist_inertias: Vec<f64>,
+    pub(crate) node_targets: Vec<Option<DVec3>>,
+    pub(crate) twist_targets: Vec<Option<DVec3>>,
+    material: RodMaterial,
+    pub(crate) stiffness: Stiffness,
+    initial_positions: Vec<DVec3>,
+    initial_reference_directors: Vec<DVec3>,
+}
+
+impl Rod {
+    /// Creates a rod through `positions` (m) whose first edge has its first material director `m1` along
+    /// `material_direction` (projected perpendicular to the edge). The given shape is the rest shape.
+    ///
+    /// Rejects fewer than 3 nodes, non-finite nodes, (nearly) zero-length edges, edges folded back by
+    /// 180°, a material direction parallel to the first edge, and invalid material parameters.
+    pub fn new(positions: &[DVec3], material_direction: DVec3, material: RodMaterial) -> Result<Self, RodError> {
+        material.validate()?;
+        if positions.len() < 3 {
+            return Err(RodError::TooFewNodes { nodes: positions.len() });
+        }
+        if let Some((node, &position)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+            return Err(RodError::NonFiniteNode { node, position });
+        }
+        let node_count = positions.len();
+        let edge_count = node_count - 1;
+        let rest_lengths: Vec<f64> = positions.windows(2).map(|pair| (pair[1] - pair[0]).length()).collect();
+        let minimum = MIN_RELATIVE_EDGE_LENGTH * rest_lengths.iter().sum::<f64>() / edge_count as f64;
+        if let Some((edge, &length)) = rest_lengths.iter().enumerate().find(|(_, l)| **l <= minimum) {
+            return Err(RodError::DegenerateEdge { edge, length, minimum });
+        }
+        let tangents: Vec<DVec3> = positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize()).collect();
+        if let Some(edge) = tangents.windows(2).position(|pair| 1.0 + pair[0].dot(pair[1]) < 1e-9) {
+            return Err(RodError::FoldedEdges { edge });
+        }
+        let first_director = perpendicular_unit(material_direction, tangents[0])
+            .ok_or(RodError::InvalidMaterialDirection { edge: 0, direction: material_direction })?;
+
+        // Space-parallel transport of the first director along the curve.
+        let mut reference_directors = Vec::with_capacity(edge_count);
+        reference_directors.push(first_director);
+        for edge in 1..edge_count {
+            let carried = parallel_transport(reference_directors[edge - 1], tangents[edge - 1], tangents[edge]);
+            reference_directors.push(perpendicular_unit(carried, tangents[edge]).unwrap_or(carried));
+        }
+
+        let stiffness = material.stiffness();
+        let mut voronoi_lengths = vec![0.0; node_count];
+        for (edge, &length) in rest_lengths.iter().enumerate() {
+            voronoi_lengths[edge] += 0.5 * length;
+            voronoi_lengths[edge + 1] += 0.5 * length;
+        }
+        let mut rod = Self {
+            positions: positions.to_vec(),
+            velocities: vec![DVec3::ZERO; node_count],
+            twist: vec![0.0; edge_count],
+            twist_rates: vec![0.0; edge_count],
+            reference_directors: reference_directors.clone(),
+            tangents,
+            reference_twist: vec![0.0; node_count],
+            masses: voronoi_lengths.iter().map(|l| stiffness.linear_density * l).collect(),
+            twist_inertias: rest_lengths.iter().map(|l| stiffness.twist_inertia_density * l).collect(),
+            rest_lengths,
+            voronoi_lengths,
+            rest_curvature: vec![DVec2::ZERO; node_count],
+            rest_twist: vec![0.0; node_count],
+            node_targets: vec![None; node_count],
+            twist_targets: vec![None; edge_count],
+            material,
+            stiffness,
+            initial_positions: positions.to_vec(),
+            initial_reference_directors: reference_directors,
+        };
+        rod.refresh_frames();
+        for vertex in 1..edge_count {
+            let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
+            rod.rest_curvature[vertex] = kappa;
+            rod.rest_twist[vertex] = twist;
+        }
+        Ok(rod)
+    }
+
+    /// Number of nodes `n + 1`.
+    pub fn node_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of edges `n`.
+    pub fn edge_count(&self) -> usize {
+        self.positions.len() - 1
+    }
+
+    /// Node positions, m.
+    pub fn positions(&self) -> &[DVec3] {
+        &self.positions
+    }
+
+    /// Node velocities, m/s.
+    pub fn velocities(&self) -> &[DVec3] {
+        &self.velocities
+    }
+
+    /// Per-edge twist angles `θ^i` of the material frames relative to the reference frames, rad.
+    pub fn twist_angles(&self) -> &[f64] {
+        &self.twist
+    }
+
+    /// Rest lengths `|ē^i|` of the edges, m.
+    pub fn rest_lengths(&self) -> &[f64] {
+        &self.rest_lengths
+    }
+
+    /// Total rest length of the rod, m.
+    pub fn rest_length(&self) -> f64 {
+        self.rest_lengths.iter().sum()
+    }
+
+    /// Lumped node masses `ρ A l_i` (Voronoi lengths), kg.
+    pub fn masses(&self) -> &[f64] {
+        &self.masses
+    }
+
+    /// The material the rod was made of.
+    pub fn material(&self) -> &RodMaterial {
+        &self.material
+    }
+
+    /// The stiffnesses derived from the material.
+    pub fn stiffness(&self) -> &Stiffness {
+        &self.stiffness
+    }
+
+    /// Rest material curvatures `(κ̄₁, κ̄₂)` per vertex (integrated, dimensionless; ends unused).
+    pub fn rest_curvatures(&self) -> &[DVec2] {
+        &self.rest_curvature
+    }
+
+    /// Rest twists `τ̄` per vertex (integrated, rad; ends unused).
+    pub fn rest_twists(&self) -> &[f64] {
+        &self.rest_twist
+    }
+
+    /// The material frame of `edge`.
+    pub fn material_frame(&self, edge: usize) -> MaterialFrame {
+        let tangent = self.tangents[edge];
+        let (m1, m2) = material_directors(self.reference_directors[edge], tangent, self.twist[edge]);
+        MaterialFrame { tangent, m1, m2 }
+    }
+
+    /// The current material curvatures `(κ₁, κ₂)` and twist `τ` at interior `vertex` (integrated,
+    /// dimensionless and rad): `κ₁ = ½ κb·(m2^{i−1} + m2^i)`, `κ₂ = −½ κb·(m1^{i−1} + m1^i)`,
+    /// `τ = θ^i − θ^{i−1} + refTwist_i`.
+    pub fn vertex_curvature_and_twist(&self, vertex: usize) -> (DVec2, f64) {
+        let (previous, next) = (self.material_frame(vertex - 1), self.material_frame(vertex));
+        let binormal = super::frames::curvature_binormal(previous.tangent, next.tangent);
+        let kappa = DVec2::new(0.5 * binormal.dot(previous.m2 + next.m2), -0.5 * binormal.dot(previous.m1 + next.m1));
+        let twist = self.twist[vertex] - self.twist[vertex - 1] + self.reference_twist[vertex];
+        (kappa, twist)
+    }
+
+    /// The largest edge strain `|e|/|ē| − 1` in absolute value, with the edge it occurs on.
+    pub fn max_strain(&self) -> (usize, f64) {
+        self.positions
+            .windows(2)
+            .zip(&self.rest_lengths)
+            .map(|(pair, rest)| ((pair[1] - pair[0]).length() / rest - 1.0).abs())
+            .enumerate()
+            .fold((0, 0.0), |best, (edge, strain)| if strain > best.1 || strain.is_nan() { (edge, strain) } else { best })
+    }
+
+    /// Kinetic energy of the nodes and of the edges' spin about their axes, J.
+    pub fn kinetic_energy(&self) -> f64 {
+        let translational: f64 = self.masses.iter().zip(&self.velocities).map(|(m, v)| 0.5 * m * v.length_squared()).sum();
+        let spin: f64 = self.twist_inertias.iter().zip(&self.twist_rates).map(|(i, w)| 0.5 * i * w * w).sum();
+        translational + spin
+    }
+
+    /// Sets the rest material curvature `(κ̄₁, κ̄₂)` of interior `vertex` (integrated, dimensionless).
+    pub fn set_rest_curvature(&mut self, vertex: usize, curvature: DVec2) -> Result<(), RodError> {
+        self.check_vertex(vertex)?;
+        self.rest_curvature[vertex] = curvature;
+        Ok(())
+    }
+
+    /// Sets the rest twist `τ̄` of interior `vertex` (integrated, rad).
+    pub fn set_rest_twist(&mut self, vertex: usize, twist: f64) -> Result<(), RodError> {
+        self.check_vertex(vertex)?;
+        self.rest_twist[vertex] = twist;
+        Ok(())
+    }
+
+    /// Gives the whole rod a uniform natural curvature `(k₁, k₂)` in 1/m, in its material frame:
+    /// free of load it curls into a circular arc (a helix when twisted) of curvature `|k|`.
+    ///
+    /// The discrete rest curvature at vertex i is `2 tan(|k| l_i / 2) k/|k|`: the turning angle between
+    /// edge midpoints a Voronoi length `l_i` apart on a circle of curvature `|k|`.
+    pub fn set_natural_curvature(&mut self, curvature_per_metre: DVec2) {
+        let magnitude = curvature_per_metre.length();
+        for vertex in 1..self.edge_count() {
+            self.rest_curvature[vertex] = if magnitude > 0.0 {
+                curvature_per_metre / magnitude * 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan()
+            } else {
+                DVec2::ZERO
+            };
+        }
+    }
+
+    /// Clamps `edge`: its two nodes are held at `start` and `end` (m) and its first material director
+    /// points along `material_direction`. Call again each step to move the clamp (a hair root following a
+    /// head); the step moves the nodes there and turns the edge's twist, continuing from its last value.
+    pub fn clamp_edge(&mut self, edge: usize, start: DVec3, end: DVec3, material_direction: DVec3) -> Result<(), RodError> {
+        if edge >= self.edge_count() {
+            return Err(RodError::OutOfRange { what: "edge", index: edge, count: self.edge_count() });
+        }
+        for (node, target) in [(edge, start), (edge + 1, end)] {
+            if !target.is_finite() {
+                return Err(RodError::NonFiniteTarget { node, target });
+            }
+        }
+        let tangent = (end - start).normalize_or_zero();
+        if tangent == DVec3::ZERO || perpendicular_unit(material_direction, tangent).is_none() {
+            return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
+        }
+        self.node_targets[edge] = Some(start);
+        self.node_targets[edge + 1] = Some(end);
+        self.twist_targets[edge] = Some(material_direction);
+        Ok(())
+    }
+
+    /// Clamps the root (edge 0) where it is now, with its current material frame.
+    pub fn clamp_root_in_place(&mut self) {
+        let frame = self.material_frame(0);
+        self.node_targets[0] = Some(self.positions[0]);
+        self.node_targets[1] = Some(self.positions[1]);
+        self.twist_targets[0] = Some(frame.m1);
+    }
+
+    /// Pins `node` to `position` (m), leaving its edges free to turn: a hair tie, a rope end.
+    pub fn pin_node(&mut self, node: usize, position: DVec3) -> Result<(), RodError> {
+        self.check_node(node)?;
+        if !position.is_finite() {
+            return Err(RodError::NonFiniteTarget { node, target: position });
+        }
+        self.node_targets[node] = Some(position);
+        Ok(())
+    }
+
+    /// Frees `node` from any pin or clamp.
+    pub fn release_node(&mut self, node: usize) -> Result<(), RodError> {
+        self.check_node(node)?;
+        self.node_targets[node] = None;
+        Ok(())
+    }
+
+    /// Frees `edge`'s twist from its clamp (its nodes stay pinned until released).
+    pub fn release_edge_twist(&mut self, edge: usize) -> Result<(), RodError> {
+        if edge >= self.edge_count() {
+            return Err(RodError::OutOfRange { what: "edge", index: edge, count: self.edge_count() });
+        }
+        self.twist_targets[edge] = None;
+        Ok(())
+    }
+
+    /// Whether `node`'s position is prescribed by a pin or a clamp.
+    pub fn is_node_prescribed(&self, node: usize) -> bool {
+        self.node_targets.get(node).is_some_and(Option::is_some)
+    }
+
+    /// Puts the rod back in the shape and frames it was created with, at rest. Boundary conditions stay.
+    pub fn reset(&mut self) {
+        self.positions.copy_from_slice(&self.initial_positions);
+        self.reference_directors.copy_from_slice(&self.initial_reference_directors);
+        for (tangent, pair) in self.tangents.iter_mut().zip(self.initial_positions.windows(2)) {
+            *tangent = (pair[1] - pair[0]).normalize();
+        }
+        self.velocities.fill(DVec3::ZERO);
+        self.twist.fill(0.0);
+        self.twist_rates.fill(0.0);
+        self.reference_twist.fill(0.0);
+        self.refresh_frames();
+    }
+
+    /// Time-parallel transport: carries each edge's reference director from the tangent it was adapted
+    /// to onto the edge's current tangent, then updates the reference twists, continuing each from its
+    /// previous value so that they do not wrap at ±π.
+    pub(crate) fn refresh_frames(&mut self) {
+        for edge in 0..self.edge_count() {
+            let tangent = (self.positions[edge + 1] - self.positions[edge]).normalize();
+            let carried = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
+            self.reference_directors[edge] = perpendicular_unit(carried, tangent).unwrap_or(carried);
+            self.tangents[edge] = tangent;
+        }
+        for vertex in 1..self.edge_count() {
+            let carried =
+                parallel_transport(self.reference_directors[vertex - 1], self.tangents[vertex - 1], self.tangents[vertex]);
+            let angle = signed_angle(carried, self.reference_directors[vertex], self.tangents[vertex]);
+            let previous = self.reference_twist[vertex];
+            self.reference_twist[vertex] = previous + wrap_angle(angle - previous);
+        }
+    }
+
+    /// Sets the twist of every clamped edge so that its `m1` points along the clamp's material direction,
+    /// continuing from the edge's current twist (turning a clamp by 3π is three half turns, not one).
+    pub(crate) fn apply_twist_targets(&mut self) {
+        for edge in 0..self.edge_count() {
+            if let Some(direction) = self.twist_targets[edge] {
+                let tangent = self.tangents[edge];
+                let reference = self.reference_directors[edge];
+                let Some(target) = perpendicular_unit(direction, tangent) else { continue };
+                let angle = signed_angle(reference, target, tangent);
+                self.twist[edge] += wrap_angle(angle - self.twist[edge]);
+            }
+        }
+    }
+
+    fn check_node(&self, node: usize) -> Result<(), RodError> {
+        if node < self.node_count() {
+            Ok(())
+        } else {
+            Err(RodError::OutOfRange { what: "node", index: node, count: self.node_count() })
+        }
+    }
+
+    fn check_vertex(&self, vertex: usize) -> Result<(), RodError> {
+        if (1..self.edge_count()).contains(&vertex) {
+            Ok(())
+        } else {
+            Err(RodError::OutOfRange { what: "interior vertex", index: vertex, count: self.edge_count() - 1 })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn straight(nodes: usize) -> Vec<DVec3> {
+        (0..nodes).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect()
+    }
+
+    #[test]
+    fn invalid_input_is_rejected_with_a_reason() {
+        let hair = RodMaterial::human_hair();
+        assert_eq!(Rod::new(&straight(2), DVec3::Y, hair).unwrap_err(), RodError::TooFewNodes { nodes: 2 });
+        let mut nodes = straight(5);
+        nodes[3].y = f64::NAN;
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::NonFiniteNode { node: 3, .. })));
+        let mut nodes = straight(5);
+        nodes[2] = nodes[1];
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::DegenerateEdge { edge: 1, .. })));
+        let mut nodes = straight(4);
+        nodes[3] = nodes[1];
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::FoldedEdges { edge: 1 })));
+        assert!(matches!(Rod::new(&straight(4), DVec3::X, hair), Err(RodError::InvalidMaterialDirection { .. })));
+        let bad = RodMaterial { youngs_modulus: 0.0, ..hair };
+        assert!(matches!(Rod::new(&straight(4), DVec3::Y, bad), Err(RodError::InvalidMaterial { .. })));
+        let mut rod = Rod::new(&straight(4), DVec3::Y, hair).unwrap();
+        assert!(rod.pin_node(9, DVec3::ZERO).is_err());
+        assert!(rod.pin_node(1, DVec3::NAN).is_err());
+        assert!(rod.clamp_edge(0, DVec3::ZERO, DVec3::X, DVec3::X).is_err());
+        assert!(rod.set_rest_curvature(0, DVec2::ONE).is_err());
+        let message = Rod::new(&straight(2), DVec3::Y, hair).unwrap_err().to_string();
+        assert!(message.contains("at least 3 nodes"), "{message}");
+    }
+
+    #[test]
+    fn spawned_shape_is_its_own_rest_shape() {
+        let helix: Vec<DVec3> = (0..20)
+            .map(|i| {
+                let s = i as f64 * 0.4;
+                DVec3::new(0.01 * s.cos(), 0.01 * s.sin(), 0.003 * s)
+            })
+            .collect();
+        let rod = Rod::new(&helix, DVec3::Z, RodMaterial::human_hair()).unwrap();
+        for vertex in 1..rod.edge_count() {
+            let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
+            assert!((kappa - rod.rest_curvature[vertex]).length() < 1e-15);
+            assert!((twist - rod.rest_twist[vertex]).abs() < 1e-15);
+            assert!(kappa.length() > 0.01, "a helix is curved");
+        }
+        let total_mass: f64 = rod.masses().iter().sum();
+        let expected = rod.stiffness().linear_density * rod.rest_length();
+        assert!((total_mass - expected).abs() < 1e-12 * expected);
+    }
+
+    #[test]
+    fn frames_stay_orthonormal_and_adapted_after_transport() {
+        let mut rod = Rod::new(&straight(6), DVec3::Y, RodMaterial::human_hair()).unwrap();
+        for (i, p) in rod.positions.iter_mut().enumerate() {
+            p.y += 0.003 * (i as f64).powi(2);
+            p.z -= 0.002 * i as f64;
+        }
+        rod.refresh_frames();
+        for edge in 0..rod.edge_count() {
+            let frame = rod.material_frame(edge);
+            let tangent = (rod.positions[edge + 1] - rod.positions[edge]).normalize();
+            assert!((frame.tangent - tangent).length() < 1e-14);
+            assert!(frame.m1.dot(tangent).abs() < 1e-14 && frame.m2.dot(tangent).abs() < 1e-14);
+            assert!((frame.m1.length() - 1.0).abs() < 1e-14 && frame.m1.dot(frame.m2).abs() < 1e-14);
+        }
+    }
+}

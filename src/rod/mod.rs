@@ -1,0 +1,42 @@
+//! The mechanics core: Discrete Elastic Rods (Bergou, Wardetzky, Robinson, Audoly, Grinspun 2008),
+//! free of Bevy's ECS, on `f64` glam vectors, in SI units.
+//!
+//! A [`Rod`] is one strand: a discrete framed curve with stretching, bending (two principal
+//! stiffnesses, rest curvature) and twisting energies derived from a [`RodMaterial`]. [`Rod::step`]
+//! advances it by implicit Euler with an inextensibility projection, stable at a game's time step for
+//! real hair; boundary conditions ([`Rod::clamp_edge`], [`Rod::pin_node`]) tie it to a head or to
+//! anything else.
+//!
+//! ```
+//! use bevy::math::DVec3;
+//! use bevy_hair_sim::rod::{Rod, RodMaterial, RodWorkspace, StepParams};
+//!
+//! // A 10 cm hair sticking out sideways, root clamped.
+//! let nodes: Vec<DVec3> = (0..=16).map(|i| DVec3::new(0.1 * i as f64 / 16.0, 0.0, 0.0)).collect();
+//! let mut hair = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair())?;
+//! hair.clamp_root_in_place();
+//! let mut workspace = RodWorkspace::default();
+//! for _ in 0..60 {
+//!     hair.step(&StepParams::default(), None, &mut workspace)?;
+//! }
+//! assert!(hair.positions()[16].y < 0.0, "the tip sags under gravity");
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod banded;
+mod curve;
+mod energy;
+mod error;
+pub mod frames;
+mod material;
+mod solver;
+
+#[cfg(test)]
+pub(crate) mod test_support;
+
+pub use banded::{BandedMatrix, NotPositiveDefinite};
+pub use curve::{MaterialFrame, Rod};
+pub use energy::ElasticEnergy;
+pub use error::{RodError, StepError};
+pub use material::{RodMaterial, Stiffness};
+pub use solver::{RodWorkspace, StepParams, StepReport};
