@@ -36,9 +36,18 @@ pub struct StepParams {
     /// Internal damping `β`, s: stiffness-proportional (Rayleigh) friction `−β H v` inside the material.
     /// An elastic mode of angular frequency `ω` decays at the rate `½ β ω²`; rigid motion is not damped.
     pub internal_damping: f64,
-    /// Newton iterations per step (1 = linearly implicit Euler). More iterations solve the implicit
-    /// step more exactly at proportional cost.
-    pub newton_iterations: u32,
+    /// Most Newton iterations per step. A step stops after one (linearly implicit Euler) when that
+    /// iteration was not limited by [`StepParams::max_rotation`] and stretched no edge by more than
+    /// [`StepParams::newton_strain_tolerance`] before projection; violent motion takes more.
+    pub max_newton_iterations: u32,
+    /// Edge strain, dimensionless, that a Newton iteration's linearisation may leave (before projection)
+    /// for the step to end there: a measure of how far edges turned, since a linear step turning an
+    /// edge by `φ` stretches it by about `φ²/2`.
+    pub newton_strain_tolerance: f64,
+    /// Largest turn of any edge in one Newton iteration, rad: larger updates are scaled down (a trust
+    /// region), so a rod released far from equilibrium moves there over several iterations instead of
+    /// following a linear extrapolation.
+    pub max_rotation: f64,
     /// Largest edge strain `| |e|/|ē| − 1 |` the inextensibility projection leaves, dimensionless.
     pub strain_tolerance: f64,
     /// Most projection iterations per step (each one converges quadratically).
@@ -48,15 +57,18 @@ pub struct StepParams {
 }
 
 impl Default for StepParams {
-    /// 1/60 s, Earth gravity along −Y, air damping 1/s, internal damping 1 ms, one Newton iteration,
-    /// strain tolerance 1e-6, 8 projection iterations, divergence at 5 % strain.
+    /// 1/60 s, Earth gravity along −Y, air damping 1/s, internal damping 1 ms, up to 4 Newton
+    /// iterations (linearisation strain 1 %, turns of 0.5 rad), strain tolerance 1e-6, 8 projection
+    /// iterations, divergence at 5 % strain.
     fn default() -> Self {
         Self {
             dt: 1.0 / 60.0,
             gravity: DVec3::new(0.0, -9.81, 0.0),
             air_damping: 1.0,
             internal_damping: 1e-3,
-            newton_iterations: 1,
+            max_newton_iterations: 4,
+            newton_strain_tolerance: 0.01,
+            max_rotation: 0.5,
             strain_tolerance: 1e-6,
             max_projection_iterations: 8,
             divergence_strain: 0.05,
@@ -79,8 +91,13 @@ impl StepParams {
                 return invalid(name, value, "must be zero or positive and finite");
             }
         }
-        if self.newton_iterations == 0 {
-            return invalid("newton_iterations", 0.0, "must be at least 1");
+        if self.max_newton_iterations == 0 {
+            return invalid("max_newton_iterations", 0.0, "must be at least 1");
+        }
+        for (name, value) in [("newton_strain_tolerance", self.newton_strain_tolerance), ("max_rotation", self.max_rotation)] {
+            if !(value.is_finite() && value > 0.0) {
+                return invalid(name, value, "must be positive and finite");
+            }
         }
         if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
             return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
@@ -97,7 +114,9 @@ impl StepParams {
 pub struct StepReport {
     /// Largest edge strain after the step, dimensionless.
     pub max_strain: f64,
-    /// Projection iterations the step needed.
+    /// Newton iterations the step took.
+    pub newton_iterations: u32,
+    /// Projection iterations the step needed, over all its Newton iterations.
     pub projection_iterations: u32,
 }
 
@@ -197,11 +216,18 @@ impl Rod {
         }
         self.refresh_frames();
         self.apply_twist_targets();
-        for _ in 0..params.newton_iterations {
-            self.newton_iteration(params, external_forces, workspace)?;
+        let mut projection_iterations = 0;
+        let mut newton_iterations = 0;
+        while newton_iterations < params.max_newton_iterations {
+            newton_iterations += 1;
+            let fraction = self.newton_iteration(params, external_forces, workspace)?;
+            let (_, linearisation_strain) = self.max_strain();
+            projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
+            self.refresh_frames();
+            if fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance {
+                break;
+            }
         }
-        let projection_iterations = project_edge_lengths(self, params, &mut workspace.projection);
-        self.refresh_frames();
 
         let saved = &workspace.saved;
         let inverse_dt = 1.0 / params.dt;
@@ -223,16 +249,17 @@ impl Rod {
         if max_strain > params.divergence_strain {
             return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
         }
-        Ok(StepReport { max_strain, projection_iterations })
+        Ok(StepReport { max_strain, newton_iterations, projection_iterations })
     }
 
-    /// One Newton iteration of the implicit Euler step (see the module documentation).
+    /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
+    /// fraction of the Newton update that was applied (below 1 when the trust region limited it).
     fn newton_iteration(
         &mut self,
         params: &StepParams,
         external_forces: Option<&[DVec3]>,
         workspace: &mut RodWorkspace,
-    ) -> Result<(), StepError> {
+    ) -> Result<f64, StepError> {
         let size = dof_count(self.node_count());
         let RodWorkspace { hessian, residual, displacement, damping_force, edges, saved, .. } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
@@ -299,15 +326,25 @@ impl Rod {
         hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
+        let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
+        let largest_turn = (0..self.edge_count())
+            .map(|edge| {
+                let e = self.positions[edge + 1] - self.positions[edge];
+                let change = node_update(edge + 1) - node_update(edge);
+                let along = change.dot(e) / e.length_squared();
+                // Turning, and shrinking towards a fold, both count as turning.
+                (change - along * e).length() / e.length() + (-along - 0.5).max(0.0)
+            })
+            .fold(0.0, f64::max);
+        let fraction = if largest_turn > params.max_rotation { params.max_rotation / largest_turn } else { 1.0 };
         for node in 0..self.node_count() {
-            let dof = node_dof(node);
-            self.positions[node] += DVec3::new(residual[dof], residual[dof + 1], residual[dof + 2]);
+            self.positions[node] += fraction * node_update(node);
         }
         for edge in 0..self.edge_count() {
-            self.twist[edge] += residual[twist_dof(edge)];
+            self.twist[edge] += fraction * residual[twist_dof(edge)];
         }
         self.refresh_frames();
-        Ok(())
+        Ok(fraction)
     }
 }
 
@@ -317,18 +354,20 @@ struct ProjectionScratch {
     diagonal: Vec<f64>,
     upper: Vec<f64>,
     multipliers: Vec<f64>,
+    start: Vec<DVec3>,
 }
 
 /// Fast projection onto the inextensibility constraints `C_j = e_j·e_j / |ē_j| − |ē_j| = 0`
 /// (Goldenthal et al. 2007): repeats `x ← x − M⁻¹ ∇Cᵀ λ` with `(∇C M⁻¹ ∇Cᵀ) λ = C`, a tridiagonal
-/// system, until every strain is within tolerance. Prescribed nodes have infinite mass.
+/// system, until every strain is within tolerance. Prescribed nodes have infinite mass. Far from the
+/// constraints a full Newton step can overshoot; it is then halved until the largest strain drops.
 /// Returns the number of iterations taken.
 fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
     let inverse_mass = |rod: &Rod, node: usize| if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] };
-    let ProjectionScratch { diagonal, upper, multipliers } = scratch;
+    let ProjectionScratch { diagonal, upper, multipliers, start } = scratch;
+    let (_, mut strain) = rod.max_strain();
     for iteration in 0..params.max_projection_iterations {
-        let (_, strain) = rod.max_strain();
         if strain <= params.strain_tolerance {
             return iteration;
         }
@@ -355,12 +394,23 @@ fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut Projec
             }
         }
         solve_tridiagonal(diagonal, upper, multipliers);
-        for edge in 0..edge_count {
-            let e = rod.positions[edge + 1] - rod.positions[edge];
-            let impulse = 2.0 * multipliers[edge] / rod.rest_lengths[edge] * e;
-            let (start_weight, end_weight) = (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
-            rod.positions[edge] += start_weight * impulse;
-            rod.positions[edge + 1] -= end_weight * impulse;
+        copy_into(start, &rod.positions);
+        let mut fraction = 1.0;
+        loop {
+            for edge in 0..edge_count {
+                let e = start[edge + 1] - start[edge];
+                let impulse = 2.0 * fraction * multipliers[edge] / rod.rest_lengths[edge] * e;
+                let (start_weight, end_weight) = (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
+                rod.positions[edge] += start_weight * impulse;
+                rod.positions[edge + 1] -= end_weight * impulse;
+            }
+            let (_, projected) = rod.max_strain();
+            if projected < strain || fraction < 1e-3 {
+                strain = projected;
+                break;
+            }
+            rod.positions.copy_from_slice(start);
+            fraction *= 0.5;
         }
     }
     params.max_projection_iterations

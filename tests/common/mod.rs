@@ -1,0 +1,29 @@
+//! Helpers shared by the mechanics tests.
+#![allow(dead_code)]
+
+use bevy::math::DVec3;
+use bevy_hair_sim::rod::{Rod, RodMaterial, RodWorkspace, StepParams};
+
+/// `edges + 1` evenly spaced nodes from the origin along `direction`, `length` m long.
+pub fn straight_nodes(length: f64, edges: usize, direction: DVec3) -> Vec<DVec3> {
+    (0..=edges).map(|i| direction * (length * i as f64 / edges as f64)).collect()
+}
+
+/// The thick stiff test rod of the issue: r = 1 mm, E = 10 GPa, ρ = 1000 kg/m³, ν = 0.5.
+pub fn stiff_rod_material() -> RodMaterial {
+    RodMaterial::round(1e-3, 1e10, 0.5, 1000.0)
+}
+
+/// Steps `rod` `steps` times, panicking with the step's error if one fails.
+pub fn run(rod: &mut Rod, params: &StepParams, steps: usize, workspace: &mut RodWorkspace) {
+    for step in 0..steps {
+        if let Err(error) = rod.step(params, None, workspace) {
+            panic!("step {step} failed: {error}");
+        }
+    }
+}
+
+/// Largest node speed, m/s.
+pub fn max_speed(rod: &Rod) -> f64 {
+    rod.velocities().iter().map(|v| v.length()).fold(0.0, f64::max)
+}
