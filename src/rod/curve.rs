@@ -344,18 +344,20 @@ impl Rod {
         }
     }
 
-    /// Sets the twist of every clamped edge so that its `m1` points along the clamp's material direction,
-    /// continuing from the edge's current twist (turning a clamp by 3π is three half turns, not one).
-    pub(crate) fn apply_twist_targets(&mut self) {
-        for edge in 0..self.edge_count() {
-            if let Some(direction) = self.twist_targets[edge] {
-                let tangent = self.tangents[edge];
-                let reference = self.reference_directors[edge];
-                let Some(target) = perpendicular_unit(direction, tangent) else { continue };
-                let angle = signed_angle(reference, target, tangent);
-                self.twist[edge] += wrap_angle(angle - self.twist[edge]);
-            }
-        }
+    /// The change of `θ^edge` that turns the edge's `m1` onto its clamp's material direction once the
+    /// edge lies along its prescribed nodes (the reference director carried there by parallel transport),
+    /// continuing from the current twist so that turning a clamp by 3π is three half turns, not one.
+    /// `None` when the edge's twist is free.
+    pub(crate) fn twist_target_offset(&self, edge: usize) -> Option<f64> {
+        let direction = self.twist_targets[edge]?;
+        let tangent = match (self.node_targets[edge], self.node_targets[edge + 1]) {
+            (Some(start), Some(end)) => (end - start).normalize_or(self.tangents[edge]),
+            _ => self.tangents[edge],
+        };
+        let reference = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
+        let target = perpendicular_unit(direction, tangent)?;
+        let angle = signed_angle(reference, target, tangent);
+        Some(wrap_angle(angle - self.twist[edge]))
     }
 
     fn check_node(&self, node: usize) -> Result<(), RodError> {

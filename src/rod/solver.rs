@@ -16,12 +16,13 @@
 //! [`StepParams::strain_tolerance`] without the rotation locking a stiff spring would cause. Velocities
 //! are the projected displacement over `dt`.
 
-use bevy::math::DVec3;
+use bevy::math::{DMat3, DVec3};
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
 use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
+use super::frames::{perpendicular_unit, signed_angle};
 
 /// Parameters of one time step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,20 +58,20 @@ pub struct StepParams {
 }
 
 impl Default for StepParams {
-    /// 1/60 s, Earth gravity along −Y, air damping 1/s, internal damping 1 ms, up to 4 Newton
-    /// iterations (linearisation strain 1 %, turns of 0.5 rad), strain tolerance 1e-6, 8 projection
+    /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
+    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, 16 projection
     /// iterations, divergence at 5 % strain.
     fn default() -> Self {
         Self {
             dt: 1.0 / 60.0,
             gravity: DVec3::new(0.0, -9.81, 0.0),
-            air_damping: 1.0,
+            air_damping: 3.0,
             internal_damping: 1e-3,
             max_newton_iterations: 4,
             newton_strain_tolerance: 0.01,
-            max_rotation: 0.5,
+            max_rotation: 0.25,
             strain_tolerance: 1e-6,
-            max_projection_iterations: 8,
+            max_projection_iterations: 16,
             divergence_strain: 0.05,
         }
     }
@@ -128,6 +129,8 @@ pub struct RodWorkspace {
     residual: Vec<f64>,
     displacement: Vec<f64>,
     damping_force: Vec<f64>,
+    prescribed: Vec<f64>,
+    material_directions: Vec<DVec3>,
     edges: Vec<EdgeGeometry>,
     saved: SavedState,
     projection: ProjectionScratch,
@@ -209,22 +212,21 @@ impl Rod {
         external_forces: Option<&[DVec3]>,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
-        for (position, target) in self.positions.iter_mut().zip(&self.node_targets) {
-            if let Some(target) = target {
-                *position = *target;
-            }
-        }
-        self.refresh_frames();
-        self.apply_twist_targets();
+        self.carry_with_first_clamp(&mut workspace.material_directions);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
-        while newton_iterations < params.max_newton_iterations {
+        loop {
             newton_iterations += 1;
             let fraction = self.newton_iteration(params, external_forces, workspace)?;
             let (_, linearisation_strain) = self.max_strain();
+            let converged = fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance;
+            let last = converged || newton_iterations == params.max_newton_iterations;
+            if last {
+                self.snap_to_targets();
+            }
             projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
             self.refresh_frames();
-            if fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance {
+            if last {
                 break;
             }
         }
@@ -252,6 +254,57 @@ impl Rod {
         Ok(StepReport { max_strain, newton_iterations, projection_iterations })
     }
 
+    /// The first guess of a step: the rod carried rigidly with the motion of its first clamped edge
+    /// (position, tangent and material frame) from where it is to its targets. Only the starting point
+    /// of the Newton iterations changes, not the equations they solve; starting here, the iterations
+    /// need only resolve the hair's motion relative to its root, which is what their linearisation and
+    /// trust region handle well, even when a head moves centimetres per step.
+    fn carry_with_first_clamp(&mut self, material_directions: &mut Vec<DVec3>) {
+        let clamped = |edge: usize| {
+            self.twist_targets[edge].is_some() && self.node_targets[edge].is_some() && self.node_targets[edge + 1].is_some()
+        };
+        let Some(edge) = (0..self.edge_count()).find(|&edge| clamped(edge)) else { return };
+        let (Some(start), Some(end), Some(direction)) =
+            (self.node_targets[edge], self.node_targets[edge + 1], self.twist_targets[edge])
+        else {
+            return;
+        };
+        let old = self.material_frame(edge);
+        let tangent = (end - start).normalize_or(old.tangent);
+        let Some(m1) = perpendicular_unit(direction, tangent) else { return };
+        let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1)) * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
+        let pivot = self.positions[edge];
+        material_directions.clear();
+        material_directions.extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
+        for (node, position) in self.positions.iter_mut().enumerate() {
+            *position = match self.node_targets[node] {
+                Some(target) if node == edge || node == edge + 1 => target,
+                _ => start + rotation * (*position - pivot),
+            };
+        }
+        self.refresh_frames();
+        for (e, carried) in material_directions.iter().enumerate() {
+            let frame = self.material_frame(e);
+            self.twist[e] += signed_angle(frame.m1, *carried, frame.tangent);
+        }
+    }
+
+    /// Puts prescribed nodes exactly on their targets and clamped edges exactly at their twist, in
+    /// case a Newton update was scaled down before getting there.
+    fn snap_to_targets(&mut self) {
+        for (position, target) in self.positions.iter_mut().zip(&self.node_targets) {
+            if let Some(target) = target {
+                *position = *target;
+            }
+        }
+        self.refresh_frames();
+        for edge in 0..self.edge_count() {
+            if let Some(offset) = self.twist_target_offset(edge) {
+                self.twist[edge] += offset;
+            }
+        }
+    }
+
     /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
     /// fraction of the Newton update that was applied (below 1 when the trust region limited it).
     fn newton_iteration(
@@ -261,7 +314,7 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<f64, StepError> {
         let size = dof_count(self.node_count());
-        let RodWorkspace { hessian, residual, displacement, damping_force, edges, saved, .. } = workspace;
+        let RodWorkspace { hessian, residual, displacement, damping_force, prescribed, edges, saved, .. } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
 
         edge_geometry(self, edges);
@@ -312,15 +365,38 @@ impl Rod {
             hessian.add(dof, dof, inertia * inertia_scale);
         }
 
-        for node in (0..self.node_count()).filter(|&node| self.node_targets[node].is_some()) {
-            for dof in node_dof(node)..node_dof(node) + 3 {
-                hessian.set_identity_row(dof);
-                residual[dof] = 0.0;
+        // Prescribed unknowns move by their remaining displacement `d`: their rows become identity rows
+        // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
+        prescribed.clear();
+        prescribed.resize(size, 0.0);
+        let mut any_prescribed = false;
+        for node in 0..self.node_count() {
+            if let Some(target) = self.node_targets[node] {
+                let offset = target - self.positions[node];
+                prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
+                any_prescribed = true;
             }
         }
-        for edge in (0..self.edge_count()).filter(|&edge| self.twist_targets[edge].is_some()) {
-            hessian.set_identity_row(twist_dof(edge));
-            residual[twist_dof(edge)] = 0.0;
+        for edge in 0..self.edge_count() {
+            if let Some(offset) = self.twist_target_offset(edge) {
+                prescribed[twist_dof(edge)] = offset;
+                any_prescribed = true;
+            }
+        }
+        if any_prescribed {
+            damping_force.resize(size, 0.0);
+            hessian.multiply(prescribed, damping_force);
+            for (r, coupling) in residual.iter_mut().zip(damping_force.iter()) {
+                *r += coupling;
+            }
+        }
+        let prescribed_dofs = (0..self.node_count())
+            .filter(|&node| self.node_targets[node].is_some())
+            .flat_map(|node| node_dof(node)..node_dof(node) + 3)
+            .chain((0..self.edge_count()).filter(|&edge| self.twist_targets[edge].is_some()).map(twist_dof));
+        for dof in prescribed_dofs {
+            hessian.set_identity_row(dof);
+            residual[dof] = -prescribed[dof];
         }
 
         hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
@@ -328,6 +404,7 @@ impl Rod {
         hessian.solve_factorized(residual);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let largest_turn = (0..self.edge_count())
+            .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
             .map(|edge| {
                 let e = self.positions[edge + 1] - self.positions[edge];
                 let change = node_update(edge + 1) - node_update(edge);
@@ -360,8 +437,8 @@ struct ProjectionScratch {
 /// Fast projection onto the inextensibility constraints `C_j = e_j·e_j / |ē_j| − |ē_j| = 0`
 /// (Goldenthal et al. 2007): repeats `x ← x − M⁻¹ ∇Cᵀ λ` with `(∇C M⁻¹ ∇Cᵀ) λ = C`, a tridiagonal
 /// system, until every strain is within tolerance. Prescribed nodes have infinite mass. Far from the
-/// constraints a full Newton step can overshoot; it is then halved until the largest strain drops.
-/// Returns the number of iterations taken.
+/// constraints a Newton step can overshoot: it is halved until the largest strain drops, and after four
+/// halvings replaced by a Gauss–Seidel sweep of exact per-edge projections. Returns the iterations taken.
 fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
     let inverse_mass = |rod: &Rod, node: usize| if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] };
@@ -405,15 +482,40 @@ fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut Projec
                 rod.positions[edge + 1] -= end_weight * impulse;
             }
             let (_, projected) = rod.max_strain();
-            if projected < strain || fraction < 1e-3 {
+            if projected < strain {
                 strain = projected;
                 break;
             }
             rod.positions.copy_from_slice(start);
+            if fraction < 0.1 {
+                // Too far from the constraints for Newton: exact per-edge projections cannot overshoot.
+                gauss_seidel_sweep(rod);
+                strain = rod.max_strain().1;
+                break;
+            }
             fraction *= 0.5;
         }
     }
     params.max_projection_iterations
+}
+
+/// One symmetric Gauss–Seidel sweep (root to tip, then back) of exact, mass-weighted projections of
+/// each edge onto its rest length. Slower than Newton near the constraints but robust far from them.
+fn gauss_seidel_sweep(rod: &mut Rod) {
+    let edge_count = rod.edge_count();
+    for edge in (0..edge_count).chain((0..edge_count).rev()) {
+        let weight = |node: usize| if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] };
+        let (start_weight, end_weight) = (weight(edge), weight(edge + 1));
+        let total = start_weight + end_weight;
+        let e = rod.positions[edge + 1] - rod.positions[edge];
+        let length = e.length();
+        if total == 0.0 || length == 0.0 {
+            continue;
+        }
+        let correction = (length - rod.rest_lengths[edge]) / (length * total) * e;
+        rod.positions[edge] += start_weight * correction;
+        rod.positions[edge + 1] -= end_weight * correction;
+    }
 }
 
 /// Solves a symmetric positive-definite tridiagonal system in place (Thomas algorithm): `diagonal` and
