@@ -49,7 +49,11 @@ impl BandedMatrix {
     /// Adds `value` to the symmetric entry `(row, column)`; either order of indices is accepted.
     #[inline]
     pub fn add(&mut self, row: usize, column: usize, value: f64) {
-        let (row, column) = if row >= column { (row, column) } else { (column, row) };
+        let (row, column) = if row >= column {
+            (row, column)
+        } else {
+            (column, row)
+        };
         let index = self.index(row, column);
         self.values[index] += value;
     }
@@ -124,19 +128,16 @@ impl BandedMatrix {
         for row in 0..self.size {
             let first = row.saturating_sub(self.bandwidth);
             let base = row * width + self.bandwidth - row;
-            let mut sum = rhs[row];
-            for k in first..row {
-                sum -= self.values[base + k] * rhs[k];
-            }
-            rhs[row] = sum / self.values[base + row];
+            let band = &self.values[base + first..base + row];
+            let known: f64 = band.iter().zip(&rhs[first..row]).map(|(l, x)| l * x).sum();
+            rhs[row] = (rhs[row] - known) / self.values[base + row];
         }
         for row in (0..self.size).rev() {
             let last = (row + self.bandwidth).min(self.size - 1);
-            let mut sum = rhs[row];
-            for k in row + 1..=last {
-                sum -= self.values[k * width + self.bandwidth - k + row] * rhs[k];
-            }
-            rhs[row] = sum / self.values[row * width + self.bandwidth];
+            let known: f64 = (row + 1..=last)
+                .map(|k| self.values[k * width + self.bandwidth - k + row] * rhs[k])
+                .sum();
+            rhs[row] = (rhs[row] - known) / self.values[row * width + self.bandwidth];
         }
     }
 }
@@ -144,35 +145,42 @@ impl BandedMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn pseudo_random(seed: &mut u64) -> f64 {
-        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        ((*seed >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-    }
+    use crate::rod::test_support::Lcg;
 
     #[test]
     fn cholesky_solves_a_random_banded_system() {
         let (size, bandwidth) = (37, 10);
-        let mut seed = 7;
-        let mut dense = vec![vec![0.0; size]; size];
+        let mut random = Lcg(7);
         let mut banded = BandedMatrix::default();
         banded.reset(size, bandwidth);
         for row in 0..size {
             for column in row.saturating_sub(bandwidth)..row {
-                let value = pseudo_random(&mut seed);
-                dense[row][column] = value;
-                dense[column][row] = value;
-                banded.add(row, column, value);
+                banded.add(row, column, random.next());
             }
-            dense[row][row] = 2.0 * bandwidth as f64;
             banded.add(row, row, 2.0 * bandwidth as f64);
         }
-        let expected: Vec<f64> = (0..size).map(|_| pseudo_random(&mut seed)).collect();
-        let mut rhs: Vec<f64> = dense.iter().map(|row| row.iter().zip(&expected).map(|(a, x)| a * x).sum()).collect();
+        let entry = |r: usize, c: usize| {
+            if r.abs_diff(c) <= bandwidth {
+                banded.get(r.max(c), r.min(c))
+            } else {
+                0.0
+            }
+        };
+        let dense: Vec<Vec<f64>> = (0..size)
+            .map(|r| (0..size).map(|c| entry(r, c)).collect())
+            .collect();
+        let expected: Vec<f64> = (0..size).map(|_| random.next()).collect();
+        let mut rhs: Vec<f64> = dense
+            .iter()
+            .map(|row| row.iter().zip(&expected).map(|(a, x)| a * x).sum())
+            .collect();
         let mut product = vec![0.0; size];
         banded.multiply(&expected, &mut product);
         for (a, b) in product.iter().zip(&rhs) {
-            assert!((a - b).abs() < 1e-12, "band product matches the dense product");
+            assert!(
+                (a - b).abs() < 1e-12,
+                "band product matches the dense product"
+            );
         }
         banded.factorize().expect("diagonally dominant");
         banded.solve_factorized(&mut rhs);
@@ -196,11 +204,21 @@ mod tests {
     fn identity_rows_decouple_an_unknown() {
         let mut banded = BandedMatrix::default();
         banded.reset(3, 2);
-        for (r, c, v) in [(0, 0, 4.0), (1, 0, 1.0), (1, 1, 4.0), (2, 0, 1.0), (2, 1, 1.0), (2, 2, 4.0)] {
+        for (r, c, v) in [
+            (0, 0, 4.0),
+            (1, 0, 1.0),
+            (1, 1, 4.0),
+            (2, 0, 1.0),
+            (2, 1, 1.0),
+            (2, 2, 4.0),
+        ] {
             banded.add(r, c, v);
         }
         banded.set_identity_row(1);
-        assert_eq!((banded.get(1, 0), banded.get(2, 1), banded.get(1, 1)), (0.0, 0.0, 1.0));
+        assert_eq!(
+            (banded.get(1, 0), banded.get(2, 1), banded.get(1, 1)),
+            (0.0, 0.0, 1.0)
+        );
         assert_eq!(banded.get(2, 0), 1.0);
     }
 }

@@ -20,7 +20,9 @@ use bevy::math::{DMat3, DVec3};
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
-use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
+use super::energy::{
+    BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof,
+};
 use super::error::{RodError, StepError};
 use super::frames::{perpendicular_unit, signed_angle};
 
@@ -80,14 +82,23 @@ impl Default for StepParams {
 impl StepParams {
     /// Checks that every parameter is in its valid range.
     pub fn validate(&self) -> Result<(), RodError> {
-        let invalid = |parameter, value, requirement| Err(RodError::InvalidStepParameter { parameter, value, requirement });
+        let invalid = |parameter, value, requirement| {
+            Err(RodError::InvalidStepParameter {
+                parameter,
+                value,
+                requirement,
+            })
+        };
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return invalid("dt", self.dt, "must be positive and finite");
         }
         if !self.gravity.is_finite() {
             return invalid("gravity", f64::NAN, "must be finite");
         }
-        for (name, value) in [("air_damping", self.air_damping), ("internal_damping", self.internal_damping)] {
+        for (name, value) in [
+            ("air_damping", self.air_damping),
+            ("internal_damping", self.internal_damping),
+        ] {
             if !(value.is_finite() && value >= 0.0) {
                 return invalid(name, value, "must be zero or positive and finite");
             }
@@ -95,16 +106,27 @@ impl StepParams {
         if self.max_newton_iterations == 0 {
             return invalid("max_newton_iterations", 0.0, "must be at least 1");
         }
-        for (name, value) in [("newton_strain_tolerance", self.newton_strain_tolerance), ("max_rotation", self.max_rotation)] {
+        for (name, value) in [
+            ("newton_strain_tolerance", self.newton_strain_tolerance),
+            ("max_rotation", self.max_rotation),
+        ] {
             if !(value.is_finite() && value > 0.0) {
                 return invalid(name, value, "must be positive and finite");
             }
         }
         if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
-            return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
+            return invalid(
+                "strain_tolerance",
+                self.strain_tolerance,
+                "must be positive and finite",
+            );
         }
         if !(self.divergence_strain > self.strain_tolerance && self.divergence_strain.is_finite()) {
-            return invalid("divergence_strain", self.divergence_strain, "must be finite and above strain_tolerance");
+            return invalid(
+                "divergence_strain",
+                self.divergence_strain,
+                "must be finite and above strain_tolerance",
+            );
         }
         Ok(())
     }
@@ -168,7 +190,8 @@ impl SavedState {
     fn restore_at_rest(&self, rod: &mut Rod) {
         rod.positions.copy_from_slice(&self.positions);
         rod.twist.copy_from_slice(&self.twist);
-        rod.reference_directors.copy_from_slice(&self.reference_directors);
+        rod.reference_directors
+            .copy_from_slice(&self.reference_directors);
         rod.tangents.copy_from_slice(&self.tangents);
         rod.reference_twist.copy_from_slice(&self.reference_twist);
         rod.velocities.fill(DVec3::ZERO);
@@ -192,7 +215,11 @@ impl Rod {
         params.validate()?;
         if let Some(forces) = external_forces {
             if forces.len() != self.node_count() {
-                return Err(RodError::WrongLength { expected: self.node_count(), actual: forces.len() }.into());
+                return Err(RodError::WrongLength {
+                    expected: self.node_count(),
+                    actual: forces.len(),
+                }
+                .into());
             }
             if let Some((node, &force)) = forces.iter().enumerate().find(|(_, f)| !f.is_finite()) {
                 return Err(RodError::NonFiniteForce { node, force }.into());
@@ -219,7 +246,8 @@ impl Rod {
             newton_iterations += 1;
             let fraction = self.newton_iteration(params, external_forces, workspace)?;
             let (_, linearisation_strain) = self.max_strain();
-            let converged = fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance;
+            let converged =
+                fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance;
             let last = converged || newton_iterations == params.max_newton_iterations;
             if last {
                 self.snap_to_targets();
@@ -249,9 +277,17 @@ impl Rod {
         }
         let (edge, max_strain) = self.max_strain();
         if max_strain > params.divergence_strain {
-            return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
+            return Err(StepError::OverStrained {
+                edge,
+                strain: max_strain,
+                limit: params.divergence_strain,
+            });
         }
-        Ok(StepReport { max_strain, newton_iterations, projection_iterations })
+        Ok(StepReport {
+            max_strain,
+            newton_iterations,
+            projection_iterations,
+        })
     }
 
     /// The first guess of a step: the rod carried rigidly with the motion of its first clamped edge
@@ -261,21 +297,31 @@ impl Rod {
     /// trust region handle well, even when a head moves centimetres per step.
     fn carry_with_first_clamp(&mut self, material_directions: &mut Vec<DVec3>) {
         let clamped = |edge: usize| {
-            self.twist_targets[edge].is_some() && self.node_targets[edge].is_some() && self.node_targets[edge + 1].is_some()
+            self.twist_targets[edge].is_some()
+                && self.node_targets[edge].is_some()
+                && self.node_targets[edge + 1].is_some()
         };
-        let Some(edge) = (0..self.edge_count()).find(|&edge| clamped(edge)) else { return };
-        let (Some(start), Some(end), Some(direction)) =
-            (self.node_targets[edge], self.node_targets[edge + 1], self.twist_targets[edge])
-        else {
+        let Some(edge) = (0..self.edge_count()).find(|&edge| clamped(edge)) else {
+            return;
+        };
+        let (Some(start), Some(end), Some(direction)) = (
+            self.node_targets[edge],
+            self.node_targets[edge + 1],
+            self.twist_targets[edge],
+        ) else {
             return;
         };
         let old = self.material_frame(edge);
         let tangent = (end - start).normalize_or(old.tangent);
-        let Some(m1) = perpendicular_unit(direction, tangent) else { return };
-        let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1)) * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
+        let Some(m1) = perpendicular_unit(direction, tangent) else {
+            return;
+        };
+        let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1))
+            * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
         let pivot = self.positions[edge];
         material_directions.clear();
-        material_directions.extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
+        material_directions
+            .extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
         for (node, position) in self.positions.iter_mut().enumerate() {
             *position = match self.node_targets[node] {
                 Some(target) if node == edge || node == edge + 1 => target,
@@ -314,7 +360,16 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<f64, StepError> {
         let size = dof_count(self.node_count());
-        let RodWorkspace { hessian, residual, displacement, damping_force, prescribed, edges, saved, .. } = workspace;
+        let RodWorkspace {
+            hessian,
+            residual,
+            displacement,
+            damping_force,
+            prescribed,
+            edges,
+            saved,
+            ..
+        } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
 
         edge_geometry(self, edges);
@@ -349,7 +404,8 @@ impl Rod {
                 force += forces[node];
             }
             let offset = self.positions[node] - saved.positions[node];
-            let inertial = mass / (dt * dt) * (offset - dt * saved.velocities[node]) + gamma * mass / dt * offset;
+            let inertial = mass / (dt * dt) * (offset - dt * saved.velocities[node])
+                + gamma * mass / dt * offset;
             let residual_node = inertial - force;
             for axis in 0..3 {
                 let dof = node_dof(node) + axis;
@@ -361,7 +417,8 @@ impl Rod {
             let inertia = self.twist_inertias[edge];
             let offset = self.twist[edge] - saved.twist[edge];
             let dof = twist_dof(edge);
-            residual[dof] += inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
+            residual[dof] += inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge])
+                + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
 
@@ -393,18 +450,27 @@ impl Rod {
         let prescribed_dofs = (0..self.node_count())
             .filter(|&node| self.node_targets[node].is_some())
             .flat_map(|node| node_dof(node)..node_dof(node) + 3)
-            .chain((0..self.edge_count()).filter(|&edge| self.twist_targets[edge].is_some()).map(twist_dof));
+            .chain(
+                (0..self.edge_count())
+                    .filter(|&edge| self.twist_targets[edge].is_some())
+                    .map(twist_dof),
+            );
         for dof in prescribed_dofs {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];
         }
 
-        hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
+        hessian
+            .factorize()
+            .map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
-        let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
+        let node_update =
+            |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let largest_turn = (0..self.edge_count())
-            .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
+            .filter(|&edge| {
+                self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none()
+            })
             .map(|edge| {
                 let e = self.positions[edge + 1] - self.positions[edge];
                 let change = node_update(edge + 1) - node_update(edge);
@@ -413,7 +479,11 @@ impl Rod {
                 (change - along * e).length() / e.length() + (-along - 0.5).max(0.0)
             })
             .fold(0.0, f64::max);
-        let fraction = if largest_turn > params.max_rotation { params.max_rotation / largest_turn } else { 1.0 };
+        let fraction = if largest_turn > params.max_rotation {
+            params.max_rotation / largest_turn
+        } else {
+            1.0
+        };
         for node in 0..self.node_count() {
             self.positions[node] += fraction * node_update(node);
         }
@@ -439,10 +509,25 @@ struct ProjectionScratch {
 /// system, until every strain is within tolerance. Prescribed nodes have infinite mass. Far from the
 /// constraints a Newton step can overshoot: it is halved until the largest strain drops, and after four
 /// halvings replaced by a Gauss–Seidel sweep of exact per-edge projections. Returns the iterations taken.
-fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
+fn project_edge_lengths(
+    rod: &mut Rod,
+    params: &StepParams,
+    scratch: &mut ProjectionScratch,
+) -> u32 {
     let edge_count = rod.edge_count();
-    let inverse_mass = |rod: &Rod, node: usize| if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] };
-    let ProjectionScratch { diagonal, upper, multipliers, start } = scratch;
+    let inverse_mass = |rod: &Rod, node: usize| {
+        if rod.node_targets[node].is_some() {
+            0.0
+        } else {
+            1.0 / rod.masses[node]
+        }
+    };
+    let ProjectionScratch {
+        diagonal,
+        upper,
+        multipliers,
+        start,
+    } = scratch;
     let (_, mut strain) = rod.max_strain();
     for iteration in 0..params.max_projection_iterations {
         if strain <= params.strain_tolerance {
@@ -477,7 +562,8 @@ fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut Projec
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
                 let impulse = 2.0 * fraction * multipliers[edge] / rod.rest_lengths[edge] * e;
-                let (start_weight, end_weight) = (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
+                let (start_weight, end_weight) =
+                    (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
                 rod.positions[edge] += start_weight * impulse;
                 rod.positions[edge + 1] -= end_weight * impulse;
             }
@@ -504,7 +590,13 @@ fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut Projec
 fn gauss_seidel_sweep(rod: &mut Rod) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
-        let weight = |node: usize| if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] };
+        let weight = |node: usize| {
+            if rod.node_targets[node].is_some() {
+                0.0
+            } else {
+                1.0 / rod.masses[node]
+            }
+        };
         let (start_weight, end_weight) = (weight(edge), weight(edge + 1));
         let total = start_weight + end_weight;
         let e = rod.positions[edge + 1] - rod.positions[edge];
@@ -563,18 +655,29 @@ mod tests {
 
     #[test]
     fn invalid_parameters_are_rejected_without_change() {
-        let nodes: Vec<DVec3> = (0..5).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect();
+        let nodes: Vec<DVec3> = (0..5)
+            .map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0))
+            .collect();
         let mut rod = Rod::new(&nodes, DVec3::Y, super::super::RodMaterial::human_hair()).unwrap();
         let mut workspace = RodWorkspace::default();
-        let params = StepParams { dt: -1.0, ..Default::default() };
+        let params = StepParams {
+            dt: -1.0,
+            ..Default::default()
+        };
         assert!(matches!(
             rod.step(&params, None, &mut workspace),
-            Err(StepError::InvalidInput(RodError::InvalidStepParameter { parameter: "dt", .. }))
+            Err(StepError::InvalidInput(RodError::InvalidStepParameter {
+                parameter: "dt",
+                ..
+            }))
         ));
         let forces = vec![DVec3::ZERO; 3];
         assert!(matches!(
             rod.step(&StepParams::default(), Some(&forces), &mut workspace),
-            Err(StepError::InvalidInput(RodError::WrongLength { expected: 5, actual: 3 }))
+            Err(StepError::InvalidInput(RodError::WrongLength {
+                expected: 5,
+                actual: 3
+            }))
         ));
         assert_eq!(rod.positions(), &nodes[..]);
     }
