@@ -20,18 +20,10 @@ fn settled_deflection(edges: usize) -> f64 {
     let nodes = straight_nodes(LENGTH, edges, DVec3::X);
     let mut rod = Rod::new(&nodes, DVec3::Y, stiff_rod_material()).unwrap();
     rod.clamp_root_in_place();
-    let params = StepParams {
-        dt: 1.0 / 60.0,
-        air_damping: 5.0,
-        ..Default::default()
-    };
+    let params = StepParams { dt: 1.0 / 60.0, air_damping: 5.0, ..Default::default() };
     let mut workspace = RodWorkspace::default();
     run(&mut rod, &params, 600, &mut workspace);
-    assert!(
-        max_speed(&rod) < 1e-7,
-        "settled: speed {:e} m/s",
-        max_speed(&rod)
-    );
+    assert!(max_speed(&rod) < 1e-7, "settled: speed {:e} m/s", max_speed(&rod));
     -rod.positions()[edges].y
 }
 
@@ -55,13 +47,6 @@ fn tip_deflection_matches_der_convergence_and_extrapolates_to_euler_bernoulli() 
     let (n2, d2) = measured[2];
     let extrapolated = (n2 * d2 - n1 * d1) / (n2 - n1);
     let error = extrapolated / delta - 1.0;
-    println!(
-        "extrapolated from 20 and 50 edges: {extrapolated:.6e} m, {:+.3} %",
-        100.0 * error
-    );
-    assert!(
-        error.abs() < 0.005,
-        "extrapolation misses δ by {:.3} %",
-        100.0 * error
-    );
+    println!("extrapolated from 20 and 50 edges: {extrapolated:.6e} m, {:+.3} %", 100.0 * error);
+    assert!(error.abs() < 0.005, "extrapolation misses δ by {:.3} %", 100.0 * error);
 }

@@ -12,25 +12,15 @@ fn helix(edges: usize) -> Vec<DVec3> {
     (0..=edges)
         .map(|i| {
             let angle = 5.0 * PI * i as f64 / edges as f64;
-            DVec3::new(
-                0.01 * angle.cos(),
-                0.01 * angle.sin(),
-                0.015 * angle / (2.0 * PI),
-            )
+            DVec3::new(0.01 * angle.cos(), 0.01 * angle.sin(), 0.015 * angle / (2.0 * PI))
         })
         .collect()
 }
 
 #[test]
 fn helix_without_gravity_stays_at_rest() {
-    let no_gravity = StepParams {
-        gravity: DVec3::ZERO,
-        ..Default::default()
-    };
-    for (material, label) in [
-        (RodMaterial::human_hair(), "human hair"),
-        (stiff_rod_material(), "stiff rod"),
-    ] {
+    let no_gravity = StepParams { gravity: DVec3::ZERO, ..Default::default() };
+    for (material, label) in [(RodMaterial::human_hair(), "human hair"), (stiff_rod_material(), "stiff rod")] {
         for clamped in [false, true] {
             let nodes = helix(32);
             let mut rod = Rod::new(&nodes, DVec3::Z, material).unwrap();
@@ -39,18 +29,10 @@ fn helix_without_gravity_stays_at_rest() {
             }
             let mut workspace = RodWorkspace::default();
             run(&mut rod, &no_gravity, 600, &mut workspace);
-            let drift = rod
-                .positions()
-                .iter()
-                .zip(&nodes)
-                .map(|(p, q)| (*p - *q).length())
-                .fold(0.0, f64::max);
+            let drift = rod.positions().iter().zip(&nodes).map(|(p, q)| (*p - *q).length()).fold(0.0, f64::max);
             let relative = drift / rod.rest_length();
             println!("{label}, clamped {clamped}: drift {relative:e} of the length");
-            assert!(
-                relative < 1e-6,
-                "{label}, clamped {clamped}: drifted {relative:e} of its length"
-            );
+            assert!(relative < 1e-6, "{label}, clamped {clamped}: drifted {relative:e} of its length");
         }
     }
 }
@@ -61,9 +43,7 @@ fn analytic_tip(length: f64, edges: usize, k: f64, towards: DVec3) -> DVec3 {
     let edge = length / edges as f64;
     let arc = length - 0.5 * edge;
     let radius = 1.0 / k;
-    DVec3::new(0.5 * edge, 0.0, 0.0)
-        + radius * (k * arc).sin() * DVec3::X
-        + radius * (1.0 - (k * arc).cos()) * towards
+    DVec3::new(0.5 * edge, 0.0, 0.0) + radius * (k * arc).sin() * DVec3::X + radius * (1.0 - (k * arc).cos()) * towards
 }
 
 fn curl(length: f64, edges: usize, natural: DVec2) -> Rod {
@@ -71,18 +51,10 @@ fn curl(length: f64, edges: usize, natural: DVec2) -> Rod {
     let mut rod = Rod::new(&nodes, DVec3::Y, stiff_rod_material()).unwrap();
     rod.clamp_root_in_place();
     rod.set_natural_curvature(natural);
-    let params = StepParams {
-        gravity: DVec3::ZERO,
-        air_damping: 5.0,
-        ..Default::default()
-    };
+    let params = StepParams { gravity: DVec3::ZERO, air_damping: 5.0, ..Default::default() };
     let mut workspace = RodWorkspace::default();
     run(&mut rod, &params, 900, &mut workspace);
-    assert!(
-        max_speed(&rod) < 1e-6,
-        "settled: speed {:e} m/s",
-        max_speed(&rod)
-    );
+    assert!(max_speed(&rod) < 1e-6, "settled: speed {:e} m/s", max_speed(&rod));
     rod
 }
 
@@ -99,15 +71,8 @@ fn rest_curvature_curls_a_straight_rod_into_its_arc() {
         let tip = rod.positions()[edges];
         let expected = analytic_tip(length, edges, natural.length(), towards);
         let miss = (tip - expected).length() / length;
-        println!(
-            "κ̄ = {natural}: tip {tip}, arc {expected}, miss {:.4} % of L",
-            100.0 * miss
-        );
-        assert!(
-            miss < 0.01,
-            "κ̄ = {natural}: tip misses the arc by {:.3} % of L",
-            100.0 * miss
-        );
+        println!("κ̄ = {natural}: tip {tip}, arc {expected}, miss {:.4} % of L", 100.0 * miss);
+        assert!(miss < 0.01, "κ̄ = {natural}: tip misses the arc by {:.3} % of L", 100.0 * miss);
         assert!(rod.max_strain().1 < 1e-5);
     }
 }

@@ -49,11 +49,7 @@ impl BandedMatrix {
     /// Adds `value` to the symmetric entry `(row, column)`; either order of indices is accepted.
     #[inline]
     pub fn add(&mut self, row: usize, column: usize, value: f64) {
-        let (row, column) = if row >= column {
-            (row, column)
-        } else {
-            (column, row)
-        };
+        let (row, column) = if row >= column { (row, column) } else { (column, row) };
         let index = self.index(row, column);
         self.values[index] += value;
     }
@@ -134,9 +130,7 @@ impl BandedMatrix {
         }
         for row in (0..self.size).rev() {
             let last = (row + self.bandwidth).min(self.size - 1);
-            let known: f64 = (row + 1..=last)
-                .map(|k| self.values[k * width + self.bandwidth - k + row] * rhs[k])
-                .sum();
+            let known: f64 = (row + 1..=last).map(|k| self.values[k * width + self.bandwidth - k + row] * rhs[k]).sum();
             rhs[row] = (rhs[row] - known) / self.values[row * width + self.bandwidth];
         }
     }
@@ -160,27 +154,15 @@ mod tests {
             banded.add(row, row, 2.0 * bandwidth as f64);
         }
         let entry = |r: usize, c: usize| {
-            if r.abs_diff(c) <= bandwidth {
-                banded.get(r.max(c), r.min(c))
-            } else {
-                0.0
-            }
+            if r.abs_diff(c) <= bandwidth { banded.get(r.max(c), r.min(c)) } else { 0.0 }
         };
-        let dense: Vec<Vec<f64>> = (0..size)
-            .map(|r| (0..size).map(|c| entry(r, c)).collect())
-            .collect();
+        let dense: Vec<Vec<f64>> = (0..size).map(|r| (0..size).map(|c| entry(r, c)).collect()).collect();
         let expected: Vec<f64> = (0..size).map(|_| random.next()).collect();
-        let mut rhs: Vec<f64> = dense
-            .iter()
-            .map(|row| row.iter().zip(&expected).map(|(a, x)| a * x).sum())
-            .collect();
+        let mut rhs: Vec<f64> = dense.iter().map(|row| row.iter().zip(&expected).map(|(a, x)| a * x).sum()).collect();
         let mut product = vec![0.0; size];
         banded.multiply(&expected, &mut product);
         for (a, b) in product.iter().zip(&rhs) {
-            assert!(
-                (a - b).abs() < 1e-12,
-                "band product matches the dense product"
-            );
+            assert!((a - b).abs() < 1e-12, "band product matches the dense product");
         }
         banded.factorize().expect("diagonally dominant");
         banded.solve_factorized(&mut rhs);
@@ -204,21 +186,11 @@ mod tests {
     fn identity_rows_decouple_an_unknown() {
         let mut banded = BandedMatrix::default();
         banded.reset(3, 2);
-        for (r, c, v) in [
-            (0, 0, 4.0),
-            (1, 0, 1.0),
-            (1, 1, 4.0),
-            (2, 0, 1.0),
-            (2, 1, 1.0),
-            (2, 2, 4.0),
-        ] {
+        for (r, c, v) in [(0, 0, 4.0), (1, 0, 1.0), (1, 1, 4.0), (2, 0, 1.0), (2, 1, 1.0), (2, 2, 4.0)] {
             banded.add(r, c, v);
         }
         banded.set_identity_row(1);
-        assert_eq!(
-            (banded.get(1, 0), banded.get(2, 1), banded.get(1, 1)),
-            (0.0, 0.0, 1.0)
-        );
+        assert_eq!((banded.get(1, 0), banded.get(2, 1), banded.get(1, 1)), (0.0, 0.0, 1.0));
         assert_eq!(banded.get(2, 0), 1.0);
     }
 }

@@ -4,9 +4,7 @@
 use bevy::math::{DVec2, DVec3};
 
 use super::error::RodError;
-use super::frames::{
-    material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle,
-};
+use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
 use super::material::{RodMaterial, Stiffness};
 
 /// Edges shorter than this fraction of the rod's mean edge length are rejected as degenerate.
@@ -61,68 +59,34 @@ impl Rod {
     ///
     /// Rejects fewer than 3 nodes, non-finite nodes, (nearly) zero-length edges, edges folded back by
     /// 180°, a material direction parallel to the first edge, and invalid material parameters.
-    pub fn new(
-        positions: &[DVec3],
-        material_direction: DVec3,
-        material: RodMaterial,
-    ) -> Result<Self, RodError> {
+    pub fn new(positions: &[DVec3], material_direction: DVec3, material: RodMaterial) -> Result<Self, RodError> {
         material.validate()?;
         if positions.len() < 3 {
-            return Err(RodError::TooFewNodes {
-                nodes: positions.len(),
-            });
+            return Err(RodError::TooFewNodes { nodes: positions.len() });
         }
-        if let Some((node, &position)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite())
-        {
+        if let Some((node, &position)) = positions.iter().enumerate().find(|(_, p)| !p.is_finite()) {
             return Err(RodError::NonFiniteNode { node, position });
         }
         let node_count = positions.len();
         let edge_count = node_count - 1;
-        let rest_lengths: Vec<f64> = positions
-            .windows(2)
-            .map(|pair| (pair[1] - pair[0]).length())
-            .collect();
-        let minimum =
-            MIN_RELATIVE_EDGE_LENGTH * rest_lengths.iter().sum::<f64>() / edge_count as f64;
-        if let Some((edge, &length)) = rest_lengths
-            .iter()
-            .enumerate()
-            .find(|(_, l)| **l <= minimum)
-        {
-            return Err(RodError::DegenerateEdge {
-                edge,
-                length,
-                minimum,
-            });
+        let rest_lengths: Vec<f64> = positions.windows(2).map(|pair| (pair[1] - pair[0]).length()).collect();
+        let minimum = MIN_RELATIVE_EDGE_LENGTH * rest_lengths.iter().sum::<f64>() / edge_count as f64;
+        if let Some((edge, &length)) = rest_lengths.iter().enumerate().find(|(_, l)| **l <= minimum) {
+            return Err(RodError::DegenerateEdge { edge, length, minimum });
         }
-        let tangents: Vec<DVec3> = positions
-            .windows(2)
-            .map(|pair| (pair[1] - pair[0]).normalize())
-            .collect();
-        if let Some(edge) = tangents
-            .windows(2)
-            .position(|pair| 1.0 + pair[0].dot(pair[1]) < 1e-9)
-        {
+        let tangents: Vec<DVec3> = positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize()).collect();
+        if let Some(edge) = tangents.windows(2).position(|pair| 1.0 + pair[0].dot(pair[1]) < 1e-9) {
             return Err(RodError::FoldedEdges { edge });
         }
-        let first_director = perpendicular_unit(material_direction, tangents[0]).ok_or(
-            RodError::InvalidMaterialDirection {
-                edge: 0,
-                direction: material_direction,
-            },
-        )?;
+        let first_director = perpendicular_unit(material_direction, tangents[0])
+            .ok_or(RodError::InvalidMaterialDirection { edge: 0, direction: material_direction })?;
 
         // Space-parallel transport of the first director along the curve.
         let mut reference_directors = Vec::with_capacity(edge_count);
         reference_directors.push(first_director);
         for edge in 1..edge_count {
-            let carried = parallel_transport(
-                reference_directors[edge - 1],
-                tangents[edge - 1],
-                tangents[edge],
-            );
-            reference_directors
-                .push(perpendicular_unit(carried, tangents[edge]).unwrap_or(carried));
+            let carried = parallel_transport(reference_directors[edge - 1], tangents[edge - 1], tangents[edge]);
+            reference_directors.push(perpendicular_unit(carried, tangents[edge]).unwrap_or(carried));
         }
 
         let stiffness = material.stiffness();
@@ -139,14 +103,8 @@ impl Rod {
             reference_directors: reference_directors.clone(),
             tangents,
             reference_twist: vec![0.0; node_count],
-            masses: voronoi_lengths
-                .iter()
-                .map(|l| stiffness.linear_density * l)
-                .collect(),
-            twist_inertias: rest_lengths
-                .iter()
-                .map(|l| stiffness.twist_inertia_density * l)
-                .collect(),
+            masses: voronoi_lengths.iter().map(|l| stiffness.linear_density * l).collect(),
+            twist_inertias: rest_lengths.iter().map(|l| stiffness.twist_inertia_density * l).collect(),
             rest_lengths,
             voronoi_lengths,
             rest_curvature: vec![DVec2::ZERO; node_count],
@@ -230,8 +188,7 @@ impl Rod {
     /// The material frame of `edge`.
     pub fn material_frame(&self, edge: usize) -> MaterialFrame {
         let tangent = self.tangents[edge];
-        let (m1, m2) =
-            material_directors(self.reference_directors[edge], tangent, self.twist[edge]);
+        let (m1, m2) = material_directors(self.reference_directors[edge], tangent, self.twist[edge]);
         MaterialFrame { tangent, m1, m2 }
     }
 
@@ -241,10 +198,7 @@ impl Rod {
     pub fn vertex_curvature_and_twist(&self, vertex: usize) -> (DVec2, f64) {
         let (previous, next) = (self.material_frame(vertex - 1), self.material_frame(vertex));
         let binormal = super::frames::curvature_binormal(previous.tangent, next.tangent);
-        let kappa = DVec2::new(
-            0.5 * binormal.dot(previous.m2 + next.m2),
-            -0.5 * binormal.dot(previous.m1 + next.m1),
-        );
+        let kappa = DVec2::new(0.5 * binormal.dot(previous.m2 + next.m2), -0.5 * binormal.dot(previous.m1 + next.m1));
         let twist = self.twist[vertex] - self.twist[vertex - 1] + self.reference_twist[vertex];
         (kappa, twist)
     }
@@ -256,29 +210,19 @@ impl Rod {
             .zip(&self.rest_lengths)
             .map(|(pair, rest)| ((pair[1] - pair[0]).length() / rest - 1.0).abs())
             .enumerate()
-            .fold((0, 0.0), |best, (edge, strain)| {
-                if strain > best.1 || strain.is_nan() {
-                    (edge, strain)
-                } else {
-                    best
-                }
-            })
+            .fold(
+                (0, 0.0),
+                |best, (edge, strain)| {
+                    if strain > best.1 || strain.is_nan() { (edge, strain) } else { best }
+                },
+            )
     }
 
     /// Kinetic energy of the nodes and of the edges' spin about their axes, J.
     pub fn kinetic_energy(&self) -> f64 {
-        let translational: f64 = self
-            .masses
-            .iter()
-            .zip(&self.velocities)
-            .map(|(m, v)| 0.5 * m * v.length_squared())
-            .sum();
-        let spin: f64 = self
-            .twist_inertias
-            .iter()
-            .zip(&self.twist_rates)
-            .map(|(i, w)| 0.5 * i * w * w)
-            .sum();
+        let translational: f64 =
+            self.masses.iter().zip(&self.velocities).map(|(m, v)| 0.5 * m * v.length_squared()).sum();
+        let spin: f64 = self.twist_inertias.iter().zip(&self.twist_rates).map(|(i, w)| 0.5 * i * w * w).sum();
         translational + spin
     }
 
@@ -305,9 +249,7 @@ impl Rod {
         let magnitude = curvature_per_metre.length();
         for vertex in 1..self.edge_count() {
             self.rest_curvature[vertex] = if magnitude > 0.0 {
-                curvature_per_metre / magnitude
-                    * 2.0
-                    * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan()
+                curvature_per_metre / magnitude * 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan()
             } else {
                 DVec2::ZERO
             };
@@ -325,11 +267,7 @@ impl Rod {
         material_direction: DVec3,
     ) -> Result<(), RodError> {
         if edge >= self.edge_count() {
-            return Err(RodError::OutOfRange {
-                what: "edge",
-                index: edge,
-                count: self.edge_count(),
-            });
+            return Err(RodError::OutOfRange { what: "edge", index: edge, count: self.edge_count() });
         }
         for (node, target) in [(edge, start), (edge + 1, end)] {
             if !target.is_finite() {
@@ -338,10 +276,7 @@ impl Rod {
         }
         let tangent = (end - start).normalize_or_zero();
         if tangent == DVec3::ZERO || perpendicular_unit(material_direction, tangent).is_none() {
-            return Err(RodError::InvalidMaterialDirection {
-                edge,
-                direction: material_direction,
-            });
+            return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
         }
         self.node_targets[edge] = Some(start);
         self.node_targets[edge + 1] = Some(end);
@@ -361,10 +296,7 @@ impl Rod {
     pub fn pin_node(&mut self, node: usize, position: DVec3) -> Result<(), RodError> {
         self.check_node(node)?;
         if !position.is_finite() {
-            return Err(RodError::NonFiniteTarget {
-                node,
-                target: position,
-            });
+            return Err(RodError::NonFiniteTarget { node, target: position });
         }
         self.node_targets[node] = Some(position);
         Ok(())
@@ -380,11 +312,7 @@ impl Rod {
     /// Frees `edge`'s twist from its clamp (its nodes stay pinned until released).
     pub fn release_edge_twist(&mut self, edge: usize) -> Result<(), RodError> {
         if edge >= self.edge_count() {
-            return Err(RodError::OutOfRange {
-                what: "edge",
-                index: edge,
-                count: self.edge_count(),
-            });
+            return Err(RodError::OutOfRange { what: "edge", index: edge, count: self.edge_count() });
         }
         self.twist_targets[edge] = None;
         Ok(())
@@ -398,13 +326,8 @@ impl Rod {
     /// Puts the rod back in the shape and frames it was created with, at rest. Boundary conditions stay.
     pub fn reset(&mut self) {
         self.positions.copy_from_slice(&self.initial_positions);
-        self.reference_directors
-            .copy_from_slice(&self.initial_reference_directors);
-        for (tangent, pair) in self
-            .tangents
-            .iter_mut()
-            .zip(self.initial_positions.windows(2))
-        {
+        self.reference_directors.copy_from_slice(&self.initial_reference_directors);
+        for (tangent, pair) in self.tangents.iter_mut().zip(self.initial_positions.windows(2)) {
             *tangent = (pair[1] - pair[0]).normalize();
         }
         self.velocities.fill(DVec3::ZERO);
@@ -420,10 +343,8 @@ impl Rod {
     pub(crate) fn refresh_frames(&mut self) {
         for edge in 0..self.edge_count() {
             let tangent = (self.positions[edge + 1] - self.positions[edge]).normalize();
-            let carried =
-                parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
-            self.reference_directors[edge] =
-                perpendicular_unit(carried, tangent).unwrap_or(carried);
+            let carried = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
+            self.reference_directors[edge] = perpendicular_unit(carried, tangent).unwrap_or(carried);
             self.tangents[edge] = tangent;
         }
         for vertex in 1..self.edge_count() {
@@ -432,11 +353,7 @@ impl Rod {
                 self.tangents[vertex - 1],
                 self.tangents[vertex],
             );
-            let angle = signed_angle(
-                carried,
-                self.reference_directors[vertex],
-                self.tangents[vertex],
-            );
+            let angle = signed_angle(carried, self.reference_directors[vertex], self.tangents[vertex]);
             let previous = self.reference_twist[vertex];
             self.reference_twist[vertex] = previous + wrap_angle(angle - previous);
         }
@@ -452,8 +369,7 @@ impl Rod {
             (Some(start), Some(end)) => (end - start).normalize_or(self.tangents[edge]),
             _ => self.tangents[edge],
         };
-        let reference =
-            parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
+        let reference = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
         let target = perpendicular_unit(direction, tangent)?;
         let angle = signed_angle(reference, target, tangent);
         Some(wrap_angle(angle - self.twist[edge]))
@@ -463,11 +379,7 @@ impl Rod {
         if node < self.node_count() {
             Ok(())
         } else {
-            Err(RodError::OutOfRange {
-                what: "node",
-                index: node,
-                count: self.node_count(),
-            })
+            Err(RodError::OutOfRange { what: "node", index: node, count: self.node_count() })
         }
     }
 
@@ -475,11 +387,7 @@ impl Rod {
         if (1..self.edge_count()).contains(&vertex) {
             Ok(())
         } else {
-            Err(RodError::OutOfRange {
-                what: "interior vertex",
-                index: vertex,
-                count: self.edge_count() - 1,
-            })
+            Err(RodError::OutOfRange { what: "interior vertex", index: vertex, count: self.edge_count() - 1 })
         }
     }
 }
@@ -489,56 +397,31 @@ mod tests {
     use super::*;
 
     fn straight(nodes: usize) -> Vec<DVec3> {
-        (0..nodes)
-            .map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0))
-            .collect()
+        (0..nodes).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect()
     }
 
     #[test]
     fn invalid_input_is_rejected_with_a_reason() {
         let hair = RodMaterial::human_hair();
-        assert_eq!(
-            Rod::new(&straight(2), DVec3::Y, hair).unwrap_err(),
-            RodError::TooFewNodes { nodes: 2 }
-        );
+        assert_eq!(Rod::new(&straight(2), DVec3::Y, hair).unwrap_err(), RodError::TooFewNodes { nodes: 2 });
         let mut nodes = straight(5);
         nodes[3].y = f64::NAN;
-        assert!(matches!(
-            Rod::new(&nodes, DVec3::Y, hair),
-            Err(RodError::NonFiniteNode { node: 3, .. })
-        ));
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::NonFiniteNode { node: 3, .. })));
         let mut nodes = straight(5);
         nodes[2] = nodes[1];
-        assert!(matches!(
-            Rod::new(&nodes, DVec3::Y, hair),
-            Err(RodError::DegenerateEdge { edge: 1, .. })
-        ));
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::DegenerateEdge { edge: 1, .. })));
         let mut nodes = straight(4);
         nodes[3] = nodes[1];
-        assert!(matches!(
-            Rod::new(&nodes, DVec3::Y, hair),
-            Err(RodError::FoldedEdges { edge: 1 })
-        ));
-        assert!(matches!(
-            Rod::new(&straight(4), DVec3::X, hair),
-            Err(RodError::InvalidMaterialDirection { .. })
-        ));
-        let bad = RodMaterial {
-            youngs_modulus: 0.0,
-            ..hair
-        };
-        assert!(matches!(
-            Rod::new(&straight(4), DVec3::Y, bad),
-            Err(RodError::InvalidMaterial { .. })
-        ));
+        assert!(matches!(Rod::new(&nodes, DVec3::Y, hair), Err(RodError::FoldedEdges { edge: 1 })));
+        assert!(matches!(Rod::new(&straight(4), DVec3::X, hair), Err(RodError::InvalidMaterialDirection { .. })));
+        let bad = RodMaterial { youngs_modulus: 0.0, ..hair };
+        assert!(matches!(Rod::new(&straight(4), DVec3::Y, bad), Err(RodError::InvalidMaterial { .. })));
         let mut rod = Rod::new(&straight(4), DVec3::Y, hair).unwrap();
         assert!(rod.pin_node(9, DVec3::ZERO).is_err());
         assert!(rod.pin_node(1, DVec3::NAN).is_err());
         assert!(rod.clamp_edge(0, DVec3::ZERO, DVec3::X, DVec3::X).is_err());
         assert!(rod.set_rest_curvature(0, DVec2::ONE).is_err());
-        let message = Rod::new(&straight(2), DVec3::Y, hair)
-            .unwrap_err()
-            .to_string();
+        let message = Rod::new(&straight(2), DVec3::Y, hair).unwrap_err().to_string();
         assert!(message.contains("at least 3 nodes"), "{message}");
     }
 
@@ -575,9 +458,7 @@ mod tests {
             let tangent = (rod.positions[edge + 1] - rod.positions[edge]).normalize();
             assert!((frame.tangent - tangent).length() < 1e-14);
             assert!(frame.m1.dot(tangent).abs() < 1e-14 && frame.m2.dot(tangent).abs() < 1e-14);
-            assert!(
-                (frame.m1.length() - 1.0).abs() < 1e-14 && frame.m1.dot(frame.m2).abs() < 1e-14
-            );
+            assert!((frame.m1.length() - 1.0).abs() < 1e-14 && frame.m1.dot(frame.m2).abs() < 1e-14);
         }
     }
 }

@@ -89,18 +89,12 @@ pub(crate) struct VertexStrain {
 /// `∂/∂x_i = ∂/∂e^{i−1} − ∂/∂e^i`, `∂/∂x_{i+1} = ∂/∂e^i`) and its two twist derivatives.
 fn scatter_vertex_gradient(d_previous: DVec3, d_next: DVec3, d_theta: [f64; 2]) -> [f64; STENCIL] {
     let (a, b, c) = (-d_previous, d_previous - d_next, d_next);
-    [
-        a.x, a.y, a.z, d_theta[0], b.x, b.y, b.z, d_theta[1], c.x, c.y, c.z,
-    ]
+    [a.x, a.y, a.z, d_theta[0], b.x, b.y, b.z, d_theta[1], c.x, c.y, c.z]
 }
 
 /// Curvatures `κ₁ = ½ κb·(m2^{i−1}+m2^i)`, `κ₂ = −½ κb·(m1^{i−1}+m1^i)`, twist `τ` and their gradients
 /// (Bergou et al. 2008, §7; with `χ = 1 + t^{i−1}·t^i`, `t̃ = (t^{i−1}+t^i)/χ`, `m̃ = (m^{i−1}+m^i)/χ`).
-pub(crate) fn vertex_strain(
-    previous: &EdgeGeometry,
-    next: &EdgeGeometry,
-    twist: f64,
-) -> VertexStrain {
+pub(crate) fn vertex_strain(previous: &EdgeGeometry, next: &EdgeGeometry, twist: f64) -> VertexStrain {
     let (t0, t1) = (previous.tangent, next.tangent);
     let binormal = curvature_binormal(t0, t1);
     let chi = 1.0 + t0.dot(t1);
@@ -114,31 +108,15 @@ pub(crate) fn vertex_strain(
     let grad_kappa_1 = scatter_vertex_gradient(
         (-kappa_1 * tilde_t + t1.cross(tilde_m2)) * inverse_0,
         (-kappa_1 * tilde_t - t0.cross(tilde_m2)) * inverse_1,
-        [
-            -0.5 * binormal.dot(previous.m1),
-            -0.5 * binormal.dot(next.m1),
-        ],
+        [-0.5 * binormal.dot(previous.m1), -0.5 * binormal.dot(next.m1)],
     );
     let grad_kappa_2 = scatter_vertex_gradient(
         (-kappa_2 * tilde_t - t1.cross(tilde_m1)) * inverse_0,
         (-kappa_2 * tilde_t + t0.cross(tilde_m1)) * inverse_1,
-        [
-            -0.5 * binormal.dot(previous.m2),
-            -0.5 * binormal.dot(next.m2),
-        ],
+        [-0.5 * binormal.dot(previous.m2), -0.5 * binormal.dot(next.m2)],
     );
-    let grad_twist = scatter_vertex_gradient(
-        0.5 * binormal * inverse_0,
-        0.5 * binormal * inverse_1,
-        [-1.0, 1.0],
-    );
-    VertexStrain {
-        kappa: DVec2::new(kappa_1, kappa_2),
-        twist,
-        grad_kappa_1,
-        grad_kappa_2,
-        grad_twist,
-    }
+    let grad_twist = scatter_vertex_gradient(0.5 * binormal * inverse_0, 0.5 * binormal * inverse_1, [-1.0, 1.0]);
+    VertexStrain { kappa: DVec2::new(kappa_1, kappa_2), twist, grad_kappa_1, grad_kappa_2, grad_twist }
 }
 
 /// Adds `scale · g gᵀ` over the vertex stencil starting at unknown `offset` to the Hessian.
@@ -161,14 +139,10 @@ impl Rod {
         }
         for vertex in 1..self.edge_count() {
             let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
-            let (bend, turn) = (
-                kappa - self.rest_curvature[vertex],
-                twist - self.rest_twist[vertex],
-            );
+            let (bend, turn) = (kappa - self.rest_curvature[vertex], twist - self.rest_twist[vertex]);
             let length = self.voronoi_lengths[vertex];
-            energy.bending += (stiffness.bending_1 * bend.x * bend.x
-                + stiffness.bending_2 * bend.y * bend.y)
-                / (2.0 * length);
+            energy.bending +=
+                (stiffness.bending_1 * bend.x * bend.x + stiffness.bending_2 * bend.y * bend.y) / (2.0 * length);
             energy.twisting += stiffness.twisting * turn * turn / (2.0 * length);
         }
         energy
@@ -218,21 +192,9 @@ pub(crate) fn add_elastic_derivatives(
         let bend = strain.kappa - rod.rest_curvature[vertex];
         let turn = strain.twist - rod.rest_twist[vertex];
         let coefficients = [
-            (
-                stiffness.bending_1 * inverse_length,
-                bend.x,
-                &strain.grad_kappa_1,
-            ),
-            (
-                stiffness.bending_2 * inverse_length,
-                bend.y,
-                &strain.grad_kappa_2,
-            ),
-            (
-                stiffness.twisting * inverse_length,
-                turn,
-                &strain.grad_twist,
-            ),
+            (stiffness.bending_1 * inverse_length, bend.x, &strain.grad_kappa_1),
+            (stiffness.bending_2 * inverse_length, bend.y, &strain.grad_kappa_2),
+            (stiffness.twisting * inverse_length, turn, &strain.grad_twist),
         ];
         let offset = node_dof(vertex - 1);
         for (modulus, deviation, grad) in coefficients {

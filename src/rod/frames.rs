@@ -32,10 +32,7 @@ pub fn curvature_binormal(previous_tangent: DVec3, next_tangent: DVec3) -> DVec3
 pub fn material_directors(reference: DVec3, tangent: DVec3, twist: f64) -> (DVec3, DVec3) {
     let reference_2 = tangent.cross(reference);
     let (sin, cos) = twist.sin_cos();
-    (
-        cos * reference + sin * reference_2,
-        cos * reference_2 - sin * reference,
-    )
+    (cos * reference + sin * reference_2, cos * reference_2 - sin * reference)
 }
 
 /// `v` made perpendicular to the unit `tangent` and normalised; `None` when `v` is (nearly) parallel to it
@@ -64,10 +61,7 @@ mod tests {
         assert!((parallel_transport(from, from, to) - to).length() < 1e-14);
         let u = from.any_orthonormal_vector();
         let w = from.cross(u);
-        let (pu, pw) = (
-            parallel_transport(u, from, to),
-            parallel_transport(w, from, to),
-        );
+        let (pu, pw) = (parallel_transport(u, from, to), parallel_transport(w, from, to));
         assert!(pu.dot(to).abs() < 1e-14 && pw.dot(to).abs() < 1e-14);
         assert!((pu.length() - 1.0).abs() < 1e-14 && pu.dot(pw).abs() < 1e-14);
         assert!((pu.cross(pw) - to).length() < 1e-14, "orientation is kept");

@@ -120,11 +120,7 @@ mod tests {
 
     #[test]
     fn elliptical_section_is_stiffer_along_its_long_axis() {
-        let material = RodMaterial {
-            semi_axis_1: 2e-3,
-            semi_axis_2: 1e-3,
-            ..RodMaterial::round(1e-3, 1e10, 0.3, 1e3)
-        };
+        let material = RodMaterial { semi_axis_1: 2e-3, semi_axis_2: 1e-3, ..RodMaterial::round(1e-3, 1e10, 0.3, 1e3) };
         let k = material.stiffness();
         assert!((k.bending_1 / k.bending_2 - 4.0).abs() < 1e-12);
     }
@@ -133,21 +129,9 @@ mod tests {
     fn invalid_parameters_are_named() {
         let mut material = RodMaterial::human_hair();
         material.density = -1.0;
-        assert_eq!(
-            material.validate(),
-            Err(RodError::InvalidMaterial {
-                parameter: "density",
-                value: -1.0
-            })
-        );
+        assert_eq!(material.validate(), Err(RodError::InvalidMaterial { parameter: "density", value: -1.0 }));
         material.density = 1300.0;
         material.semi_axis_2 = f64::NAN;
-        assert!(matches!(
-            material.validate(),
-            Err(RodError::InvalidMaterial {
-                parameter: "semi_axis_2",
-                ..
-            })
-        ));
+        assert!(matches!(material.validate(), Err(RodError::InvalidMaterial { parameter: "semi_axis_2", .. })));
     }
 }

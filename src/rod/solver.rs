@@ -20,9 +20,7 @@ use bevy::math::{DMat3, DVec3};
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
-use super::energy::{
-    BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof,
-};
+use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
 use super::frames::{perpendicular_unit, signed_angle};
 
@@ -37,7 +35,8 @@ pub struct StepParams {
     /// `−γ m v` on each node. A free velocity falls to `1/e` in `1/γ` seconds.
     pub air_damping: f64,
     /// Internal damping `β`, s: stiffness-proportional (Rayleigh) friction `−β H v` inside the material.
-    /// An elastic mode of angular frequency `ω` decays at the rate `½ β ω²`; rigid motion is not damped.
+    /// An elastic mode of angular frequency `ω` decays at the rate `½ β ω²`. It acts on the motion
+    /// relative to the rigid motion of the root clamp, so a strand carried along by its head is not braked.
     pub internal_damping: f64,
     /// Most Newton iterations per step. A step stops after one (linearly implicit Euler) when that
     /// iteration was not limited by [`StepParams::max_rotation`] and stretched no edge by more than
@@ -51,8 +50,13 @@ pub struct StepParams {
     /// region), so a rod released far from equilibrium moves there over several iterations instead of
     /// following a linear extrapolation.
     pub max_rotation: f64,
-    /// Largest edge strain `| |e|/|ē| − 1 |` the inextensibility projection leaves, dimensionless.
+    /// Relative accuracy, dimensionless, to which the projection restores each edge to the length the
+    /// implicit solve gave it to first order.
     pub strain_tolerance: f64,
+    /// Largest elastic edge strain, dimensionless, the projection lets stand: stretch from tension
+    /// (`T / EA`, about 1e-6 for a hanging hair) is kept up to this, anything beyond is projected away,
+    /// so edges never stretch more than this plus `strain_tolerance`.
+    pub strain_allowance: f64,
     /// Most projection iterations per step (each one converges quadratically).
     pub max_projection_iterations: u32,
     /// A step that ends with an edge strained beyond this is treated as diverged, dimensionless.
@@ -61,7 +65,7 @@ pub struct StepParams {
 
 impl Default for StepParams {
     /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
-    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, 16 projection
+    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain allowance 5e-4, 16 projection
     /// iterations, divergence at 5 % strain.
     fn default() -> Self {
         Self {
@@ -73,6 +77,7 @@ impl Default for StepParams {
             newton_strain_tolerance: 0.01,
             max_rotation: 0.25,
             strain_tolerance: 1e-6,
+            strain_allowance: 5e-4,
             max_projection_iterations: 16,
             divergence_strain: 0.05,
         }
@@ -82,23 +87,15 @@ impl Default for StepParams {
 impl StepParams {
     /// Checks that every parameter is in its valid range.
     pub fn validate(&self) -> Result<(), RodError> {
-        let invalid = |parameter, value, requirement| {
-            Err(RodError::InvalidStepParameter {
-                parameter,
-                value,
-                requirement,
-            })
-        };
+        let invalid =
+            |parameter, value, requirement| Err(RodError::InvalidStepParameter { parameter, value, requirement });
         if !(self.dt.is_finite() && self.dt > 0.0) {
             return invalid("dt", self.dt, "must be positive and finite");
         }
         if !self.gravity.is_finite() {
             return invalid("gravity", f64::NAN, "must be finite");
         }
-        for (name, value) in [
-            ("air_damping", self.air_damping),
-            ("internal_damping", self.internal_damping),
-        ] {
+        for (name, value) in [("air_damping", self.air_damping), ("internal_damping", self.internal_damping)] {
             if !(value.is_finite() && value >= 0.0) {
                 return invalid(name, value, "must be zero or positive and finite");
             }
@@ -106,27 +103,21 @@ impl StepParams {
         if self.max_newton_iterations == 0 {
             return invalid("max_newton_iterations", 0.0, "must be at least 1");
         }
-        for (name, value) in [
-            ("newton_strain_tolerance", self.newton_strain_tolerance),
-            ("max_rotation", self.max_rotation),
-        ] {
+        for (name, value) in
+            [("newton_strain_tolerance", self.newton_strain_tolerance), ("max_rotation", self.max_rotation)]
+        {
             if !(value.is_finite() && value > 0.0) {
                 return invalid(name, value, "must be positive and finite");
             }
         }
+        if !(self.strain_allowance.is_finite() && (0.0..0.5).contains(&self.strain_allowance)) {
+            return invalid("strain_allowance", self.strain_allowance, "must be at least 0 and below 0.5");
+        }
         if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
-            return invalid(
-                "strain_tolerance",
-                self.strain_tolerance,
-                "must be positive and finite",
-            );
+            return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
         }
         if !(self.divergence_strain > self.strain_tolerance && self.divergence_strain.is_finite()) {
-            return invalid(
-                "divergence_strain",
-                self.divergence_strain,
-                "must be finite and above strain_tolerance",
-            );
+            return invalid("divergence_strain", self.divergence_strain, "must be finite and above strain_tolerance");
         }
         Ok(())
     }
@@ -155,6 +146,7 @@ pub struct RodWorkspace {
     material_directions: Vec<DVec3>,
     edges: Vec<EdgeGeometry>,
     saved: SavedState,
+    carried: SavedState,
     projection: ProjectionScratch,
 }
 
@@ -190,8 +182,7 @@ impl SavedState {
     fn restore_at_rest(&self, rod: &mut Rod) {
         rod.positions.copy_from_slice(&self.positions);
         rod.twist.copy_from_slice(&self.twist);
-        rod.reference_directors
-            .copy_from_slice(&self.reference_directors);
+        rod.reference_directors.copy_from_slice(&self.reference_directors);
         rod.tangents.copy_from_slice(&self.tangents);
         rod.reference_twist.copy_from_slice(&self.reference_twist);
         rod.velocities.fill(DVec3::ZERO);
@@ -215,11 +206,7 @@ impl Rod {
         params.validate()?;
         if let Some(forces) = external_forces {
             if forces.len() != self.node_count() {
-                return Err(RodError::WrongLength {
-                    expected: self.node_count(),
-                    actual: forces.len(),
-                }
-                .into());
+                return Err(RodError::WrongLength { expected: self.node_count(), actual: forces.len() }.into());
             }
             if let Some((node, &force)) = forces.iter().enumerate().find(|(_, f)| !f.is_finite()) {
                 return Err(RodError::NonFiniteForce { node, force }.into());
@@ -240,14 +227,14 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
         self.carry_with_first_clamp(&mut workspace.material_directions);
+        workspace.carried.save(self);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
             newton_iterations += 1;
             let fraction = self.newton_iteration(params, external_forces, workspace)?;
-            let (_, linearisation_strain) = self.max_strain();
-            let converged =
-                fraction == 1.0 && linearisation_strain <= params.newton_strain_tolerance;
+            let linearisation_error = length_error(self, &workspace.projection.target_lengths);
+            let converged = fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance;
             let last = converged || newton_iterations == params.max_newton_iterations;
             if last {
                 self.snap_to_targets();
@@ -277,17 +264,9 @@ impl Rod {
         }
         let (edge, max_strain) = self.max_strain();
         if max_strain > params.divergence_strain {
-            return Err(StepError::OverStrained {
-                edge,
-                strain: max_strain,
-                limit: params.divergence_strain,
-            });
+            return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
         }
-        Ok(StepReport {
-            max_strain,
-            newton_iterations,
-            projection_iterations,
-        })
+        Ok(StepReport { max_strain, newton_iterations, projection_iterations })
     }
 
     /// The first guess of a step: the rod carried rigidly with the motion of its first clamped edge
@@ -304,11 +283,9 @@ impl Rod {
         let Some(edge) = (0..self.edge_count()).find(|&edge| clamped(edge)) else {
             return;
         };
-        let (Some(start), Some(end), Some(direction)) = (
-            self.node_targets[edge],
-            self.node_targets[edge + 1],
-            self.twist_targets[edge],
-        ) else {
+        let (Some(start), Some(end), Some(direction)) =
+            (self.node_targets[edge], self.node_targets[edge + 1], self.twist_targets[edge])
+        else {
             return;
         };
         let old = self.material_frame(edge);
@@ -320,8 +297,7 @@ impl Rod {
             * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
         let pivot = self.positions[edge];
         material_directions.clear();
-        material_directions
-            .extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
+        material_directions.extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
         for (node, position) in self.positions.iter_mut().enumerate() {
             *position = match self.node_targets[node] {
                 Some(target) if node == edge || node == edge + 1 => target,
@@ -368,6 +344,8 @@ impl Rod {
             prescribed,
             edges,
             saved,
+            carried,
+            projection,
             ..
         } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
@@ -380,12 +358,13 @@ impl Rod {
 
         displacement.clear();
         displacement.resize(size, 0.0);
+        // Internal friction resists deformation, not the rigid motion the strand was carried with.
         for node in 0..self.node_count() {
-            let offset = self.positions[node] - saved.positions[node];
+            let offset = self.positions[node] - carried.positions[node];
             displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
         }
         for edge in 0..self.edge_count() {
-            displacement[twist_dof(edge)] = self.twist[edge] - saved.twist[edge];
+            displacement[twist_dof(edge)] = self.twist[edge] - carried.twist[edge];
         }
         if beta > 0.0 {
             damping_force.resize(size, 0.0);
@@ -404,8 +383,7 @@ impl Rod {
                 force += forces[node];
             }
             let offset = self.positions[node] - saved.positions[node];
-            let inertial = mass / (dt * dt) * (offset - dt * saved.velocities[node])
-                + gamma * mass / dt * offset;
+            let inertial = mass / (dt * dt) * (offset - dt * saved.velocities[node]) + gamma * mass / dt * offset;
             let residual_node = inertial - force;
             for axis in 0..3 {
                 let dof = node_dof(node) + axis;
@@ -417,8 +395,8 @@ impl Rod {
             let inertia = self.twist_inertias[edge];
             let offset = self.twist[edge] - saved.twist[edge];
             let dof = twist_dof(edge);
-            residual[dof] += inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge])
-                + gamma * inertia / dt * offset;
+            residual[dof] +=
+                inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
 
@@ -450,27 +428,18 @@ impl Rod {
         let prescribed_dofs = (0..self.node_count())
             .filter(|&node| self.node_targets[node].is_some())
             .flat_map(|node| node_dof(node)..node_dof(node) + 3)
-            .chain(
-                (0..self.edge_count())
-                    .filter(|&edge| self.twist_targets[edge].is_some())
-                    .map(twist_dof),
-            );
+            .chain((0..self.edge_count()).filter(|&edge| self.twist_targets[edge].is_some()).map(twist_dof));
         for dof in prescribed_dofs {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];
         }
 
-        hessian
-            .factorize()
-            .map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
+        hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
-        let node_update =
-            |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
+        let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let largest_turn = (0..self.edge_count())
-            .filter(|&edge| {
-                self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none()
-            })
+            .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
             .map(|edge| {
                 let e = self.positions[edge + 1] - self.positions[edge];
                 let change = node_update(edge + 1) - node_update(edge);
@@ -479,11 +448,23 @@ impl Rod {
                 (change - along * e).length() / e.length() + (-along - 0.5).max(0.0)
             })
             .fold(0.0, f64::max);
-        let fraction = if largest_turn > params.max_rotation {
-            params.max_rotation / largest_turn
-        } else {
-            1.0
-        };
+        if !largest_turn.is_finite() {
+            let node = (0..self.node_count()).find(|&node| !node_update(node).is_finite()).unwrap_or(0);
+            return Err(StepError::NonFinite { node });
+        }
+        let fraction = if largest_turn > params.max_rotation { params.max_rotation / largest_turn } else { 1.0 };
+        // The length each edge has after the update to first order, `|e| + t·Δe` (what the implicit solve
+        // with its stiff stretching term meant), kept within the strain allowance; the projection
+        // removes only the second-order stretch a linearised rotation leaves.
+        let target_lengths = &mut projection.target_lengths;
+        target_lengths.clear();
+        target_lengths.extend((0..self.edge_count()).map(|edge| {
+            let e = self.positions[edge + 1] - self.positions[edge];
+            let change = fraction * (node_update(edge + 1) - node_update(edge));
+            let rest = self.rest_lengths[edge];
+            let allowance = params.strain_allowance * rest;
+            (e.length() + change.dot(e) / e.length()).clamp(rest - allowance, rest + allowance)
+        }));
         for node in 0..self.node_count() {
             self.positions[node] += fraction * node_update(node);
         }
@@ -502,6 +483,16 @@ struct ProjectionScratch {
     upper: Vec<f64>,
     multipliers: Vec<f64>,
     start: Vec<DVec3>,
+    target_lengths: Vec<f64>,
+}
+
+/// The largest relative difference between an edge's length and its target length.
+fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
+    rod.positions
+        .windows(2)
+        .zip(target_lengths)
+        .map(|(pair, target)| ((pair[1] - pair[0]).length() / target - 1.0).abs())
+        .fold(0.0, f64::max)
 }
 
 /// Fast projection onto the inextensibility constraints `C_j = e_j·e_j / |ē_j| − |ē_j| = 0`
@@ -509,26 +500,13 @@ struct ProjectionScratch {
 /// system, until every strain is within tolerance. Prescribed nodes have infinite mass. Far from the
 /// constraints a Newton step can overshoot: it is halved until the largest strain drops, and after four
 /// halvings replaced by a Gauss–Seidel sweep of exact per-edge projections. Returns the iterations taken.
-fn project_edge_lengths(
-    rod: &mut Rod,
-    params: &StepParams,
-    scratch: &mut ProjectionScratch,
-) -> u32 {
+fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
     let inverse_mass = |rod: &Rod, node: usize| {
-        if rod.node_targets[node].is_some() {
-            0.0
-        } else {
-            1.0 / rod.masses[node]
-        }
+        if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] }
     };
-    let ProjectionScratch {
-        diagonal,
-        upper,
-        multipliers,
-        start,
-    } = scratch;
-    let (_, mut strain) = rod.max_strain();
+    let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths } = scratch;
+    let mut strain = length_error(rod, target_lengths);
     for iteration in 0..params.max_projection_iterations {
         if strain <= params.strain_tolerance {
             return iteration;
@@ -538,7 +516,7 @@ fn project_edge_lengths(
         multipliers.clear();
         for edge in 0..edge_count {
             let e = rod.positions[edge + 1] - rod.positions[edge];
-            let rest = rod.rest_lengths[edge];
+            let rest = target_lengths[edge];
             let weight = inverse_mass(rod, edge) + inverse_mass(rod, edge + 1);
             let stiffness = 4.0 * e.length_squared() / (rest * rest) * weight;
             let constraint = e.length_squared() / rest - rest;
@@ -552,7 +530,7 @@ fn project_edge_lengths(
             if edge + 1 < edge_count {
                 let next = rod.positions[edge + 2] - rod.positions[edge + 1];
                 let shared = inverse_mass(rod, edge + 1);
-                upper.push(-4.0 * shared * e.dot(next) / (rest * rod.rest_lengths[edge + 1]));
+                upper.push(-4.0 * shared * e.dot(next) / (rest * target_lengths[edge + 1]));
             }
         }
         solve_tridiagonal(diagonal, upper, multipliers);
@@ -561,13 +539,12 @@ fn project_edge_lengths(
         loop {
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
-                let impulse = 2.0 * fraction * multipliers[edge] / rod.rest_lengths[edge] * e;
-                let (start_weight, end_weight) =
-                    (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
+                let impulse = 2.0 * fraction * multipliers[edge] / target_lengths[edge] * e;
+                let (start_weight, end_weight) = (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
                 rod.positions[edge] += start_weight * impulse;
                 rod.positions[edge + 1] -= end_weight * impulse;
             }
-            let (_, projected) = rod.max_strain();
+            let projected = length_error(rod, target_lengths);
             if projected < strain {
                 strain = projected;
                 break;
@@ -575,8 +552,8 @@ fn project_edge_lengths(
             rod.positions.copy_from_slice(start);
             if fraction < 0.1 {
                 // Too far from the constraints for Newton: exact per-edge projections cannot overshoot.
-                gauss_seidel_sweep(rod);
-                strain = rod.max_strain().1;
+                gauss_seidel_sweep(rod, target_lengths);
+                strain = length_error(rod, target_lengths);
                 break;
             }
             fraction *= 0.5;
@@ -587,15 +564,11 @@ fn project_edge_lengths(
 
 /// One symmetric Gauss–Seidel sweep (root to tip, then back) of exact, mass-weighted projections of
 /// each edge onto its rest length. Slower than Newton near the constraints but robust far from them.
-fn gauss_seidel_sweep(rod: &mut Rod) {
+fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64]) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
         let weight = |node: usize| {
-            if rod.node_targets[node].is_some() {
-                0.0
-            } else {
-                1.0 / rod.masses[node]
-            }
+            if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] }
         };
         let (start_weight, end_weight) = (weight(edge), weight(edge + 1));
         let total = start_weight + end_weight;
@@ -604,7 +577,7 @@ fn gauss_seidel_sweep(rod: &mut Rod) {
         if total == 0.0 || length == 0.0 {
             continue;
         }
-        let correction = (length - rod.rest_lengths[edge]) / (length * total) * e;
+        let correction = (length - target_lengths[edge]) / (length * total) * e;
         rod.positions[edge] += start_weight * correction;
         rod.positions[edge + 1] -= end_weight * correction;
     }
@@ -655,29 +628,18 @@ mod tests {
 
     #[test]
     fn invalid_parameters_are_rejected_without_change() {
-        let nodes: Vec<DVec3> = (0..5)
-            .map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0))
-            .collect();
+        let nodes: Vec<DVec3> = (0..5).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect();
         let mut rod = Rod::new(&nodes, DVec3::Y, super::super::RodMaterial::human_hair()).unwrap();
         let mut workspace = RodWorkspace::default();
-        let params = StepParams {
-            dt: -1.0,
-            ..Default::default()
-        };
+        let params = StepParams { dt: -1.0, ..Default::default() };
         assert!(matches!(
             rod.step(&params, None, &mut workspace),
-            Err(StepError::InvalidInput(RodError::InvalidStepParameter {
-                parameter: "dt",
-                ..
-            }))
+            Err(StepError::InvalidInput(RodError::InvalidStepParameter { parameter: "dt", .. }))
         ));
         let forces = vec![DVec3::ZERO; 3];
         assert!(matches!(
             rod.step(&StepParams::default(), Some(&forces), &mut workspace),
-            Err(StepError::InvalidInput(RodError::WrongLength {
-                expected: 5,
-                actual: 3
-            }))
+            Err(StepError::InvalidInput(RodError::WrongLength { expected: 5, actual: 3 }))
         ));
         assert_eq!(rod.positions(), &nodes[..]);
     }

@@ -10,10 +10,7 @@ pub struct Lcg(pub u64);
 impl Lcg {
     /// Uniform in `[-0.5, 0.5)`.
     pub fn next(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 / (1u64 << 53) as f64) - 0.5
     }
 

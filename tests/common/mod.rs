@@ -6,9 +6,7 @@ use bevy_hair_sim::rod::{Rod, RodMaterial, RodWorkspace, StepParams};
 
 /// `edges + 1` evenly spaced nodes from the origin along `direction`, `length` m long.
 pub fn straight_nodes(length: f64, edges: usize, direction: DVec3) -> Vec<DVec3> {
-    (0..=edges)
-        .map(|i| direction * (length * i as f64 / edges as f64))
-        .collect()
+    (0..=edges).map(|i| direction * (length * i as f64 / edges as f64)).collect()
 }
 
 /// The thick stiff test rod of the issue: r = 1 mm, E = 10 GPa, ρ = 1000 kg/m³, ν = 0.5.
@@ -27,8 +25,5 @@ pub fn run(rod: &mut Rod, params: &StepParams, steps: usize, workspace: &mut Rod
 
 /// Largest node speed, m/s.
 pub fn max_speed(rod: &Rod) -> f64 {
-    rod.velocities()
-        .iter()
-        .map(|v| v.length())
-        .fold(0.0, f64::max)
+    rod.velocities().iter().map(|v| v.length()).fold(0.0, f64::max)
 }

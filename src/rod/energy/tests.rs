@@ -20,11 +20,7 @@ fn perturbed(rod: &Rod, dof: usize, delta: f64) -> Rod {
 }
 
 fn step_for(dof: usize) -> f64 {
-    if dof % 4 == 3 {
-        TWIST_STEP
-    } else {
-        POSITION_STEP
-    }
+    if dof % 4 == 3 { TWIST_STEP } else { POSITION_STEP }
 }
 
 /// Central difference of `f` along unknown `dof`.
@@ -44,10 +40,7 @@ fn analytic_gradient(rod: &Rod) -> Vec<f64> {
 /// `‖a − b‖∞ / ‖b‖∞`.
 fn relative_error(a: &[f64], b: &[f64]) -> f64 {
     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    a.iter()
-        .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
-        / scale
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
 }
 
 /// Keeps only one energy mode by zeroing the other stiffnesses.
@@ -74,18 +67,11 @@ fn gradient_of_each_energy_matches_finite_differences() {
         for mode in ["stretching", "bending", "twisting"] {
             let rod = only(base.clone(), mode);
             let analytic = analytic_gradient(&rod);
-            let numeric: Vec<f64> = (0..analytic.len())
-                .map(|dof| central_difference(&rod, dof, |r| r.elastic_energy().total()))
-                .collect();
+            let numeric: Vec<f64> =
+                (0..analytic.len()).map(|dof| central_difference(&rod, dof, |r| r.elastic_energy().total())).collect();
             let error = relative_error(&analytic, &numeric);
-            assert!(
-                error < TOLERANCE,
-                "{mode} gradient, trial {trial}: relative error {error:e}"
-            );
-            assert!(
-                numeric.iter().any(|g| g.abs() > 1e-12),
-                "{mode}: the check is not vacuous"
-            );
+            assert!(error < TOLERANCE, "{mode} gradient, trial {trial}: relative error {error:e}");
+            assert!(numeric.iter().any(|g| g.abs() > 1e-12), "{mode}: the check is not vacuous");
         }
     }
 }
@@ -103,11 +89,8 @@ fn curvature_and_twist_jacobians_match_finite_differences() {
         assert!((strain.kappa - kappa).length() < 1e-14 && (strain.twist - tau).abs() < 1e-14);
         let offset = node_dof(vertex - 1);
         type Pick = fn(DVec2, f64) -> f64;
-        let quantities: [(&[f64; STENCIL], Pick); 3] = [
-            (&strain.grad_kappa_1, |k, _| k.x),
-            (&strain.grad_kappa_2, |k, _| k.y),
-            (&strain.grad_twist, |_, t| t),
-        ];
+        let quantities: [(&[f64; STENCIL], Pick); 3] =
+            [(&strain.grad_kappa_1, |k, _| k.x), (&strain.grad_kappa_2, |k, _| k.y), (&strain.grad_twist, |_, t| t)];
         for (analytic, pick) in quantities {
             let numeric: Vec<f64> = (0..STENCIL)
                 .map(|local| {
@@ -118,10 +101,7 @@ fn curvature_and_twist_jacobians_match_finite_differences() {
                 })
                 .collect();
             let error = relative_error(analytic, &numeric);
-            assert!(
-                error < TOLERANCE,
-                "vertex {vertex}: Jacobian relative error {error:e}"
-            );
+            assert!(error < TOLERANCE, "vertex {vertex}: Jacobian relative error {error:e}");
         }
     }
 }
@@ -131,11 +111,7 @@ fn stretching_hessian_matches_finite_differences_of_the_gradient() {
     let mut random = Lcg(23);
     let mut rod = only(random_strand(&mut random, 5), "stretching");
     // Stretch every edge by 30 %, so the transverse part is not clipped and the Hessian is exact.
-    let edges_before: Vec<DVec3> = rod
-        .positions
-        .windows(2)
-        .map(|pair| pair[1] - pair[0])
-        .collect();
+    let edges_before: Vec<DVec3> = rod.positions.windows(2).map(|pair| pair[1] - pair[0]).collect();
     for (edge, e) in edges_before.iter().enumerate() {
         let rest = rod.rest_lengths[edge];
         rod.positions[edge + 1] = rod.positions[edge] + 1.3 * rest * e.normalize();
@@ -161,10 +137,7 @@ fn stretching_hessian_matches_finite_differences_of_the_gradient() {
         }
     }
     let error = relative_error(&analytic, &numeric);
-    assert!(
-        error < TOLERANCE,
-        "stretching Hessian relative error {error:e}"
-    );
+    assert!(error < TOLERANCE, "stretching Hessian relative error {error:e}");
 }
 
 #[test]
@@ -200,15 +173,11 @@ fn gauss_newton_hessian_is_the_jacobian_product() {
     let stiffness = rod.stiffness();
     let numeric: f64 = (1..rod.edge_count())
         .map(|vertex| {
-            let rate = (plus.vertex_curvature_and_twist(vertex).0
-                - minus.vertex_curvature_and_twist(vertex).0)
-                / (2.0 * h);
+            let rate =
+                (plus.vertex_curvature_and_twist(vertex).0 - minus.vertex_curvature_and_twist(vertex).0) / (2.0 * h);
             (stiffness.bending_1 * rate.x * rate.x + stiffness.bending_2 * rate.y * rate.y)
                 / rod.voronoi_lengths[vertex]
         })
         .sum();
-    assert!(
-        (analytic - numeric).abs() < TOLERANCE * numeric.abs(),
-        "{analytic} vs {numeric}"
-    );
+    assert!((analytic - numeric).abs() < TOLERANCE * numeric.abs(), "{analytic} vs {numeric}");
 }
