@@ -56,7 +56,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     for (name, rod) in &strands {
-        println!("{name}: largest strain {:.1e}, elastic energy {:.3e} J", rod.max_strain().1, rod.elastic_energy().total());
+        println!(
+            "{name}: largest strain {:.1e}, elastic energy {:.3e} J",
+            rod.max_strain().1,
+            rod.elastic_energy().total()
+        );
     }
     Ok(())
 }

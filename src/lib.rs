@@ -1,7 +1,4 @@
-//! Real-time hair simulation for the Bevy game engine, built on Discrete Elastic Rods.
-//!
-//! The mechanics live in [`rod`], a Bevy-free core that steps one strand at a time.
-
+#![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
 pub mod rod;
