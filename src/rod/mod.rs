@@ -29,6 +29,7 @@ mod energy;
 mod error;
 pub mod frames;
 mod material;
+mod projection;
 mod solver;
 
 #[cfg(test)]

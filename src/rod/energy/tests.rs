@@ -37,6 +37,17 @@ fn analytic_gradient(rod: &Rod) -> Vec<f64> {
     gradient
 }
 
+/// The Hessian approximation the integrator assembles for `rod`.
+fn assembled_hessian(rod: &Rod) -> BandedMatrix {
+    let size = dof_count(rod.node_count());
+    let mut edges = Vec::new();
+    edge_geometry(rod, &mut edges);
+    let mut hessian = BandedMatrix::default();
+    hessian.reset(size, BANDWIDTH);
+    add_elastic_derivatives(rod, &edges, &mut vec![0.0; size], Some(&mut hessian));
+    hessian
+}
+
 /// `‖a − b‖∞ / ‖b‖∞`.
 fn relative_error(a: &[f64], b: &[f64]) -> f64 {
     let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -118,11 +129,7 @@ fn stretching_hessian_matches_finite_differences_of_the_gradient() {
     }
     rod.refresh_frames();
     let size = dof_count(rod.node_count());
-    let mut edges = Vec::new();
-    edge_geometry(&rod, &mut edges);
-    let mut hessian = BandedMatrix::default();
-    hessian.reset(size, BANDWIDTH);
-    add_elastic_derivatives(&rod, &edges, &mut vec![0.0; size], Some(&mut hessian));
+    let hessian = assembled_hessian(&rod);
     let mut analytic = vec![0.0; size * size];
     let mut numeric = vec![0.0; size * size];
     for column in 0..size {
@@ -147,11 +154,7 @@ fn gauss_newton_hessian_is_the_jacobian_product() {
     let mut random = Lcg(41);
     let rod = only(random_strand(&mut random, 6), "bending");
     let size = dof_count(rod.node_count());
-    let mut edges = Vec::new();
-    edge_geometry(&rod, &mut edges);
-    let mut hessian = BandedMatrix::default();
-    hessian.reset(size, BANDWIDTH);
-    add_elastic_derivatives(&rod, &edges, &mut vec![0.0; size], Some(&mut hessian));
+    let hessian = assembled_hessian(&rod);
     let direction: Vec<f64> = (0..size).map(|_| random.next()).collect();
     let mut product = vec![0.0; size];
     hessian.multiply(&direction, &mut product);
