@@ -318,6 +318,11 @@ impl Rod {
         Ok(())
     }
 
+    /// `1 / m` of `node`, 1/kg; zero when its position is prescribed (it cannot be pushed).
+    pub(crate) fn inverse_mass(&self, node: usize) -> f64 {
+        if self.node_targets[node].is_some() { 0.0 } else { 1.0 / self.masses[node] }
+    }
+
     /// Whether `node`'s position is prescribed by a pin or a clamp.
     pub fn is_node_prescribed(&self, node: usize) -> bool {
         self.node_targets.get(node).is_some_and(Option::is_some)

@@ -24,16 +24,14 @@ pub(crate) fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Fast projection onto the inextensibility constraints `C_j = e_j·e_j / |ē_j| − |ē_j| = 0`
+/// Fast projection onto the length constraints `C_j = e_j·e_j / L_j − L_j = 0`, `L_j` the target lengths
 /// (Goldenthal et al. 2007): repeats `x ← x − M⁻¹ ∇Cᵀ λ` with `(∇C M⁻¹ ∇Cᵀ) λ = C`, a tridiagonal
-/// system, until every strain is within tolerance. Prescribed nodes have infinite mass. Far from the
-/// constraints a Newton step can overshoot: it is halved until the largest strain drops, and after four
-/// halvings replaced by a Gauss–Seidel sweep of exact per-edge projections. Returns the iterations taken.
+/// system, until every edge is within `strain_tolerance` of its target. Prescribed nodes have infinite
+/// mass. Far from the constraints a Newton step can overshoot: it is halved until the largest error
+/// drops, and after four halvings replaced by a Gauss–Seidel sweep of exact per-edge projections.
+/// Returns the iterations taken.
 pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
-    let inverse_mass = |rod: &Rod, node: usize| {
-        if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] }
-    };
     let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths } = scratch;
     let mut strain = length_error(rod, target_lengths);
     for iteration in 0..params.max_projection_iterations {
@@ -45,10 +43,10 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
         multipliers.clear();
         for edge in 0..edge_count {
             let e = rod.positions[edge + 1] - rod.positions[edge];
-            let rest = target_lengths[edge];
-            let weight = inverse_mass(rod, edge) + inverse_mass(rod, edge + 1);
-            let stiffness = 4.0 * e.length_squared() / (rest * rest) * weight;
-            let constraint = e.length_squared() / rest - rest;
+            let target = target_lengths[edge];
+            let weight = rod.inverse_mass(edge) + rod.inverse_mass(edge + 1);
+            let stiffness = 4.0 * e.length_squared() / (target * target) * weight;
+            let constraint = e.length_squared() / target - target;
             if stiffness > 0.0 {
                 diagonal.push(stiffness);
                 multipliers.push(constraint);
@@ -58,8 +56,8 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             }
             if edge + 1 < edge_count {
                 let next = rod.positions[edge + 2] - rod.positions[edge + 1];
-                let shared = inverse_mass(rod, edge + 1);
-                upper.push(-4.0 * shared * e.dot(next) / (rest * target_lengths[edge + 1]));
+                let shared = rod.inverse_mass(edge + 1);
+                upper.push(-4.0 * shared * e.dot(next) / (target * target_lengths[edge + 1]));
             }
         }
         solve_tridiagonal(diagonal, upper, multipliers);
@@ -69,7 +67,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
                 let impulse = 2.0 * fraction * multipliers[edge] / target_lengths[edge] * e;
-                let (start_weight, end_weight) = (inverse_mass(rod, edge), inverse_mass(rod, edge + 1));
+                let (start_weight, end_weight) = (rod.inverse_mass(edge), rod.inverse_mass(edge + 1));
                 rod.positions[edge] += start_weight * impulse;
                 rod.positions[edge + 1] -= end_weight * impulse;
             }
@@ -92,14 +90,11 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
 }
 
 /// One symmetric Gauss–Seidel sweep (root to tip, then back) of exact, mass-weighted projections of
-/// each edge onto its rest length. Slower than Newton near the constraints but robust far from them.
+/// each edge onto its target length. Slower than Newton near the constraints but robust far from them.
 fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64]) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
-        let weight = |node: usize| {
-            if rod.node_targets[node].is_some() { 0.0 } else { 1.0 / rod.masses[node] }
-        };
-        let (start_weight, end_weight) = (weight(edge), weight(edge + 1));
+        let (start_weight, end_weight) = (rod.inverse_mass(edge), rod.inverse_mass(edge + 1));
         let total = start_weight + end_weight;
         let e = rod.positions[edge + 1] - rod.positions[edge];
         let length = e.length();

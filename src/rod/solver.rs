@@ -48,8 +48,8 @@ pub struct StepParams {
     /// relative to the rigid motion of the root clamp, so a strand carried along by its head is not braked.
     pub internal_damping: f64,
     /// Most Newton iterations per step. A step stops after one (linearly implicit Euler) when that
-    /// iteration was not limited by [`StepParams::max_rotation`] and stretched no edge by more than
-    /// [`StepParams::newton_strain_tolerance`] before projection; violent motion takes more.
+    /// iteration was not limited by [`StepParams::max_rotation`] and its linearisation left no edge more
+    /// than [`StepParams::newton_strain_tolerance`] longer than intended; violent motion takes more.
     pub max_newton_iterations: u32,
     /// Edge strain, dimensionless, that a Newton iteration's linearisation may leave (before projection)
     /// for the step to end there: a measure of how far edges turned, since a linear step turning an
@@ -74,8 +74,8 @@ pub struct StepParams {
 
 impl Default for StepParams {
     /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
-    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain allowance 5e-4, 16 projection
-    /// iterations, divergence at 5 % strain.
+    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain
+    /// allowance 5e-4, 16 projection iterations, divergence at 5 % strain.
     fn default() -> Self {
         Self {
             dt: 1.0 / 60.0,
@@ -284,17 +284,10 @@ impl Rod {
     /// need only resolve the hair's motion relative to its root, which is what their linearisation and
     /// trust region handle well, even when a head moves centimetres per step.
     fn carry_with_first_clamp(&mut self, material_directions: &mut Vec<DVec3>) {
-        let clamped = |edge: usize| {
-            self.twist_targets[edge].is_some()
-                && self.node_targets[edge].is_some()
-                && self.node_targets[edge + 1].is_some()
-        };
-        let Some(edge) = (0..self.edge_count()).find(|&edge| clamped(edge)) else {
-            return;
-        };
-        let (Some(start), Some(end), Some(direction)) =
-            (self.node_targets[edge], self.node_targets[edge + 1], self.twist_targets[edge])
-        else {
+        let first_clamp = (0..self.edge_count()).find_map(|edge| {
+            Some((edge, self.node_targets[edge]?, self.node_targets[edge + 1]?, self.twist_targets[edge]?))
+        });
+        let Some((edge, start, end, direction)) = first_clamp else {
             return;
         };
         let old = self.material_frame(edge);
