@@ -1,9 +1,22 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+pub mod gizmos;
+pub mod head;
+mod plugin;
 pub mod rod;
+pub mod settings;
+mod step;
+pub mod strand;
+
+pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 
 /// The types most users need.
 pub mod prelude {
+    pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
+    pub use crate::head::{HairHead, HeadStrands, StrandOf};
     pub use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
+    pub use crate::settings::{HairSettings, HairStatistics};
+    pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandPose, StrandRejected};
+    pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

@@ -1,7 +1,8 @@
 //! The discrete framed curve: nodes, edges, reference and material frames, twist, rest state and
 //! boundary conditions of one rod.
 
-use bevy::math::{DVec2, DVec3};
+use bevy::math::{DQuat, DVec2, DVec3};
+use bevy::reflect::Reflect;
 
 use super::error::RodError;
 use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
@@ -11,7 +12,7 @@ use super::material::{RodMaterial, Stiffness};
 const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
 
 /// The orthonormal material frame `(t, m1, m2)` of one edge.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct MaterialFrame {
     /// Unit tangent of the edge.
     pub tangent: DVec3,
@@ -30,7 +31,7 @@ pub struct MaterialFrame {
 ///
 /// Positions are in m, velocities in m/s, angles in radians. Interior vertices `1 … n−1` carry
 /// curvature and twist; arrays indexed by vertex have one entry per node, the two ends unused.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Reflect)]
 pub struct Rod {
     pub(crate) positions: Vec<DVec3>,
     pub(crate) velocities: Vec<DVec3>,
@@ -138,6 +139,12 @@ impl Rod {
     /// Node positions, m.
     pub fn positions(&self) -> &[DVec3] {
         &self.positions
+    }
+
+    /// Node positions, m, for moving nodes directly (an editor, a scripted pose). The frames follow the
+    /// nodes at the next step; velocities are left as they are.
+    pub fn positions_mut(&mut self) -> &mut [DVec3] {
+        &mut self.positions
     }
 
     /// Node velocities, m/s.
@@ -253,6 +260,37 @@ impl Rod {
             } else {
                 DVec2::ZERO
             };
+        }
+    }
+
+    /// Replaces the material: stiffnesses, masses and spin inertias are recomputed, the rest shape and
+    /// the current state stay. Rejects an invalid material and leaves the rod unchanged.
+    pub fn set_material(&mut self, material: RodMaterial) -> Result<(), RodError> {
+        material.validate()?;
+        let stiffness = material.stiffness();
+        for (mass, length) in self.masses.iter_mut().zip(&self.voronoi_lengths) {
+            *mass = stiffness.linear_density * length;
+        }
+        for (inertia, length) in self.twist_inertias.iter_mut().zip(&self.rest_lengths) {
+            *inertia = stiffness.twist_inertia_density * length;
+        }
+        self.material = material;
+        self.stiffness = stiffness;
+        Ok(())
+    }
+
+    /// Moves the whole rod rigidly, `x ↦ R x + t`: positions, velocities, frames and boundary targets
+    /// turn with it, twists and reference twists are unchanged, so its elastic state is the same.
+    pub fn transform_rigidly(&mut self, rotation: DQuat, translation: DVec3) {
+        for position in &mut self.positions {
+            *position = rotation * *position + translation;
+        }
+        for target in self.node_targets.iter_mut().flatten() {
+            *target = rotation * *target + translation;
+        }
+        let turned = self.velocities.iter_mut().chain(&mut self.reference_directors).chain(&mut self.tangents);
+        for vector in turned.chain(self.twist_targets.iter_mut().flatten()) {
+            *vector = rotation * *vector;
         }
     }
 

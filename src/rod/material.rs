@@ -1,12 +1,15 @@
 //! Material parameters of a rod (SI units) and the stiffnesses derived from them.
 
+use bevy::reflect::{Reflect, std_traits::ReflectDefault};
+
 use super::error::RodError;
 
 /// Elastic and inertial properties of a rod with an elliptical cross-section.
 ///
 /// The cross-section's semi-axis `semi_axis_1` lies along the first material direction `m1`,
 /// `semi_axis_2` along `m2`. A round fibre has both equal to its radius.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Debug, Clone, PartialEq, Default)]
 pub struct RodMaterial {
     /// Semi-axis of the cross-section along the first material direction `m1`, m.
     pub semi_axis_1: f64,
@@ -21,7 +24,7 @@ pub struct RodMaterial {
 }
 
 /// The rod's stiffnesses and inertias per unit length, derived from a [`RodMaterial`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct Stiffness {
     /// Stretching stiffness `EA`, N.
     pub stretching: f64,

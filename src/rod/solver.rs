@@ -25,6 +25,7 @@
 //! Velocities are the step's displacement over `dt`.
 
 use bevy::math::{DMat3, DVec3};
+use bevy::reflect::Reflect;
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
@@ -133,7 +134,7 @@ impl StepParams {
 }
 
 /// What a successful step measured.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct StepReport {
     /// Largest edge strain after the step, dimensionless.
     pub max_strain: f64,

@@ -27,3 +27,5 @@ pub fn run(rod: &mut Rod, params: &StepParams, steps: usize, workspace: &mut Rod
 pub fn max_speed(rod: &Rod) -> f64 {
     rod.velocities().iter().map(|v| v.length()).fold(0.0, f64::max)
 }
+
+pub mod headless;

@@ -1,0 +1,121 @@
+//! Heads: the bodies hair is rooted on, and the relationship that ties strands to them.
+
+use bevy::math::{DQuat, DVec3};
+use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
+
+use crate::settings::HairSettings;
+
+/// A head, or any body hair grows from. Its [`Transform`] (through any parents) moves the roots of its
+/// strands every fixed step. Strands are attached with [`StrandOf`]; despawning the head despawns them.
+///
+/// Heads are expected to be rigid: a head's scale moves the root anchors on its surface but does not
+/// stretch its strands.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone)]
+#[require(Transform, HeadMotion)]
+pub struct HairHead;
+
+/// Roots a strand on a head: the strand's [`crate::strand::HairStrand`] nodes are given in the head's
+/// local space, and its root edge follows the head. A relationship like [`ChildOf`]: the head gets
+/// [`HeadStrands`] listing its strands.
+#[derive(Component, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+#[reflect(Component, Debug, PartialEq, Clone)]
+#[relationship(relationship_target = HeadStrands)]
+pub struct StrandOf(pub Entity);
+
+/// The strands rooted on a head, kept by Bevy from their [`StrandOf`]. Despawning the head despawns them.
+#[derive(Component, Reflect, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Debug, Default)]
+#[relationship_target(relationship = StrandOf, linked_spawn)]
+#[require(HeadMotion)]
+pub struct HeadStrands(Vec<Entity>);
+
+impl HeadStrands {
+    /// The strand entities rooted on this head.
+    pub fn strands(&self) -> &[Entity] {
+        &self.0
+    }
+}
+
+/// A head's world pose in double precision: `x ↦ translation + rotation · (scale ⊙ x)`.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct HeadPose {
+    /// World position of the head's origin, m.
+    pub translation: DVec3,
+    /// World orientation.
+    pub rotation: DQuat,
+    /// Scale of the head's local space (moves anchors, never stretches strands).
+    pub scale: DVec3,
+}
+
+impl Default for HeadPose {
+    fn default() -> Self {
+        Self { translation: DVec3::ZERO, rotation: DQuat::IDENTITY, scale: DVec3::ONE }
+    }
+}
+
+impl From<&GlobalTransform> for HeadPose {
+    fn from(transform: &GlobalTransform) -> Self {
+        let (scale, rotation, translation) = transform.to_scale_rotation_translation();
+        Self { translation: translation.as_dvec3(), rotation: rotation.as_dquat().normalize(), scale: scale.as_dvec3() }
+    }
+}
+
+impl HeadPose {
+    /// World position of the head-local point `local`, m.
+    pub fn transform_point(&self, local: DVec3) -> DVec3 {
+        self.translation + self.rotation * (self.scale * local)
+    }
+
+    /// The rigid motion `(R, t)`, `x ↦ R x + t`, that carries what is attached to `self` along to `other`
+    /// (scale changes are not followed).
+    pub fn rigid_motion_to(&self, other: &HeadPose) -> (DQuat, DVec3) {
+        let rotation = (other.rotation * self.rotation.inverse()).normalize();
+        (rotation, other.translation - rotation * self.translation)
+    }
+}
+
+/// Where a head was at the last two fixed steps, kept by the plugin; tells whether it teleported.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone)]
+pub struct HeadMotion {
+    /// Pose at the current step.
+    pub current: HeadPose,
+    /// Pose at the previous step.
+    pub previous: HeadPose,
+    /// Whether the head moved farther than [`HairSettings::teleport_distance`] since the previous step; its
+    /// strands are then carried along rigidly instead of being whipped.
+    pub teleported: bool,
+    tracked: bool,
+}
+
+impl HeadMotion {
+    fn advance(&mut self, pose: HeadPose, teleport_distance: f64) {
+        self.previous = if self.tracked { self.current } else { pose };
+        self.current = pose;
+        self.teleported = self.tracked && pose.translation.distance(self.previous.translation) > teleport_distance;
+        self.tracked = true;
+    }
+}
+
+/// Records every head's world pose for this step, from its `Transform` and its parents' (so a head that
+/// moved during this frame is followed at once, before Bevy propagates transforms).
+pub(crate) fn track_heads(
+    settings: Res<HairSettings>,
+    transforms: TransformHelper,
+    mut heads: Query<(Entity, &mut HeadMotion), With<HeadStrands>>,
+) {
+    for (head, mut motion) in &mut heads {
+        match transforms.compute_global_transform(head) {
+            Ok(transform) if transform.affine().is_finite() => {
+                motion.advance(HeadPose::from(&transform), f64::from(settings.teleport_distance))
+            }
+            Ok(_) => warn_once!("hair head {head} has a non-finite transform; its strands keep their last root"),
+            Err(error) => {
+                warn_once!("hair head {head} has no usable transform ({error}); its strands stay where they are")
+            }
+        }
+    }
+}

@@ -1,0 +1,132 @@
+//! The plugins: [`HairPlugin`] (the group a game adds), [`HairSimulationPlugin`] and the public
+//! [`HairSystems`] sets.
+
+use bevy::app::PluginGroupBuilder;
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::prelude::*;
+
+use crate::gizmos::HairGizmoPlugin;
+use crate::head::{HairHead, HeadMotion, HeadPose, HeadStrands, StrandOf, track_heads};
+use crate::settings::{HairSettings, HairStatistics};
+use crate::step::{
+    StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping, write_poses,
+};
+use crate::strand::{
+    HairStrand, RootAnchor, Strand, StrandFault, StrandForces, StrandPose, StrandRejected, build_strands,
+};
+
+/// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]) and drawing
+/// ([`HairGizmoPlugin`]). Add it once:
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// App::new().add_plugins((MinimalPlugins, HairPlugin::default()));
+/// ```
+///
+/// Simulation runs in [`FixedUpdate`] unless [`HairPlugin::new`] names another fixed-timestep schedule;
+/// its rate is Bevy's `Time<Fixed>` (64 Hz by default; `Time::<Fixed>::from_hz(60.0)` for 60).
+#[derive(Debug, Clone)]
+pub struct HairPlugin {
+    schedule: InternedScheduleLabel,
+}
+
+impl HairPlugin {
+    /// Simulates hair in `schedule`, which must run inside Bevy's fixed main loop (`FixedUpdate`,
+    /// `FixedPreUpdate`, `FixedPostUpdate` or one of your own run from it).
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
+    }
+}
+
+impl Default for HairPlugin {
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl PluginGroup for HairPlugin {
+    fn build(self) -> PluginGroupBuilder {
+        PluginGroupBuilder::start::<Self>().add(HairSimulationPlugin { schedule: self.schedule }).add(HairGizmoPlugin)
+    }
+}
+
+/// The steps of hair simulation, run in this order once per fixed step. Order your own systems against
+/// them: add per-node forces in [`HairSystems::ExternalForces`], read results after
+/// [`HairSystems::PostStep`].
+#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum HairSystems {
+    /// Builds strands from new or changed [`HairStrand`]s, applies changed settings, decides whether this
+    /// step runs (see [`HairSettings::max_steps_per_frame`]). Always runs.
+    Prepare,
+    /// Moves every strand's root edge to its anchor on its head.
+    PinRoots,
+    /// Where users add [`StrandForces`]; gravity comes from [`HairSettings::gravity`].
+    ExternalForces,
+    /// Elastic forces (stretching, bending, twisting) and implicit integration of every strand, in
+    /// parallel; failed strands are reset and reported.
+    Step,
+    /// After the step: the place for constraints, collisions and checks of the new state.
+    PostStep,
+    /// Copies the simulated positions into the drawn [`StrandPose`]s.
+    Writeback,
+}
+
+/// The hair simulation: strands as entities rooted on heads, stepped in a fixed-timestep schedule.
+#[derive(Debug, Clone)]
+pub struct HairSimulationPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
+
+impl Plugin for HairSimulationPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairHead>()
+            .register_type::<StrandOf>()
+            .register_type::<HeadStrands>()
+            .register_type::<HeadMotion>()
+            .register_type::<HeadPose>()
+            .register_type::<HairStrand>()
+            .register_type::<Strand>()
+            .register_type::<RootAnchor>()
+            .register_type::<StrandForces>()
+            .register_type::<StrandPose>()
+            .register_type::<StrandRejected>()
+            .register_type::<HairSettings>()
+            .register_type::<HairStatistics>()
+            .init_resource::<HairSettings>()
+            .init_resource::<HairStatistics>()
+            .init_resource::<StepBudget>()
+            .add_message::<StrandFault>()
+            .add_systems(First, reset_step_budget);
+
+        let schedule = self.schedule;
+        app.configure_sets(
+            schedule,
+            (
+                HairSystems::Prepare,
+                HairSystems::PinRoots,
+                HairSystems::ExternalForces,
+                HairSystems::Step,
+                HairSystems::PostStep,
+                HairSystems::Writeback,
+            )
+                .chain(),
+        )
+        .configure_sets(
+            schedule,
+            (HairSystems::PinRoots, HairSystems::ExternalForces, HairSystems::Step, HairSystems::PostStep)
+                .run_if(stepping),
+        )
+        .configure_sets(schedule, HairSystems::Writeback.run_if(stepping))
+        .add_systems(
+            schedule,
+            (
+                (build_strands, apply_default_material, open_step).chain().in_set(HairSystems::Prepare),
+                (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
+                step_strands.in_set(HairSystems::Step),
+                write_poses.in_set(HairSystems::Writeback),
+            ),
+        );
+    }
+}

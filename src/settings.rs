@@ -1,0 +1,88 @@
+//! Run-time settings of the hair simulation and the statistics it reports.
+
+use bevy::prelude::*;
+
+use crate::rod::{RodMaterial, StepParams};
+
+/// Settings of the hair simulation, read at every fixed step: a change takes effect at the next step.
+/// Invalid values are reported once with an error message and the simulation waits until they are fixed.
+#[derive(Resource, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairSettings {
+    /// Gravitational acceleration, m/s². Default `(0, −9.81, 0)`.
+    pub gravity: Vec3,
+    /// Air damping, 1/s: velocities relative to still air decay as `e^{−γt}`. Default 3.
+    pub air_damping: f32,
+    /// Internal (Rayleigh) damping of the material, s: an elastic mode of angular frequency `ω` decays at
+    /// the rate `½ β ω²`. Default 0.001.
+    pub internal_damping: f32,
+    /// Most Newton iterations per step and strand. Calm steps take 1; violent head motion takes more.
+    /// Default 4.
+    pub max_newton_iterations: u32,
+    /// Most iterations of the inextensibility projection per Newton iteration. Default 16.
+    pub max_projection_iterations: u32,
+    /// Edge strain, dimensionless, beyond which a strand counts as diverged and is reset to its rest pose
+    /// on its head. Default 0.05.
+    pub divergence_strain: f32,
+    /// A head that moves farther than this in one step, m, carries its hair along rigidly (a teleport)
+    /// instead of dragging it. Default 0.5 (30 m/s at 60 Hz).
+    pub teleport_distance: f32,
+    /// Most simulation steps per rendered frame. After a long frame hitch the fixed schedule would catch
+    /// up every step it missed; beyond this many, the hair skips steps instead. Default 4.
+    pub max_steps_per_frame: u32,
+    /// Material of strands that name none ([`crate::strand::HairStrand::material`]): human hair by default.
+    pub default_material: RodMaterial,
+}
+
+impl Default for HairSettings {
+    fn default() -> Self {
+        let step = StepParams::default();
+        Self {
+            gravity: step.gravity.as_vec3(),
+            air_damping: step.air_damping as f32,
+            internal_damping: step.internal_damping as f32,
+            max_newton_iterations: step.max_newton_iterations,
+            max_projection_iterations: step.max_projection_iterations,
+            divergence_strain: step.divergence_strain as f32,
+            teleport_distance: 0.5,
+            max_steps_per_frame: 4,
+            default_material: RodMaterial::human_hair(),
+        }
+    }
+}
+
+impl HairSettings {
+    /// The mechanics core's parameters for a step of `dt` seconds.
+    pub fn step_params(&self, dt: f64) -> StepParams {
+        StepParams {
+            dt,
+            gravity: self.gravity.as_dvec3(),
+            air_damping: f64::from(self.air_damping),
+            internal_damping: f64::from(self.internal_damping),
+            max_newton_iterations: self.max_newton_iterations,
+            max_projection_iterations: self.max_projection_iterations,
+            divergence_strain: f64::from(self.divergence_strain),
+            ..StepParams::default()
+        }
+    }
+}
+
+/// What the simulation measured, updated every step: for a statistics panel, logs and tests.
+#[derive(Resource, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone)]
+pub struct HairStatistics {
+    /// Strands simulated in the last step.
+    pub strands: usize,
+    /// Steps simulated since start.
+    pub steps: u64,
+    /// Steps skipped because a frame asked for more than [`HairSettings::max_steps_per_frame`].
+    pub skipped_steps: u64,
+    /// Strands reset after a fault since start.
+    pub faults: u64,
+    /// Largest edge strain of any strand after the last step, dimensionless.
+    pub max_strain: f64,
+    /// Mean Newton iterations per strand in the last step.
+    pub mean_newton_iterations: f64,
+    /// Why the current settings cannot be used, while they cannot.
+    pub settings_error: Option<String>,
+}

@@ -1,0 +1,143 @@
+//! The systems of one simulation step: pin roots to heads, step every strand in parallel, report
+//! faults, write the drawn poses.
+
+use bevy::prelude::*;
+use bevy::utils::Parallel;
+
+use crate::head::{HeadMotion, StrandOf};
+use crate::rod::StepError;
+use crate::settings::{HairSettings, HairStatistics};
+use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
+
+/// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
+#[derive(Resource, Debug, Default)]
+pub(crate) struct StepBudget {
+    steps_this_frame: u32,
+    stepping: bool,
+}
+
+/// Starts a new rendered frame's step count.
+pub(crate) fn reset_step_budget(mut budget: ResMut<StepBudget>) {
+    budget.steps_this_frame = 0;
+}
+
+/// Decides whether this fixed step simulates hair: at most [`HairSettings::max_steps_per_frame`] per frame.
+pub(crate) fn open_step(
+    settings: Res<HairSettings>,
+    mut budget: ResMut<StepBudget>,
+    mut statistics: ResMut<HairStatistics>,
+) {
+    budget.stepping = budget.steps_this_frame < settings.max_steps_per_frame;
+    if budget.stepping {
+        budget.steps_this_frame += 1;
+    } else {
+        statistics.skipped_steps += 1;
+    }
+}
+
+/// Run condition of the step's system sets: whether [`open_step`] allowed this step.
+pub(crate) fn stepping(budget: Res<StepBudget>) -> bool {
+    budget.stepping
+}
+
+/// Gives strands that follow [`HairSettings::default_material`] its new value when it changes.
+pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Query<(Entity, &mut Strand)>) {
+    if !settings.is_changed() {
+        return;
+    }
+    for (entity, mut strand) in &mut strands {
+        if let Err(error) = strand.follow_default_material(&settings.default_material) {
+            error!("HairSettings::default_material rejected for strand {entity}: {error}");
+            return;
+        }
+    }
+}
+
+/// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
+/// teleported.
+pub(crate) fn pin_roots(mut strands: Query<(Entity, &mut Strand, &StrandOf)>, heads: Query<&HeadMotion>) {
+    strands.par_iter_mut().for_each(|(entity, mut strand, &StrandOf(head))| {
+        let Ok(motion) = heads.get(head) else {
+            return;
+        };
+        if let Err(error) = strand.follow_head(motion.current, motion.teleported) {
+            error!("hair strand {entity} cannot follow head {head}: {error}");
+        }
+    });
+}
+
+/// What the strands stepped by one thread measured.
+#[derive(Default)]
+pub(crate) struct StepTally {
+    strands: usize,
+    newton_iterations: u64,
+    max_strain: f64,
+    faults: Vec<StrandFault>,
+}
+
+/// Steps every strand in parallel; a strand whose step fails is reset (see [`Strand`]) and reported with
+/// a [`StrandFault`] message and a warning, and the others go on.
+pub(crate) fn step_strands(
+    time: Res<Time>,
+    settings: Res<HairSettings>,
+    mut statistics: ResMut<HairStatistics>,
+    mut strands: Query<(Entity, &mut Strand, &mut StrandForces)>,
+    mut fault_messages: MessageWriter<StrandFault>,
+    mut tallies: Local<Parallel<StepTally>>,
+) {
+    let params = settings.step_params(time.delta_secs_f64());
+    if let Err(error) = params.validate() {
+        let message = error.to_string();
+        if statistics.settings_error.as_ref() != Some(&message) {
+            error!("HairSettings rejected, hair is paused until they are fixed: {message}");
+            statistics.settings_error = Some(message);
+        }
+        return;
+    }
+    statistics.settings_error = None;
+
+    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces)| {
+        let result = strand.advance(&params, &forces);
+        forces.clear();
+        tallies.scope(|tally| {
+            tally.strands += 1;
+            match result {
+                Ok(report) => {
+                    tally.newton_iterations += u64::from(report.newton_iterations);
+                    tally.max_strain = tally.max_strain.max(report.max_strain);
+                }
+                Err(error) => tally.faults.push(StrandFault { strand: entity, error }),
+            }
+        });
+    });
+
+    let (mut strands_stepped, mut newton_iterations, mut max_strain) = (0, 0, 0.0_f64);
+    for tally in tallies.iter_mut() {
+        strands_stepped += tally.strands;
+        newton_iterations += tally.newton_iterations;
+        max_strain = max_strain.max(tally.max_strain);
+        for fault in tally.faults.drain(..) {
+            let consequence = match fault.error {
+                StepError::InvalidInput(_) => "its step was skipped",
+                _ => "it was reset to its rest pose",
+            };
+            warn!("hair strand {} failed a step, {consequence}: {}", fault.strand, fault.error);
+            statistics.faults += 1;
+            fault_messages.write(fault);
+        }
+        *tally = StepTally { faults: std::mem::take(&mut tally.faults), ..default() };
+    }
+    statistics.steps += 1;
+    statistics.strands = strands_stepped;
+    statistics.max_strain = max_strain;
+    statistics.mean_newton_iterations =
+        if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };
+}
+
+/// Copies every strand's positions into its drawn [`StrandPose`].
+pub(crate) fn write_poses(mut strands: Query<(&mut Strand, &mut StrandPose)>) {
+    strands.par_iter_mut().for_each(|(mut strand, mut pose)| {
+        let snap = strand.take_snap();
+        pose.update(strand.rod().positions(), snap);
+    });
+}

@@ -1,0 +1,188 @@
+//! The Bevy layer in a headless app: roots follow heads, settings apply at once, strands come and go,
+//! runs repeat exactly, and every strand is drawn.
+
+mod common;
+
+use bevy::asset::AssetPlugin;
+use bevy::gizmos::{GizmoAsset, GizmoHandles, GizmoPlugin};
+use bevy::math::DVec3;
+use bevy::mesh::MeshPlugin;
+use bevy::prelude::*;
+use bevy_hair_sim::prelude::*;
+use common::headless::{DT, drain_messages, hair_app, hair_app_with, spawn_head, strand};
+
+/// The world positions the root edge's two nodes must have for a head whose world transform is `head`.
+fn expected_root_edge(head: &GlobalTransform, spec: &HairStrand) -> [Vec3; 2] {
+    let root = head.transform_point(spec.nodes[0]);
+    [root, root + head.rotation() * (spec.nodes[1] - spec.nodes[0])]
+}
+
+#[test]
+fn roots_follow_a_moving_head_that_is_the_child_of_a_moving_parent() {
+    let mut app = hair_app();
+    let (head, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 0.3, 0.0), 100, 16);
+    let parent = app.world_mut().spawn(Transform::from_xyz(0.0, 1.3, 0.0)).id();
+    app.world_mut().entity_mut(head).insert(ChildOf(parent));
+
+    let mut worst: f64 = 0.0;
+    for step in 0..120 {
+        let time = step as f32 * DT as f32;
+        let parent_transform = Transform::from_xyz(0.4 * (2.0 * time).sin(), 1.3, 0.3 * (3.0 * time).cos())
+            .with_rotation(Quat::from_rotation_y(1.5 * time));
+        let head_transform = Transform::from_xyz(0.0, 0.3 + 0.05 * (5.0 * time).sin(), 0.0)
+            .with_rotation(Quat::from_rotation_x(0.6 * (4.0 * time).sin()));
+        *app.world_mut().get_mut::<Transform>(parent).unwrap() = parent_transform;
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = head_transform;
+        app.update();
+
+        let head_world = GlobalTransform::from(parent_transform) * GlobalTransform::from(head_transform);
+        for &entity in &strands {
+            let spec = app.world().get::<HairStrand>(entity).unwrap();
+            let positions = strand(&app, entity).rod().positions();
+            for (node, expected) in expected_root_edge(&head_world, spec).into_iter().enumerate() {
+                worst = worst.max(positions[node].distance(expected.as_dvec3()));
+            }
+        }
+    }
+    println!("largest distance of a root node from its anchor over 120 steps: {worst:e} m");
+    assert!(worst <= 1e-6, "a root node was {worst:e} m from its anchor");
+    let tip_speed = strand(&app, strands[0]).rod().velocities().last().unwrap().length();
+    assert!(tip_speed > 0.05, "the hair moves with the head ({tip_speed} m/s)");
+}
+
+/// Mass-weighted mean velocity of a strand, m/s.
+fn mean_velocity(rod: &Rod) -> DVec3 {
+    let mass: f64 = rod.masses().iter().sum();
+    rod.masses().iter().zip(rod.velocities()).map(|(m, v)| *m * *v).sum::<DVec3>() / mass
+}
+
+#[test]
+fn settings_changed_at_run_time_apply_at_the_next_step() {
+    let mut app = hair_app();
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    let free = app.world_mut().spawn(HairStrand::straight(Vec3::new(0.0, 2.0, 0.0), Vec3::X, 0.2, 12)).id();
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(mean_velocity(strand(&app, free).rod()), DVec3::ZERO, "no gravity, no motion");
+
+    let gravity = Vec3::new(2.0, -5.0, 1.0);
+    {
+        let mut settings = app.world_mut().resource_mut::<HairSettings>();
+        settings.gravity = gravity;
+        settings.air_damping = 0.0;
+    }
+    app.update();
+    let velocity = mean_velocity(strand(&app, free).rod());
+    let dt = app.world().resource::<Time<Fixed>>().timestep().as_secs_f64();
+    let expected = gravity.as_dvec3() * dt;
+    println!("mean velocity after one step: {velocity} (expected g dt = {expected})");
+    assert!((velocity - expected).length() < 1e-9 * expected.length(), "{velocity} vs {expected}");
+
+    // An invalid setting pauses the simulation with a reason; fixing it resumes.
+    app.world_mut().resource_mut::<HairSettings>().air_damping = -1.0;
+    let before = strand(&app, free).rod().positions().to_vec();
+    app.update();
+    let reason = app.world().resource::<HairStatistics>().settings_error.clone().expect("the error is reported");
+    assert!(reason.contains("air_damping"), "{reason}");
+    assert_eq!(strand(&app, free).rod().positions(), before.as_slice(), "paused while invalid");
+    app.world_mut().resource_mut::<HairSettings>().air_damping = 3.0;
+    app.update();
+    assert_eq!(app.world().resource::<HairStatistics>().settings_error, None);
+    assert_ne!(strand(&app, free).rod().positions(), before.as_slice(), "running again");
+
+    // A new default material reaches the strands that use it at the next step.
+    let thick = RodMaterial::round(80e-6, 3.5e9, 0.4, 1300.0);
+    app.world_mut().resource_mut::<HairSettings>().default_material = thick;
+    app.update();
+    assert_eq!(*strand(&app, free).rod().material(), thick);
+}
+
+/// Number of entities with a simulated strand.
+fn simulated_strands(app: &mut App) -> usize {
+    app.world_mut().query::<&Strand>().iter(app.world()).count()
+}
+
+#[test]
+fn strands_and_heads_come_and_go_while_running() {
+    let mut app = hair_app();
+    let (head_a, mut strands_a) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 20, 8);
+    let (head_b, strands_b) = spawn_head(&mut app, Transform::from_xyz(1.0, 1.6, 0.0), 20, 8);
+    for step in 0..40 {
+        if step % 3 == 0 {
+            let root = Vec3::new(0.0, 0.1, 0.0);
+            let added = app.world_mut().spawn((HairStrand::straight(root, Vec3::Y, 0.1, 6), StrandOf(head_a))).id();
+            strands_a.push(added);
+        }
+        if step % 4 == 1 {
+            let removed = strands_a.remove(step % strands_a.len());
+            app.world_mut().despawn(removed);
+        }
+        if step == 20 {
+            app.world_mut().despawn(head_b);
+        }
+        app.update();
+    }
+    assert!(strands_b.iter().all(|&entity| app.world().get_entity(entity).is_err()), "head B's strands are gone");
+    assert_eq!(simulated_strands(&mut app), strands_a.len(), "no strand leaked");
+    let mut listed = app.world().get::<HeadStrands>(head_a).unwrap().strands().to_vec();
+    listed.sort();
+    strands_a.sort();
+    assert_eq!(listed, strands_a);
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+    assert!(drain_messages::<StrandFault>(&mut app).is_empty());
+}
+
+#[test]
+fn two_runs_with_the_same_inputs_are_bit_identical() {
+    let run = || {
+        let mut app = hair_app();
+        let (head, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 60, 16);
+        for step in 0..300 {
+            let time = step as f32 * DT as f32;
+            let mut transform = app.world_mut().get_mut::<Transform>(head).unwrap();
+            transform.translation.x = 0.3 * (4.0 * time).sin();
+            transform.rotation = Quat::from_rotation_y(2.0 * time);
+            app.update();
+        }
+        strands.iter().flat_map(|&entity| strand(&app, entity).rod().positions().to_vec()).collect::<Vec<_>>()
+    };
+    let (first, second) = (run(), run());
+    assert_eq!(first.len(), 60 * 17);
+    let differing =
+        first.iter().zip(&second).filter(|(a, b)| a.to_array().map(f64::to_bits) != b.to_array().map(f64::to_bits));
+    assert_eq!(differing.count(), 0, "every node of every strand has the same bits in both runs");
+}
+
+#[test]
+fn every_strand_is_drawn_as_an_interpolated_line_strip() {
+    let mut app = hair_app_with((AssetPlugin::default(), MeshPlugin, GizmoPlugin));
+    let (_, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 25, 10);
+    for _ in 0..10 {
+        app.update();
+    }
+    let gizmo_strips = |app: &App| {
+        let handle = app.world().resource::<GizmoHandles>().handles()[&std::any::TypeId::of::<HairGizmos>()].clone();
+        let asset = app.world().resource::<Assets<GizmoAsset>>().get(&handle.expect("hair was drawn")).unwrap();
+        asset.buffer().buffer().strip_positions.clone()
+    };
+    let drawn = gizmo_strips(&app);
+    let strips: Vec<&[Vec3]> = drawn.split(|point| point.is_nan()).filter(|strip| !strip.is_empty()).collect();
+    assert_eq!(strips.len(), strands.len(), "one line strip per strand");
+    for (strip, &entity) in strips.iter().zip(&strands) {
+        assert_eq!(strip.len(), 11, "every node of the strand is a vertex of its strip");
+        let root = strand(&app, entity).rod().positions()[0].as_vec3();
+        assert!(strip.iter().any(|point| point.distance(root) < 1e-5), "the strip starts at its strand's root");
+    }
+
+    // Half a step later the strip lies between the last two steps.
+    app.insert_resource(bevy::time::TimeUpdateStrategy::ManualDuration(std::time::Duration::from_secs_f64(1.5 * DT)));
+    app.update();
+    let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
+    assert!(alpha > 0.1 && alpha < 0.9, "the frame falls between steps ({alpha})");
+    let drawn = gizmo_strips(&app);
+    let pose = app.world().get::<StrandPose>(strands[0]).unwrap();
+    let tip = pose.previous[10].lerp(pose.current[10], alpha);
+    assert!(pose.previous[10].distance(pose.current[10]) > 1e-5, "the tip moved during the step");
+    assert!(drawn[10].distance(tip) < 1e-6, "tip drawn at {} instead of {tip}", drawn[10]);
+}
