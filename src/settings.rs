@@ -77,7 +77,7 @@ pub struct HairStatistics {
     pub steps: u64,
     /// Steps skipped because a frame asked for more than [`HairSettings::max_steps_per_frame`].
     pub skipped_steps: u64,
-    /// Strands reset after a fault since start.
+    /// Failed strand steps since start (each reported with a [`crate::strand::StrandFault`]).
     pub faults: u64,
     /// Largest edge strain of any strand after the last step, dimensionless.
     pub max_strain: f64,

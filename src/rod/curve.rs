@@ -504,4 +504,53 @@ mod tests {
             assert!((frame.m1.length() - 1.0).abs() < 1e-14 && frame.m1.dot(frame.m2).abs() < 1e-14);
         }
     }
+
+    #[test]
+    fn a_rigid_motion_keeps_the_elastic_state() {
+        let mut rod = Rod::new(&straight(8), DVec3::Y, RodMaterial::human_hair()).unwrap();
+        for (i, p) in rod.positions.iter_mut().enumerate() {
+            p.y += 0.002 * (i as f64).powi(2);
+            p.z += 0.001 * (i as f64).sin();
+        }
+        rod.twist[3] = 0.4;
+        rod.velocities[5] = DVec3::new(0.1, -0.2, 0.3);
+        rod.refresh_frames();
+        let before = rod.clone();
+        let rotation = DQuat::from_euler(bevy::math::EulerRot::YXZ, 0.7, -1.2, 2.9);
+        let translation = DVec3::new(3.0, -1.0, 100.0);
+        rod.transform_rigidly(rotation, translation);
+        rod.refresh_frames();
+        for node in 0..rod.node_count() {
+            let expected = rotation * before.positions[node] + translation;
+            assert!((rod.positions[node] - expected).length() < 1e-12);
+            assert!((rod.velocities[node] - rotation * before.velocities[node]).length() < 1e-14);
+        }
+        for vertex in 1..rod.edge_count() {
+            let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
+            let (kappa_before, twist_before) = before.vertex_curvature_and_twist(vertex);
+            assert!((kappa - kappa_before).length() < 1e-12, "curvature at {vertex}");
+            assert!((twist - twist_before).abs() < 1e-12, "twist at {vertex}");
+        }
+        let (energy, energy_before) = (rod.elastic_energy(), before.elastic_energy());
+        assert!((energy.bending - energy_before.bending).abs() <= 1e-10 * energy_before.bending);
+        assert!((energy.twisting - energy_before.twisting).abs() <= 1e-10 * energy_before.twisting);
+    }
+
+    #[test]
+    fn a_new_material_changes_masses_and_stiffness_but_not_the_shape() {
+        let mut rod = Rod::new(&straight(6), DVec3::Y, RodMaterial::human_hair()).unwrap();
+        let positions = rod.positions.clone();
+        let dense = RodMaterial { density: 2600.0, ..RodMaterial::human_hair() };
+        rod.set_material(dense).unwrap();
+        let total: f64 = rod.masses().iter().sum();
+        assert!((total - dense.stiffness().linear_density * rod.rest_length()).abs() < 1e-12 * total);
+        assert_eq!(rod.stiffness(), &dense.stiffness());
+        assert_eq!(rod.positions, positions);
+        let invalid = RodMaterial { youngs_modulus: f64::NAN, ..dense };
+        assert!(matches!(
+            rod.set_material(invalid),
+            Err(RodError::InvalidMaterial { parameter: "youngs_modulus", .. })
+        ));
+        assert_eq!(rod.material(), &dense, "a rejected material changes nothing");
+    }
 }
