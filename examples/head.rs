@@ -167,7 +167,8 @@ fn steer_head(
         let sway_offset = Vec3::new(0.12 * phase.sin(), 0.03 * (2.0 * phase).sin(), 0.0);
         let sway_turn = 0.5 * (0.5 * phase).sin();
         transform.translation = placement.position + sway_offset;
-        transform.rotation = Quat::from_rotation_y(placement.heading + sway_turn) * Quat::from_rotation_z(0.15 * phase.cos());
+        transform.rotation =
+            Quat::from_rotation_y(placement.heading + sway_turn) * Quat::from_rotation_z(0.15 * phase.cos());
     }
 }
 
@@ -183,8 +184,9 @@ fn show_statistics(
     }
     *since_update = 0.0;
     let title = format!(
-        "bevy_hair_sim: {} strands, {:.0} fps, {:.2} Newton iterations, strain {:.1e}, {} faults",
+        "bevy_hair_sim: {} strands, step {:.1} ms, {:.0} fps, {:.2} Newton iterations, strain {:.1e}, {} faults",
         statistics.strands,
+        1e3 * statistics.step_seconds,
         1.0 / time.delta_secs().max(1e-6),
         statistics.mean_newton_iterations,
         statistics.max_strain,

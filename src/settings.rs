@@ -28,7 +28,8 @@ pub struct HairSettings {
     /// instead of dragging it. Default 0.5 (30 m/s at 60 Hz).
     pub teleport_distance: f32,
     /// Most simulation steps per rendered frame. After a long frame hitch the fixed schedule would catch
-    /// up every step it missed; beyond this many, the hair skips steps instead. Default 4.
+    /// up every step it missed; beyond this many, the hair skips steps instead. 0 pauses the hair.
+    /// Default 4.
     pub max_steps_per_frame: u32,
     /// Material of strands that name none ([`crate::strand::HairStrand::material`]): human hair by default.
     pub default_material: RodMaterial,
@@ -83,6 +84,8 @@ pub struct HairStatistics {
     pub max_strain: f64,
     /// Mean Newton iterations per strand in the last step.
     pub mean_newton_iterations: f64,
+    /// Wall-clock time the last step of all strands took, s.
+    pub step_seconds: f64,
     /// Why the current settings cannot be used, while they cannot.
     pub settings_error: Option<String>,
 }

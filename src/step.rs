@@ -1,6 +1,7 @@
 //! The systems of one simulation step: pin roots to heads, step every strand in parallel, report
 //! faults, write the drawn poses.
 
+use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
@@ -96,6 +97,7 @@ pub(crate) fn step_strands(
     }
     statistics.settings_error = None;
 
+    let started = Instant::now();
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces)| {
         let result = strand.advance(&params, &forces);
         forces.clear();
@@ -127,6 +129,7 @@ pub(crate) fn step_strands(
         }
         *tally = StepTally { faults: std::mem::take(&mut tally.faults), ..default() };
     }
+    statistics.step_seconds = started.elapsed().as_secs_f64();
     statistics.steps += 1;
     statistics.strands = strands_stepped;
     statistics.max_strain = max_strain;

@@ -10,7 +10,8 @@ use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams
 use crate::settings::HairSettings;
 
 /// A hair strand to simulate, as it is spawned. Add it (with [`StrandOf`] to root it on a head) and the
-/// plugin builds its simulated [`Strand`] at the next fixed step. Changing it later respawns the strand.
+/// plugin builds its simulated [`Strand`] at the next fixed step. Changing it (or its `StrandOf`) later
+/// respawns the strand.
 ///
 /// The spawned shape is the rest shape: a curly strand spawned as a helix keeps its curls.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
@@ -329,10 +330,11 @@ type ChangedStrands<'w, 's> = Query<
     'w,
     's,
     (Entity, &'static HairStrand, Option<&'static StrandOf>, &'static mut StrandForces, &'static mut StrandPose),
-    Changed<HairStrand>,
+    Or<(Changed<HairStrand>, Changed<StrandOf>)>,
 >;
 
-/// Builds the simulated [`Strand`] of every new or changed [`HairStrand`]; rejects invalid ones with an
+/// Builds the simulated [`Strand`] of every new or changed [`HairStrand`] (or one moved to another head
+/// by a new [`StrandOf`]); rejects invalid ones with an
 /// error message naming the entity and the reason.
 pub(crate) fn build_strands(
     mut commands: Commands,

@@ -186,3 +186,22 @@ fn every_strand_is_drawn_as_an_interpolated_line_strip() {
     assert!(pose.previous[10].distance(pose.current[10]) > 1e-5, "the tip moved during the step");
     assert!(drawn[10].distance(tip) < 1e-6, "tip drawn at {} instead of {tip}", drawn[10]);
 }
+
+#[test]
+fn a_strand_given_to_another_head_is_rooted_there() {
+    let mut app = hair_app();
+    let (_, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 4, 8);
+    let other = app.world_mut().spawn((HairHead, Transform::from_xyz(2.0, 1.0, 0.0))).id();
+    for _ in 0..5 {
+        app.update();
+    }
+    app.world_mut().entity_mut(strands[1]).insert(StrandOf(other));
+    app.update();
+    let spec = app.world().get::<HairStrand>(strands[1]).unwrap();
+    let expected = expected_root_edge(&GlobalTransform::from_xyz(2.0, 1.0, 0.0), spec);
+    let positions = strand(&app, strands[1]).rod().positions();
+    assert!(positions[0].distance(expected[0].as_dvec3()) < 1e-6, "root at {} not {}", positions[0], expected[0]);
+    let tip_to_head = positions.last().unwrap().distance(DVec3::new(2.0, 1.0, 0.0));
+    assert!(tip_to_head < 0.31, "the whole strand moved to its new head ({tip_to_head} m from it)");
+    assert_eq!(app.world().get::<HeadStrands>(other).unwrap().strands(), &[strands[1]]);
+}
