@@ -1,7 +1,8 @@
 //! A head of simulated hair that you can orbit around and move.
 //!
 //! ```sh
-//! cargo run --release --features render --example head
+//! cargo run --release --features egui --example head     # with the live settings panel
+//! cargo run --release --features render --example head   # without it
 //! ```
 //!
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD move the head, Q and E
@@ -30,11 +31,11 @@ const HEAD_HEIGHT: f32 = 1.6;
 
 fn main() {
     let window = Window { title: "bevy_hair_sim".into(), ..default() };
-    App::new()
-        .add_plugins((
-            DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }),
-            HairPlugin::default(),
-        ))
+    let mut app = App::new();
+    app.add_plugins((DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }), HairPlugin::default()));
+    #[cfg(feature = "egui")]
+    app.add_plugins(HairPanelPlugin);
+    app
         .insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(HeadSway { enabled: true, time: 0.0 })

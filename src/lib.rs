@@ -3,6 +3,8 @@
 
 pub mod gizmos;
 pub mod head;
+#[cfg(feature = "egui")]
+pub mod panel;
 mod plugin;
 pub mod rod;
 pub mod settings;
@@ -15,6 +17,8 @@ pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 pub mod prelude {
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
+    #[cfg(feature = "egui")]
+    pub use crate::panel::HairPanelPlugin;
     pub use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
     pub use crate::settings::{HairSettings, HairStatistics};
     pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandPose, StrandRejected};
