@@ -32,11 +32,13 @@ const HEAD_HEIGHT: f32 = 1.6;
 fn main() {
     let window = Window { title: "bevy_hair_sim".into(), ..default() };
     let mut app = App::new();
-    app.add_plugins((DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }), HairPlugin::default()));
+    app.add_plugins((
+        DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }),
+        HairPlugin::default(),
+    ));
     #[cfg(feature = "egui")]
     app.add_plugins(HairPanelPlugin);
-    app
-        .insert_resource(Time::<Fixed>::from_hz(60.0))
+    app.insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(HeadSway { enabled: true, time: 0.0 })
         .add_systems(Startup, spawn_scene)
