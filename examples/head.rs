@@ -85,7 +85,7 @@ fn spawn_scene(
     commands.spawn((
         Mesh3d(meshes.add(Capsule3d::new(0.16, 0.9))),
         MeshMaterial3d(materials.add(Color::srgb(0.2, 0.3, 0.45))),
-        Transform::from_xyz(0.0, 0.95, 0.0),
+        Transform::from_xyz(0.0, 0.76, 0.0),
     ));
 
     let skin = materials.add(Color::srgb(0.87, 0.69, 0.58));
