@@ -115,10 +115,15 @@ impl Plugin for HairSimulationPlugin {
         )
         .configure_sets(
             schedule,
-            (HairSystems::PinRoots, HairSystems::ExternalForces, HairSystems::Step, HairSystems::PostStep)
+            (
+                HairSystems::PinRoots,
+                HairSystems::ExternalForces,
+                HairSystems::Step,
+                HairSystems::PostStep,
+                HairSystems::Writeback,
+            )
                 .run_if(stepping),
         )
-        .configure_sets(schedule, HairSystems::Writeback.run_if(stepping))
         .add_systems(
             schedule,
             (

@@ -127,6 +127,7 @@ pub(crate) fn step_strands(
             statistics.faults += 1;
             fault_messages.write(fault);
         }
+        // Start the next step from zero, keeping the fault list's memory.
         *tally = StepTally { faults: std::mem::take(&mut tally.faults), ..default() };
     }
     statistics.step_seconds = started.elapsed().as_secs_f64();
