@@ -39,6 +39,7 @@ fn hair_panel(
         let (_, hair) = store.config::<HairGizmos>();
         (hair.root_color.to_srgba().to_f32_array_no_alpha(), hair.tip_color.to_srgba().to_f32_array_no_alpha())
     });
+    let shown_colors = colors;
     egui::Window::new("Hair").default_width(300.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics);
         ui.separator();
@@ -60,7 +61,7 @@ fn hair_panel(
     if edited != *settings {
         *settings = edited;
     }
-    if let (Some(mut store), Some((root, tip))) = (gizmo_store, colors) {
+    if let (Some(mut store), Some((root, tip))) = (gizmo_store, colors.filter(|_| colors != shown_colors)) {
         let (_, hair) = store.config_mut::<HairGizmos>();
         hair.root_color = Color::srgb_from_array(root);
         hair.tip_color = Color::srgb_from_array(tip);
