@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod gizmos;
+pub mod groom;
 pub mod head;
 #[cfg(feature = "egui")]
 pub mod panel;
@@ -16,11 +17,12 @@ pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 /// The types most users need.
 pub mod prelude {
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
+    pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]
     pub use crate::panel::HairPanelPlugin;
     pub use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
-    pub use crate::settings::{HairSettings, HairStatistics};
+    pub use crate::settings::{HairPause, HairSettings, HairStatistics};
     pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandPose, StrandRejected};
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

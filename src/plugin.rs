@@ -6,8 +6,9 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
 use crate::gizmos::HairGizmoPlugin;
+use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
 use crate::head::{HairHead, HeadMotion, HeadPose, HeadStrands, StrandOf, track_heads};
-use crate::settings::{HairSettings, HairStatistics};
+use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::step::{
     StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping, write_poses,
 };
@@ -56,8 +57,9 @@ impl PluginGroup for HairPlugin {
 /// [`HairSystems::PostStep`].
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairSystems {
-    /// Builds strands from new or changed [`HairStrand`]s, applies changed settings, decides whether this
-    /// step runs (see [`HairSettings::max_steps_per_frame`]). Always runs.
+    /// Grows the hair of new or changed [`HairGroom`]s, builds strands from new or changed
+    /// [`HairStrand`]s, applies changed settings, decides whether this step runs (see [`HairPause`] and
+    /// [`HairSettings::max_steps_per_frame`]). Always runs.
     Prepare,
     /// Moves every strand's root edge to its anchor on its head.
     PinRoots,
@@ -92,9 +94,13 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<StrandForces>()
             .register_type::<StrandPose>()
             .register_type::<StrandRejected>()
+            .register_type::<HairGroom>()
+            .register_type::<GroomedStrand>()
             .register_type::<HairSettings>()
+            .register_type::<HairPause>()
             .register_type::<HairStatistics>()
             .init_resource::<HairSettings>()
+            .init_resource::<HairPause>()
             .init_resource::<HairStatistics>()
             .init_resource::<StepBudget>()
             .add_message::<StrandFault>()
@@ -127,7 +133,9 @@ impl Plugin for HairSimulationPlugin {
         .add_systems(
             schedule,
             (
-                (build_strands, apply_default_material, open_step).chain().in_set(HairSystems::Prepare),
+                (grow_groomed_hair, build_strands, apply_default_material, open_step)
+                    .chain()
+                    .in_set(HairSystems::Prepare),
                 (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
                 step_strands.in_set(HairSystems::Step),
                 write_poses.in_set(HairSystems::Writeback),

@@ -68,12 +68,34 @@ impl HairSettings {
     }
 }
 
+/// Pauses the hair simulation or runs it a step at a time, for tools and debugging. While paused, heads
+/// may move; their hair waits (and is dragged, or carried along if the head went farther than
+/// [`HairSettings::teleport_distance`], when the simulation resumes). Strands are still built and
+/// settings still applied.
+#[derive(Resource, Reflect, Debug, Clone, Default, PartialEq, Eq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairPause {
+    /// Whether the simulation is paused.
+    pub paused: bool,
+    /// Steps still to run while paused, one per fixed step (see [`HairPause::step_once`]).
+    pub pending_steps: u32,
+}
+
+impl HairPause {
+    /// Runs one more step while paused.
+    pub fn step_once(&mut self) {
+        self.pending_steps += 1;
+    }
+}
+
 /// What the simulation measured, updated every step: for a statistics panel, logs and tests.
 #[derive(Resource, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Resource, Debug, Default, Clone)]
 pub struct HairStatistics {
     /// Strands simulated in the last step.
     pub strands: usize,
+    /// Nodes of those strands.
+    pub nodes: usize,
     /// Steps simulated since start.
     pub steps: u64,
     /// Steps skipped because a frame asked for more than [`HairSettings::max_steps_per_frame`].

@@ -7,7 +7,7 @@ use bevy::utils::Parallel;
 
 use crate::head::{HeadMotion, StrandOf};
 use crate::rod::StepError;
-use crate::settings::{HairSettings, HairStatistics};
+use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
@@ -22,12 +22,19 @@ pub(crate) fn reset_step_budget(mut budget: ResMut<StepBudget>) {
     budget.steps_this_frame = 0;
 }
 
-/// Decides whether this fixed step simulates hair: at most [`HairSettings::max_steps_per_frame`] per frame.
+/// Decides whether this fixed step simulates hair: not while paused (unless a single step is pending), and
+/// at most [`HairSettings::max_steps_per_frame`] per frame.
 pub(crate) fn open_step(
     settings: Res<HairSettings>,
+    mut pause: ResMut<HairPause>,
     mut budget: ResMut<StepBudget>,
     mut statistics: ResMut<HairStatistics>,
 ) {
+    if pause.paused {
+        budget.stepping = pause.pending_steps > 0;
+        pause.pending_steps = pause.pending_steps.saturating_sub(1);
+        return;
+    }
     budget.stepping = budget.steps_this_frame < settings.max_steps_per_frame;
     if budget.stepping {
         budget.steps_this_frame += 1;
@@ -71,6 +78,7 @@ pub(crate) fn pin_roots(mut strands: Query<(Entity, &mut Strand, &StrandOf)>, he
 #[derive(Default)]
 pub(crate) struct StepTally {
     strands: usize,
+    nodes: usize,
     newton_iterations: u64,
     max_strain: f64,
     faults: Vec<StrandFault>,
@@ -103,6 +111,7 @@ pub(crate) fn step_strands(
         forces.clear();
         tallies.scope(|tally| {
             tally.strands += 1;
+            tally.nodes += strand.rod().node_count();
             match result {
                 Ok(report) => {
                     tally.newton_iterations += u64::from(report.newton_iterations);
@@ -113,9 +122,10 @@ pub(crate) fn step_strands(
         });
     });
 
-    let (mut strands_stepped, mut newton_iterations, mut max_strain) = (0, 0, 0.0_f64);
+    let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut max_strain) = (0, 0, 0, 0.0_f64);
     for tally in tallies.iter_mut() {
         strands_stepped += tally.strands;
+        nodes_stepped += tally.nodes;
         newton_iterations += tally.newton_iterations;
         max_strain = max_strain.max(tally.max_strain);
         for fault in tally.faults.drain(..) {
@@ -133,6 +143,7 @@ pub(crate) fn step_strands(
     statistics.step_seconds = started.elapsed().as_secs_f64();
     statistics.steps += 1;
     statistics.strands = strands_stepped;
+    statistics.nodes = nodes_stepped;
     statistics.max_strain = max_strain;
     statistics.mean_newton_iterations =
         if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };

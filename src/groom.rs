@@ -1,0 +1,335 @@
+//! Grooming: a whole head of hair from a few parameters. Put a [`HairGroom`] on a [`HairHead`] and the
+//! plugin grows its strands (as [`HairStrand`]s rooted with [`StrandOf`]), and grows them anew whenever the
+//! groom changes.
+//!
+//! [`HairHead`]: crate::head::HairHead
+
+use std::f32::consts::{FRAC_PI_3, TAU};
+
+use bevy::prelude::*;
+use thiserror::Error;
+
+use crate::head::{HeadStrands, StrandOf};
+use crate::strand::HairStrand;
+
+/// The hair-bearing part of a head: an ellipsoid skull in the head's local space (`−Z`, Bevy's forward,
+/// is the face) and a hairline. Roots are spread over it along a golden-angle spiral, so they are evenly
+/// spaced, without clumps or bald stripes.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct Scalp {
+    /// Centre of the skull ellipsoid in the head's local space, m.
+    pub centre: Vec3,
+    /// Semi-axes of the skull ellipsoid, m: half its width (x, ear to ear), height (y) and depth (z).
+    /// Default 0.1 m each (a sphere).
+    pub semi_axes: Vec3,
+    /// Lowest hairline at the back and the sides, as the up component of the skull's surface normal
+    /// (−1 at the bottom, 0 at the equator, 1 at the crown). Default −0.35 (the nape).
+    pub nape_height: f32,
+    /// Hairline over the face (the front, `−Z`), in the same measure. Default 0.45 (the brow).
+    pub brow_height: f32,
+}
+
+impl Default for Scalp {
+    fn default() -> Self {
+        Self { centre: Vec3::ZERO, semi_axes: Vec3::splat(0.1), nape_height: -0.35, brow_height: 0.45 }
+    }
+}
+
+/// A hair root on the scalp, head-local.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScalpRoot {
+    /// Position on the skull's surface, m.
+    pub position: Vec3,
+    /// Outward unit normal of the skull there: the direction the strand grows in.
+    pub normal: Vec3,
+}
+
+impl Scalp {
+    /// `count` roots spread evenly over the scalp: the first points of a golden-angle spiral over the
+    /// skull that fall inside the hairline, with the spiral's length chosen so that about `count` do
+    /// (any few extra are dropped evenly along the spiral).
+    pub fn roots(&self, count: usize) -> Result<Vec<ScalpRoot>, GroomError> {
+        self.validate()?;
+        if count == 0 {
+            return Ok(Vec::new());
+        }
+        // The spiral of `total` points holds `inside(total)` roots; find the shortest that holds `count`.
+        let inside = |total: usize| (0..total).filter(|&index| self.spiral_root(index, total).is_some()).count();
+        let limit = count.saturating_mul(1000).max(100_000);
+        let mut longest = count;
+        while inside(longest) < count {
+            longest *= 2;
+            if longest > limit {
+                return Err(GroomError::EmptyScalp { nape_height: self.nape_height, brow_height: self.brow_height });
+            }
+        }
+        let mut shortest = count;
+        while shortest < longest {
+            let middle = (shortest + longest) / 2;
+            if inside(middle) >= count { longest = middle } else { shortest = middle + 1 }
+        }
+        let mut roots: Vec<ScalpRoot> = (0..longest).filter_map(|index| self.spiral_root(index, longest)).collect();
+        let (found, surplus) = (roots.len(), roots.len() - count);
+        for dropped in (0..surplus).rev() {
+            roots.remove((2 * dropped + 1) * found / (2 * surplus));
+        }
+        Ok(roots)
+    }
+
+    /// Point `index` of a golden-angle spiral of `total` points over the skull, if it lies inside the
+    /// hairline.
+    fn spiral_root(&self, index: usize, total: usize) -> Option<ScalpRoot> {
+        const GOLDEN_ANGLE: f32 = 2.399_963_2;
+        let height = 1.0 - 2.0 * (index as f32 + 0.5) / total as f32;
+        let ring = (1.0 - height * height).max(0.0).sqrt();
+        let around = GOLDEN_ANGLE * index as f32;
+        let on_unit_sphere = Vec3::new(ring * around.cos(), height, ring * around.sin());
+        let normal = (on_unit_sphere / self.semi_axes).normalize();
+        (normal.y >= self.hairline_height(normal))
+            .then(|| ScalpRoot { position: self.centre + self.semi_axes * on_unit_sphere, normal })
+    }
+
+    /// The hairline's height in the direction of `normal`: the brow's over the face, blending into the
+    /// nape's over the temples.
+    fn hairline_height(&self, normal: Vec3) -> f32 {
+        let horizontal = Vec2::new(normal.x, -normal.z);
+        let facing_front = if horizontal.length_squared() > 1e-12 { horizontal.normalize().y } else { 0.0 };
+        let face = ((facing_front - 0.3) / 0.4).clamp(0.0, 1.0);
+        let face = face * face * (3.0 - 2.0 * face);
+        self.nape_height + (self.brow_height - self.nape_height) * face
+    }
+
+    fn validate(&self) -> Result<(), GroomError> {
+        if !self.centre.is_finite() || !self.semi_axes.is_finite() || self.semi_axes.min_element() <= 0.0 {
+            return Err(GroomError::Skull { centre: self.centre, semi_axes: self.semi_axes });
+        }
+        for (name, height) in [("nape", self.nape_height), ("brow", self.brow_height)] {
+            if !(-1.0..=1.0).contains(&height) {
+                return Err(GroomError::Hairline { name, height });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The shape hair grows in. Each style spawns strands whose shape is their rest shape, so waves and curls
+/// are kept while the hair moves; lengths vary per strand within the style's range
+/// ([`HairStyle::length_range`]).
+#[derive(Reflect, Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+#[reflect(Debug, Default, Clone, PartialEq, Hash)]
+pub enum HairStyle {
+    /// Straight hair, 14 to 22 cm: falls under its weight.
+    #[default]
+    Straight,
+    /// Hair in gentle planar waves (wavelength 4 cm, amplitude about 5 mm), 16 to 24 cm.
+    Wavy,
+    /// Helical curls of radius 6 mm (never less than one edge, so they stay resolved), 14 to 22 cm of
+    /// fibre.
+    Curly,
+    /// Short straight hair, 3 to 6 cm: stiff enough to stand out from the scalp.
+    Short,
+    /// Long straight hair, 32 to 45 cm: hangs.
+    Long,
+}
+
+impl HairStyle {
+    /// Every style, for menus.
+    pub const ALL: [HairStyle; 5] = [Self::Straight, Self::Wavy, Self::Curly, Self::Short, Self::Long];
+
+    /// Shortest and longest strand of the style, m (length along the fibre).
+    pub fn length_range(self) -> (f32, f32) {
+        match self {
+            Self::Straight | Self::Curly => (0.14, 0.22),
+            Self::Wavy => (0.16, 0.24),
+            Self::Short => (0.03, 0.06),
+            Self::Long => (0.32, 0.45),
+        }
+    }
+
+    /// The style's name, for menus.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Straight => "straight",
+            Self::Wavy => "wavy",
+            Self::Curly => "curly",
+            Self::Short => "short",
+            Self::Long => "long",
+        }
+    }
+}
+
+/// Grows a head of hair: put it on a [`crate::head::HairHead`] and the plugin spawns `strand_count`
+/// strands of `style` over `scalp`, each marked [`GroomedStrand`]. Changing the groom despawns the
+/// groomed strands and grows new ones (strands you spawned yourself on the head are kept). An invalid
+/// groom is reported with an error message and the head keeps its hair.
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct HairGroom {
+    /// Where hair grows.
+    pub scalp: Scalp,
+    /// Number of strands. Default 2 000.
+    pub strand_count: usize,
+    /// Edges per strand (nodes are one more), at least 2. More edges resolve curls better and cost
+    /// proportionally more. Default 24.
+    pub segments: usize,
+    /// Shape and lengths of the hair.
+    pub style: HairStyle,
+    /// Seed of the per-strand variation (lengths, curl phases): the same seed grows the same hair.
+    pub seed: u64,
+}
+
+impl Default for HairGroom {
+    fn default() -> Self {
+        Self { scalp: Scalp::default(), strand_count: 2000, segments: 24, style: HairStyle::Straight, seed: 0 }
+    }
+}
+
+impl HairGroom {
+    /// The strands of this groom, in the head's local space; each root edge lies along the scalp's normal.
+    pub fn grow(&self) -> Result<Vec<HairStrand>, GroomError> {
+        if self.segments < 2 {
+            return Err(GroomError::TooFewSegments(self.segments));
+        }
+        let mut random = fastrand::Rng::with_seed(self.seed);
+        let (shortest, longest) = self.style.length_range();
+        let strands = self
+            .scalp
+            .roots(self.strand_count)?
+            .into_iter()
+            .map(|root| {
+                let length = shortest + (longest - shortest) * random.f32();
+                let shape = StrandShape::new(self.style, root.normal, length / self.segments as f32, &mut random);
+                let mut nodes = Vec::with_capacity(self.segments + 1);
+                let mut node = root.position;
+                nodes.push(node);
+                for edge in 0..self.segments {
+                    node += shape.edge(edge);
+                    nodes.push(node);
+                }
+                HairStrand::from_nodes(nodes, shape.down_the_scalp)
+            })
+            .collect();
+        Ok(strands)
+    }
+}
+
+/// The rest shape of one strand: its edges, built from a tangent that turns with arc length.
+struct StrandShape {
+    style: HairStyle,
+    normal: Vec3,
+    down_the_scalp: Vec3,
+    across: Vec3,
+    edge_length: f32,
+    curl_radius: f32,
+    curl_phase: f32,
+}
+
+impl StrandShape {
+    /// Wavelength of [`HairStyle::Wavy`], m.
+    const WAVELENGTH: f32 = 0.04;
+    /// Largest angle of a wave's tangent from the root direction, rad.
+    const WAVE_ANGLE: f32 = 0.7;
+    /// Radius of [`HairStyle::Curly`]'s curls, m.
+    const CURL_RADIUS: f32 = 0.006;
+    /// Angle of a curl's fibre from the curl's axis, rad (its pitch is `2πR / tan` of it).
+    const CURL_ANGLE: f32 = FRAC_PI_3;
+    /// Arc length over which a curl opens up from the straight root, m.
+    const CURL_ONSET: f32 = 0.01;
+
+    fn new(style: HairStyle, normal: Vec3, edge_length: f32, random: &mut fastrand::Rng) -> Self {
+        let down = Vec3::NEG_Y.reject_from_normalized(normal);
+        let down_the_scalp = if down.length_squared() > 1e-6 { down.normalize() } else { Vec3::Z };
+        Self {
+            style,
+            normal,
+            down_the_scalp,
+            across: normal.cross(down_the_scalp),
+            edge_length,
+            curl_radius: Self::CURL_RADIUS.max(edge_length) * (0.85 + 0.3 * random.f32()),
+            curl_phase: TAU * random.f32(),
+        }
+    }
+
+    /// Edge `index`, m: `edge_length` along the tangent at its start, so the root edge lies along the normal.
+    fn edge(&self, index: usize) -> Vec3 {
+        let arc = self.edge_length * index as f32;
+        let tangent = match self.style {
+            HairStyle::Straight | HairStyle::Short | HairStyle::Long => self.normal,
+            HairStyle::Wavy => {
+                let angle = Self::WAVE_ANGLE * (TAU * arc / Self::WAVELENGTH).sin();
+                angle.cos() * self.normal + angle.sin() * self.down_the_scalp
+            }
+            HairStyle::Curly => {
+                let onset = (arc / Self::CURL_ONSET).min(1.0);
+                let angle = Self::CURL_ANGLE * onset * onset * (3.0 - 2.0 * onset);
+                let around = self.curl_phase + Self::CURL_ANGLE.sin() * arc / self.curl_radius;
+                let sideways = around.cos() * self.down_the_scalp + around.sin() * self.across;
+                angle.cos() * self.normal + angle.sin() * sideways
+            }
+        };
+        self.edge_length * tangent
+    }
+}
+
+/// Why a [`HairGroom`] could not grow hair.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GroomError {
+    /// Strands need at least two edges.
+    #[error("a groomed strand needs at least 2 segments (edges), got {0}")]
+    TooFewSegments(usize),
+    /// The skull ellipsoid is degenerate.
+    #[error(
+        "the scalp's skull needs a finite centre and positive finite semi-axes, got centre {centre} and semi-axes {semi_axes}"
+    )]
+    Skull {
+        /// The centre given, m.
+        centre: Vec3,
+        /// The semi-axes given, m.
+        semi_axes: Vec3,
+    },
+    /// A hairline height outside −1 to 1.
+    #[error("the scalp's {name} height must lie between -1 and 1, got {height}")]
+    Hairline {
+        /// Which hairline.
+        name: &'static str,
+        /// The height given.
+        height: f32,
+    },
+    /// The hairline leaves (almost) none of the skull to grow hair on.
+    #[error("the scalp's hairline (nape height {nape_height}, brow height {brow_height}) leaves no room for hair")]
+    EmptyScalp {
+        /// The nape height given.
+        nape_height: f32,
+        /// The brow height given.
+        brow_height: f32,
+    },
+}
+
+/// Marks a strand grown by a head's [`HairGroom`]: regrowing replaces these and keeps the head's others.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone)]
+pub struct GroomedStrand;
+
+/// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands.
+pub(crate) fn grow_groomed_hair(
+    mut commands: Commands,
+    heads: Query<(Entity, &HairGroom, Option<&HeadStrands>), Changed<HairGroom>>,
+    groomed: Query<(), With<GroomedStrand>>,
+) {
+    for (head, groom, strands) in &heads {
+        let grown = match groom.grow() {
+            Ok(grown) => grown,
+            Err(error) => {
+                error!("hair groom of head {head} rejected, it keeps its hair: {error}");
+                continue;
+            }
+        };
+        for &strand in strands.map_or(&[][..], HeadStrands::strands) {
+            if groomed.contains(strand) {
+                commands.entity(strand).despawn();
+            }
+        }
+        commands.spawn_batch(grown.into_iter().map(move |strand| (strand, StrandOf(head), GroomedStrand)));
+    }
+}

@@ -1,0 +1,116 @@
+//! Grooming: roots spread evenly over the scalp along its normals, strand counts and shapes as asked,
+//! bad grooms rejected with their reason.
+
+use bevy::prelude::*;
+use bevy_hair_sim::groom::{GroomError, ScalpRoot};
+use bevy_hair_sim::prelude::*;
+
+/// A head-like skull: narrower than deep, centred above the head's origin.
+fn skull() -> Scalp {
+    Scalp { centre: Vec3::new(0.0, 0.02, 0.0), semi_axes: Vec3::new(0.075, 0.095, 0.1), ..default() }
+}
+
+/// Distance from each root to its nearest neighbour, m.
+fn nearest_neighbour_distances(roots: &[ScalpRoot]) -> Vec<f32> {
+    roots
+        .iter()
+        .enumerate()
+        .map(|(index, root)| {
+            roots
+                .iter()
+                .enumerate()
+                .filter(|&(other, _)| other != index)
+                .map(|(_, other)| root.position.distance(other.position))
+                .fold(f32::INFINITY, f32::min)
+        })
+        .collect()
+}
+
+#[test]
+fn roots_lie_on_the_skull_inside_the_hairline_with_the_exact_count() {
+    let scalp = skull();
+    for count in [1, 7, 100, 2000, 3117] {
+        let roots = scalp.roots(count).unwrap();
+        assert_eq!(roots.len(), count);
+        for root in &roots {
+            let on_unit_sphere = (root.position - scalp.centre) / scalp.semi_axes;
+            assert!((on_unit_sphere.length() - 1.0).abs() < 1e-5, "root {root:?} is off the skull");
+            let gradient = (on_unit_sphere / scalp.semi_axes).normalize();
+            assert!(root.normal.cross(gradient).length() < 1e-5, "root {root:?} does not grow along the normal");
+            assert!(root.normal.y >= scalp.nape_height, "root {root:?} below the nape");
+            let facing_front = -root.normal.z / Vec2::new(root.normal.x, root.normal.z).length();
+            assert!(facing_front < 0.7 || root.normal.y >= scalp.brow_height, "root {root:?} on the face");
+        }
+    }
+}
+
+#[test]
+fn roots_are_spread_evenly_without_clumps_or_bald_patches() {
+    let scalp = skull();
+    let roots = scalp.roots(2000).unwrap();
+    let distances = nearest_neighbour_distances(&roots);
+    let mean = distances.iter().sum::<f32>() / distances.len() as f32;
+    let (closest, farthest) =
+        distances.iter().fold((f32::INFINITY, 0.0_f32), |(low, high), &d| (low.min(d), high.max(d)));
+    println!("nearest neighbours: mean {:.2} mm, min {:.2}, max {:.2}", 1e3 * mean, 1e3 * closest, 1e3 * farthest);
+    // Uniformly random roots would have a closest pair at a few percent of the mean spacing.
+    assert!(closest > 0.6 * mean, "clump: two roots {closest} m apart against a mean spacing of {mean} m");
+    assert!(farthest < 1.5 * mean, "a root stands {farthest} m from its neighbours against a mean spacing of {mean} m");
+
+    // No bald patch: every point of the scalp (a spiral ten times denser) is near a root. Points on the
+    // hairline have roots on one side only, hence more than a lattice's half spacing.
+    let probes = scalp.roots(20_000).unwrap();
+    let widest_gap = probes
+        .iter()
+        .map(|probe| roots.iter().map(|root| root.position.distance(probe.position)).fold(f32::INFINITY, f32::min))
+        .fold(0.0_f32, f32::max);
+    println!("widest gap: {:.2} mm", 1e3 * widest_gap);
+    assert!(widest_gap < 1.25 * mean, "a bald patch: a scalp point {widest_gap} m from every root");
+}
+
+#[test]
+fn grown_strands_have_the_style_lengths_and_root_along_the_normal() {
+    for style in HairStyle::ALL {
+        let groom = HairGroom { scalp: skull(), strand_count: 300, segments: 16, style, seed: 7 };
+        let strands = groom.grow().unwrap();
+        let roots = groom.scalp.roots(300).unwrap();
+        assert_eq!(strands.len(), 300);
+        let (shortest, longest) = style.length_range();
+        let lengths: Vec<f32> =
+            strands.iter().map(|strand| strand.nodes.windows(2).map(|edge| edge[0].distance(edge[1])).sum()).collect();
+        for ((strand, root), length) in strands.iter().zip(&roots).zip(&lengths) {
+            assert_eq!(strand.nodes.len(), 17);
+            assert_eq!(strand.nodes[0], root.position);
+            assert!((strand.nodes[1] - strand.nodes[0]).angle_between(root.normal) < 1e-3, "{style:?} root edge");
+            assert!((shortest - 1e-5..=longest + 1e-5).contains(length), "{style:?} strand of {length} m");
+            assert!(strand.material_direction.dot(root.normal).abs() < 1e-5, "{style:?} material direction");
+        }
+        let spread =
+            lengths.iter().fold(0.0_f32, |high, &l| high.max(l)) - lengths.iter().fold(1.0_f32, |low, &l| low.min(l));
+        assert!(spread > 0.8 * (longest - shortest), "{style:?}: lengths vary by only {spread} m");
+    }
+}
+
+#[test]
+fn the_same_seed_grows_the_same_hair_and_another_seed_other_hair() {
+    let groom = HairGroom { strand_count: 50, style: HairStyle::Curly, ..default() };
+    assert_eq!(groom.grow().unwrap(), groom.grow().unwrap());
+    assert_ne!(groom.grow().unwrap(), HairGroom { seed: 1, ..groom.clone() }.grow().unwrap());
+}
+
+#[test]
+fn invalid_grooms_are_rejected_with_their_reason() {
+    let cases = [
+        (HairGroom { segments: 1, ..default() }, "at least 2 segments"),
+        (HairGroom { scalp: Scalp { semi_axes: Vec3::new(0.1, 0.0, 0.1), ..default() }, ..default() }, "semi-axes"),
+        (HairGroom { scalp: Scalp { centre: Vec3::NAN, ..default() }, ..default() }, "finite centre"),
+        (HairGroom { scalp: Scalp { nape_height: f32::NAN, ..default() }, ..default() }, "nape height"),
+        (HairGroom { scalp: Scalp { brow_height: 1.5, ..default() }, ..default() }, "brow height"),
+        (HairGroom { scalp: Scalp { nape_height: 1.0, brow_height: 1.0, ..default() }, ..default() }, "no room"),
+    ];
+    for (groom, reason) in cases {
+        let error: GroomError = groom.grow().unwrap_err();
+        assert!(error.to_string().contains(reason), "{error} should say {reason:?}");
+    }
+    assert!(HairGroom { strand_count: 0, ..default() }.grow().unwrap().is_empty());
+}
