@@ -1,49 +1,174 @@
-//! A head of simulated hair that you can orbit around and move.
+//! A head with a full head of simulated hair that you can orbit, move, animate, restyle and tune.
 //!
 //! ```sh
-//! cargo run --release --features egui --example head     # with the live settings panel
-//! cargo run --release --features render --example head   # without it
+//! cargo run --release --features egui --example head     # with the live panel
+//! cargo run --release --features render --example head   # without it (statistics in the title)
 //! ```
 //!
-//! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD move the head, Q and E
-//! turn it, Space starts or stops its automatic sway. The window title shows the simulation's statistics.
+//! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
+//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style.
 //!
-//! With `HAIR_SCREENSHOT=shot.png` in the environment, the example saves a screenshot after three
-//! seconds and exits: a way to look at it on a machine with no display (see `shared/visual-check.md`).
+//! Picture mode, for machines without a display (see `shared/visual-check.md`): render a number of frames
+//! of exactly 1/60 s each, save a PNG with Bevy's screenshot API and exit.
+//!
+//! ```sh
+//! cargo run --release --features egui --example head -- --screenshot shot.png --frames 240 \
+//!     --style curly --animate shake --strands 2000 --segments 32 --yaw 30
+//! ```
 
-use std::f32::consts::TAU;
+use std::f32::consts::{PI, TAU};
+use std::time::Duration;
 
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
 
-/// Strands on the head.
-const STRANDS: usize = 1500;
-/// Edges per strand.
-const SEGMENTS: usize = 20;
-/// Radius of the head, m.
-const HEAD_RADIUS: f32 = 0.1;
-/// Length of the hair, m.
-const HAIR_LENGTH: f32 = 0.16;
-/// Height of the head's centre, m.
-const HEAD_HEIGHT: f32 = 1.6;
+/// Height of the neck joint the head turns about, m.
+const NECK_HEIGHT: f32 = 1.5;
 
 fn main() {
-    let window = Window { title: "bevy_hair_sim".into(), ..default() };
+    let options = match Options::from_args(std::env::args().skip(1)) {
+        Ok(options) => options,
+        Err(message) => {
+            eprintln!("{message}\n\n{}", Options::USAGE);
+            std::process::exit(2);
+        }
+    };
+    let window = Window { title: "bevy_hair_sim".into(), resolution: (1280, 800).into(), ..default() };
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }),
         HairPlugin::default(),
     ));
-    #[cfg(feature = "egui")]
-    app.add_plugins(HairPanelPlugin);
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
-        .insert_resource(HeadSway { enabled: true, time: 0.0 })
+        .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
         .add_systems(Startup, spawn_scene)
-        .add_systems(Update, (orbit_camera, steer_head, show_statistics, screenshot_and_exit))
-        .run();
+        .add_systems(Update, (animate_head, walk_body, pick_style, show_statistics));
+    #[cfg(feature = "egui")]
+    {
+        use bevy_egui::input::egui_wants_any_pointer_input;
+        app.add_plugins(HairPanelPlugin)
+            .add_systems(Update, orbit_camera.run_if(not(egui_wants_any_pointer_input)))
+            .add_systems(bevy_egui::EguiPrimaryContextPass, scene_panel);
+    }
+    #[cfg(not(feature = "egui"))]
+    app.add_systems(Update, orbit_camera);
+    if options.screenshot.is_some() {
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
+            .add_systems(Update, take_picture);
+    }
+    app.insert_resource(options).run();
+}
+
+/// Command-line options: the scene's start and picture mode.
+#[derive(Resource, Debug, Clone)]
+struct Options {
+    /// Save a picture here after `frames` frames and exit.
+    screenshot: Option<String>,
+    frames: u32,
+    style: HairStyle,
+    animation: Animation,
+    strands: usize,
+    segments: usize,
+    /// Camera angle around the head, degrees from straight in front (positive: the head's left).
+    yaw_degrees: f32,
+}
+
+impl Options {
+    const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
+            [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]";
+
+    fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
+        let groom = HairGroom::default();
+        let mut options = Self {
+            screenshot: None,
+            frames: 240,
+            style: groom.style,
+            animation: Animation::Still,
+            strands: groom.strand_count,
+            segments: groom.segments,
+            yaw_degrees: 35.0,
+        };
+        while let Some(flag) = args.next() {
+            let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
+            let number = |what: &str| value.parse::<f32>().map_err(|_| format!("{flag} needs {what}, got {value:?}"));
+            match flag.as_str() {
+                "--screenshot" => options.screenshot = Some(value.clone()),
+                "--frames" => options.frames = number("a count")? as u32,
+                "--strands" => options.strands = number("a count")? as usize,
+                "--segments" => options.segments = number("a count")? as usize,
+                "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
+                "--style" => {
+                    options.style = HairStyle::ALL
+                        .into_iter()
+                        .find(|style| style.name() == value)
+                        .ok_or_else(|| format!("unknown style {value:?}"))?
+                }
+                "--animate" => {
+                    options.animation = Animation::ALL
+                        .into_iter()
+                        .find(|animation| animation.name() == value)
+                        .ok_or_else(|| format!("unknown animation {value:?}"))?
+                }
+                _ => return Err(format!("unknown option {flag:?}")),
+            }
+        }
+        Ok(options)
+    }
+}
+
+/// How the head moves by itself.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Animation {
+    Still,
+    Nod,
+    Shake,
+    Turn,
+    Sway,
+}
+
+impl Animation {
+    const ALL: [Animation; 5] = [Self::Still, Self::Nod, Self::Shake, Self::Turn, Self::Sway];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Still => "still",
+            Self::Nod => "nod",
+            Self::Shake => "shake",
+            Self::Turn => "turn",
+            Self::Sway => "sway",
+        }
+    }
+
+    /// The head's rotation on its neck and the body's sideways offset (m), `seconds` into the animation.
+    fn pose(self, seconds: f32) -> (Quat, f32) {
+        let wave = |hertz: f32| (TAU * hertz * seconds).sin();
+        match self {
+            Self::Still => (Quat::IDENTITY, 0.0),
+            Self::Nod => (Quat::from_rotation_x(0.35 * wave(1.2)), 0.0),
+            Self::Shake => (Quat::from_rotation_y(0.7 * wave(1.8)), 0.0),
+            Self::Turn => (Quat::from_rotation_y(1.2 * wave(0.3)), 0.0),
+            Self::Sway => (Quat::from_rotation_z(0.15 * wave(0.7)), 0.12 * wave(0.7)),
+        }
+    }
+}
+
+/// The animation playing and how long it has played, s.
+#[derive(Resource)]
+struct AnimationClock {
+    animation: Animation,
+    seconds: f32,
+}
+
+/// The body: walked and turned with the keyboard; the head sits on it.
+#[derive(Component, Default)]
+struct Body {
+    position: Vec3,
+    heading: f32,
+    sway: f32,
 }
 
 /// The camera's orbit around the head.
@@ -54,83 +179,95 @@ struct Orbit {
     distance: f32,
 }
 
-/// Whether the head sways by itself, and for how long it has.
-#[derive(Resource)]
-struct HeadSway {
-    enabled: bool,
-    time: f32,
-}
-
-/// Where the player has moved the head (the sway is added on top).
-#[derive(Component, Default)]
-struct HeadPlacement {
-    position: Vec3,
-    heading: f32,
-}
-
 fn spawn_scene(
     mut commands: Commands,
+    options: Res<Options>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
+    mut gizmos: ResMut<GizmoConfigStore>,
 ) {
-    commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw: 0.6, pitch: 0.15, distance: 0.9 }));
+    gizmos.config_mut::<HairGizmos>().0.line.width = 1.5;
+    let yaw = PI + options.yaw_degrees.to_radians();
+    commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: 0.12, distance: 0.85 }));
     commands.spawn((
-        DirectionalLight { illuminance: 8000.0, shadow_maps_enabled: true, ..default() },
-        Transform::from_xyz(1.0, 3.0, 2.0).looking_at(Vec3::ZERO, Vec3::Y),
+        DirectionalLight { illuminance: 9000.0, shadow_maps_enabled: true, ..default() },
+        Transform::from_xyz(-1.0, 3.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
     commands.spawn((
-        Mesh3d(meshes.add(Plane3d::default().mesh().size(6.0, 6.0))),
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(8.0, 8.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.25, 0.26, 0.28))),
-    ));
-    commands.spawn((
-        Mesh3d(meshes.add(Capsule3d::new(0.16, 0.9))),
-        MeshMaterial3d(materials.add(Color::srgb(0.2, 0.3, 0.45))),
-        Transform::from_xyz(0.0, 0.76, 0.0),
     ));
 
     let skin = materials.add(Color::srgb(0.87, 0.69, 0.58));
-    let placement = HeadPlacement { position: Vec3::new(0.0, HEAD_HEIGHT, 0.0), heading: 0.0 };
-    commands
-        .spawn((
-            HairHead,
-            Transform::from_translation(placement.position),
-            placement,
-            Mesh3d(meshes.add(Sphere::new(HEAD_RADIUS).mesh().uv(48, 24))),
-            MeshMaterial3d(skin),
-        ))
-        .with_related_entities::<StrandOf>(|head| {
-            for index in 0..STRANDS {
-                let (root, normal) = scalp_root(index);
-                head.spawn(HairStrand::straight(root, normal, HAIR_LENGTH, SEGMENTS));
-            }
-        });
-}
+    let shirt = materials.add(Color::srgb(0.2, 0.3, 0.45));
+    let white = materials.add(Color::srgb(0.95, 0.95, 0.95));
+    let iris = materials.add(Color::srgb(0.15, 0.25, 0.35));
+    let mut part = |mesh: Mesh, material: &Handle<StandardMaterial>, transform: Transform| {
+        (Mesh3d(meshes.add(mesh)), MeshMaterial3d(material.clone()), transform)
+    };
+    let body = commands
+        .spawn((Body::default(), Transform::default(), Visibility::default()))
+        .with_children(|body| {
+            body.spawn(part(Capsule3d::new(0.14, 0.75).into(), &shirt, Transform::from_xyz(0.0, 0.95, 0.0)));
+            body.spawn(part(
+                Capsule3d::new(0.07, 0.3).into(),
+                &shirt,
+                Transform::from_xyz(0.0, 1.38, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
+            ));
+            body.spawn(part(Cylinder::new(0.045, 0.14).into(), &skin, Transform::from_xyz(0.0, 1.47, 0.0)));
+        })
+        .id();
 
-/// Root position (head-local, m) and outward normal of strand `index`: a golden-angle spiral over the
-/// scalp, leaving the face (front, below the brow) bare.
-fn scalp_root(index: usize) -> (Vec3, Vec3) {
-    let mut candidate = index;
-    loop {
-        let height = 1.0 - 1.2 * (candidate as f32 + 0.5) / (1.6 * STRANDS as f32);
-        let around = candidate as f32 * 2.399_963;
-        let ring = (1.0 - height * height).max(0.0).sqrt();
-        let normal = Vec3::new(ring * around.sin(), height, ring * around.cos());
-        let on_face = normal.z > 0.35 && normal.y < 0.45;
-        if !on_face {
-            return (HEAD_RADIUS * normal, normal);
-        }
-        candidate += STRANDS;
-    }
+    let scalp = Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() };
+    let groom =
+        HairGroom { scalp, strand_count: options.strands, segments: options.segments, style: options.style, seed: 1 };
+    let ellipsoid = |semi_axes: Vec3, centre: Vec3| Transform::from_translation(centre).with_scale(semi_axes);
+    commands.spawn((
+        HairHead,
+        groom,
+        Transform::from_xyz(0.0, NECK_HEIGHT, 0.0),
+        Visibility::default(),
+        ChildOf(body),
+        children![
+            part(Sphere::new(1.0).mesh().uv(48, 24), &skin, ellipsoid(scalp.semi_axes, scalp.centre)),
+            // Face and jaw, in front of and below the skull (the face looks along −Z).
+            part(
+                Sphere::new(1.0).mesh().uv(32, 16),
+                &skin,
+                ellipsoid(Vec3::new(0.062, 0.075, 0.07), Vec3::new(0.0, 0.065, -0.035))
+            ),
+            part(Sphere::new(0.014).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.085)),
+            part(Sphere::new(0.014).into(), &white, Transform::from_xyz(0.03, 0.115, -0.085)),
+            part(Sphere::new(0.007).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.097)),
+            part(Sphere::new(0.007).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.097)),
+            part(
+                Capsule3d::new(0.011, 0.03).into(),
+                &skin,
+                Transform::from_xyz(0.0, 0.085, -0.102).with_rotation(Quat::from_rotation_x(0.35))
+            ),
+            part(
+                Sphere::new(1.0).mesh().uv(16, 8),
+                &skin,
+                ellipsoid(Vec3::new(0.012, 0.028, 0.018), Vec3::new(-0.079, 0.1, 0.01))
+            ),
+            part(
+                Sphere::new(1.0).mesh().uv(16, 8),
+                &skin,
+                ellipsoid(Vec3::new(0.012, 0.028, 0.018), Vec3::new(0.079, 0.1, 0.01))
+            ),
+        ],
+    ));
 }
 
 fn orbit_camera(
     buttons: Res<ButtonInput<MouseButton>>,
     motion: Res<AccumulatedMouseMotion>,
     scroll: Res<AccumulatedMouseScroll>,
-    heads: Query<&Transform, (With<HairHead>, Without<Orbit>)>,
+    heads: Query<&GlobalTransform, With<HairHead>>,
     mut cameras: Query<(&mut Transform, &mut Orbit)>,
 ) {
-    let focus = heads.iter().next().map_or(Vec3::new(0.0, HEAD_HEIGHT, 0.0), |head| head.translation);
+    let focus =
+        heads.iter().next().map_or(Vec3::new(0.0, NECK_HEIGHT, 0.0), |head| head.translation()) + 0.06 * Vec3::Y;
     for (mut transform, mut orbit) in &mut cameras {
         if buttons.pressed(MouseButton::Left) {
             orbit.yaw -= 0.005 * motion.delta.x;
@@ -142,18 +279,31 @@ fn orbit_camera(
     }
 }
 
-fn steer_head(
+/// Plays the head's animation on its neck; Space picks the next one.
+fn animate_head(
     time: Res<Time>,
     keys: Res<ButtonInput<KeyCode>>,
-    mut sway: ResMut<HeadSway>,
-    mut heads: Query<(&mut Transform, &mut HeadPlacement), With<HairHead>>,
+    mut clock: ResMut<AnimationClock>,
+    mut heads: Query<&mut Transform, (With<HairHead>, Without<Body>)>,
+    mut bodies: Query<&mut Body>,
 ) {
     if keys.just_pressed(KeyCode::Space) {
-        sway.enabled = !sway.enabled;
+        let next = Animation::ALL.iter().position(|&animation| animation == clock.animation).map_or(0, |i| i + 1);
+        clock.animation = Animation::ALL[next % Animation::ALL.len()];
+        clock.seconds = 0.0;
     }
-    if sway.enabled {
-        sway.time += time.delta_secs();
+    clock.seconds += time.delta_secs();
+    let (rotation, sway) = clock.animation.pose(clock.seconds);
+    for mut head in &mut heads {
+        head.rotation = rotation;
     }
+    for mut body in &mut bodies {
+        body.sway = sway;
+    }
+}
+
+/// Walks the body with the arrow keys or WASD and turns it with Q and E.
+fn walk_body(time: Res<Time>, keys: Res<ButtonInput<KeyCode>>, mut bodies: Query<(&mut Transform, &mut Body)>) {
     // −1, 0 or 1 from a pair of key sets.
     let axis = |positive: &[KeyCode], negative: &[KeyCode]| {
         f32::from(u8::from(keys.any_pressed(positive.iter().copied())))
@@ -163,21 +313,31 @@ fn steer_head(
     let right = axis(&[KeyCode::ArrowRight, KeyCode::KeyD], &[KeyCode::ArrowLeft, KeyCode::KeyA]);
     let turn = axis(&[KeyCode::KeyQ], &[KeyCode::KeyE]);
     let step = time.delta_secs();
-    for (mut transform, mut placement) in &mut heads {
-        placement.position += 0.6 * step * Vec3::new(right, 0.0, -forward);
-        placement.heading += 2.0 * step * turn;
-        let phase = TAU * 0.7 * sway.time;
-        let sway_offset = Vec3::new(0.12 * phase.sin(), 0.03 * (2.0 * phase).sin(), 0.0);
-        let sway_turn = 0.5 * (0.5 * phase).sin();
-        transform.translation = placement.position + sway_offset;
-        transform.rotation =
-            Quat::from_rotation_y(placement.heading + sway_turn) * Quat::from_rotation_z(0.15 * phase.cos());
+    for (mut transform, mut body) in &mut bodies {
+        let facing = Quat::from_rotation_y(body.heading);
+        body.position += facing * Vec3::new(right, 0.0, -forward) * 0.8 * step;
+        body.heading += 2.0 * step * turn;
+        transform.translation = body.position + facing * Vec3::X * body.sway;
+        transform.rotation = Quat::from_rotation_y(body.heading);
+    }
+}
+
+/// Keys 1 to 5 pick the hair style.
+fn pick_style(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>) {
+    let keys_and_styles = [KeyCode::Digit1, KeyCode::Digit2, KeyCode::Digit3, KeyCode::Digit4, KeyCode::Digit5]
+        .into_iter()
+        .zip(HairStyle::ALL);
+    for (_, style) in keys_and_styles.filter(|(key, _)| keys.just_pressed(*key)) {
+        for mut groom in &mut grooms {
+            groom.style = style;
+        }
     }
 }
 
 fn show_statistics(
-    time: Res<Time>,
+    time: Res<Time<Real>>,
     statistics: Res<HairStatistics>,
+    clock: Res<AnimationClock>,
     mut windows: Query<&mut Window>,
     mut since_update: Local<f32>,
 ) {
@@ -187,37 +347,50 @@ fn show_statistics(
     }
     *since_update = 0.0;
     let title = format!(
-        "bevy_hair_sim: {} strands, step {:.1} ms, {:.0} fps, {:.2} Newton iterations, strain {:.1e}, {} faults",
+        "bevy_hair_sim: {} strands, {} nodes, step {:.1} ms, {:.0} fps, strain {:.1e}, {} faults, head: {} (Space)",
         statistics.strands,
+        statistics.nodes,
         1e3 * statistics.step_seconds,
         1.0 / time.delta_secs().max(1e-6),
-        statistics.mean_newton_iterations,
         statistics.max_strain,
         statistics.faults,
+        clock.animation.name(),
     );
     for mut window in &mut windows {
         window.title.clone_from(&title);
     }
 }
 
-fn screenshot_and_exit(
-    mut commands: Commands,
-    time: Res<Time>,
-    mut frames_since_shot: Local<Option<u32>>,
-    mut exit: MessageWriter<AppExit>,
-) {
-    let Ok(path) = std::env::var("HAIR_SCREENSHOT") else {
+/// The scene's own controls, next to the hair panel.
+#[cfg(feature = "egui")]
+fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<AnimationClock>) -> Result {
+    use bevy_egui::egui;
+    egui::Window::new("Scene").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).show(contexts.ctx_mut()?, |ui| {
+        ui.horizontal_wrapped(|ui| {
+            ui.label("head:");
+            for animation in Animation::ALL {
+                if ui.selectable_label(clock.animation == animation, animation.name()).clicked() {
+                    (clock.animation, clock.seconds) = (animation, 0.0);
+                }
+            }
+        });
+        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style");
+    });
+    Ok(())
+}
+
+/// Picture mode: after the asked number of frames, saves a screenshot and exits once it is written.
+fn take_picture(mut commands: Commands, options: Res<Options>, mut frames: Local<u32>) {
+    *frames += 1;
+    if *frames != options.frames {
+        return;
+    }
+    let Some(path) = options.screenshot.clone() else {
         return;
     };
-    match frames_since_shot.as_mut() {
-        None if time.elapsed_secs() > 3.0 => {
-            commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path));
-            *frames_since_shot = Some(0);
-        }
-        None => {}
-        Some(frames) if *frames > 30 => {
+    commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path)).observe(
+        |_: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
             exit.write(AppExit::Success);
-        }
-        Some(frames) => *frames += 1,
-    }
+        },
+    );
 }

@@ -25,6 +25,25 @@ impl Default for HairGizmos {
     }
 }
 
+impl HairGizmos {
+    /// Named natural hair colours (root and tip), for menus: black, dark brown, brown, auburn, blonde,
+    /// grey.
+    pub fn presets() -> [(&'static str, Self); 6] {
+        let preset = |root: [f32; 3], tip: [f32; 3]| Self {
+            root_color: Color::srgb_from_array(root),
+            tip_color: Color::srgb_from_array(tip),
+        };
+        [
+            ("black", preset([0.03, 0.03, 0.03], [0.13, 0.11, 0.10])),
+            ("dark brown", preset([0.10, 0.06, 0.03], [0.30, 0.19, 0.11])),
+            ("brown", Self::default()),
+            ("auburn", preset([0.30, 0.09, 0.03], [0.68, 0.30, 0.12])),
+            ("blonde", preset([0.50, 0.38, 0.20], [0.92, 0.80, 0.52])),
+            ("grey", preset([0.42, 0.42, 0.42], [0.86, 0.86, 0.84])),
+        ]
+    }
+}
+
 /// Draws every simulated strand as a line strip in [`PostUpdate`], in the [`HairGizmos`] group. Needs
 /// Bevy's `GizmoPlugin` (part of `DefaultPlugins`; add `AssetPlugin` and `GizmoPlugin` to a headless app).
 /// Without it, hair is simulated but not drawn, and a warning says so.

@@ -1,18 +1,22 @@
-//! A live panel (bevy_egui) to tune [`HairSettings`] and the hair's colours and to watch
-//! [`HairStatistics`]. Behind the `egui` feature.
+//! A live panel (bevy_egui) to tune the hair and watch it: statistics with a plot of the step time, pause
+//! and single step, the groom of the heads (strand count, edges, style), [`HairSettings`], the default
+//! material in human units and the hair colours. Behind the `egui` feature.
+
+use std::collections::VecDeque;
 
 use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::gizmos::HairGizmos;
+use crate::groom::{HairGroom, HairStyle};
 use crate::rod::RodMaterial;
-use crate::settings::{HairSettings, HairStatistics};
+use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::Strand;
 
-/// Adds a "Hair" window: statistics, every [`HairSettings`] field with its unit, the default material,
-/// the hair colours and a button that puts every strand back in its rest pose. Adds `EguiPlugin` when
-/// the app has none. Needs a window and a camera (it draws in bevy_egui's primary context).
+/// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], every
+/// head's [`HairGroom`] and the [`HairGizmos`] colours. Adds `EguiPlugin` when the app has none. Needs a
+/// window and a camera (it draws in bevy_egui's primary context).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HairPanelPlugin;
 
@@ -25,46 +29,115 @@ impl Plugin for HairPanelPlugin {
     }
 }
 
+/// What the panel remembers between frames.
+#[derive(Default)]
+struct PanelMemory {
+    /// Step times of the last [`PanelMemory::PLOTTED_STEPS`] steps, ms.
+    step_milliseconds: VecDeque<f32>,
+    /// The step count when the last step time was recorded.
+    recorded_step: u64,
+    /// Smoothed frame rate, 1/s.
+    frame_rate: f32,
+    /// A groom edit whose slider is still held: applied (the hair regrown) when it is let go.
+    held_groom: Option<GroomEdit>,
+}
+
+impl PanelMemory {
+    const PLOTTED_STEPS: usize = 300;
+
+    fn record(&mut self, statistics: &HairStatistics, frame_seconds: f32) {
+        if statistics.steps != self.recorded_step {
+            self.recorded_step = statistics.steps;
+            if self.step_milliseconds.len() == Self::PLOTTED_STEPS {
+                self.step_milliseconds.pop_front();
+            }
+            self.step_milliseconds.push_back(1e3 * statistics.step_seconds as f32);
+        }
+        if frame_seconds > 0.0 {
+            let rate = 1.0 / frame_seconds;
+            self.frame_rate =
+                if self.frame_rate > 0.0 { self.frame_rate + 0.05 * (rate - self.frame_rate) } else { rate };
+        }
+    }
+}
+
+/// The parts of a [`HairGroom`] the panel edits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct GroomEdit {
+    strand_count: usize,
+    segments: usize,
+    style: HairStyle,
+}
+
+impl From<&HairGroom> for GroomEdit {
+    fn from(groom: &HairGroom) -> Self {
+        Self { strand_count: groom.strand_count, segments: groom.segments, style: groom.style }
+    }
+}
+
 /// Draws the panel and applies what was changed in it.
+#[allow(clippy::too_many_arguments)]
 fn hair_panel(
     mut contexts: EguiContexts,
+    real_time: Res<Time<Real>>,
     mut settings: ResMut<HairSettings>,
+    mut pause: ResMut<HairPause>,
     statistics: Res<HairStatistics>,
     gizmo_store: Option<ResMut<GizmoConfigStore>>,
     mut strands: Query<&mut Strand>,
+    mut grooms: Query<&mut HairGroom>,
+    mut memory: Local<PanelMemory>,
 ) -> Result {
+    memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
+    let mut edited_pause = pause.clone();
     let mut reset = false;
-    let mut colors = gizmo_store.as_ref().map(|store| {
-        let (_, hair) = store.config::<HairGizmos>();
-        (hair.root_color.to_srgba().to_f32_array_no_alpha(), hair.tip_color.to_srgba().to_f32_array_no_alpha())
-    });
-    let shown_colors = colors;
-    egui::Window::new("Hair").default_width(300.0).show(contexts.ctx_mut()?, |ui| {
-        statistics_grid(ui, &statistics);
-        ui.separator();
-        settings_grid(ui, &mut edited);
-        ui.separator();
-        material_grid(ui, &mut edited.default_material);
-        if let Some((root, tip)) = colors.as_mut() {
+    let mut groom = memory.held_groom.or_else(|| grooms.iter().next().map(GroomEdit::from));
+    let mut groom_held = false;
+    let mut colors = gizmo_store.as_ref().map(|store| store.config::<HairGizmos>().1.clone());
+    let shown_colors = colors.clone();
+    egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
+        statistics_grid(ui, &statistics, memory.frame_rate);
+        step_time_plot(ui, &memory.step_milliseconds);
+        ui.horizontal(|ui| {
+            let label = if edited_pause.paused { "▶ run" } else { "⏸ pause" };
+            if ui.button(label).clicked() {
+                edited_pause.paused = !edited_pause.paused;
+            }
+            if ui.add_enabled(edited_pause.paused, egui::Button::new("single step")).clicked() {
+                edited_pause.step_once();
+            }
+            reset = ui.button("reset to rest").clicked();
+        });
+        if let Some(groom) = groom.as_mut() {
             ui.separator();
-            ui.horizontal(|ui| {
-                ui.label("root colour");
-                ui.color_edit_button_rgb(root);
-                ui.label("tip colour");
-                ui.color_edit_button_rgb(tip);
-            });
+            groom_held = groom_grid(ui, groom);
         }
-        ui.separator();
-        reset = ui.button("Reset hair to its rest pose").clicked();
+        ui.collapsing("simulation", |ui| settings_grid(ui, &mut edited));
+        ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
+        if let Some(colors) = colors.as_mut() {
+            ui.collapsing("colour", |ui| color_grid(ui, colors));
+        }
     });
     if edited != *settings {
         *settings = edited;
     }
-    if let (Some(mut store), Some((root, tip))) = (gizmo_store, colors.filter(|_| colors != shown_colors)) {
+    if edited_pause != *pause {
+        *pause = edited_pause;
+    }
+    memory.held_groom = groom.filter(|_| groom_held);
+    if let Some(edit) = groom.filter(|_| !groom_held) {
+        for mut groom in &mut grooms {
+            if GroomEdit::from(&*groom) != edit {
+                (groom.strand_count, groom.segments, groom.style) = (edit.strand_count, edit.segments, edit.style);
+            }
+        }
+    }
+    if let (Some(mut store), Some(colors)) =
+        (gizmo_store, colors.filter(|colors| Some(colors) != shown_colors.as_ref()))
+    {
         let (_, hair) = store.config_mut::<HairGizmos>();
-        hair.root_color = Color::srgb_from_array(root);
-        hair.tip_color = Color::srgb_from_array(tip);
+        (hair.root_color, hair.tip_color) = (colors.root_color, colors.tip_color);
     }
     if reset {
         strands.iter_mut().for_each(|mut strand| strand.reset_to_rest());
@@ -72,23 +145,66 @@ fn hair_panel(
     Ok(())
 }
 
-fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics) {
+fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f32) {
     egui::Grid::new("hair statistics").num_columns(2).show(ui, |ui| {
         let mut row = |name: &str, value: String| {
             ui.label(name);
             ui.label(value);
             ui.end_row();
         };
-        row("strands", statistics.strands.to_string());
+        row("strands / nodes", format!("{} / {}", statistics.strands, statistics.nodes));
         row("step time", format!("{:.2} ms", 1e3 * statistics.step_seconds));
-        row("Newton iterations", format!("{:.2} per strand", statistics.mean_newton_iterations));
+        row("frame rate", format!("{frame_rate:.0} fps"));
         row("largest strain", format!("{:.1e}", statistics.max_strain));
+        row("Newton iterations", format!("{:.2} per strand", statistics.mean_newton_iterations));
         row("steps / skipped", format!("{} / {}", statistics.steps, statistics.skipped_steps));
         row("faults", statistics.faults.to_string());
     });
     if let Some(error) = &statistics.settings_error {
         ui.colored_label(egui::Color32::LIGHT_RED, error);
     }
+}
+
+/// A line plot of the recent step times, scaled to their largest.
+fn step_time_plot(ui: &mut egui::Ui, step_milliseconds: &VecDeque<f32>) {
+    let largest = step_milliseconds.iter().copied().fold(0.0_f32, f32::max);
+    ui.label(format!("step time, last {} steps (top: {largest:.1} ms)", step_milliseconds.len()));
+    let (response, painter) = ui.allocate_painter(egui::vec2(ui.available_width(), 48.0), egui::Sense::hover());
+    let area = response.rect;
+    painter.rect_filled(area, 2.0, ui.visuals().extreme_bg_color);
+    if largest <= 0.0 {
+        return;
+    }
+    let step_width = area.width() / (PanelMemory::PLOTTED_STEPS - 1) as f32;
+    let points = step_milliseconds
+        .iter()
+        .enumerate()
+        .map(|(index, &milliseconds)| {
+            egui::pos2(area.left() + step_width * index as f32, area.bottom() - area.height() * milliseconds / largest)
+        })
+        .collect();
+    painter.line(points, egui::Stroke::new(1.5, egui::Color32::LIGHT_GREEN));
+}
+
+/// The groom's controls; returns whether a slider is being dragged (the hair is regrown when it is let go).
+fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
+    let mut held = false;
+    egui::Grid::new("hair groom").num_columns(2).show(ui, |ui| {
+        ui.label("strands");
+        held |= ui.add(egui::Slider::new(&mut groom.strand_count, 0..=8000).logarithmic(true)).dragged();
+        ui.end_row();
+        ui.label("edges per strand");
+        held |= ui.add(egui::Slider::new(&mut groom.segments, 2..=64)).dragged();
+        ui.end_row();
+        ui.label("style");
+        ui.horizontal_wrapped(|ui| {
+            for style in HairStyle::ALL {
+                ui.selectable_value(&mut groom.style, style, style.name());
+            }
+        });
+        ui.end_row();
+    });
+    held
 }
 
 fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
@@ -140,4 +256,29 @@ fn material_grid(ui: &mut egui::Ui, material: &mut RodMaterial) {
     if (1e9 * youngs_gigapascals - material.youngs_modulus).abs() > 1.0 {
         *material = RodMaterial::round(radius, 1e9 * youngs_gigapascals, poisson_ratio, material.density);
     }
+}
+
+/// Colour pickers for root and tip, and the presets of [`HairGizmos::presets`].
+fn color_grid(ui: &mut egui::Ui, colors: &mut HairGizmos) {
+    let mut root = colors.root_color.to_srgba().to_f32_array_no_alpha();
+    let mut tip = colors.tip_color.to_srgba().to_f32_array_no_alpha();
+    ui.horizontal(|ui| {
+        ui.label("root");
+        ui.color_edit_button_rgb(&mut root);
+        ui.label("tip");
+        ui.color_edit_button_rgb(&mut tip);
+    });
+    if root != colors.root_color.to_srgba().to_f32_array_no_alpha() {
+        colors.root_color = Color::srgb_from_array(root);
+    }
+    if tip != colors.tip_color.to_srgba().to_f32_array_no_alpha() {
+        colors.tip_color = Color::srgb_from_array(tip);
+    }
+    ui.horizontal_wrapped(|ui| {
+        for (name, preset) in HairGizmos::presets() {
+            if ui.button(name).clicked() {
+                (colors.root_color, colors.tip_color) = (preset.root_color, preset.tip_color);
+            }
+        }
+    });
 }
