@@ -208,11 +208,11 @@ fn spawn_scene(
     let body = commands
         .spawn((Body::default(), Transform::default(), Visibility::default()))
         .with_children(|body| {
-            body.spawn(part(Capsule3d::new(0.14, 0.75).into(), &shirt, Transform::from_xyz(0.0, 0.95, 0.0)));
+            body.spawn(part(Capsule3d::new(0.12, 0.7).into(), &shirt, Transform::from_xyz(0.0, 0.93, 0.0)));
             body.spawn(part(
-                Capsule3d::new(0.07, 0.3).into(),
+                Capsule3d::new(0.06, 0.24).into(),
                 &shirt,
-                Transform::from_xyz(0.0, 1.38, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
+                Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
             ));
             body.spawn(part(Cylinder::new(0.045, 0.14).into(), &skin, Transform::from_xyz(0.0, 1.47, 0.0)));
         })
@@ -236,10 +236,10 @@ fn spawn_scene(
                 &skin,
                 ellipsoid(Vec3::new(0.062, 0.075, 0.07), Vec3::new(0.0, 0.065, -0.035))
             ),
-            part(Sphere::new(0.014).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.085)),
-            part(Sphere::new(0.014).into(), &white, Transform::from_xyz(0.03, 0.115, -0.085)),
-            part(Sphere::new(0.007).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.097)),
-            part(Sphere::new(0.007).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.097)),
+            part(Sphere::new(0.011).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.084)),
+            part(Sphere::new(0.011).into(), &white, Transform::from_xyz(0.03, 0.115, -0.084)),
+            part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.0935)),
+            part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.0935)),
             part(
                 Capsule3d::new(0.011, 0.03).into(),
                 &skin,

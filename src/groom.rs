@@ -46,23 +46,23 @@ pub struct ScalpRoot {
 }
 
 impl Scalp {
-    /// `count` roots spread evenly over the scalp: the first points of a golden-angle spiral over the
-    /// skull that fall inside the hairline, with the spiral's length chosen so that about `count` do
-    /// (any few extra are dropped evenly along the spiral).
+    /// `count` roots spread evenly over the scalp: the points of a golden-angle spiral over the whole
+    /// skull that fall inside the hairline, with the spiral's length chosen so that at least `count` do
+    /// (the few extra are dropped evenly along the spiral). Fails if the hairline leaves less than 0.1 %
+    /// of the skull.
     pub fn roots(&self, count: usize) -> Result<Vec<ScalpRoot>, GroomError> {
         self.validate()?;
+        // The spiral of `total` points holds `inside(total)` roots; find the shortest that holds `count`.
+        let inside = |total: usize| (0..total).filter(|&index| self.spiral_root(index, total).is_some()).count();
+        if inside(10_000) < 10 {
+            return Err(GroomError::EmptyScalp { nape_height: self.nape_height, brow_height: self.brow_height });
+        }
         if count == 0 {
             return Ok(Vec::new());
         }
-        // The spiral of `total` points holds `inside(total)` roots; find the shortest that holds `count`.
-        let inside = |total: usize| (0..total).filter(|&index| self.spiral_root(index, total).is_some()).count();
-        let limit = count.saturating_mul(1000).max(100_000);
         let mut longest = count;
         while inside(longest) < count {
             longest *= 2;
-            if longest > limit {
-                return Err(GroomError::EmptyScalp { nape_height: self.nape_height, brow_height: self.brow_height });
-            }
         }
         let mut shortest = count;
         while shortest < longest {
@@ -122,7 +122,7 @@ pub enum HairStyle {
     /// Straight hair, 14 to 22 cm: falls under its weight.
     #[default]
     Straight,
-    /// Hair in gentle planar waves (wavelength 4 cm, amplitude about 5 mm), 16 to 24 cm.
+    /// Hair in gentle planar waves (wavelength 6 cm, amplitude about 5 mm), 16 to 24 cm.
     Wavy,
     /// Helical curls of radius 6 mm (never less than one edge, so they stay resolved), 14 to 22 cm of
     /// fibre.
@@ -227,9 +227,9 @@ struct StrandShape {
 
 impl StrandShape {
     /// Wavelength of [`HairStyle::Wavy`], m.
-    const WAVELENGTH: f32 = 0.04;
+    const WAVELENGTH: f32 = 0.06;
     /// Largest angle of a wave's tangent from the root direction, rad.
-    const WAVE_ANGLE: f32 = 0.7;
+    const WAVE_ANGLE: f32 = 0.5;
     /// Radius of [`HairStyle::Curly`]'s curls, m.
     const CURL_RADIUS: f32 = 0.006;
     /// Angle of a curl's fibre from the curl's axis, rad (its pitch is `2πR / tan` of it).
@@ -296,7 +296,7 @@ pub enum GroomError {
         /// The height given.
         height: f32,
     },
-    /// The hairline leaves (almost) none of the skull to grow hair on.
+    /// The hairline leaves less than 0.1 % of the skull to grow hair on.
     #[error("the scalp's hairline (nape height {nape_height}, brow height {brow_height}) leaves no room for hair")]
     EmptyScalp {
         /// The nape height given.
