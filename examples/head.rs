@@ -40,7 +40,9 @@ fn main() {
     let window = Window { title: "bevy_hair_sim".into(), resolution: (1280, 800).into(), ..default() };
     let mut app = App::new();
     app.add_plugins((
-        DefaultPlugins.set(WindowPlugin { primary_window: Some(window), ..default() }),
+        DefaultPlugins
+            .set(WindowPlugin { primary_window: Some(window), ..default() })
+            .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
         HairPlugin::default(),
     ));
     app.insert_resource(Time::<Fixed>::from_hz(60.0))

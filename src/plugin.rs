@@ -40,6 +40,32 @@ impl HairPlugin {
     }
 }
 
+impl HairPlugin {
+    /// Task pools that give Bevy's compute pool, where strands are stepped in parallel, every core. Bevy's
+    /// default gives it what its IO and async pools leave: a single thread on a 2-core machine, 2 of 4.
+    /// The IO and async threads sleep while idle, so sharing cores with them costs little.
+    ///
+    /// ```no_run
+    /// # use bevy::prelude::*;
+    /// # use bevy_hair_sim::prelude::*;
+    /// App::new().add_plugins((
+    ///     DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
+    ///     HairPlugin::default(),
+    /// ));
+    /// ```
+    pub fn task_pool_options() -> TaskPoolOptions {
+        Self::task_pool_options_with_threads(bevy::tasks::available_parallelism())
+    }
+
+    /// [`HairPlugin::task_pool_options`] with `threads` compute threads.
+    pub fn task_pool_options_with_threads(threads: usize) -> TaskPoolOptions {
+        let mut options = TaskPoolOptions::default();
+        options.compute.min_threads = threads.max(1);
+        options.compute.max_threads = threads.max(1);
+        options
+    }
+}
+
 impl Default for HairPlugin {
     fn default() -> Self {
         Self::new(FixedUpdate)
@@ -82,6 +108,19 @@ pub struct HairSimulationPlugin {
 }
 
 impl Plugin for HairSimulationPlugin {
+    fn finish(&self, _app: &mut App) {
+        let cores = bevy::tasks::available_parallelism();
+        if let Some(pool) = bevy::tasks::ComputeTaskPool::try_get()
+            && pool.thread_num() < cores
+        {
+            info!(
+                "hair is stepped on Bevy's compute pool: {} of {cores} cores; \
+                 HairPlugin::task_pool_options() gives it all of them",
+                pool.thread_num()
+            );
+        }
+    }
+
     fn build(&self, app: &mut App) {
         app.register_type::<HairHead>()
             .register_type::<StrandOf>()

@@ -1,0 +1,68 @@
+//! The benchmark scene, shared by `benches/hair_step.rs` and `examples/benchmark.rs`: a headless app with
+//! the real plugin, one head with `strands` straight 25 cm human hairs of `edges` edges (radius 40 µm,
+//! E = 3.5 GPa, ρ = 1300 kg/m³), gravity on, the head swaying and turning, one fixed step of 1/60 s per
+//! update.
+
+use bevy::app::TaskPoolPlugin;
+use bevy::prelude::*;
+use bevy::tasks::available_parallelism;
+use bevy::time::TimeUpdateStrategy;
+use bevy_hair_sim::prelude::*;
+
+/// Length of every strand, m.
+pub const HAIR_LENGTH: f32 = 0.25;
+/// Steps run before measuring: the hair falls from straight out and starts to swing.
+pub const WARM_UP_STEPS: usize = 60;
+
+/// A hair scene ready to step.
+pub struct Scene {
+    pub app: App,
+    pub head: Entity,
+    step: usize,
+}
+
+impl Scene {
+    /// The scene with `threads` compute threads (`None`: one per core).
+    pub fn new(strands: usize, edges: usize, threads: Option<usize>) -> Self {
+        let threads = threads.unwrap_or_else(available_parallelism);
+        let mut app = App::new();
+        app.add_plugins((
+            MinimalPlugins
+                .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options_with_threads(threads) }),
+            HairPlugin::default(),
+        ))
+        .insert_resource(Time::<Fixed>::from_hz(60.0))
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+        app.finish();
+        app.cleanup();
+        app.update();
+        let roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
+        let head = app
+            .world_mut()
+            .spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0)))
+            .with_related_entities::<StrandOf>(|head| {
+                for root in roots {
+                    head.spawn(HairStrand::straight(root.position, root.normal, HAIR_LENGTH, edges));
+                }
+            })
+            .id();
+        Self { app, head, step: 0 }
+    }
+
+    /// Moves the head (a sway of 5 cm and a turn of ±0.4 rad, about once a second) and runs one step.
+    pub fn step(&mut self) {
+        self.step += 1;
+        let time = self.step as f32 / 60.0;
+        let mut head = self.app.world_mut().get_mut::<Transform>(self.head).expect("the head exists");
+        head.translation.x = 0.05 * (std::f32::consts::TAU * 0.8 * time).sin();
+        head.rotation = Quat::from_rotation_y(0.4 * (std::f32::consts::TAU * 0.5 * time).sin());
+        self.app.update();
+    }
+
+    /// Runs the warm-up steps.
+    pub fn warm_up(&mut self) {
+        for _ in 0..WARM_UP_STEPS {
+            self.step();
+        }
+    }
+}

@@ -1,0 +1,176 @@
+//! Prints how fast the hair simulation runs: `cargo run --release --example benchmark`.
+//!
+//! The real plugin in a headless app (see `benches/support/scene.rs`): 25 cm human hairs on a swaying,
+//! turning head, gravity on, dt = 1/60 s. A row's time is the median wall time of the measured steps
+//! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
+//! started to swing.
+//!
+//! Arguments: the tables to print (`scaling`, `parallel`, `memory`; all by default), `--quick` to measure
+//! fewer steps, `--threads N` for the compute threads (one per core by default). Bevy's task pools are
+//! set once per process, so the parallel table runs this program again with `--threads`.
+
+#[path = "../benches/support/scene.rs"]
+mod scene;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::process::Command;
+use std::sync::atomic::{AtomicIsize, Ordering};
+use std::time::Instant;
+
+use bevy::tasks::available_parallelism;
+use scene::Scene;
+
+/// The system allocator, keeping count of the bytes in use (for the memory table).
+struct CountingAllocator;
+
+static BYTES_IN_USE: AtomicIsize = AtomicIsize::new(0);
+
+// SAFETY: every call is forwarded to the system allocator unchanged; only a counter is added.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        BYTES_IN_USE.fetch_add(layout.size() as isize, Ordering::Relaxed);
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        BYTES_IN_USE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        BYTES_IN_USE.fetch_add(new_size as isize - layout.size() as isize, Ordering::Relaxed);
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// Median wall time of `steps` steps, s, after the warm-up.
+fn median_step_seconds(strands: usize, edges: usize, threads: usize, steps: usize) -> f64 {
+    let mut scene = Scene::new(strands, edges, Some(threads));
+    scene.warm_up();
+    let mut times: Vec<f64> = (0..steps)
+        .map(|_| {
+            let started = Instant::now();
+            scene.step();
+            started.elapsed().as_secs_f64()
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+/// The value following `flag` in `args`, parsed.
+fn flag_value(args: &[String], flag: &str) -> Option<usize> {
+    let position = args.iter().position(|arg| arg == flag)?;
+    let value = args.get(position + 1)?;
+    Some(value.parse().unwrap_or_else(|_| panic!("{flag} needs a number, got {value:?}")))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quick = args.iter().any(|arg| arg == "--quick");
+    let steps = if quick { 15 } else { 60 };
+    let cores = available_parallelism();
+    let threads = flag_value(&args, "--threads").unwrap_or(cores);
+    if args.first().is_some_and(|arg| arg == "measure") {
+        let number = |index: usize| args.get(index).and_then(|arg| arg.parse().ok()).expect("measure STRANDS EDGES");
+        println!("{}", median_step_seconds(number(1), number(2), threads, steps));
+        return;
+    }
+    let tables: Vec<&str> = args
+        .iter()
+        .enumerate()
+        .filter(|&(index, arg)| !arg.starts_with("--") && (index == 0 || args[index - 1] != "--threads"))
+        .map(|(_, arg)| arg.as_str())
+        .collect();
+    let wanted = |table: &str| tables.is_empty() || tables.contains(&table);
+    println!("bevy_hair_sim benchmark: {cores} cores, {threads} compute threads, {steps} measured steps per row");
+    if wanted("scaling") {
+        scaling(threads, steps);
+    }
+    if wanted("parallel") {
+        parallel_efficiency(cores, quick);
+    }
+    if wanted("memory") {
+        memory_per_node(threads);
+    }
+}
+
+/// Cost against strands and edges, with the ratio to the row with half as many.
+fn scaling(threads: usize, steps: usize) {
+    println!();
+    println!("| strands | edges | ms / step | M node-steps / s | × previous strands | × previous edges |");
+    println!("|---:|---:|---:|---:|---:|---:|");
+    let strand_counts = [1, 100, 1000, 2000, 4000];
+    let mut previous_edges = [None; 5];
+    for edges in [16, 32, 64] {
+        let mut previous_strands: Option<f64> = None;
+        for (row, strands) in strand_counts.into_iter().enumerate() {
+            let seconds = median_step_seconds(strands, edges, threads, steps);
+            let node_steps = (strands * (edges + 1)) as f64 / seconds;
+            let ratio = |previous: Option<f64>| previous.map_or(String::new(), |p| format!("{:.2}", seconds / p));
+            println!(
+                "| {strands} | {edges} | {:.3} | {:.2} | {} | {} |",
+                1e3 * seconds,
+                1e-6 * node_steps,
+                ratio(previous_strands),
+                ratio(previous_edges[row])
+            );
+            previous_strands = Some(seconds);
+            previous_edges[row] = Some(seconds);
+        }
+    }
+}
+
+/// One compute thread against one per core, each in a process of its own.
+fn parallel_efficiency(cores: usize, quick: bool) {
+    let run = |threads: usize| -> f64 {
+        let mut command = Command::new(std::env::current_exe().expect("the benchmark's own path"));
+        command.args(["measure", "2000", "32", "--threads", &threads.to_string()]);
+        if quick {
+            command.arg("--quick");
+        }
+        let output = command.output().expect("the benchmark runs itself");
+        String::from_utf8_lossy(&output.stdout).trim().parse().expect("a time in seconds")
+    };
+    let one = run(1);
+    let all = run(cores);
+    println!();
+    println!("Parallel efficiency, 2 000 strands × 32 edges:");
+    println!("| compute threads | ms / step | speed-up |");
+    println!("|---:|---:|---:|");
+    println!("| 1 | {:.2} | 1.00 |", 1e3 * one);
+    println!("| {cores} | {:.2} | {:.2} |", 1e3 * all, one / all);
+}
+
+/// Heap bytes per simulated node: everything the plugin keeps for 2 000 strands × 32 edges (rods,
+/// solver workspaces, drawn poses, forces, entities), over their node count.
+fn memory_per_node(threads: usize) {
+    let (strands, edges) = (2000, 32);
+    let before = BYTES_IN_USE.load(Ordering::Relaxed);
+    let mut empty = Scene::new(0, edges, Some(threads));
+    empty.step();
+    empty.step();
+    let without_hair = BYTES_IN_USE.load(Ordering::Relaxed) - before;
+    drop(empty);
+    let before = BYTES_IN_USE.load(Ordering::Relaxed);
+    let mut scene = Scene::new(strands, edges, Some(threads));
+    scene.step();
+    scene.step();
+    let with_hair = BYTES_IN_USE.load(Ordering::Relaxed) - before;
+    let nodes = strands * (edges + 1);
+    println!();
+    println!("Memory, {strands} strands × {edges} edges ({nodes} nodes):");
+    println!("| heap in use | bytes per node |");
+    println!("|---:|---:|");
+    println!(
+        "| {:.1} MB | {:.0} |",
+        1e-6 * (with_hair - without_hair) as f64,
+        (with_hair - without_hair) as f64 / nodes as f64
+    );
+}
