@@ -10,6 +10,8 @@ pub struct BandedMatrix {
     size: usize,
     bandwidth: usize,
     values: Vec<f64>,
+    /// `1 / L(i, i)` after [`BandedMatrix::factorize`].
+    inverse_diagonal: Vec<f64>,
 }
 
 /// The factorisation met a non-positive pivot: the matrix is not positive definite.
@@ -77,61 +79,76 @@ impl BandedMatrix {
 
     /// `out = A x` for the symmetric matrix.
     pub fn multiply(&self, x: &[f64], out: &mut [f64]) {
-        out[..self.size].fill(0.0);
-        for row in 0..self.size {
-            let first = row.saturating_sub(self.bandwidth);
-            let base = self.index(row, first);
-            let band = &self.values[base..base + row - first + 1];
-            let diagonal = band[row - first];
-            out[row] += diagonal * x[row];
-            for (offset, &value) in band[..row - first].iter().enumerate() {
-                let column = first + offset;
-                out[row] += value * x[column];
-                out[column] += value * x[row];
+        self.multiply_columns(0..self.size, x, out);
+    }
+
+    /// `out = A x` where only `x[columns]` may be non-zero: costs `O(columns · bandwidth)`, so a few
+    /// prescribed unknowns do not pay for the whole matrix.
+    pub fn multiply_columns(&self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
+        let width = self.bandwidth + 1;
+        let (x, out) = (&x[..self.size], &mut out[..self.size]);
+        out.fill(0.0);
+        for column in columns.start..columns.end.min(self.size) {
+            let value = x[column];
+            if value == 0.0 {
+                continue;
+            }
+            // Row `column` of the band holds A(column, first..=column); A is symmetric.
+            let first = column.saturating_sub(self.bandwidth);
+            let row_band = &self.values[column * width + self.bandwidth - (column - first)..(column + 1) * width];
+            for (out, entry) in out[first..=column].iter_mut().zip(row_band) {
+                *out += entry * value;
+            }
+            // Column `column` below the diagonal: A(row, column) for row in column + 1 ..= last.
+            let last = (column + self.bandwidth).min(self.size - 1);
+            for row in column + 1..=last {
+                out[row] += self.values[row * width + self.bandwidth + column - row] * value;
             }
         }
     }
 
-    /// Factorises in place into `L Lᵀ` (Cholesky); the band then holds `L`.
+    /// Factorises in place into `L Lᵀ` (Cholesky); the band then holds `L`, and the reciprocals of its
+    /// diagonal are kept so that neither this nor [`BandedMatrix::solve_factorized`] divides in its loops.
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
-        let width = self.bandwidth + 1;
+        let (width, bandwidth) = (self.bandwidth + 1, self.bandwidth);
+        self.inverse_diagonal.clear();
+        self.inverse_diagonal.resize(self.size, 0.0);
         for row in 0..self.size {
-            let first = row.saturating_sub(self.bandwidth);
-            for column in first..=row {
-                // Columns k < column shared by rows `row` and `column` start at `first`.
-                let mut sum = self.values[row * width + self.bandwidth + column - row];
-                let row_base = row * width + self.bandwidth - row;
-                let column_base = column * width + self.bandwidth - column;
-                for k in first..column {
-                    sum -= self.values[row_base + k] * self.values[column_base + k];
-                }
-                if column < row {
-                    sum /= self.values[column_base + column];
-                } else if sum > 0.0 && sum.is_finite() {
-                    sum = sum.sqrt();
-                } else {
-                    return Err(NotPositiveDefinite { row });
-                }
-                self.values[row_base + column] = sum;
+            let first = row.saturating_sub(bandwidth);
+            let (earlier_rows, rest) = self.values.split_at_mut(row * width);
+            // `band[c − first]` is L(row, c) for c in first..=row.
+            let band = &mut rest[bandwidth - (row - first)..width];
+            for column in first..row {
+                // Columns shared by rows `row` and `column` run from `first` to `column − 1`.
+                let column_band = &earlier_rows[column * width + bandwidth - (column - first)..column * width + bandwidth];
+                let (done, current) = band.split_at_mut(column - first);
+                let shared: f64 = done.iter().zip(column_band).map(|(a, b)| a * b).sum();
+                current[0] = (current[0] - shared) * self.inverse_diagonal[column];
             }
+            let (off_diagonal, diagonal) = band.split_at_mut(row - first);
+            let pivot = diagonal[0] - off_diagonal.iter().map(|value| value * value).sum::<f64>();
+            if !(pivot > 0.0 && pivot.is_finite()) {
+                return Err(NotPositiveDefinite { row });
+            }
+            diagonal[0] = pivot.sqrt();
+            self.inverse_diagonal[row] = 1.0 / diagonal[0];
         }
         Ok(())
     }
 
     /// Solves `L Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
     pub fn solve_factorized(&self, rhs: &mut [f64]) {
-        let width = self.bandwidth + 1;
+        let (width, bandwidth) = (self.bandwidth + 1, self.bandwidth);
         for row in 0..self.size {
-            let first = row.saturating_sub(self.bandwidth);
-            let base = row * width + self.bandwidth - row;
-            let band = &self.values[base + first..base + row];
+            let first = row.saturating_sub(bandwidth);
+            let band = &self.values[row * width + bandwidth - (row - first)..row * width + bandwidth];
             let known: f64 = band.iter().zip(&rhs[first..row]).map(|(l, x)| l * x).sum();
-            rhs[row] = (rhs[row] - known) / self.values[base + row];
+            rhs[row] = (rhs[row] - known) * self.inverse_diagonal[row];
         }
         for row in (0..self.size).rev() {
-            let last = (row + self.bandwidth).min(self.size - 1);
-            let known: f64 = (row + 1..=last).map(|k| self.values[k * width + self.bandwidth - k + row] * rhs[k]).sum();
-            rhs[row] = (rhs[row] - known) / self.values[row * width + self.bandwidth];
+            let last = (row + bandwidth).min(self.size - 1);
+            let known: f64 = (row + 1..=last).map(|k| self.values[k * width + bandwidth - k + row] * rhs[k]).sum();
+            rhs[row] = (rhs[row] - known) * self.inverse_diagonal[row];
         }
     }
 }

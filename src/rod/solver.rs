@@ -315,14 +315,14 @@ impl Rod {
     }
 
     /// Puts prescribed nodes exactly on their targets and clamped edges exactly at their twist, in
-    /// case a Newton update was scaled down before getting there.
+    /// case a Newton update was scaled down before getting there. (The twist targets are measured from
+    /// the frames as they are, carried to the target tangents, so the frames need no refresh first.)
     fn snap_to_targets(&mut self) {
         for (position, target) in self.positions.iter_mut().zip(&self.node_targets) {
             if let Some(target) = target {
                 *position = *target;
             }
         }
-        self.refresh_frames();
         for edge in 0..self.edge_count() {
             if let Some(offset) = self.twist_target_offset(edge) {
                 self.twist[edge] += offset;
@@ -407,23 +407,27 @@ impl Rod {
         // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
         prescribed.clear();
         prescribed.resize(size, 0.0);
-        let mut any_prescribed = false;
+        let mut prescribed_span = size..0;
+        let note_prescribed = |dof: usize, span: &mut std::ops::Range<usize>| {
+            (span.start, span.end) = (span.start.min(dof), span.end.max(dof + 1));
+        };
         for node in 0..self.node_count() {
             if let Some(target) = self.node_targets[node] {
                 let offset = target - self.positions[node];
                 prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-                any_prescribed = true;
+                note_prescribed(node_dof(node), &mut prescribed_span);
+                note_prescribed(node_dof(node) + 2, &mut prescribed_span);
             }
         }
         for edge in 0..self.edge_count() {
             if let Some(offset) = self.twist_target_offset(edge) {
                 prescribed[twist_dof(edge)] = offset;
-                any_prescribed = true;
+                note_prescribed(twist_dof(edge), &mut prescribed_span);
             }
         }
-        if any_prescribed {
+        if !prescribed_span.is_empty() {
             damping_force.resize(size, 0.0);
-            hessian.multiply(prescribed, damping_force);
+            hessian.multiply_columns(prescribed_span, prescribed, damping_force);
             for (r, coupling) in residual.iter_mut().zip(damping_force.iter()) {
                 *r += coupling;
             }
@@ -474,7 +478,7 @@ impl Rod {
         for edge in 0..self.edge_count() {
             self.twist[edge] += fraction * residual[twist_dof(edge)];
         }
-        self.refresh_frames();
+        // The frames are refreshed once the projection has moved the nodes (see `integrate`).
         Ok(fraction)
     }
 }
