@@ -12,6 +12,8 @@ pub struct BandedMatrix {
     values: Vec<f64>,
     /// `1 / L(i, i)` after [`BandedMatrix::factorize`].
     inverse_diagonal: Vec<f64>,
+    /// Scratch: the column of `L` being applied during [`BandedMatrix::factorize`].
+    column: Vec<f64>,
 }
 
 /// The factorisation met a non-positive pivot: the matrix is not positive definite.
@@ -109,29 +111,42 @@ impl BandedMatrix {
 
     /// Factorises in place into `L Lᵀ` (Cholesky); the band then holds `L`, and the reciprocals of its
     /// diagonal are kept so that neither this nor [`BandedMatrix::solve_factorized`] divides in its loops.
+    ///
+    /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) L(k, j)`. These
+    /// updates are independent of each other (no chain of dependent additions) and run along contiguous
+    /// row segments, so the compiler vectorises them.
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
-        let (width, bandwidth) = (self.bandwidth + 1, self.bandwidth);
-        self.inverse_diagonal.clear();
-        self.inverse_diagonal.resize(self.size, 0.0);
-        for row in 0..self.size {
-            let first = row.saturating_sub(bandwidth);
-            let (earlier_rows, rest) = self.values.split_at_mut(row * width);
-            // `band[c − first]` is L(row, c) for c in first..=row.
-            let band = &mut rest[bandwidth - (row - first)..width];
-            for column in first..row {
-                // Columns shared by rows `row` and `column` run from `first` to `column − 1`.
-                let column_band = &earlier_rows[column * width + bandwidth - (column - first)..column * width + bandwidth];
-                let (done, current) = band.split_at_mut(column - first);
-                let shared: f64 = done.iter().zip(column_band).map(|(a, b)| a * b).sum();
-                current[0] = (current[0] - shared) * self.inverse_diagonal[column];
-            }
-            let (off_diagonal, diagonal) = band.split_at_mut(row - first);
-            let pivot = diagonal[0] - off_diagonal.iter().map(|value| value * value).sum::<f64>();
+        let (width, bandwidth, size) = (self.bandwidth + 1, self.bandwidth, self.size);
+        let Self { values, inverse_diagonal, column, .. } = self;
+        inverse_diagonal.clear();
+        inverse_diagonal.resize(size, 0.0);
+        column.clear();
+        column.resize(bandwidth, 0.0);
+        for j in 0..size {
+            let pivot = values[j * width + bandwidth];
             if !(pivot > 0.0 && pivot.is_finite()) {
-                return Err(NotPositiveDefinite { row });
+                return Err(NotPositiveDefinite { row: j });
             }
-            diagonal[0] = pivot.sqrt();
-            self.inverse_diagonal[row] = 1.0 / diagonal[0];
+            let diagonal = pivot.sqrt();
+            values[j * width + bandwidth] = diagonal;
+            inverse_diagonal[j] = 1.0 / diagonal;
+            let below = (size - 1 - j).min(bandwidth);
+            // L(j + 1 + t, j) for t < below, kept contiguous for the updates.
+            for (t, entry) in column[..below].iter_mut().enumerate() {
+                let row = j + 1 + t;
+                let index = row * width + bandwidth + j - row;
+                values[index] *= inverse_diagonal[j];
+                *entry = values[index];
+            }
+            for t in 0..below {
+                let row = j + 1 + t;
+                // A(row, j + 1 ..= row), contiguous in the row's band.
+                let start = row * width + bandwidth + j + 1 - row;
+                let factor = column[t];
+                for (value, other) in values[start..=start + t].iter_mut().zip(&column[..=t]) {
+                    *value -= factor * other;
+                }
+            }
         }
         Ok(())
     }
