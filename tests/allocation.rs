@@ -1,0 +1,97 @@
+//! No heap allocation per step once running: a counting global allocator watches the mechanics core's
+//! step (none at all), and a whole app's update (what Bevy itself allocates per frame, the same however
+//! many strands there are, so the hair adds none).
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use bevy::math::{DQuat, DVec3};
+use bevy::prelude::*;
+use bevy_hair_sim::prelude::*;
+use common::headless::hair_app;
+
+/// The system allocator, counting allocations.
+struct CountingAllocator;
+
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: every call is forwarded to the system allocator unchanged; only a counter is added.
+unsafe impl GlobalAlloc for CountingAllocator {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.alloc(layout) }
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        // SAFETY: the caller's contract is passed on.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
+
+/// Allocations made while `work` runs.
+fn allocations_during(work: impl FnOnce()) -> u64 {
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    work();
+    ALLOCATIONS.load(Ordering::Relaxed) - before
+}
+
+/// Allocations per update of an app with one head of `strands` strands (32 edges) that moves, once
+/// running.
+fn allocations_per_update(strands: usize) -> u64 {
+    let mut app = hair_app();
+    let groom = HairGroom { strand_count: strands, segments: 32, ..default() };
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
+    let mut step = 0;
+    let mut run = |app: &mut App, updates: usize| {
+        for _ in 0..updates {
+            step += 1;
+            app.world_mut().get_mut::<Transform>(head).unwrap().rotation = Quat::from_rotation_y(0.02 * step as f32);
+            app.update();
+        }
+    };
+    run(&mut app, 30);
+    let updates = 30;
+    allocations_during(|| run(&mut app, updates)) / updates as u64
+}
+
+// One test, so that no other test allocates while it counts.
+#[test]
+fn stepping_allocates_nothing_once_running() {
+    // The core: a hair whose root is shaken and spun, with its workspace warmed up by one step.
+    let nodes: Vec<DVec3> = (0..=32).map(|i| DVec3::new(0.25 * i as f64 / 32.0, 0.0, 0.0)).collect();
+    let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    let root = [rod.positions()[0], rod.positions()[1]];
+    let params = StepParams::default();
+    let mut workspace = RodWorkspace::default();
+    rod.step(&params, None, &mut workspace).unwrap();
+    let core = allocations_during(|| {
+        for step in 1..=200 {
+            let time = step as f64 * params.dt;
+            let turn = DQuat::from_rotation_y(4.0 * std::f64::consts::PI * time);
+            let shift = DVec3::new(0.1 * (20.0 * time).sin(), 0.0, 0.0);
+            rod.clamp_edge(0, turn * root[0] + shift, turn * root[1] + shift, turn * DVec3::Y).unwrap();
+            rod.step(&params, None, &mut workspace).unwrap();
+        }
+    });
+    assert_eq!(core, 0, "the core's step allocated {core} times in 200 steps");
+
+    // The plugin: Bevy allocates a little every frame (its executor, its task scopes); the hair adds
+    // nothing to that, however many strands there are.
+    let few = allocations_per_update(50);
+    let many = allocations_per_update(400);
+    println!("allocations per update: {few} with 50 strands, {many} with 400");
+    assert_eq!(few, many, "allocations per update grow with the strands: {few} with 50, {many} with 400");
+}
