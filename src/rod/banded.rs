@@ -103,8 +103,8 @@ impl BandedMatrix {
             }
             // Column `column` below the diagonal: A(row, column) for row in column + 1 ..= last.
             let last = (column + self.bandwidth).min(self.size - 1);
-            for row in column + 1..=last {
-                out[row] += self.values[row * width + self.bandwidth + column - row] * value;
+            for (row, out) in out.iter_mut().enumerate().take(last + 1).skip(column + 1) {
+                *out += self.values[row * width + self.bandwidth + column - row] * value;
             }
         }
     }
