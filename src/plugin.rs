@@ -38,9 +38,7 @@ impl HairPlugin {
     pub fn new(schedule: impl ScheduleLabel) -> Self {
         Self { schedule: schedule.intern() }
     }
-}
 
-impl HairPlugin {
     /// Task pools that give Bevy's compute pool, where strands are stepped in parallel, every core. Bevy's
     /// default gives it what its IO and async pools leave: a single thread on a 2-core machine, 2 of 4.
     /// The IO and async threads sleep while idle, so sharing cores with them costs little.
