@@ -9,45 +9,18 @@
 //! fewer steps, `--threads N` for the compute threads (one per core by default). Bevy's task pools are
 //! set once per process, so the parallel table runs this program again with `--threads`.
 
+#[path = "../benches/support/counting_allocator.rs"]
+mod counting_allocator;
 #[path = "../benches/support/scene.rs"]
 mod scene;
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::process::Command;
-use std::sync::atomic::{AtomicIsize, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use bevy::tasks::available_parallelism;
+use counting_allocator::BYTES_IN_USE;
 use scene::Scene;
-
-/// The system allocator, keeping count of the bytes in use (for the memory table).
-struct CountingAllocator;
-
-static BYTES_IN_USE: AtomicIsize = AtomicIsize::new(0);
-
-// SAFETY: every call is forwarded to the system allocator unchanged; only a counter is added.
-unsafe impl GlobalAlloc for CountingAllocator {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        BYTES_IN_USE.fetch_add(layout.size() as isize, Ordering::Relaxed);
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        BYTES_IN_USE.fetch_sub(layout.size() as isize, Ordering::Relaxed);
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        BYTES_IN_USE.fetch_add(new_size as isize - layout.size() as isize, Ordering::Relaxed);
-        // SAFETY: the caller's contract is passed on.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// Median wall time of `steps` steps, s, after the warm-up.
 fn median_step_seconds(strands: usize, edges: usize, threads: usize, steps: usize) -> f64 {

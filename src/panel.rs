@@ -190,12 +190,9 @@ fn step_time_plot(ui: &mut egui::Ui, step_milliseconds: &VecDeque<f32>) {
 fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
     let mut held = false;
     egui::Grid::new("hair groom").num_columns(2).show(ui, |ui| {
-        ui.label("strands");
-        held |= ui.add(egui::Slider::new(&mut groom.strand_count, 0..=8000).logarithmic(true)).dragged();
-        ui.end_row();
-        ui.label("edges per strand");
-        held |= ui.add(egui::Slider::new(&mut groom.segments, 2..=64)).dragged();
-        ui.end_row();
+        held |=
+            grid_row(ui, "strands", egui::Slider::new(&mut groom.strand_count, 0..=8000).logarithmic(true)).dragged();
+        held |= grid_row(ui, "edges per strand", egui::Slider::new(&mut groom.segments, 2..=64)).dragged();
         ui.label("style");
         ui.horizontal_wrapped(|ui| {
             for style in HairStyle::ALL {
@@ -216,21 +213,13 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
             }
         });
         ui.end_row();
-        ui.label("air damping (1/s)");
-        ui.add(egui::Slider::new(&mut settings.air_damping, 0.0..=30.0));
-        ui.end_row();
-        ui.label("internal damping (s)");
-        ui.add(egui::Slider::new(&mut settings.internal_damping, 0.0..=0.05).logarithmic(true));
-        ui.end_row();
-        ui.label("Newton iterations (max)");
-        ui.add(egui::Slider::new(&mut settings.max_newton_iterations, 1..=8));
-        ui.end_row();
-        ui.label("steps per frame (max)");
-        ui.add(egui::Slider::new(&mut settings.max_steps_per_frame, 0..=8));
-        ui.end_row();
-        ui.label("teleport distance (m)");
-        ui.add(egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true));
-        ui.end_row();
+        grid_row(ui, "air damping (1/s)", egui::Slider::new(&mut settings.air_damping, 0.0..=30.0));
+        let internal_damping = egui::Slider::new(&mut settings.internal_damping, 0.0..=0.05).logarithmic(true);
+        grid_row(ui, "internal damping (s)", internal_damping);
+        grid_row(ui, "Newton iterations (max)", egui::Slider::new(&mut settings.max_newton_iterations, 1..=8));
+        grid_row(ui, "steps per frame (max)", egui::Slider::new(&mut settings.max_steps_per_frame, 0..=8));
+        let teleport_distance = egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true);
+        grid_row(ui, "teleport distance (m)", teleport_distance);
     });
 }
 
@@ -239,15 +228,13 @@ fn material_grid(ui: &mut egui::Ui, material: &mut RodMaterial) {
     let mut youngs_gigapascals = 1e-9 * material.youngs_modulus;
     let poisson_ratio = material.youngs_modulus / (2.0 * material.shear_modulus) - 1.0;
     egui::Grid::new("hair material").num_columns(2).show(ui, |ui| {
-        ui.label("fibre radius (µm)");
-        ui.add(egui::Slider::new(&mut radius_micrometres, 10.0..=500.0).logarithmic(true));
-        ui.end_row();
-        ui.label("Young's modulus (GPa)");
-        ui.add(egui::Slider::new(&mut youngs_gigapascals, 0.01..=10.0).logarithmic(true));
-        ui.end_row();
-        ui.label("density (kg/m³)");
-        ui.add(egui::Slider::new(&mut material.density, 100.0..=3000.0));
-        ui.end_row();
+        grid_row(ui, "fibre radius (µm)", egui::Slider::new(&mut radius_micrometres, 10.0..=500.0).logarithmic(true));
+        grid_row(
+            ui,
+            "Young's modulus (GPa)",
+            egui::Slider::new(&mut youngs_gigapascals, 0.01..=10.0).logarithmic(true),
+        );
+        grid_row(ui, "density (kg/m³)", egui::Slider::new(&mut material.density, 100.0..=3000.0));
     });
     let radius = 1e-6 * radius_micrometres;
     if (radius - 0.5 * (material.semi_axis_1 + material.semi_axis_2)).abs() > 1e-12 {
@@ -258,22 +245,25 @@ fn material_grid(ui: &mut egui::Ui, material: &mut RodMaterial) {
     }
 }
 
+/// One row of a two-column grid: a label and its widget, whose response is returned.
+fn grid_row(ui: &mut egui::Ui, label: &str, widget: impl egui::Widget) -> egui::Response {
+    ui.label(label);
+    let response = ui.add(widget);
+    ui.end_row();
+    response
+}
+
 /// Colour pickers for root and tip, and the presets of [`HairGizmos::presets`].
 fn color_grid(ui: &mut egui::Ui, colors: &mut HairGizmos) {
-    let mut root = colors.root_color.to_srgba().to_f32_array_no_alpha();
-    let mut tip = colors.tip_color.to_srgba().to_f32_array_no_alpha();
     ui.horizontal(|ui| {
-        ui.label("root");
-        ui.color_edit_button_rgb(&mut root);
-        ui.label("tip");
-        ui.color_edit_button_rgb(&mut tip);
+        for (name, color) in [("root", &mut colors.root_color), ("tip", &mut colors.tip_color)] {
+            ui.label(name);
+            let mut rgb = color.to_srgba().to_f32_array_no_alpha();
+            if ui.color_edit_button_rgb(&mut rgb).changed() {
+                *color = Color::srgb_from_array(rgb);
+            }
+        }
     });
-    if root != colors.root_color.to_srgba().to_f32_array_no_alpha() {
-        colors.root_color = Color::srgb_from_array(root);
-    }
-    if tip != colors.tip_color.to_srgba().to_f32_array_no_alpha() {
-        colors.tip_color = Color::srgb_from_array(tip);
-    }
     ui.horizontal_wrapped(|ui| {
         for (name, preset) in HairGizmos::presets() {
             if ui.button(name).clicked() {

@@ -407,27 +407,23 @@ impl Rod {
         // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
         prescribed.clear();
         prescribed.resize(size, 0.0);
-        let mut prescribed_span = size..0;
-        let note_prescribed = |dof: usize, span: &mut std::ops::Range<usize>| {
-            (span.start, span.end) = (span.start.min(dof), span.end.max(dof + 1));
-        };
         for node in 0..self.node_count() {
             if let Some(target) = self.node_targets[node] {
                 let offset = target - self.positions[node];
                 prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-                note_prescribed(node_dof(node), &mut prescribed_span);
-                note_prescribed(node_dof(node) + 2, &mut prescribed_span);
             }
         }
         for edge in 0..self.edge_count() {
             if let Some(offset) = self.twist_target_offset(edge) {
                 prescribed[twist_dof(edge)] = offset;
-                note_prescribed(twist_dof(edge), &mut prescribed_span);
             }
         }
-        if !prescribed_span.is_empty() {
+        // Usually only the root edge's unknowns move: multiply by the columns they span, not all.
+        if let (Some(first), Some(last)) =
+            (prescribed.iter().position(|d| *d != 0.0), prescribed.iter().rposition(|d| *d != 0.0))
+        {
             damping_force.resize(size, 0.0);
-            hessian.multiply_columns(prescribed_span, prescribed, damping_force);
+            hessian.multiply_columns(first..last + 1, prescribed, damping_force);
             for (r, coupling) in residual.iter_mut().zip(damping_force.iter()) {
                 *r += coupling;
             }
