@@ -86,6 +86,16 @@ pub enum RodError {
         /// Length of the array that was given.
         actual: usize,
     },
+    /// A collider dimension, friction coefficient or pose, or a collision thickness, is invalid.
+    #[error(
+        "collider parameter `{parameter}` is invalid: {value} (dimensions must be positive and finite, friction and thickness zero or positive, poses finite)"
+    )]
+    InvalidCollider {
+        /// Name of the parameter.
+        parameter: &'static str,
+        /// The value that was given (NaN for a pose).
+        value: f64,
+    },
     /// A step parameter is out of its valid range.
     #[error("step parameter `{parameter}` is invalid: {value} ({requirement})")]
     InvalidStepParameter {

@@ -24,6 +24,8 @@
 //! ```
 
 mod banded;
+mod collider;
+mod contact;
 mod curve;
 mod energy;
 mod error;
@@ -36,6 +38,8 @@ mod solver;
 pub(crate) mod test_support;
 
 pub use banded::{BandedMatrix, NotPositiveDefinite};
+pub use collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
+pub use contact::Contacts;
 pub use curve::{MaterialFrame, Rod};
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};

@@ -13,6 +13,17 @@ pub(crate) struct ProjectionScratch {
     pub(crate) multipliers: Vec<f64>,
     pub(crate) start: Vec<DVec3>,
     pub(crate) target_lengths: Vec<f64>,
+    /// `1 / m` of each node, 1/kg, as the projection sees it: zero for prescribed nodes, and for nodes
+    /// held by static friction while contacts are resolved.
+    pub(crate) inverse_masses: Vec<f64>,
+}
+
+impl ProjectionScratch {
+    /// Takes the rod's own inverse masses (zero where a node is prescribed).
+    pub(crate) fn use_rod_masses(&mut self, rod: &Rod) {
+        self.inverse_masses.clear();
+        self.inverse_masses.extend((0..rod.node_count()).map(|node| rod.inverse_mass(node)));
+    }
 }
 
 /// The largest relative difference between an edge's length and its target length.
@@ -26,13 +37,13 @@ pub(crate) fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
 
 /// Fast projection onto the length constraints `C_j = e_j·e_j / L_j − L_j = 0`, `L_j` the target lengths
 /// (Goldenthal et al. 2007): repeats `x ← x − M⁻¹ ∇Cᵀ λ` with `(∇C M⁻¹ ∇Cᵀ) λ = C`, a tridiagonal
-/// system, until every edge is within `strain_tolerance` of its target. Prescribed nodes have infinite
-/// mass. Far from the constraints a Newton step can overshoot: it is halved until the largest error
+/// system, until every edge is within `strain_tolerance` of its target, with the masses of
+/// [`ProjectionScratch::inverse_masses`] (prescribed nodes have infinite mass). Far from the constraints a Newton step can overshoot: it is halved until the largest error
 /// drops, and after four halvings replaced by a Gauss–Seidel sweep of exact per-edge projections.
 /// Returns the iterations taken.
 pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
-    let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths } = scratch;
+    let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths, inverse_masses } = scratch;
     let mut strain = length_error(rod, target_lengths);
     for iteration in 0..params.max_projection_iterations {
         if strain <= params.strain_tolerance {
@@ -44,7 +55,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
         for edge in 0..edge_count {
             let e = rod.positions[edge + 1] - rod.positions[edge];
             let target = target_lengths[edge];
-            let weight = rod.inverse_mass(edge) + rod.inverse_mass(edge + 1);
+            let weight = inverse_masses[edge] + inverse_masses[edge + 1];
             let stiffness = 4.0 * e.length_squared() / (target * target) * weight;
             let constraint = e.length_squared() / target - target;
             if stiffness > 0.0 {
@@ -56,7 +67,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             }
             if edge + 1 < edge_count {
                 let next = rod.positions[edge + 2] - rod.positions[edge + 1];
-                let shared = rod.inverse_mass(edge + 1);
+                let shared = inverse_masses[edge + 1];
                 upper.push(-4.0 * shared * e.dot(next) / (target * target_lengths[edge + 1]));
             }
         }
@@ -67,7 +78,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
                 let impulse = 2.0 * fraction * multipliers[edge] / target_lengths[edge] * e;
-                let (start_weight, end_weight) = (rod.inverse_mass(edge), rod.inverse_mass(edge + 1));
+                let (start_weight, end_weight) = (inverse_masses[edge], inverse_masses[edge + 1]);
                 rod.positions[edge] += start_weight * impulse;
                 rod.positions[edge + 1] -= end_weight * impulse;
             }
@@ -79,7 +90,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             rod.positions.copy_from_slice(start);
             if fraction < 0.1 {
                 // Too far from the constraints for Newton: exact per-edge projections cannot overshoot.
-                gauss_seidel_sweep(rod, target_lengths);
+                gauss_seidel_sweep(rod, target_lengths, inverse_masses);
                 strain = length_error(rod, target_lengths);
                 break;
             }
@@ -91,10 +102,10 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
 
 /// One symmetric Gauss–Seidel sweep (root to tip, then back) of exact, mass-weighted projections of
 /// each edge onto its target length. Slower than Newton near the constraints but robust far from them.
-fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64]) {
+fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f64]) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
-        let (start_weight, end_weight) = (rod.inverse_mass(edge), rod.inverse_mass(edge + 1));
+        let (start_weight, end_weight) = (inverse_masses[edge], inverse_masses[edge + 1]);
         let total = start_weight + end_weight;
         let e = rod.positions[edge + 1] - rod.positions[edge];
         let length = e.length();

@@ -28,6 +28,7 @@ use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
 use super::banded::BandedMatrix;
+use super::contact::{ContactScratch, Contacts};
 use super::curve::Rod;
 use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
@@ -140,8 +141,10 @@ pub struct StepReport {
     pub max_strain: f64,
     /// Newton iterations the step took.
     pub newton_iterations: u32,
-    /// Projection iterations the step needed, over all its Newton iterations.
+    /// Projection iterations the step needed, over all its Newton iterations and contact rounds.
     pub projection_iterations: u32,
+    /// Nodes in contact with a collider at the end of the step.
+    pub contacts: u32,
 }
 
 /// Scratch memory for stepping rods. One workspace serves any number of rods (one at a time); it
@@ -158,6 +161,7 @@ pub struct RodWorkspace {
     saved: SavedState,
     carried: SavedState,
     projection: ProjectionScratch,
+    contacts: ContactScratch,
 }
 
 /// The rod's state at the start of a step, to measure displacements and to restore after a failure.
@@ -202,18 +206,33 @@ impl SavedState {
 
 impl Rod {
     /// Advances the rod by `params.dt` under gravity, optional per-node `external_forces` (N) and its
-    /// boundary conditions (prescribed nodes move to their targets over the step).
-    ///
-    /// On failure (non-finite values, a non-positive-definite system, or strain above
-    /// [`StepParams::divergence_strain`]) the rod is put back where it was before the step, at rest, and
-    /// the error says what happened; invalid input changes nothing.
+    /// boundary conditions (prescribed nodes move to their targets over the step), with no colliders:
+    /// [`Rod::step_with_contacts`] with [`Contacts::NONE`].
     pub fn step(
         &mut self,
         params: &StepParams,
         external_forces: Option<&[DVec3]>,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
+        self.step_with_contacts(params, external_forces, &Contacts::NONE, workspace)
+    }
+
+    /// Advances the rod by `params.dt` under gravity, optional per-node `external_forces` (N) and its
+    /// boundary conditions (prescribed nodes move to their targets over the step), kept outside the
+    /// colliders of `contacts` with friction (see [`Contacts`]).
+    ///
+    /// On failure (non-finite values, a non-positive-definite system, or strain above
+    /// [`StepParams::divergence_strain`]) the rod is put back where it was before the step, at rest, and
+    /// the error says what happened; invalid input changes nothing.
+    pub fn step_with_contacts(
+        &mut self,
+        params: &StepParams,
+        external_forces: Option<&[DVec3]>,
+        contacts: &Contacts,
+        workspace: &mut RodWorkspace,
+    ) -> Result<StepReport, StepError> {
         params.validate()?;
+        contacts.validate()?;
         if let Some(forces) = external_forces {
             if forces.len() != self.node_count() {
                 return Err(RodError::WrongLength { expected: self.node_count(), actual: forces.len() }.into());
@@ -223,7 +242,7 @@ impl Rod {
             }
         }
         workspace.saved.save(self);
-        let result = self.integrate(params, external_forces, workspace);
+        let result = self.integrate(params, external_forces, contacts, workspace);
         if result.is_err() {
             workspace.saved.restore_at_rest(self);
         }
@@ -234,27 +253,44 @@ impl Rod {
         &mut self,
         params: &StepParams,
         external_forces: Option<&[DVec3]>,
+        contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
         self.carry_with_first_clamp(&mut workspace.material_directions);
         workspace.carried.save(self);
+        workspace.projection.use_rod_masses(self);
+        self.find_resting_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
             newton_iterations += 1;
-            let fraction = self.newton_iteration(params, external_forces, workspace)?;
+            let (fraction, contacts_changed) = self.newton_iteration(params, external_forces, workspace)?;
             let linearisation_error = length_error(self, &workspace.projection.target_lengths);
-            let converged = fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance;
+            let converged =
+                fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance && !contacts_changed;
             let last = converged || newton_iterations == params.max_newton_iterations;
             if last {
                 self.snap_to_targets();
             }
             projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
-            self.refresh_frames();
             if last {
                 break;
             }
+            self.refresh_frames();
         }
+        let mut contact_count = 0;
+        if !contacts.colliders.is_empty() {
+            let (in_contact, iterations) = self.resolve_contacts(
+                contacts,
+                &workspace.saved.positions,
+                params,
+                &mut workspace.projection,
+                &mut workspace.contacts,
+            );
+            contact_count = in_contact;
+            projection_iterations += iterations;
+        }
+        self.refresh_frames();
 
         let saved = &workspace.saved;
         let inverse_dt = 1.0 / params.dt;
@@ -276,7 +312,7 @@ impl Rod {
         if max_strain > params.divergence_strain {
             return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
         }
-        Ok(StepReport { max_strain, newton_iterations, projection_iterations })
+        Ok(StepReport { max_strain, newton_iterations, projection_iterations, contacts: contact_count })
     }
 
     /// The first guess of a step: the rod carried rigidly with the motion of its first clamped edge
@@ -331,13 +367,14 @@ impl Rod {
     }
 
     /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
-    /// fraction of the Newton update that was applied (below 1 when the trust region limited it).
+    /// fraction of the Newton update that was applied (below 1 when the trust region limited it), and
+    /// whether the set of resting contacts changed.
     fn newton_iteration(
         &mut self,
         params: &StepParams,
         external_forces: Option<&[DVec3]>,
         workspace: &mut RodWorkspace,
-    ) -> Result<f64, StepError> {
+    ) -> Result<(f64, bool), StepError> {
         let size = dof_count(self.node_count());
         let RodWorkspace {
             hessian,
@@ -349,6 +386,7 @@ impl Rod {
             saved,
             carried,
             projection,
+            contacts,
             ..
         } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
@@ -402,6 +440,7 @@ impl Rod {
                 inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
+        self.add_contact_springs(&mut contacts.resting, inertia_scale, residual, hessian);
 
         // Prescribed unknowns move by their remaining displacement `d`: their rows become identity rows
         // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
@@ -441,6 +480,7 @@ impl Rod {
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
+        let contacts_changed = self.update_resting_contacts(&mut contacts.resting, node_update);
         let largest_turn = (0..self.edge_count())
             .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
             .map(|edge| {
@@ -475,7 +515,7 @@ impl Rod {
             self.twist[edge] += fraction * residual[twist_dof(edge)];
         }
         // The frames are refreshed once the projection has moved the nodes (see `integrate`).
-        Ok(fraction)
+        Ok((fraction, contacts_changed))
     }
 }
 

@@ -1,0 +1,504 @@
+//! Collider shapes and their geometry: inside tests, closest surface points, where a moving point first
+//! enters a shape, and the deepest point of a segment. Everything here works in the collider's own
+//! frame, on the shape *inflated* by a strand's collision thickness.
+
+use bevy::math::{DQuat, DVec3};
+use bevy::reflect::Reflect;
+
+use super::error::RodError;
+
+/// The solid shape of a collider, in its own frame (m).
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+pub enum ColliderShape {
+    /// A ball of `radius` m around the origin.
+    Sphere {
+        /// Radius, m.
+        radius: f64,
+    },
+    /// The points within `radius` m of the segment from `(0, −half_length, 0)` to `(0, half_length, 0)`:
+    /// a neck, an arm, a shoulder line.
+    Capsule {
+        /// Radius, m.
+        radius: f64,
+        /// Half the length of the axis segment (along local Y), m; the capsule is `2 (half_length +
+        /// radius)` long in all.
+        half_length: f64,
+    },
+    /// The ellipsoid `Σ (x_i / a_i)² ≤ 1` with semi-axes `a` (m) along local X, Y and Z: the usual skull.
+    Ellipsoid {
+        /// Semi-axes along local X, Y and Z, m.
+        semi_axes: DVec3,
+    },
+    /// The half-space below the plane through the origin with normal local +Y: a floor, a table.
+    Plane,
+}
+
+/// Where a point meets a shape: a point on the (inflated) surface and the outward unit normal there.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePoint {
+    /// The point on the surface, m, in the collider's frame.
+    pub point: DVec3,
+    /// The outward unit normal there.
+    pub normal: DVec3,
+}
+
+impl ColliderShape {
+    /// A ball of `radius` m.
+    pub fn sphere(radius: f64) -> Self {
+        Self::Sphere { radius }
+    }
+
+    /// A capsule of `radius` m around a segment `2 half_length` m long along local Y.
+    pub fn capsule(radius: f64, half_length: f64) -> Self {
+        Self::Capsule { radius, half_length }
+    }
+
+    /// An ellipsoid with semi-axes `semi_axes` (m) along local X, Y, Z.
+    pub fn ellipsoid(semi_axes: DVec3) -> Self {
+        Self::Ellipsoid { semi_axes }
+    }
+
+    /// Checks that every dimension is positive and finite (a capsule's half length may be zero).
+    pub fn validate(&self) -> Result<(), RodError> {
+        let check = |parameter, value: f64, minimum_ok: bool| {
+            if value.is_finite() && (value > 0.0 || (minimum_ok && value == 0.0)) {
+                Ok(())
+            } else {
+                Err(RodError::InvalidCollider { parameter, value })
+            }
+        };
+        match *self {
+            Self::Sphere { radius } => check("radius", radius, false),
+            Self::Capsule { radius, half_length } => {
+                check("radius", radius, false)?;
+                check("half_length", half_length, true)
+            }
+            Self::Ellipsoid { semi_axes } => {
+                check("semi_axes.x", semi_axes.x, false)?;
+                check("semi_axes.y", semi_axes.y, false)?;
+                check("semi_axes.z", semi_axes.z, false)
+            }
+            Self::Plane => Ok(()),
+        }
+    }
+
+    /// The shape seen through a scale of its frame by `scale` (per local axis): a sphere scaled unevenly
+    /// becomes an ellipsoid, a capsule takes the larger of its X and Z scales as its radius scale.
+    pub fn scaled(&self, scale: DVec3) -> Self {
+        let scale = scale.abs();
+        match *self {
+            Self::Sphere { radius } if scale.x == scale.y && scale.y == scale.z => Self::sphere(radius * scale.x),
+            Self::Sphere { radius } => Self::ellipsoid(radius * scale),
+            Self::Capsule { radius, half_length } => {
+                Self::capsule(radius * scale.x.max(scale.z), half_length * scale.y)
+            }
+            Self::Ellipsoid { semi_axes } => Self::ellipsoid(semi_axes * scale),
+            Self::Plane => Self::Plane,
+        }
+    }
+
+    /// Radius of a ball around the origin that holds the shape, m (infinite for a plane).
+    pub fn bounding_radius(&self) -> f64 {
+        match *self {
+            Self::Sphere { radius } => radius,
+            Self::Capsule { radius, half_length } => radius + half_length,
+            Self::Ellipsoid { semi_axes } => semi_axes.max_element(),
+            Self::Plane => f64::INFINITY,
+        }
+    }
+
+    /// The smallest radius of curvature of the surface, m (infinite for a plane): how sharply an edge
+    /// lying on the surface between two touching nodes can dip into it.
+    pub fn smallest_curvature_radius(&self) -> f64 {
+        match *self {
+            Self::Sphere { radius } | Self::Capsule { radius, .. } => radius,
+            Self::Ellipsoid { semi_axes } => semi_axes.min_element().powi(2) / semi_axes.max_element(),
+            Self::Plane => f64::INFINITY,
+        }
+    }
+
+    /// The shape grown outwards by `thickness` m. Exact for spheres and capsules; an ellipsoid grows its
+    /// semi-axes, which differs from the true offset surface by `O(thickness² / semi-axis)`. A plane is
+    /// returned as it is: it grows by moving its frame `thickness` along its normal.
+    pub fn inflated(&self, thickness: f64) -> Self {
+        match *self {
+            Self::Sphere { radius } => Self::sphere(radius + thickness),
+            Self::Capsule { radius, half_length } => Self::capsule(radius + thickness, half_length),
+            Self::Ellipsoid { semi_axes } => Self::ellipsoid(semi_axes + DVec3::splat(thickness)),
+            Self::Plane => Self::Plane,
+        }
+    }
+
+    /// A lower bound on the distance from `point` to the shape, m (negative inside). Cheap: used to skip
+    /// points that cannot touch the shape this step.
+    pub fn distance_bound(&self, point: DVec3) -> f64 {
+        match *self {
+            Self::Sphere { radius } => point.length() - radius,
+            Self::Capsule { radius, half_length } => (point - capsule_axis_point(point, half_length)).length() - radius,
+            Self::Ellipsoid { semi_axes } => point.length() - semi_axes.max_element(),
+            Self::Plane => point.y,
+        }
+    }
+
+    /// Whether `point` lies strictly inside the shape.
+    pub fn contains(&self, point: DVec3) -> bool {
+        match *self {
+            Self::Ellipsoid { semi_axes } => (point / semi_axes).length_squared() < 1.0,
+            _ => self.distance_bound(point) < 0.0,
+        }
+    }
+
+    /// The point of the surface closest to `point`, with the outward normal there. Used for points
+    /// inside the shape; a point at a sphere's centre (or on a capsule's axis) is pushed out along +Y.
+    pub fn closest_surface_point(&self, point: DVec3) -> SurfacePoint {
+        match *self {
+            Self::Sphere { radius } => ball_surface(DVec3::ZERO, radius, point),
+            Self::Capsule { radius, half_length } => {
+                ball_surface(capsule_axis_point(point, half_length), radius, point)
+            }
+            Self::Ellipsoid { semi_axes } => closest_ellipsoid_point(semi_axes, point),
+            Self::Plane => SurfacePoint { point: DVec3::new(point.x, 0.0, point.z), normal: DVec3::Y },
+        }
+    }
+
+    /// Where the straight path from `start` (outside) to `end` first enters the shape, if it does.
+    pub fn entry(&self, start: DVec3, end: DVec3) -> Option<SurfacePoint> {
+        match *self {
+            Self::Sphere { radius } => ball_entry(DVec3::ZERO, radius, start, end).map(|(_, hit)| hit),
+            Self::Capsule { radius, half_length } => capsule_entry(radius, half_length, start, end),
+            Self::Ellipsoid { semi_axes } => {
+                let (_, unit) = ball_entry(DVec3::ZERO, 1.0, start / semi_axes, end / semi_axes)?;
+                let point = unit.point * semi_axes;
+                Some(SurfacePoint { point, normal: (unit.point / semi_axes).normalize() })
+            }
+            Self::Plane => {
+                if start.y < 0.0 || end.y >= 0.0 {
+                    return None;
+                }
+                let fraction = start.y / (start.y - end.y);
+                Some(SurfacePoint { point: start.lerp(end, fraction), normal: DVec3::Y })
+            }
+        }
+    }
+
+    /// The point of the segment `start`–`end` deepest inside the shape when it dips in (both ends may be
+    /// outside): its fraction along the segment, and the surface point it is pushed to. `None` when the
+    /// segment stays outside, or for a plane (a segment only dips below a plane at an end).
+    pub fn segment_contact(&self, start: DVec3, end: DVec3) -> Option<(f64, SurfacePoint)> {
+        let (fraction, deepest) = match *self {
+            Self::Sphere { .. } => closest_to_origin(start, end),
+            Self::Capsule { half_length, .. } => closest_to_axis(start, end, half_length),
+            Self::Ellipsoid { semi_axes } => {
+                let (fraction, _) = closest_to_origin(start / semi_axes, end / semi_axes);
+                (fraction, start.lerp(end, fraction))
+            }
+            Self::Plane => return None,
+        };
+        self.contains(deepest).then(|| (fraction, self.closest_surface_point(deepest)))
+    }
+}
+
+/// The point of the capsule's axis segment closest to `point`.
+fn capsule_axis_point(point: DVec3, half_length: f64) -> DVec3 {
+    DVec3::new(0.0, point.y.clamp(-half_length, half_length), 0.0)
+}
+
+/// The closest point to `point` on the sphere of `radius` around `centre`.
+fn ball_surface(centre: DVec3, radius: f64, point: DVec3) -> SurfacePoint {
+    let normal = (point - centre).try_normalize().unwrap_or(DVec3::Y);
+    SurfacePoint { point: centre + radius * normal, normal }
+}
+
+/// First crossing of the path `start → end` into the ball of `radius` around `centre`: `|p(s) − c|² = r²`,
+/// `p(s) = start + s (end − start)`, smallest root `s ∈ [0, 1]` with `start` outside.
+fn ball_entry(centre: DVec3, radius: f64, start: DVec3, end: DVec3) -> Option<(f64, SurfacePoint)> {
+    let offset = start - centre;
+    let path = end - start;
+    let c = offset.length_squared() - radius * radius;
+    let a = path.length_squared();
+    let b = offset.dot(path);
+    if c < 0.0 || a == 0.0 || b >= 0.0 {
+        return None;
+    }
+    let discriminant = b * b - a * c;
+    if discriminant < 0.0 {
+        return None;
+    }
+    let fraction = (-b - discriminant.sqrt()) / a;
+    (fraction <= 1.0).then(|| {
+        let point = start + fraction * path;
+        (fraction, SurfacePoint { point, normal: (point - centre) / radius })
+    })
+}
+
+/// First crossing of `start → end` into a capsule: the earliest entry into its cylinder side (within the
+/// axis segment) or into either end ball (the first entry into a union is the earliest into any part).
+fn capsule_entry(radius: f64, half_length: f64, start: DVec3, end: DVec3) -> Option<SurfacePoint> {
+    let axis_end = DVec3::new(0.0, half_length, 0.0);
+    let balls = [axis_end, -axis_end].map(|centre| ball_entry(centre, radius, start, end));
+    let path = end - start;
+    let (a, b, c) = (
+        path.x * path.x + path.z * path.z,
+        start.x * path.x + start.z * path.z,
+        start.x * start.x + start.z * start.z - radius * radius,
+    );
+    let side = (c >= 0.0 && a > 0.0 && b < 0.0 && b * b >= a * c)
+        .then(|| (-b - (b * b - a * c).sqrt()) / a)
+        .filter(|fraction| *fraction <= 1.0)
+        .map(|fraction| (fraction, start + fraction * path))
+        .filter(|(_, point)| point.y.abs() <= half_length)
+        .map(|(fraction, point)| {
+            (fraction, SurfacePoint { point, normal: DVec3::new(point.x, 0.0, point.z) / radius })
+        });
+    balls.into_iter().chain([side]).flatten().min_by(|x, y| x.0.total_cmp(&y.0)).map(|(_, hit)| hit)
+}
+
+/// The fraction along `start`–`end` of its point closest to the origin, and that point.
+fn closest_to_origin(start: DVec3, end: DVec3) -> (f64, DVec3) {
+    let path = end - start;
+    let length_squared = path.length_squared();
+    let fraction = if length_squared > 0.0 { (-start.dot(path) / length_squared).clamp(0.0, 1.0) } else { 0.0 };
+    (fraction, start + fraction * path)
+}
+
+/// The point of `start`–`end` closest to the capsule axis segment `(0, ±half_length, 0)`: the closest
+/// points of two segments (Ericson, *Real-Time Collision Detection*, 5.1.9).
+fn closest_to_axis(start: DVec3, end: DVec3, half_length: f64) -> (f64, DVec3) {
+    let path = end - start;
+    let axis = DVec3::new(0.0, 2.0 * half_length, 0.0);
+    let offset = start + 0.5 * axis;
+    let (a, e, f, c) = (path.length_squared(), axis.length_squared(), axis.dot(offset), path.dot(offset));
+    let fraction = if a == 0.0 {
+        0.0
+    } else if e == 0.0 {
+        (-c / a).clamp(0.0, 1.0)
+    } else {
+        let b = path.dot(axis);
+        let denominator = a * e - b * b;
+        let s = if denominator > 0.0 { ((b * f - c * e) / denominator).clamp(0.0, 1.0) } else { 0.0 };
+        let t = (b * s + f) / e;
+        if t < 0.0 {
+            (-c / a).clamp(0.0, 1.0)
+        } else if t > 1.0 {
+            ((b - c) / a).clamp(0.0, 1.0)
+        } else {
+            s
+        }
+    };
+    (fraction, start + fraction * path)
+}
+
+/// The closest point to `point` on the ellipsoid with semi-axes `a`: `x_i = a_i² p_i / (a_i² + λ)` where
+/// `F(λ) = Σ (a_i p_i / (a_i² + λ))² − 1 = 0` (Eberly, "Distance from a point to an ellipsoid"), solved by
+/// Newton's method safeguarded with bisection on `λ ∈ (−a_min², λ_max]`.
+fn closest_ellipsoid_point(semi_axes: DVec3, point: DVec3) -> SurfacePoint {
+    let squared = semi_axes * semi_axes;
+    let smallest = squared.min_element();
+    let value = |lambda: f64| {
+        let scaled = semi_axes * point / (squared + DVec3::splat(lambda));
+        let derivative = -2.0 * (scaled * scaled / (squared + DVec3::splat(lambda))).element_sum();
+        (scaled.length_squared() - 1.0, derivative)
+    };
+    let (mut low, mut high) = (-smallest, (semi_axes * point).length().max(0.0));
+    let mut lambda = 0.0_f64.clamp(low, high);
+    for _ in 0..64 {
+        let (f, derivative) = value(lambda);
+        if f > 0.0 {
+            low = lambda
+        } else {
+            high = lambda
+        }
+        if f.abs() < 1e-13 || high - low < 1e-18 * smallest {
+            break;
+        }
+        let newton = lambda - f / derivative;
+        lambda = if newton > low && newton < high && newton.is_finite() { newton } else { 0.5 * (low + high) };
+    }
+    let surface = squared * point / (squared + DVec3::splat(lambda));
+    let normal = (surface / squared).try_normalize();
+    match normal {
+        Some(normal) if surface.is_finite() && ((surface / semi_axes).length_squared() - 1.0).abs() < 1e-6 => {
+            SurfacePoint { point: surface, normal }
+        }
+        // A point on a symmetry plane through the centre (`F` has no pole at `−a_min²`): push it out radially.
+        _ => {
+            let direction = point.try_normalize().unwrap_or(DVec3::Y);
+            let surface = direction / (direction / semi_axes).length();
+            SurfacePoint { point: surface, normal: (surface / squared).normalize() }
+        }
+    }
+}
+
+/// A rigid placement of a collider: `x ↦ rotation · x + translation`.
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+pub struct RigidPose {
+    /// Orientation (unit quaternion).
+    pub rotation: DQuat,
+    /// Position of the collider's origin, m.
+    pub translation: DVec3,
+}
+
+impl Default for RigidPose {
+    fn default() -> Self {
+        Self { rotation: DQuat::IDENTITY, translation: DVec3::ZERO }
+    }
+}
+
+impl RigidPose {
+    /// A pose at `translation` turned by `rotation`.
+    pub fn new(rotation: DQuat, translation: DVec3) -> Self {
+        Self { rotation, translation }
+    }
+
+    /// World position of the collider-local point `local`.
+    pub fn to_world(&self, local: DVec3) -> DVec3 {
+        self.translation + self.rotation * local
+    }
+
+    /// Collider-local position of the world point `world`.
+    pub fn to_local(&self, world: DVec3) -> DVec3 {
+        self.rotation.inverse() * (world - self.translation)
+    }
+}
+
+/// A collider during one step: its shape, friction and where it is at the start and at the end of the
+/// step (so contact follows a collider that moves or turns fast, without tunnelling).
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+pub struct MovingCollider {
+    /// The solid shape, in the collider's frame.
+    pub shape: ColliderShape,
+    /// Coulomb friction coefficient `μ`, dimensionless: hair in contact sticks while the tangential force
+    /// is below `μ` times the normal force, and slides against a force `μ` times the normal force.
+    pub friction: f64,
+    /// Pose at the start of the step.
+    pub start: RigidPose,
+    /// Pose at the end of the step.
+    pub end: RigidPose,
+}
+
+impl MovingCollider {
+    /// A collider that stays at `pose` during the step.
+    pub fn fixed(shape: ColliderShape, friction: f64, pose: RigidPose) -> Self {
+        Self { shape, friction, start: pose, end: pose }
+    }
+
+    /// Checks the shape's dimensions, the friction coefficient (zero or positive) and the poses.
+    pub fn validate(&self) -> Result<(), RodError> {
+        self.shape.validate()?;
+        if !(self.friction.is_finite() && self.friction >= 0.0) {
+            return Err(RodError::InvalidCollider { parameter: "friction", value: self.friction });
+        }
+        for pose in [self.start, self.end] {
+            if !(pose.translation.is_finite() && pose.rotation.is_finite() && pose.rotation.is_normalized()) {
+                return Err(RodError::InvalidCollider { parameter: "pose", value: f64::NAN });
+            }
+        }
+        Ok(())
+    }
+
+    /// A world-space ball `(centre, radius)` holding the collider at both poses, grown by `margin` m
+    /// (an infinite radius for a plane).
+    pub fn swept_bounds(&self, margin: f64) -> (DVec3, f64) {
+        let centre = 0.5 * (self.start.translation + self.end.translation);
+        let travel = 0.5 * self.start.translation.distance(self.end.translation);
+        (centre, self.shape.bounding_radius() + travel + margin)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SHAPES: [ColliderShape; 4] = [
+        ColliderShape::Sphere { radius: 0.1 },
+        ColliderShape::Capsule { radius: 0.05, half_length: 0.08 },
+        ColliderShape::Ellipsoid { semi_axes: DVec3::new(0.08, 0.1, 0.12) },
+        ColliderShape::Plane,
+    ];
+
+    /// Points spread through a 0.3 m cube around the origin.
+    fn probe_points() -> impl Iterator<Item = DVec3> {
+        (0..2000).map(|i| {
+            let t = i as f64;
+            DVec3::new((t * 0.618_034).fract(), (t * 0.754_878).fract(), (t * 0.569_840).fract()) * 0.3
+                - DVec3::splat(0.15)
+        })
+    }
+
+    #[test]
+    fn closest_points_lie_on_the_surface_and_are_closest() {
+        for shape in SHAPES {
+            for point in probe_points().filter(|p| shape.contains(*p)) {
+                let surface = shape.closest_surface_point(point);
+                // On the surface: just outside along the normal, just inside against it.
+                assert!(!shape.contains(surface.point + 1e-9 * surface.normal), "{shape:?} {point}");
+                assert!(shape.contains(surface.point - 1e-9 * surface.normal), "{shape:?} {point}");
+                // Closest: the offset from the point is along the normal (a stationary distance).
+                let offset = surface.point - point;
+                assert!(offset.cross(surface.normal).length() < 1e-9, "{shape:?} {point}: {offset}");
+                // No other surface point (the surface points of nearby probes) is closer.
+                let distance = offset.length();
+                for other in probe_points().filter(|p| shape.contains(*p)).take(200) {
+                    let candidate = shape.closest_surface_point(other).point;
+                    assert!(candidate.distance(point) >= distance - 1e-12, "{shape:?} {point}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn entry_points_are_where_a_path_first_crosses_the_surface() {
+        for shape in SHAPES {
+            let mut entries = 0;
+            for (start, end) in probe_points().zip(probe_points().skip(7)) {
+                if shape.contains(start) {
+                    continue;
+                }
+                // Sample the path finely: the first inside sample must be just past the entry.
+                let first_inside = (1..=4000).map(|k| k as f64 / 4000.0).find(|s| shape.contains(start.lerp(end, *s)));
+                match (shape.entry(start, end), first_inside) {
+                    (Some(hit), Some(fraction)) => {
+                        entries += 1;
+                        let sampled = start.lerp(end, fraction);
+                        assert!(hit.point.distance(sampled) <= start.distance(end) / 4000.0 + 1e-12, "{shape:?}");
+                        assert!(hit.normal.dot(end - start) < 0.0, "{shape:?}: the path enters against the normal");
+                    }
+                    (None, None) => {}
+                    (hit, sampled) => panic!("{shape:?} {start} → {end}: entry {hit:?}, sampled {sampled:?}"),
+                }
+            }
+            assert!(entries > 50, "{shape:?}: only {entries} paths entered");
+        }
+    }
+
+    #[test]
+    fn a_segment_dipping_into_a_shape_is_found_at_its_deepest_point() {
+        // A chord passing 2 cm inside a 10 cm ball, both ends outside.
+        let shape = ColliderShape::sphere(0.1);
+        let (fraction, surface) =
+            shape.segment_contact(DVec3::new(-0.2, 0.08, 0.0), DVec3::new(0.2, 0.08, 0.0)).unwrap();
+        assert!((fraction - 0.5).abs() < 1e-12);
+        assert!(surface.point.distance(DVec3::new(0.0, 0.1, 0.0)) < 1e-12);
+        // A capsule lying along Y and a segment crossing over its top cap 1 cm deep.
+        let capsule = ColliderShape::capsule(0.05, 0.1);
+        let (fraction, surface) =
+            capsule.segment_contact(DVec3::new(-0.2, 0.14, 0.0), DVec3::new(0.2, 0.14, 0.0)).unwrap();
+        assert!((fraction - 0.5).abs() < 1e-6, "{fraction}");
+        assert!(surface.point.distance(DVec3::new(0.0, 0.15, 0.0)) < 1e-6);
+        assert!(shape.segment_contact(DVec3::new(-0.2, 0.11, 0.0), DVec3::new(0.2, 0.11, 0.0)).is_none());
+        assert!(ColliderShape::Plane.segment_contact(DVec3::NEG_Y, DVec3::X).is_none());
+    }
+
+    #[test]
+    fn scaling_and_inflating_change_the_dimensions() {
+        assert_eq!(ColliderShape::sphere(0.1).scaled(DVec3::splat(2.0)), ColliderShape::sphere(0.2));
+        assert_eq!(
+            ColliderShape::sphere(0.1).scaled(DVec3::new(1.0, 2.0, 1.0)),
+            ColliderShape::ellipsoid(DVec3::new(0.1, 0.2, 0.1))
+        );
+        assert_eq!(ColliderShape::capsule(0.1, 0.2).inflated(0.01), ColliderShape::capsule(0.11, 0.2));
+        assert!(ColliderShape::sphere(-1.0).validate().is_err());
+        assert!(ColliderShape::capsule(0.1, 0.0).validate().is_ok());
+        assert!(ColliderShape::ellipsoid(DVec3::new(0.1, f64::NAN, 0.1)).validate().is_err());
+    }
+}
