@@ -28,7 +28,7 @@ use super::curve::Rod;
 use super::energy::node_dof;
 use super::error::RodError;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
-use super::solver::StepParams;
+use super::solver::{StepParams, copy_into};
 
 /// Rounds of "project lengths, push out again" after the first push-out.
 const CONTACT_ROUNDS: u32 = 4;
@@ -141,11 +141,11 @@ impl NearbyCollider {
         self.end_translation + self.end_rotation * local
     }
 
-    /// Where a node that moved from `start` (world, start of step) to `end` (world, after the solve)
-    /// must go: the contact point, with friction applied if `friction`, or `None` if it does not touch.
-    fn resolve_node(&self, start: DVec3, end: DVec3, friction: bool) -> Option<DVec3> {
+    /// Where a node that moved from `local_start` (in the collider's frame) to `end` (world, collider at
+    /// its end pose) must go: the contact point, with friction applied if `friction`, or `None` if it does
+    /// not touch.
+    fn resolve_node(&self, local_start: DVec3, end: DVec3, friction: bool) -> Option<DVec3> {
         let local_end = self.local_at_end(end);
-        let local_start = self.local_at_start(start);
         if self.shape.distance_bound(local_end) > local_end.distance(local_start) {
             return None;
         }
@@ -188,6 +188,16 @@ impl NearbyCollider {
     }
 }
 
+/// Where each node came from in a push-out pass.
+#[derive(Debug, Clone, Copy)]
+enum NodePaths<'a> {
+    /// The positions at the start of the step, with each collider at its start pose; friction applies.
+    Step(&'a [DVec3]),
+    /// The positions before a length projection moved the nodes, with each collider at its end pose: a
+    /// node the projection dragged through a collider is caught too.
+    Round(&'a [DVec3]),
+}
+
 /// Scratch memory of the contact handling.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ContactScratch {
@@ -195,6 +205,7 @@ pub(crate) struct ContactScratch {
     pub(crate) resting: Vec<RestingContact>,
     touched: Vec<bool>,
     stuck: Vec<bool>,
+    before_projection: Vec<DVec3>,
 }
 
 impl ContactScratch {
@@ -350,7 +361,7 @@ impl Rod {
         scratch: &mut ContactScratch,
     ) -> (u32, u32) {
         scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions));
-        let ContactScratch { nearby, resting, touched, stuck } = scratch;
+        let ContactScratch { nearby, resting, touched, stuck, before_projection } = scratch;
         for flags in [&mut *touched, &mut *stuck] {
             flags.clear();
             flags.resize(self.node_count(), false);
@@ -360,14 +371,15 @@ impl Rod {
         }
         self.hold_stuck_nodes(resting, stuck);
         projection.use_rod_masses(self);
-        let mut moved = self.push_out(nearby, touched, &projection.inverse_masses, Some(start_positions));
+        let mut moved = self.push_out(nearby, touched, &projection.inverse_masses, NodePaths::Step(start_positions));
         let mut projection_iterations = 0;
         for _ in 0..CONTACT_ROUNDS {
             if !moved {
                 break;
             }
+            copy_into(before_projection, &self.positions);
             projection_iterations += self.project_holding_stuck_nodes(stuck, params, projection);
-            moved = self.push_out(nearby, touched, &projection.inverse_masses, None);
+            moved = self.push_out(nearby, touched, &projection.inverse_masses, NodePaths::Round(before_projection));
         }
         let in_contact = touched.iter().filter(|touched| **touched).count();
         (in_contact as u32, projection_iterations)
@@ -402,16 +414,15 @@ impl Rod {
         iterations
     }
 
-    /// One pass over every collider: free nodes inside (or, given `start_positions`, untouched nodes whose
-    /// path entered) are moved to the surface (with friction when the path is known), then edges dipping
-    /// in are pushed out at their deepest point; what was pushed is marked in `touched`. Returns whether
-    /// anything moved.
+    /// One pass over every collider: free nodes that ended inside or whose path entered are moved to the
+    /// surface, then edges dipping in are pushed out at their deepest point; what was pushed is marked in
+    /// `touched`. Returns whether anything moved.
     fn push_out(
         &mut self,
         nearby: &[NearbyCollider],
         touched: &mut [bool],
         inverse_masses: &[f64],
-        start_positions: Option<&[DVec3]>,
+        paths: NodePaths,
     ) -> bool {
         let mut moved = false;
         for collider in nearby {
@@ -420,14 +431,17 @@ impl Rod {
                     continue;
                 }
                 let end = self.positions[node];
-                // Resting nodes moved along the surface on purpose: only a new contact follows the path.
-                let resolved = match start_positions {
-                    Some(starts) if !touched[node] => collider.resolve_node(starts[node], end, true),
-                    _ => {
+                let resolved = match paths {
+                    // Resting nodes moved along the surface on purpose: only a new contact follows its path.
+                    NodePaths::Step(starts) if !touched[node] => {
+                        collider.resolve_node(collider.local_at_start(starts[node]), end, true)
+                    }
+                    NodePaths::Step(_) => {
                         let local = collider.local_at_end(end);
                         let inside = collider.shape.distance_bound(local) <= 0.0 && collider.shape.contains(local);
                         inside.then(|| collider.world_at_end(collider.shape.closest_surface_point(local).point))
                     }
+                    NodePaths::Round(starts) => collider.resolve_node(collider.local_at_end(starts[node]), end, false),
                 };
                 if let Some(position) = resolved {
                     moved |= position.distance_squared(end) > MOVE_TOLERANCE * MOVE_TOLERANCE;
