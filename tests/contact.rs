@@ -126,7 +126,7 @@ fn a_fast_moving_collider_pushes_a_hanging_strand_without_tunnelling() {
             // (hair dragged around the ball passes at about its radius).
             let (from, to) = (*old - collider.start.translation, *new - centre);
             let along = (to - from).normalize_or_zero();
-            let closest = from - from.dot(along).min(0.0).max(-(to - from).length()) * along;
+            let closest = from + (-from.dot(along)).clamp(0.0, from.distance(to)) * along;
             if closest.length() < 0.5 * radius {
                 swept_through += 1;
                 println!("step {step}: node {node} went from {old} to {new}, the ball to {centre}");

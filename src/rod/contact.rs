@@ -7,8 +7,8 @@
 //!   (it stays where it was on the collider), along the normal only once it slides, with the kinetic
 //!   friction force `μ f_n` against its motion. After each solve the spring's force gives the contact
 //!   force: a pulling normal force lets go, a tangential force above `μ f_n` starts sliding, and the
-//!   Newton iterations go on until the contact set holds. The solve thus knows what supports the strand,
-//!   so hair lying on a head neither creeps nor jitters.
+//!   Newton iterations go on until the contact set holds, so the solve knows what supports the strand.
+//!   (Not yet enough: a free strand draped over a sphere still slides off; see issue 5.)
 //! - **New contact, after the solve.** A node the solve put inside a collider is moved to the closest
 //!   surface point; a node whose path over the step crossed the collider (a fast collider, a thin one)
 //!   is moved to where the path entered, so nothing tunnels. Friction is applied on positions (Macklin
@@ -188,6 +188,11 @@ impl NearbyCollider {
     }
 }
 
+/// The matrix `v vᵀ`.
+fn outer_product(v: DVec3) -> DMat3 {
+    DMat3::from_cols(v.x * v, v.y * v, v.z * v)
+}
+
 /// Where each node came from in a push-out pass.
 #[derive(Debug, Clone, Copy)]
 enum NodePaths<'a> {
@@ -288,8 +293,8 @@ impl Rod {
             let offset = self.positions[contact.node] - contact.anchor;
             let slip = offset - n.dot(offset) * n;
             let mut force = k * n.dot(offset) * n;
-            let mut block = DMat3::from_cols(k * n.x * n, k * n.y * n, k * n.z * n);
-            let tangent_projector = DMat3::IDENTITY - DMat3::from_cols(n.x * n, n.y * n, n.z * n);
+            let mut block = k * outer_product(n);
+            let tangent_projector = DMat3::IDENTITY - outer_product(n);
             if !contact.sliding {
                 force += k * slip;
                 block += k * tangent_projector;
@@ -301,8 +306,7 @@ impl Rod {
                 }
                 let direction = contact.slip_direction;
                 force += limit * direction;
-                let along = DMat3::from_cols(direction.x * direction, direction.y * direction, direction.z * direction);
-                block += limit / length.max(SMALLEST_SLIP) * (tangent_projector - along);
+                block += limit / length.max(SMALLEST_SLIP) * (tangent_projector - outer_product(direction));
             }
             for row in 0..3 {
                 residual[dof + row] += force[row];

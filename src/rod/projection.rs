@@ -38,8 +38,9 @@ pub(crate) fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
 /// Fast projection onto the length constraints `C_j = e_j·e_j / L_j − L_j = 0`, `L_j` the target lengths
 /// (Goldenthal et al. 2007): repeats `x ← x − M⁻¹ ∇Cᵀ λ` with `(∇C M⁻¹ ∇Cᵀ) λ = C`, a tridiagonal
 /// system, until every edge is within `strain_tolerance` of its target, with the masses of
-/// [`ProjectionScratch::inverse_masses`] (prescribed nodes have infinite mass). Far from the constraints a Newton step can overshoot: it is halved until the largest error
-/// drops, and after four halvings replaced by a Gauss–Seidel sweep of exact per-edge projections.
+/// [`ProjectionScratch::inverse_masses`] (prescribed nodes have infinite mass). Far from the constraints
+/// a Newton step can overshoot: it is halved until the largest error drops, and after four halvings
+/// replaced by a Gauss–Seidel sweep of exact per-edge projections.
 /// Returns the iterations taken.
 pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
