@@ -17,7 +17,6 @@ fn sphere_penetration(rod: &Rod, centre: DVec3, radius: f64) -> f64 {
 }
 
 #[test]
-#[ignore = "issue 5 is open: a free strand dropped on a sphere does not settle yet (it slides off)"]
 fn a_strand_dropped_on_a_sphere_drapes_over_it_and_comes_to_rest() {
     let (centre, radius) = (DVec3::ZERO, 0.05);
     let sphere = MovingCollider::fixed(ColliderShape::sphere(radius), 0.4, RigidPose::default());
@@ -45,10 +44,12 @@ fn a_strand_dropped_on_a_sphere_drapes_over_it_and_comes_to_rest() {
     );
     assert!(deepest <= 1e-4, "a node went {deepest:e} m into the sphere");
     assert!(max_speed(&rod) < 1e-3, "still moving at {} m/s after 5 s", max_speed(&rod));
-    // Draped: the middle rests on top, both halves hang down the sides.
+    // Draped: the middle rests on top, near where it landed, and both halves hang down the sides, below
+    // the equator (hair this stiff, 5 cm bending length, does not hug a 5 cm ball all the way).
     assert!((middle.distance(centre) - radius - THICKNESS).abs() < 1e-4, "middle {middle}");
+    assert!(middle.x.abs() < 1e-3 && (middle.z - 0.003).abs() < 2e-3, "the middle slid to {middle}");
     for end in ends {
-        assert!(end.y < -0.02, "an end hangs down the side: {end}");
+        assert!(end.y < 0.0 && end.x.abs() > radius, "an end hangs down the side: {end}");
     }
     assert!(touched >= 8, "{touched} nodes touched");
 }
@@ -72,7 +73,8 @@ fn slide_on_slope(friction: f64, angle: f64) -> f64 {
     for _ in 0..120 {
         rod.step_with_contacts(&params, None, &contacts, &mut workspace).unwrap();
         let height = rod.positions().iter().map(|node| (rotation.inverse() * *node).y).fold(f64::INFINITY, f64::min);
-        assert!(height >= THICKNESS - 1e-9, "sank to {height:e} m above the plane");
+        // The contact spring gives `g dt² / 10⁴` (0.3 µm) under the weight.
+        assert!(height >= THICKNESS - 1e-6, "sank to {height:e} m above the plane");
     }
     let downhill = rotation * DVec3::NEG_X;
     (centre(&rod) - start).dot(downhill)
@@ -98,7 +100,7 @@ fn friction_holds_a_strand_below_the_friction_angle_and_lets_it_slide_above() {
 }
 
 #[test]
-#[ignore = "issue 5 is open: a sliding resting node can still cross a 5 m/s ball in one step"]
+#[ignore = "issue 5 is open: one node still crosses the 5 m/s ball's core in one step"]
 fn a_fast_moving_collider_pushes_a_hanging_strand_without_tunnelling() {
     // A 2 cm ball crossing a hanging hair at 5 m/s: 8.3 cm per step, four times its own diameter.
     let nodes = straight_nodes(0.2, 24, DVec3::NEG_Y);

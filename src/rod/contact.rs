@@ -2,23 +2,24 @@
 //! collider, grown by the strand's thickness, with Coulomb friction.
 //!
 //! Two parts, both in each collider's own frame (where a moving collider is still):
-//! - **Resting contact, inside the implicit solve.** A node that starts the step on a collider is held
-//!   there by a stiff spring `k` in the Newton system: in all directions while static friction holds it
-//!   (it stays where it was on the collider), along the normal only once it slides, with the kinetic
-//!   friction force `μ f_n` against its motion. After each solve the spring's force gives the contact
-//!   force: a pulling normal force lets go, a tangential force above `μ f_n` starts sliding, and the
-//!   Newton iterations go on until the contact set holds, so the solve knows what supports the strand.
-//!   (Not yet enough: a free strand draped over a sphere still slides off; see issue 5.)
-//! - **New contact, after the solve.** A node the solve put inside a collider is moved to the closest
-//!   surface point; a node whose path over the step crossed the collider (a fast collider, a thin one)
-//!   is moved to where the path entered, so nothing tunnels. Friction is applied on positions (Macklin
-//!   et al. 2014): the normal push `d` is the normal impulse times `dt/m`, so the tangential displacement
-//!   relative to the surface is removed when at most `μ d`, shortened by `μ d` otherwise. Edges that dip
-//!   between their nodes are pushed out at their deepest point. As pushes stretch edges, the length
-//!   projection and the push-out then alternate for a few rounds.
+//! - **Contact inside the implicit solve.** Every Newton iteration finds the nodes that touch a collider
+//!   (at the collider's end pose) and adds, for each, a stiff one-sided spring along the surface normal
+//!   (a penalty: a node pressed by its weight sinks `g dt² / 10⁴`, 0.3 µm at 60 Hz) and Coulomb friction
+//!   against its slip over the step relative to the collider, smoothed as in IPC (Li et al. 2020):
+//!   `f = −μ f_n u / max(|u|, ε)`, with the normal force `f_n` lagged by one iteration. Below the
+//!   friction limit a node creeps by at most `ε` per step ([`STICKING_SLIP_SPEED`]); above it, it slides
+//!   against `μ f_n`. The iterations go on until the set of touching nodes holds, so the solve knows what
+//!   supports the strand, and nodes that would be pulled off are let go.
+//! - **What the solve could not see, after it.** A node that ended inside a collider is moved to the
+//!   closest surface point; a node whose path over the step crossed the collider (a fast collider, a thin
+//!   one) is moved to where the path entered, so nothing tunnels; friction then acts on positions
+//!   (Macklin et al. 2014). Edges that dip between their nodes are pushed out at their deepest point. The
+//!   length projection and the push-out then alternate, the projection moving touching nodes only along
+//!   their colliders' tangent planes (which keeps them outside a convex collider), and the lengths are
+//!   restored last.
 //!
-//! Cost: per step and strand, one bounding-box test per collider; then, per collider near the strand,
-//! one cheap distance bound per node and per edge, and exact tests only for what can touch it.
+//! Cost: per step and strand, one bounding-box test per collider; then, per collider near the strand and
+//! per Newton iteration, one cheap distance bound per node, and exact tests only for what can touch it.
 
 use bevy::math::{DMat3, DVec3};
 
@@ -36,17 +37,21 @@ const CONTACT_ROUNDS: u32 = 4;
 /// A push smaller than this, m, does not count as moving a node (rounding on the surface).
 const MOVE_TOLERANCE: f64 = 1e-7;
 
-/// A node that starts a step within this distance of a collider's surface, m, rests on it, and so does
-/// one within half the distance gravity moves it in a step (it lands during the step).
-const RESTING_DISTANCE: f64 = 1e-5;
+/// A node closer than this to a collider's surface, m, touches it (the spring is in the solve, with no
+/// force until the node sinks in).
+const CONTACT_GAP: f64 = 1e-6;
 
-/// Slip, m per step, below which a sliding node's friction keeps the direction it broke free in (so that
-/// the linearisation stays regular near zero slip).
-const SMALLEST_SLIP: f64 = 1e-9;
+/// A touching node that the solve left deeper than this inside a collider, m, is pushed out after it
+/// (shallower ones are the spring's own give, which the next step's spring answers).
+const PUSH_DEPTH: f64 = 1e-5;
 
-/// Stiffness of the resting-contact spring relative to the node's inertia `m (1/dt² + γ/dt)`: a node
-/// pressed by its weight sinks `g dt² / 10⁴` (0.3 µm at 60 Hz) into the collider.
+/// Stiffness of the contact spring relative to the node's inertia `m (1/dt² + γ/dt)`: a node pressed by
+/// its weight sinks `g dt² / 10⁴` (0.3 µm at 60 Hz) into the collider.
 const CONTACT_STIFFNESS_RATIO: f64 = 1e4;
+
+/// Speed, m/s, below which friction acts as a stiff spring on the slip rather than as a constant force
+/// (the smoothing of IPC's friction): a node held below its friction limit creeps at most this fast.
+pub const STICKING_SLIP_SPEED: f64 = 1e-5;
 
 /// The colliders a rod meets during a step and its collision thickness.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,25 +76,27 @@ impl Contacts<'_> {
     }
 }
 
-/// A node resting on a collider at the start of the step, held in the implicit solve by a spring.
+/// A node touching a collider at the current Newton iterate.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct RestingContact {
+struct NodeContact {
     node: usize,
-    /// The node's place on the collider at the start of the step, carried to the collider's pose at the
-    /// end of the step (world, m): where static friction keeps it.
-    anchor: DVec3,
-    /// Outward surface normal at the anchor (world).
+    /// Index of the collider among the nearby ones.
+    collider: usize,
+    /// Signed distance of the node from the surface, m (negative inside).
+    distance: f64,
+    /// Outward surface normal at the closest surface point (world).
     normal: DVec3,
+    /// Slip over the step along the surface, relative to the collider (world), m.
+    slip: DVec3,
     friction: f64,
-    /// Spring stiffness, N/m, set by the Newton iteration from the node's inertia.
-    stiffness: f64,
-    /// Whether the node slides (the spring holds only the normal) rather than sticks.
-    sliding: bool,
-    /// Direction of the slip once sliding: that of the slip the spring resisted when the node broke free,
-    /// then that of the current slip.
-    slip_direction: DVec3,
-    /// Normal force of the last Newton update, N.
-    normal_force: f64,
+    /// Whether the contact is new and has not been through a Newton solve yet (its friction had no
+    /// normal force).
+    first_solve: bool,
+}
+
+/// Where a slip `u`, m, lies on the smoothed friction law: sticking (`|u| < ε`) or sliding.
+fn is_sticking(slip: DVec3, sticking_slip: f64) -> bool {
+    slip.length_squared() < sticking_slip * sticking_slip
 }
 
 /// A collider near the rod, ready for per-node tests: its shape grown by the thickness, and the maps
@@ -142,9 +149,9 @@ impl NearbyCollider {
     }
 
     /// Where a node that moved from `local_start` (in the collider's frame) to `end` (world, collider at
-    /// its end pose) must go: the contact point, with friction applied if `friction`, or `None` if it does
-    /// not touch.
-    fn resolve_node(&self, local_start: DVec3, end: DVec3, friction: bool) -> Option<DVec3> {
+    /// its end pose) must go, with the surface normal there (world): the contact point, with friction
+    /// applied if `friction`, or `None` if it does not touch.
+    fn resolve_node(&self, local_start: DVec3, end: DVec3, friction: bool) -> Option<(DVec3, DVec3)> {
         let local_end = self.local_at_end(end);
         if self.shape.distance_bound(local_end) > local_end.distance(local_start) {
             return None;
@@ -172,7 +179,46 @@ impl NearbyCollider {
             let length = tangential.length();
             point -= if length <= limit { tangential } else { limit / length * tangential };
         }
-        Some(self.world_at_end(point))
+        Some((self.world_at_end(point), self.end_rotation * hit.normal))
+    }
+
+    /// The contact geometry of `node` at `position` (world, collider at its end pose), for this collider
+    /// (`index` among the nearby ones); `start` is where the node was at the start of the step.
+    fn contact(&self, index: usize, node: usize, position: DVec3, start: DVec3) -> NodeContact {
+        let local = self.local_at_end(position);
+        let surface = self.shape.closest_surface_point(local);
+        let normal = self.end_rotation * surface.normal;
+        let moved = position - self.world_at_end(self.local_at_start(start));
+        NodeContact {
+            node,
+            collider: index,
+            distance: (local - surface.point).dot(surface.normal),
+            normal,
+            slip: moved - moved.dot(normal) * normal,
+            friction: self.friction,
+            first_solve: true,
+        }
+    }
+
+    /// Whether a node touching at `contact` started the step outside the tangent plane there (in the
+    /// collider's frame): otherwise the collider swept past it, and the closest point is on the wrong
+    /// side (the push-out after the solve finds where the node's path entered instead).
+    fn approached_from_outside(&self, contact: &NodeContact, position: DVec3, start: DVec3) -> bool {
+        let normal = self.end_inverse * contact.normal;
+        let surface_point = self.local_at_end(position) - contact.distance * normal;
+        normal.dot(self.local_at_start(start) - surface_point) >= -PUSH_DEPTH
+    }
+
+    /// The closest surface point (world) and the normal there, if `world` (collider at its end pose) is
+    /// more than `depth` m inside.
+    fn closest_if_deeper(&self, world: DVec3, depth: f64) -> Option<(DVec3, DVec3)> {
+        let local = self.local_at_end(world);
+        if self.shape.distance_bound(local) > 0.0 || !self.shape.contains(local) {
+            return None;
+        }
+        let surface = self.shape.closest_surface_point(local);
+        ((surface.point - local).dot(surface.normal) > depth)
+            .then(|| (self.world_at_end(surface.point), self.end_rotation * surface.normal))
     }
 
     /// The push, in world space, that moves the point of the edge `start`–`end` deepest inside the shape
@@ -203,19 +249,22 @@ enum NodePaths<'a> {
     Round(&'a [DVec3]),
 }
 
-/// Scratch memory of the contact handling.
+/// Scratch memory of the contact handling, kept with the rod's workspace.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ContactScratch {
     nearby: Vec<NearbyCollider>,
-    pub(crate) resting: Vec<RestingContact>,
+    /// Nodes touching a collider at the current Newton iterate.
+    touching: Vec<NodeContact>,
+    /// Normal force on each node from the last Newton update, N: friction's lagged `f_n`.
+    normal_forces: Vec<f64>,
     touched: Vec<bool>,
-    stuck: Vec<bool>,
     before_projection: Vec<DVec3>,
 }
 
 impl ContactScratch {
-    /// Keeps the colliders of `contacts` whose swept bounds meet the box around `positions`.
-    fn find_nearby<'a>(&mut self, contacts: &Contacts, positions: impl Iterator<Item = &'a DVec3>) {
+    /// Keeps the colliders of `contacts` whose swept bounds come within `margin` of the box around
+    /// `positions`.
+    fn find_nearby<'a>(&mut self, contacts: &Contacts, positions: impl Iterator<Item = &'a DVec3>, margin: f64) {
         let (low, high) = positions
             .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(low, high), position| {
                 (low.min(*position), high.max(*position))
@@ -226,7 +275,7 @@ impl ContactScratch {
                 .colliders
                 .iter()
                 .filter(|collider| {
-                    let (centre, radius) = collider.swept_bounds(contacts.thickness);
+                    let (centre, radius) = collider.swept_bounds(contacts.thickness + margin);
                     centre.clamp(low, high).distance_squared(centre) <= radius * radius
                 })
                 .map(|collider| NearbyCollider::new(collider, contacts.thickness)),
@@ -235,78 +284,87 @@ impl ContactScratch {
 }
 
 impl Rod {
-    /// Finds the nodes that rest on a collider at the start of the step (`start_positions`): their
-    /// springs hold them in the coming Newton iterations (one that would rather lift off is let go).
-    pub(crate) fn find_resting_contacts(
+    /// Prepares the contact handling of a step: finds the colliders that can come near the rod, moving
+    /// from `start_positions` at its start velocities and under gravity for a step (with room to spare).
+    pub(crate) fn begin_contacts(
         &self,
         contacts: &Contacts,
         params: &StepParams,
         start_positions: &[DVec3],
         scratch: &mut ContactScratch,
     ) {
-        scratch.resting.clear();
+        scratch.touching.clear();
+        scratch.touched.clear();
+        scratch.touched.resize(self.node_count(), false);
+        scratch.normal_forces.resize(self.node_count(), 0.0);
         if contacts.colliders.is_empty() {
+            scratch.nearby.clear();
+            scratch.normal_forces.fill(0.0);
             return;
         }
-        let band = RESTING_DISTANCE + 0.5 * params.gravity.length() * params.dt * params.dt;
-        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions));
-        for collider in &scratch.nearby {
-            for (node, start) in start_positions.iter().enumerate() {
-                let local = collider.local_at_start(*start);
-                if self.is_node_prescribed(node) || collider.shape.distance_bound(local) > band {
-                    continue;
-                }
-                let surface = collider.shape.closest_surface_point(local);
-                let height = (local - surface.point).dot(surface.normal);
-                if (-RESTING_DISTANCE..=band).contains(&height) {
-                    scratch.resting.push(RestingContact {
-                        node,
-                        anchor: collider.world_at_end(surface.point),
-                        normal: collider.end_rotation * surface.normal,
-                        friction: collider.friction,
-                        stiffness: 0.0,
-                        sliding: false,
-                        slip_direction: DVec3::ZERO,
-                        normal_force: 0.0,
-                    });
-                }
-            }
-        }
+        let fastest = self.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let reach = 2.0 * (fastest * params.dt + params.gravity.length() * params.dt * params.dt);
+        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), reach);
     }
 
-    /// Adds the resting contacts to the Newton system. The normal is held by the stiff spring
-    /// `½ k (n·(x − a))²`. Along the surface, a sticking node is held by the same spring; a sliding one
-    /// feels the kinetic friction force `−μ f_n ŝ` against its slip `s` (the tangential part of `x − a`),
-    /// with `f_n` from the previous Newton update (lagged, as in IPC, Li et al. 2020), linearised into the
-    /// Hessian as `μ f_n / |s| (P − ŝŝᵀ)` (`P` the tangent projector), which is positive semi-definite.
-    pub(crate) fn add_contact_springs(
+    /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
+    /// node touching a collider, the one-sided normal spring `½ k d²` (`d` the signed distance, `k` from
+    /// the node's inertia) and the smoothed, lagged Coulomb friction `μ f_n φ(|u|)` on its slip `u`, with
+    /// Hessian `μ f_n / ε P` while `|u| < ε` and `μ f_n / |u| (P − ûûᵀ)` beyond (`P` the tangent
+    /// projector; both positive semi-definite).
+    pub(crate) fn add_contact_forces(
         &self,
-        resting: &mut [RestingContact],
+        scratch: &mut ContactScratch,
+        start_positions: &[DVec3],
+        params: &StepParams,
         inertia_scale: f64,
         residual: &mut [f64],
         hessian: &mut BandedMatrix,
     ) {
-        for contact in resting {
-            let dof = node_dof(contact.node);
-            contact.stiffness = CONTACT_STIFFNESS_RATIO * self.masses[contact.node] * inertia_scale;
-            let (k, n) = (contact.stiffness, contact.normal);
-            let offset = self.positions[contact.node] - contact.anchor;
-            let slip = offset - n.dot(offset) * n;
-            let mut force = k * n.dot(offset) * n;
-            let mut block = k * outer_product(n);
-            let tangent_projector = DMat3::IDENTITY - outer_product(n);
-            if !contact.sliding {
-                force += k * slip;
-                block += k * tangent_projector;
-            } else {
-                let limit = contact.friction * contact.normal_force;
-                let length = slip.length();
-                if length > SMALLEST_SLIP {
-                    contact.slip_direction = slip / length;
+        let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
+        for contact in touching.iter_mut() {
+            let (node, first_solve) = (contact.node, contact.first_solve);
+            *contact =
+                nearby[contact.collider].contact(contact.collider, node, self.positions[node], start_positions[node]);
+            contact.first_solve = first_solve;
+        }
+        for (index, collider) in nearby.iter().enumerate() {
+            for node in (0..self.node_count()).filter(|&node| !self.is_node_prescribed(node)) {
+                let local = collider.local_at_end(self.positions[node]);
+                let known = || touching.iter().any(|contact| contact.node == node && contact.collider == index);
+                if collider.shape.distance_bound(local) > CONTACT_GAP || (touched[node] && known()) {
+                    continue;
                 }
-                let direction = contact.slip_direction;
+                let mut contact = collider.contact(index, node, self.positions[node], start_positions[node]);
+                if contact.distance <= CONTACT_GAP
+                    && collider.approached_from_outside(&contact, self.positions[node], start_positions[node])
+                {
+                    // A node resting since the last step has its normal force from then.
+                    contact.first_solve = normal_forces[node] == 0.0;
+                    touching.push(contact);
+                    touched[node] = true;
+                }
+            }
+        }
+        let sticking_slip = STICKING_SLIP_SPEED * params.dt;
+        // A contact the iterate has left stays listed (so that it is not counted as new if it comes
+        // back), with no force.
+        for contact in touching.iter().filter(|contact| contact.distance <= CONTACT_GAP) {
+            let dof = node_dof(contact.node);
+            let stiffness = CONTACT_STIFFNESS_RATIO * self.masses[contact.node] * inertia_scale;
+            let n = contact.normal;
+            let tangent_projector = DMat3::IDENTITY - outer_product(n);
+            let mut force = stiffness * contact.distance.min(0.0) * n;
+            let mut block = stiffness * outer_product(n);
+            let limit = contact.friction * normal_forces[contact.node];
+            if is_sticking(contact.slip, sticking_slip) {
+                force += limit / sticking_slip * contact.slip;
+                block += limit / sticking_slip * tangent_projector;
+            } else {
+                let slip = contact.slip.length();
+                let direction = contact.slip / slip;
                 force += limit * direction;
-                block += limit / length.max(SMALLEST_SLIP) * (tangent_projector - outer_product(direction));
+                block += limit / slip * (tangent_projector - outer_product(direction));
             }
             for row in 0..3 {
                 residual[dof + row] += force[row];
@@ -317,40 +375,47 @@ impl Rod {
         }
     }
 
-    /// Reads each resting contact's normal force from its spring for the Newton update `node_update`
-    /// (the full update, before any trust-region scaling): a contact that pulls lets go, and a sticking one
-    /// held along the surface harder than `μ f_n` starts sliding. Returns whether the contact set changed
-    /// (the Newton iterations must then go on).
-    pub(crate) fn update_resting_contacts(
+    /// After a Newton solve: records each touching node's normal force where the update `node_update`
+    /// puts it (the spring's force, linearised), for the next iterate's friction, and zero for the other
+    /// nodes. Returns whether the update leaves the law it was linearised with: a touching node that
+    /// would pass from sticking to sliding or whose normal force changes much, or a free node that would
+    /// sink into a collider; the Newton iterations then go on. (A node that lifts off stays listed for
+    /// the rest of the step, without force, so that the touching set only grows and the iterations end.)
+    pub(crate) fn update_contacts(
         &self,
-        resting: &mut Vec<RestingContact>,
+        scratch: &mut ContactScratch,
+        start_positions: &[DVec3],
+        params: &StepParams,
+        inertia_scale: f64,
         node_update: impl Fn(usize) -> DVec3,
     ) -> bool {
+        let sticking_slip = STICKING_SLIP_SPEED * params.dt;
+        let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
+        normal_forces.fill(0.0);
         let mut changed = false;
-        resting.retain_mut(|contact| {
-            let offset = self.positions[contact.node] + node_update(contact.node) - contact.anchor;
-            contact.normal_force = -contact.stiffness * contact.normal.dot(offset);
-            if contact.normal_force < 0.0 {
-                changed = true;
-                return false;
-            }
-            let slip = offset - contact.normal.dot(offset) * contact.normal;
-            if !contact.sliding && contact.stiffness * slip.length() > contact.friction * contact.normal_force {
-                contact.sliding = true;
-                contact.slip_direction = slip.normalize_or_zero();
-                changed = true;
-            }
-            true
-        });
-        changed
-    }
-
-    /// Puts the nodes static friction holds exactly on their anchors, and marks them in `stuck`.
-    fn hold_stuck_nodes(&mut self, resting: &[RestingContact], stuck: &mut [bool]) {
-        for contact in resting.iter().filter(|contact| !contact.sliding) {
-            self.positions[contact.node] = contact.anchor;
-            stuck[contact.node] = true;
+        for contact in touching.iter_mut().filter(|contact| contact.distance <= CONTACT_GAP) {
+            let stiffness = CONTACT_STIFFNESS_RATIO * self.masses[contact.node] * inertia_scale;
+            let update = node_update(contact.node);
+            let distance = contact.distance + contact.normal.dot(update);
+            normal_forces[contact.node] += stiffness * (-distance).max(0.0);
+            let slip = contact.slip + update - contact.normal.dot(update) * contact.normal;
+            // Sticking past the smoothing width: the friction force would be its limit, not the spring.
+            // A new contact's friction had no normal force yet: once more with the one it now has.
+            changed |= is_sticking(contact.slip, sticking_slip) && !is_sticking(slip, sticking_slip)
+                || (contact.first_solve && contact.friction > 0.0);
+            contact.first_solve = false;
         }
+        for (index, collider) in nearby.iter().enumerate() {
+            for node in (0..self.node_count()).filter(|&node| !touched[node] && !self.is_node_prescribed(node)) {
+                let position = self.positions[node] + node_update(node);
+                let local = collider.local_at_end(position);
+                if collider.shape.distance_bound(local) < 0.0 && collider.shape.contains(local) {
+                    let contact = collider.contact(index, node, position, start_positions[node]);
+                    changed |= collider.approached_from_outside(&contact, position, start_positions[node]);
+                }
+            }
+        }
+        changed
     }
 
     /// Keeps the rod outside `contacts`' colliders after the implicit solve (see the module
@@ -364,55 +429,49 @@ impl Rod {
         projection: &mut ProjectionScratch,
         scratch: &mut ContactScratch,
     ) -> (u32, u32) {
-        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions));
-        let ContactScratch { nearby, resting, touched, stuck, before_projection } = scratch;
-        for flags in [&mut *touched, &mut *stuck] {
-            flags.clear();
-            flags.resize(self.node_count(), false);
-        }
-        for contact in resting.iter() {
-            touched[contact.node] = true;
-        }
-        self.hold_stuck_nodes(resting, stuck);
+        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), 0.0);
+        let ContactScratch { nearby, touching, touched, before_projection, .. } = scratch;
+        touched.clear();
+        touched.resize(self.node_count(), false);
         projection.use_rod_masses(self);
-        let mut moved = self.push_out(nearby, touched, &projection.inverse_masses, NodePaths::Step(start_positions));
+        for contact in touching.iter().filter(|contact| contact.distance <= CONTACT_GAP) {
+            touched[contact.node] = true;
+            projection.contact_normals[contact.node] = contact.normal;
+        }
+        let mut moved = self.push_out(nearby, touched, projection, NodePaths::Step(start_positions));
         let mut projection_iterations = 0;
         for _ in 0..CONTACT_ROUNDS {
             if !moved {
                 break;
             }
-            copy_into(before_projection, &self.positions);
-            projection_iterations += self.project_holding_stuck_nodes(stuck, params, projection);
-            moved = self.push_out(nearby, touched, &projection.inverse_masses, NodePaths::Round(before_projection));
+            projection_iterations += self.project_along_surfaces(params, projection, before_projection);
+            moved = self.push_out(nearby, touched, projection, NodePaths::Round(before_projection));
+        }
+        if moved {
+            // Lengths come last: a stretched edge would spring back with thousands of times the hair's
+            // weight next step, while touching nodes only slide along their (convex) colliders.
+            projection_iterations += self.project_along_surfaces(params, projection, before_projection);
         }
         let in_contact = touched.iter().filter(|touched| **touched).count();
         (in_contact as u32, projection_iterations)
     }
 
-    /// The inextensibility projection with the nodes held by static friction (`stuck`) fixed. When the
-    /// lengths cannot be met that way (the strand pulls harder than friction holds), they are let go
-    /// and the projection runs again. Returns the projection iterations.
-    fn project_holding_stuck_nodes(
+    /// The length projection with touching nodes moving only along their colliders' tangent planes; when
+    /// the lengths cannot be met that way (a collider pushing the strand ahead of it), it starts again
+    /// with touching nodes free, and the next push-out puts them back. `before_projection` keeps the
+    /// positions it started from. Returns the projection iterations.
+    fn project_along_surfaces(
         &mut self,
-        stuck: &mut [bool],
         params: &StepParams,
         projection: &mut ProjectionScratch,
+        before_projection: &mut Vec<DVec3>,
     ) -> u32 {
-        let mut holding = false;
-        for (node, _) in stuck.iter().enumerate().filter(|(_, stuck)| **stuck) {
-            projection.inverse_masses[node] = 0.0;
-            holding = true;
-        }
-        // An edge held at both ends keeps the length it has (both ends kept their places on the collider).
-        for edge in 0..self.edge_count() {
-            if projection.inverse_masses[edge] == 0.0 && projection.inverse_masses[edge + 1] == 0.0 {
-                projection.target_lengths[edge] = self.positions[edge].distance(self.positions[edge + 1]);
-            }
-        }
+        copy_into(before_projection, &self.positions);
         let mut iterations = project_edge_lengths(self, params, projection);
-        if holding && length_error(self, &projection.target_lengths) > params.strain_tolerance {
-            stuck.fill(false);
-            projection.use_rod_masses(self);
+        // (`length_error` is NaN, and so not below the tolerance, if the attempt broke down.)
+        if !(length_error(self, &projection.target_lengths) <= params.strain_tolerance) {
+            self.positions.copy_from_slice(before_projection);
+            projection.contact_normals.fill(DVec3::ZERO);
             iterations += project_edge_lengths(self, params, projection);
         }
         iterations
@@ -420,14 +479,16 @@ impl Rod {
 
     /// One pass over every collider: free nodes that ended inside or whose path entered are moved to the
     /// surface, then edges dipping in are pushed out at their deepest point; what was pushed is marked in
-    /// `touched`. Returns whether anything moved.
+    /// `touched`, with its surface normal in the projection's contact normals. Returns whether anything
+    /// moved.
     fn push_out(
         &mut self,
         nearby: &[NearbyCollider],
         touched: &mut [bool],
-        inverse_masses: &[f64],
+        projection: &mut ProjectionScratch,
         paths: NodePaths,
     ) -> bool {
+        let ProjectionScratch { inverse_masses, contact_normals, .. } = projection;
         let mut moved = false;
         for collider in nearby {
             for node in 0..self.node_count() {
@@ -436,21 +497,16 @@ impl Rod {
                 }
                 let end = self.positions[node];
                 let resolved = match paths {
-                    // Resting nodes moved along the surface on purpose: only a new contact follows its path.
-                    NodePaths::Step(starts) if !touched[node] => {
-                        collider.resolve_node(collider.local_at_start(starts[node]), end, true)
-                    }
-                    NodePaths::Step(_) => {
-                        let local = collider.local_at_end(end);
-                        let inside = collider.shape.distance_bound(local) <= 0.0 && collider.shape.contains(local);
-                        inside.then(|| collider.world_at_end(collider.shape.closest_surface_point(local).point))
-                    }
+                    // Touching nodes moved along the surface on purpose, held by their springs.
+                    _ if touched[node] => collider.closest_if_deeper(end, PUSH_DEPTH),
+                    NodePaths::Step(starts) => collider.resolve_node(collider.local_at_start(starts[node]), end, true),
                     NodePaths::Round(starts) => collider.resolve_node(collider.local_at_end(starts[node]), end, false),
                 };
-                if let Some(position) = resolved {
+                if let Some((position, normal)) = resolved {
                     moved |= position.distance_squared(end) > MOVE_TOLERANCE * MOVE_TOLERANCE;
                     self.positions[node] = position;
                     touched[node] = true;
+                    contact_normals[node] = normal;
                 }
             }
             // Edges at a prescribed node (a root inside its head) are left to their free node's test.
@@ -474,8 +530,11 @@ impl Rod {
                 self.positions[edge] += start_share / scale * push;
                 self.positions[edge + 1] += end_share / scale * push;
                 moved |= push.length_squared() > MOVE_TOLERANCE * MOVE_TOLERANCE;
-                touched[edge] = true;
-                touched[edge + 1] = true;
+                let normal = push.normalize_or_zero();
+                for node in [edge, edge + 1] {
+                    touched[node] = true;
+                    contact_normals[node] = normal;
+                }
             }
         }
         moved

@@ -5,6 +5,10 @@ use bevy::math::DVec3;
 use super::curve::Rod;
 use super::solver::{StepParams, copy_into};
 
+/// Relative weight added to each constraint's own stiffness, dimensionless: consecutive edges folded
+/// onto one line make the projection's system singular, and this keeps it definite.
+const FOLD_REGULARISATION: f64 = 1e-6;
+
 /// Scratch for the projection's tridiagonal solve.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ProjectionScratch {
@@ -16,14 +20,25 @@ pub(crate) struct ProjectionScratch {
     /// `1 / m` of each node, 1/kg, as the projection sees it: zero for prescribed nodes, and for nodes
     /// held by static friction while contacts are resolved.
     pub(crate) inverse_masses: Vec<f64>,
+    /// Outward normal of the collider each node touches, or zero: a touching node moves only along
+    /// its collider's tangent plane (which keeps it outside a convex collider).
+    pub(crate) contact_normals: Vec<DVec3>,
 }
 
 impl ProjectionScratch {
-    /// Takes the rod's own inverse masses (zero where a node is prescribed).
+    /// Takes the rod's own inverse masses (zero where a node is prescribed), with no node touching.
     pub(crate) fn use_rod_masses(&mut self, rod: &Rod) {
         self.inverse_masses.clear();
         self.inverse_masses.extend((0..rod.node_count()).map(|node| rod.inverse_mass(node)));
+        self.contact_normals.clear();
+        self.contact_normals.resize(rod.node_count(), DVec3::ZERO);
     }
+}
+
+/// The inverse mass matrix of a node applied to `v`: `w v`, or `w (I − n nᵀ) v` for a node touching a
+/// collider with normal `n`.
+fn mobility(inverse_mass: f64, contact_normal: DVec3, v: DVec3) -> DVec3 {
+    inverse_mass * (v - contact_normal.dot(v) * contact_normal)
 }
 
 /// The largest relative difference between an edge's length and its target length.
@@ -44,7 +59,9 @@ pub(crate) fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
 /// Returns the iterations taken.
 pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: &mut ProjectionScratch) -> u32 {
     let edge_count = rod.edge_count();
-    let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths, inverse_masses } = scratch;
+    let ProjectionScratch { diagonal, upper, multipliers, start, target_lengths, inverse_masses, contact_normals } =
+        scratch;
+    let moved = |node: usize, v: DVec3| mobility(inverse_masses[node], contact_normals[node], v);
     let mut strain = length_error(rod, target_lengths);
     for iteration in 0..params.max_projection_iterations {
         if strain <= params.strain_tolerance {
@@ -56,32 +73,45 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
         for edge in 0..edge_count {
             let e = rod.positions[edge + 1] - rod.positions[edge];
             let target = target_lengths[edge];
-            let weight = inverse_masses[edge] + inverse_masses[edge + 1];
-            let stiffness = 4.0 * e.length_squared() / (target * target) * weight;
-            let constraint = e.length_squared() / target - target;
-            if stiffness > 0.0 {
-                diagonal.push(stiffness);
-                multipliers.push(constraint);
+            let stiffness = 4.0 * e.dot(moved(edge, e) + moved(edge + 1, e)) / (target * target);
+            let free_stiffness =
+                4.0 * e.length_squared() / (target * target) * (inverse_masses[edge] + inverse_masses[edge + 1]);
+            // Zero when both ends are held, or when the edge could only lengthen along both normals: such
+            // an edge is left as it is, uncoupled from its neighbours.
+            if stiffness > 1e-9 * free_stiffness {
+                // The slight excess keeps the system definite when two edges fold onto one line.
+                diagonal.push(stiffness * (1.0 + FOLD_REGULARISATION));
+                multipliers.push(e.length_squared() / target - target);
             } else {
-                diagonal.push(1.0);
+                diagonal.push(0.0);
                 multipliers.push(0.0);
             }
             if edge + 1 < edge_count {
                 let next = rod.positions[edge + 2] - rod.positions[edge + 1];
-                let shared = inverse_masses[edge + 1];
-                upper.push(-4.0 * shared * e.dot(next) / (target * target_lengths[edge + 1]));
+                upper.push(-4.0 * e.dot(moved(edge + 1, next)) / (target * target_lengths[edge + 1]));
+            }
+        }
+        for edge in 0..edge_count {
+            if diagonal[edge] == 0.0 {
+                diagonal[edge] = 1.0;
+                if edge > 0 {
+                    upper[edge - 1] = 0.0;
+                }
+                if edge + 1 < edge_count {
+                    upper[edge] = 0.0;
+                }
             }
         }
         solve_tridiagonal(diagonal, upper, multipliers);
+
         copy_into(start, &rod.positions);
         let mut fraction = 1.0;
         loop {
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
                 let impulse = 2.0 * fraction * multipliers[edge] / target_lengths[edge] * e;
-                let (start_weight, end_weight) = (inverse_masses[edge], inverse_masses[edge + 1]);
-                rod.positions[edge] += start_weight * impulse;
-                rod.positions[edge + 1] -= end_weight * impulse;
+                rod.positions[edge] += moved(edge, impulse);
+                rod.positions[edge + 1] -= moved(edge + 1, impulse);
             }
             let projected = length_error(rod, target_lengths);
             if projected < strain {
@@ -91,7 +121,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
             rod.positions.copy_from_slice(start);
             if fraction < 0.1 {
                 // Too far from the constraints for Newton: exact per-edge projections cannot overshoot.
-                gauss_seidel_sweep(rod, target_lengths, inverse_masses);
+                gauss_seidel_sweep(rod, target_lengths, inverse_masses, contact_normals);
                 strain = length_error(rod, target_lengths);
                 break;
             }
@@ -101,21 +131,27 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
     params.max_projection_iterations
 }
 
-/// One symmetric Gauss–Seidel sweep (root to tip, then back) of exact, mass-weighted projections of
-/// each edge onto its target length. Slower than Newton near the constraints but robust far from them.
-fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f64]) {
+/// One symmetric Gauss–Seidel sweep (root to tip, then back) of mass-weighted projections of each
+/// edge onto its target length (exact for free nodes; to first order along a touching node's tangent
+/// plane). Slower than Newton near the constraints but robust far from them.
+fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f64], contact_normals: &[DVec3]) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
-        let (start_weight, end_weight) = (inverse_masses[edge], inverse_masses[edge + 1]);
-        let total = start_weight + end_weight;
         let e = rod.positions[edge + 1] - rod.positions[edge];
         let length = e.length();
-        if total == 0.0 || length == 0.0 {
+        if length == 0.0 {
             continue;
         }
-        let correction = (length - target_lengths[edge]) / (length * total) * e;
-        rod.positions[edge] += start_weight * correction;
-        rod.positions[edge + 1] -= end_weight * correction;
+        let direction = e / length;
+        let start_move = mobility(inverse_masses[edge], contact_normals[edge], direction);
+        let end_move = mobility(inverse_masses[edge + 1], contact_normals[edge + 1], direction);
+        let total = direction.dot(start_move + end_move);
+        if total <= 1e-9 * (inverse_masses[edge] + inverse_masses[edge + 1]) {
+            continue;
+        }
+        let excess = (length - target_lengths[edge]) / total;
+        rod.positions[edge] += excess * start_move;
+        rod.positions[edge + 1] -= excess * end_move;
     }
 }
 

@@ -259,7 +259,7 @@ impl Rod {
         self.carry_with_first_clamp(&mut workspace.material_directions);
         workspace.carried.save(self);
         workspace.projection.use_rod_masses(self);
-        self.find_resting_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
+        self.begin_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
@@ -368,7 +368,7 @@ impl Rod {
 
     /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
     /// fraction of the Newton update that was applied (below 1 when the trust region limited it), and
-    /// whether the set of resting contacts changed.
+    /// whether the update changes which nodes touch a collider.
     fn newton_iteration(
         &mut self,
         params: &StepParams,
@@ -410,6 +410,23 @@ impl Rod {
         if beta > 0.0 {
             damping_force.resize(size, 0.0);
             hessian.multiply(displacement, damping_force);
+            // Along each edge, `H Δq` would count a turn by `φ` as a stretch by `φ²/2` times the huge
+            // axial stiffness: the stretching part damps the true change of length instead.
+            let axial_stiffness = self.stiffness().stretching;
+            for (edge, geometry) in edges.iter().enumerate() {
+                let carried_length = carried.positions[edge].distance(carried.positions[edge + 1]);
+                let linearised = geometry.tangent.dot(
+                    DVec3::from_slice(&displacement[node_dof(edge + 1)..node_dof(edge + 1) + 3])
+                        - DVec3::from_slice(&displacement[node_dof(edge)..node_dof(edge) + 3]),
+                );
+                let correction = axial_stiffness / self.rest_lengths[edge]
+                    * (geometry.length - carried_length - linearised)
+                    * geometry.tangent;
+                for axis in 0..3 {
+                    damping_force[node_dof(edge) + axis] -= correction[axis];
+                    damping_force[node_dof(edge + 1) + axis] += correction[axis];
+                }
+            }
             for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
                 *r += beta / dt * f;
             }
@@ -440,7 +457,7 @@ impl Rod {
                 inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
-        self.add_contact_springs(&mut contacts.resting, inertia_scale, residual, hessian);
+        self.add_contact_forces(contacts, &saved.positions, params, inertia_scale, residual, hessian);
 
         // Prescribed unknowns move by their remaining displacement `d`: their rows become identity rows
         // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
@@ -480,7 +497,7 @@ impl Rod {
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
-        let contacts_changed = self.update_resting_contacts(&mut contacts.resting, node_update);
+        let contacts_changed = self.update_contacts(contacts, &saved.positions, params, inertia_scale, node_update);
         let largest_turn = (0..self.edge_count())
             .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
             .map(|edge| {
