@@ -253,11 +253,15 @@ enum NodePaths<'a> {
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ContactScratch {
     nearby: Vec<NearbyCollider>,
-    /// Nodes touching a collider at the current Newton iterate.
+    /// Every contact made during the step, refreshed at each Newton iterate (those the iterate has
+    /// left have no force).
     touching: Vec<NodeContact>,
-    /// Normal force on each node from the last Newton update, N: friction's lagged `f_n`.
+    /// Normal force on each node from the last Newton update, N: friction's lagged `f_n`. It persists
+    /// between steps, so a node resting since the last step has friction from its first iteration.
     normal_forces: Vec<f64>,
+    /// Per node: listed in `touching` (during the Newton iterations), then in contact (after them).
     touched: Vec<bool>,
+    /// Positions before the last length projection of the contact rounds.
     before_projection: Vec<DVec3>,
 }
 
@@ -468,8 +472,8 @@ impl Rod {
     ) -> u32 {
         copy_into(before_projection, &self.positions);
         let mut iterations = project_edge_lengths(self, params, projection);
-        // (`length_error` is NaN, and so not below the tolerance, if the attempt broke down.)
-        if !(length_error(self, &projection.target_lengths) <= params.strain_tolerance) {
+        let error = length_error(self, &projection.target_lengths);
+        if error.is_nan() || error > params.strain_tolerance {
             self.positions.copy_from_slice(before_projection);
             projection.contact_normals.fill(DVec3::ZERO);
             iterations += project_edge_lengths(self, params, projection);

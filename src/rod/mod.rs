@@ -39,7 +39,7 @@ pub(crate) mod test_support;
 
 pub use banded::{BandedMatrix, NotPositiveDefinite};
 pub use collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
-pub use contact::Contacts;
+pub use contact::{Contacts, STICKING_SLIP_SPEED};
 pub use curve::{MaterialFrame, Rod};
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};
