@@ -200,13 +200,19 @@ impl NearbyCollider {
         }
     }
 
-    /// Whether a node touching at `contact` started the step outside the tangent plane there (in the
-    /// collider's frame): otherwise the collider swept past it, and the closest point is on the wrong
-    /// side (the push-out after the solve finds where the node's path entered instead).
-    fn approached_from_outside(&self, contact: &NodeContact, position: DVec3, start: DVec3) -> bool {
+    /// A contact of `node` at `position` (world, collider at its end pose) if it lies within `gap` m of
+    /// the surface and started the step (at `start`) outside the tangent plane there, in the collider's
+    /// frame. A node that started behind that plane was swept past by the collider: its closest point is
+    /// on the wrong side, and the push-out after the solve finds where its path entered instead.
+    fn new_contact(&self, index: usize, node: usize, position: DVec3, start: DVec3, gap: f64) -> Option<NodeContact> {
+        if self.shape.distance_bound(self.local_at_end(position)) > gap {
+            return None;
+        }
+        let contact = self.contact(index, node, position, start);
         let normal = self.end_inverse * contact.normal;
         let surface_point = self.local_at_end(position) - contact.distance * normal;
-        normal.dot(self.local_at_start(start) - surface_point) >= -PUSH_DEPTH
+        let approached_from_outside = normal.dot(self.local_at_start(start) - surface_point) >= -PUSH_DEPTH;
+        (contact.distance <= gap && approached_from_outside).then_some(contact)
     }
 
     /// The closest surface point (world) and the normal there, if `world` (collider at its end pose) is
@@ -311,6 +317,12 @@ impl Rod {
         scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), reach);
     }
 
+    /// The contact spring's stiffness for `node`, N/m: [`CONTACT_STIFFNESS_RATIO`] times its inertia
+    /// `m (1/dt² + γ/dt)` (`inertia_scale` the bracket).
+    fn contact_stiffness(&self, node: usize, inertia_scale: f64) -> f64 {
+        CONTACT_STIFFNESS_RATIO * self.masses[node] * inertia_scale
+    }
+
     /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
     /// node touching a collider, the one-sided normal spring `½ k d²` (`d` the signed distance, `k` from
     /// the node's inertia) and the smoothed, lagged Coulomb friction `μ f_n φ(|u|)` on its slip `u`, with
@@ -334,14 +346,12 @@ impl Rod {
         }
         for (index, collider) in nearby.iter().enumerate() {
             for node in (0..self.node_count()).filter(|&node| !self.is_node_prescribed(node)) {
-                let local = collider.local_at_end(self.positions[node]);
                 let known = || touching.iter().any(|contact| contact.node == node && contact.collider == index);
-                if collider.shape.distance_bound(local) > CONTACT_GAP || (touched[node] && known()) {
+                if touched[node] && known() {
                     continue;
                 }
-                let mut contact = collider.contact(index, node, self.positions[node], start_positions[node]);
-                if contact.distance <= CONTACT_GAP
-                    && collider.approached_from_outside(&contact, self.positions[node], start_positions[node])
+                if let Some(mut contact) =
+                    collider.new_contact(index, node, self.positions[node], start_positions[node], CONTACT_GAP)
                 {
                     // A node resting since the last step has its normal force from then.
                     contact.first_solve = normal_forces[node] == 0.0;
@@ -355,7 +365,7 @@ impl Rod {
         // back), with no force.
         for contact in touching.iter().filter(|contact| contact.distance <= CONTACT_GAP) {
             let dof = node_dof(contact.node);
-            let stiffness = CONTACT_STIFFNESS_RATIO * self.masses[contact.node] * inertia_scale;
+            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
             let n = contact.normal;
             let tangent_projector = DMat3::IDENTITY - outer_product(n);
             let mut force = stiffness * contact.distance.min(0.0) * n;
@@ -382,8 +392,8 @@ impl Rod {
     /// After a Newton solve: records each touching node's normal force where the update `node_update`
     /// puts it (the spring's force, linearised), for the next iterate's friction, and zero for the other
     /// nodes. Returns whether the update leaves the law it was linearised with: a touching node that
-    /// would pass from sticking to sliding or whose normal force changes much, or a free node that would
-    /// sink into a collider; the Newton iterations then go on. (A node that lifts off stays listed for
+    /// would pass from sticking to sliding, a new contact whose friction had no normal force yet, or a
+    /// free node that would sink into a collider; the Newton iterations then go on. (A node that lifts off stays listed for
     /// the rest of the step, without force, so that the touching set only grows and the iterations end.)
     pub(crate) fn update_contacts(
         &self,
@@ -398,7 +408,7 @@ impl Rod {
         normal_forces.fill(0.0);
         let mut changed = false;
         for contact in touching.iter_mut().filter(|contact| contact.distance <= CONTACT_GAP) {
-            let stiffness = CONTACT_STIFFNESS_RATIO * self.masses[contact.node] * inertia_scale;
+            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
             let update = node_update(contact.node);
             let distance = contact.distance + contact.normal.dot(update);
             normal_forces[contact.node] += stiffness * (-distance).max(0.0);
@@ -412,11 +422,7 @@ impl Rod {
         for (index, collider) in nearby.iter().enumerate() {
             for node in (0..self.node_count()).filter(|&node| !touched[node] && !self.is_node_prescribed(node)) {
                 let position = self.positions[node] + node_update(node);
-                let local = collider.local_at_end(position);
-                if collider.shape.distance_bound(local) < 0.0 && collider.shape.contains(local) {
-                    let contact = collider.contact(index, node, position, start_positions[node]);
-                    changed |= collider.approached_from_outside(&contact, position, start_positions[node]);
-                }
+                changed |= collider.new_contact(index, node, position, start_positions[node], 0.0).is_some();
             }
         }
         changed

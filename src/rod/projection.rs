@@ -9,6 +9,10 @@ use super::solver::{StepParams, copy_into};
 /// onto one line make the projection's system singular, and this keeps it definite.
 const FOLD_REGULARISATION: f64 = 1e-6;
 
+/// Share of an edge's free mobility, dimensionless, below which the edge counts as held (both ends
+/// fixed, or both free to move only across it) and is left as it is.
+const HELD_EDGE: f64 = 1e-9;
+
 /// Scratch for the projection's tridiagonal solve.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct ProjectionScratch {
@@ -17,8 +21,7 @@ pub(crate) struct ProjectionScratch {
     pub(crate) multipliers: Vec<f64>,
     pub(crate) start: Vec<DVec3>,
     pub(crate) target_lengths: Vec<f64>,
-    /// `1 / m` of each node, 1/kg, as the projection sees it: zero for prescribed nodes, and for nodes
-    /// held by static friction while contacts are resolved.
+    /// `1 / m` of each node, 1/kg, as the projection sees it: zero for prescribed nodes.
     pub(crate) inverse_masses: Vec<f64>,
     /// Outward normal of the collider each node touches, or zero: a touching node moves only along
     /// its collider's tangent plane (which keeps it outside a convex collider).
@@ -78,7 +81,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
                 4.0 * e.length_squared() / (target * target) * (inverse_masses[edge] + inverse_masses[edge + 1]);
             // Zero when both ends are held, or when the edge could only lengthen along both normals: such
             // an edge is left as it is, uncoupled from its neighbours.
-            if stiffness > 1e-9 * free_stiffness {
+            if stiffness > HELD_EDGE * free_stiffness {
                 // The slight excess keeps the system definite when two edges fold onto one line.
                 diagonal.push(stiffness * (1.0 + FOLD_REGULARISATION));
                 multipliers.push(e.length_squared() / target - target);
@@ -146,7 +149,7 @@ fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f
         let start_move = mobility(inverse_masses[edge], contact_normals[edge], direction);
         let end_move = mobility(inverse_masses[edge + 1], contact_normals[edge + 1], direction);
         let total = direction.dot(start_move + end_move);
-        if total <= 1e-9 * (inverse_masses[edge] + inverse_masses[edge + 1]) {
+        if total <= HELD_EDGE * (inverse_masses[edge] + inverse_masses[edge + 1]) {
             continue;
         }
         let excess = (length - target_lengths[edge]) / total;
