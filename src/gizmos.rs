@@ -5,6 +5,8 @@ use bevy::gizmos::GizmoPlugin;
 use bevy::gizmos::config::GizmoConfigGroup;
 use bevy::prelude::*;
 
+use crate::collision::ColliderMotion;
+use crate::rod::ColliderShape;
 use crate::strand::{Strand, StrandPose};
 
 /// The gizmo group hair is drawn in, with its colours. Change it (and the line width, depth bias, …) at
@@ -16,12 +18,22 @@ pub struct HairGizmos {
     pub root_color: Color,
     /// Colour at each strand's tip; nodes in between blend linearly.
     pub tip_color: Color,
+    /// Whether every [`crate::collision::HairCollider`] is drawn as a wireframe (its solid, without the strands' collision
+    /// thickness), for tuning colliders against a mesh. Default off.
+    pub draw_colliders: bool,
+    /// Colour of the collider wireframes.
+    pub collider_color: Color,
 }
 
 impl Default for HairGizmos {
     /// Dark brown roots, lighter tips.
     fn default() -> Self {
-        Self { root_color: Color::srgb(0.18, 0.10, 0.05), tip_color: Color::srgb(0.55, 0.38, 0.22) }
+        Self {
+            root_color: Color::srgb(0.18, 0.10, 0.05),
+            tip_color: Color::srgb(0.55, 0.38, 0.22),
+            draw_colliders: false,
+            collider_color: Color::srgb(0.2, 0.9, 0.4),
+        }
     }
 }
 
@@ -32,6 +44,7 @@ impl HairGizmos {
         let preset = |root: [f32; 3], tip: [f32; 3]| Self {
             root_color: Color::srgb_from_array(root),
             tip_color: Color::srgb_from_array(tip),
+            ..default()
         };
         [
             ("black", preset([0.03, 0.03, 0.03], [0.13, 0.11, 0.10])),
@@ -64,7 +77,8 @@ impl Plugin for HairGizmoPlugin {
             warn!("HairGizmoPlugin: Bevy's GizmoPlugin is missing, so hair is simulated but not drawn");
             return;
         }
-        app.init_gizmo_group::<HairGizmos>().add_systems(PostUpdate, draw_strands.in_set(HairDrawSystems));
+        app.init_gizmo_group::<HairGizmos>()
+            .add_systems(PostUpdate, (draw_strands, draw_colliders).in_set(HairDrawSystems));
     }
 }
 
@@ -82,5 +96,42 @@ pub fn draw_strands(
         let last = pose.current.len().saturating_sub(1).max(1) as f32;
         let colors = (0..pose.current.len()).map(|node| root.mix(&tip, node as f32 / last));
         gizmos.linestrip_gradient(pose.interpolated(alpha).zip(colors));
+    }
+}
+
+/// Draws every collider in use at its pose of the last step, when [`HairGizmos::draw_colliders`] is on:
+/// spheres and ellipsoids as three great ellipses, capsules as wire capsules, planes as a 2 m grid.
+pub fn draw_colliders(mut gizmos: Gizmos<HairGizmos>, colliders: Query<&ColliderMotion>) {
+    if !gizmos.config_ext.draw_colliders {
+        return;
+    }
+    let color = gizmos.config_ext.collider_color;
+    let quarter = std::f32::consts::FRAC_PI_2;
+    for collider in colliders.iter().filter_map(|motion| motion.collider) {
+        let pose = collider.end;
+        let isometry = Isometry3d::new(pose.translation.as_vec3(), pose.rotation.as_quat());
+        match collider.shape {
+            ColliderShape::Sphere { radius } => {
+                gizmos.sphere(isometry, radius as f32, color);
+            }
+            ColliderShape::Ellipsoid { semi_axes } => {
+                let semi_axes = semi_axes.as_vec3();
+                for (turn, half_size) in [
+                    (Quat::IDENTITY, semi_axes.xy()),
+                    (Quat::from_rotation_y(quarter), semi_axes.zy()),
+                    (Quat::from_rotation_x(quarter), semi_axes.xz()),
+                ] {
+                    let ellipse = Isometry3d::new(isometry.translation, isometry.rotation * turn);
+                    gizmos.ellipse(ellipse, half_size, color);
+                }
+            }
+            ColliderShape::Capsule { radius, half_length } => {
+                gizmos.primitive_3d(&Capsule3d::new(radius as f32, 2.0 * half_length as f32), isometry, color);
+            }
+            ColliderShape::Plane => {
+                let flat = Isometry3d::new(isometry.translation, isometry.rotation * Quat::from_rotation_x(-quarter));
+                gizmos.grid(flat, UVec2::splat(20), Vec2::splat(0.1), color);
+            }
+        }
     }
 }

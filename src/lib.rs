@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+pub mod collision;
 pub mod gizmos;
 pub mod groom;
 pub mod head;
@@ -16,12 +17,15 @@ pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 
 /// The types most users need.
 pub mod prelude {
+    pub use crate::collision::{
+        ColliderOf, HairCollider, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
+    };
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]
     pub use crate::panel::HairPanelPlugin;
-    pub use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
+    pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
     pub use crate::settings::{HairPause, HairSettings, HairStatistics};
     pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandPose, StrandRejected};
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};

@@ -5,6 +5,7 @@ use bevy::app::PluginGroupBuilder;
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
+use crate::collision::HairCollisionPlugin;
 use crate::gizmos::HairGizmoPlugin;
 use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
 use crate::head::{HairHead, HeadMotion, HeadPose, HeadStrands, StrandOf, track_heads};
@@ -16,8 +17,8 @@ use crate::strand::{
     HairStrand, RootAnchor, Strand, StrandFault, StrandForces, StrandPose, StrandRejected, build_strands,
 };
 
-/// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]) and drawing
-/// ([`HairGizmoPlugin`]). Add it once:
+/// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
+/// ([`HairCollisionPlugin`]) and drawing ([`HairGizmoPlugin`]). Add it once:
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -72,7 +73,10 @@ impl Default for HairPlugin {
 
 impl PluginGroup for HairPlugin {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>().add(HairSimulationPlugin { schedule: self.schedule }).add(HairGizmoPlugin)
+        PluginGroupBuilder::start::<Self>()
+            .add(HairSimulationPlugin { schedule: self.schedule })
+            .add(HairCollisionPlugin { schedule: self.schedule })
+            .add(HairGizmoPlugin)
     }
 }
 
@@ -85,14 +89,15 @@ pub enum HairSystems {
     /// [`HairStrand`]s, applies changed settings, decides whether this step runs (see [`HairPause`] and
     /// [`HairSettings::max_steps_per_frame`]). Always runs.
     Prepare,
-    /// Moves every strand's root edge to its anchor on its head.
+    /// Moves every strand's root edge to its anchor on its head, and records where every
+    /// [`crate::collision::HairCollider`] is.
     PinRoots,
     /// Where users add [`StrandForces`]; gravity comes from [`HairSettings::gravity`].
     ExternalForces,
-    /// Elastic forces (stretching, bending, twisting) and implicit integration of every strand, in
-    /// parallel; failed strands are reset and reported.
+    /// Elastic forces (stretching, bending, twisting), contact with colliders and implicit integration of
+    /// every strand, in parallel; failed strands are reset and reported.
     Step,
-    /// After the step: the place for constraints, collisions and checks of the new state.
+    /// After the step: the place for checks of the new state and constraints of your own.
     PostStep,
     /// Copies the simulated positions into the drawn [`StrandPose`]s.
     Writeback,

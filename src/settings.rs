@@ -2,7 +2,7 @@
 
 use bevy::prelude::*;
 
-use crate::rod::{RodMaterial, StepParams};
+use crate::rod::{RodError, RodMaterial, StepParams};
 
 /// Settings of the hair simulation, read at every fixed step: a change takes effect at the next step.
 /// Invalid values are reported once with an error message and the simulation waits until they are fixed.
@@ -31,6 +31,10 @@ pub struct HairSettings {
     /// up every step it missed; beyond this many, the hair skips steps instead. 0 pauses the hair.
     /// Default 4.
     pub max_steps_per_frame: u32,
+    /// Collision thickness added to each strand's radius, m: how far from a collider's surface the strand's
+    /// centre line stays (unless the strand sets [`crate::strand::HairStrand::collision_thickness`]).
+    /// Keeps drawn lines off the collider's mesh. Default 0.001.
+    pub collision_margin: f32,
     /// Material of strands that name none ([`crate::strand::HairStrand::material`]): human hair by default.
     pub default_material: RodMaterial,
 }
@@ -47,12 +51,24 @@ impl Default for HairSettings {
             divergence_strain: step.divergence_strain as f32,
             teleport_distance: 0.5,
             max_steps_per_frame: 4,
+            collision_margin: 0.001,
             default_material: RodMaterial::human_hair(),
         }
     }
 }
 
 impl HairSettings {
+    /// The mechanics core's parameters for a step of `dt` seconds, checked, and the collision margin, m.
+    pub fn validated(&self, dt: f64) -> Result<(StepParams, f64), RodError> {
+        let params = self.step_params(dt);
+        params.validate()?;
+        let margin = f64::from(self.collision_margin);
+        if !(margin.is_finite() && margin >= 0.0) {
+            return Err(RodError::InvalidCollider { parameter: "collision_margin", value: margin });
+        }
+        Ok((params, margin))
+    }
+
     /// The mechanics core's parameters for a step of `dt` seconds.
     pub fn step_params(&self, dt: f64) -> StepParams {
         StepParams {
@@ -104,6 +120,8 @@ pub struct HairStatistics {
     pub faults: u64,
     /// Largest edge strain of any strand after the last step, dimensionless.
     pub max_strain: f64,
+    /// Nodes touching a collider after the last step.
+    pub contacts: usize,
     /// Mean Newton iterations per strand in the last step.
     pub mean_newton_iterations: f64,
     /// Wall-clock time the last step of all strands took, s.

@@ -5,8 +5,9 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
+use crate::collision::{HeadColliderSet, SharedColliderSet};
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::StepError;
+use crate::rod::{Contacts, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
 
@@ -80,34 +81,46 @@ pub(crate) struct StepTally {
     strands: usize,
     nodes: usize,
     newton_iterations: u64,
+    contacts: usize,
     max_strain: f64,
     faults: Vec<StrandFault>,
 }
 
-/// Steps every strand in parallel; a strand whose step fails is reset (see [`Strand`]) and reported with
+/// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
+/// with no head); a strand whose step fails is reset (see [`Strand`]) and reported with
 /// a [`StrandFault`] message and a warning, and the others go on.
 pub(crate) fn step_strands(
     time: Res<Time>,
     settings: Res<HairSettings>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<(Entity, &mut Strand, &mut StrandForces)>,
+    mut strands: Query<(Entity, &mut Strand, &mut StrandForces, Option<&StrandOf>)>,
+    head_colliders: Query<&HeadColliderSet>,
+    shared_colliders: Option<Res<SharedColliderSet>>,
     mut fault_messages: MessageWriter<StrandFault>,
     mut tallies: Local<Parallel<StepTally>>,
 ) {
-    let params = settings.step_params(time.delta_secs_f64());
-    if let Err(error) = params.validate() {
-        let message = error.to_string();
-        if statistics.settings_error.as_ref() != Some(&message) {
-            error!("HairSettings rejected, hair is paused until they are fixed: {message}");
-            statistics.settings_error = Some(message);
+    let (params, collision_margin) = match settings.validated(time.delta_secs_f64()) {
+        Ok(validated) => validated,
+        Err(error) => {
+            let message = error.to_string();
+            if statistics.settings_error.as_ref() != Some(&message) {
+                error!("HairSettings rejected, hair is paused until they are fixed: {message}");
+                statistics.settings_error = Some(message);
+            }
+            return;
         }
-        return;
-    }
+    };
     statistics.settings_error = None;
 
     let started = Instant::now();
-    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces)| {
-        let result = strand.advance(&params, &forces);
+    let shared_colliders = shared_colliders.as_deref().map(SharedColliderSet::colliders).unwrap_or_default();
+    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
+        let colliders = match strand_of {
+            Some(&StrandOf(head)) => head_colliders.get(head).map(HeadColliderSet::colliders).unwrap_or_default(),
+            None => shared_colliders,
+        };
+        let contacts = Contacts { colliders, thickness: strand.collision_thickness(collision_margin) };
+        let result = strand.advance(&params, &forces, &contacts);
         forces.clear();
         tallies.scope(|tally| {
             tally.strands += 1;
@@ -115,6 +128,7 @@ pub(crate) fn step_strands(
             match result {
                 Ok(report) => {
                     tally.newton_iterations += u64::from(report.newton_iterations);
+                    tally.contacts += report.contacts as usize;
                     tally.max_strain = tally.max_strain.max(report.max_strain);
                 }
                 Err(error) => tally.faults.push(StrandFault { strand: entity, error }),
@@ -122,11 +136,13 @@ pub(crate) fn step_strands(
         });
     });
 
-    let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut max_strain) = (0, 0, 0, 0.0_f64);
+    let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
+        (0, 0, 0, 0, 0.0_f64);
     for tally in tallies.iter_mut() {
         strands_stepped += tally.strands;
         nodes_stepped += tally.nodes;
         newton_iterations += tally.newton_iterations;
+        contacts += tally.contacts;
         max_strain = max_strain.max(tally.max_strain);
         for fault in tally.faults.drain(..) {
             let consequence = match fault.error {
@@ -145,6 +161,7 @@ pub(crate) fn step_strands(
     statistics.strands = strands_stepped;
     statistics.nodes = nodes_stepped;
     statistics.max_strain = max_strain;
+    statistics.contacts = contacts;
     statistics.mean_newton_iterations =
         if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };
 }

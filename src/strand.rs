@@ -6,7 +6,7 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use crate::head::{HeadPose, StrandOf};
-use crate::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport};
+use crate::rod::{Contacts, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport};
 use crate::settings::HairSettings;
 
 /// A hair strand to simulate, as it is spawned. Add it (with [`StrandOf`] to root it on a head) and the
@@ -30,13 +30,22 @@ pub struct HairStrand {
     /// curvature so that, free of load, the strand curls into arcs of radius `1/|k|`. `None` keeps the
     /// spawned shape's own curvature as rest curvature.
     pub natural_curvature: Option<Vec2>,
+    /// Distance from the centre line that stays outside colliders, m; `None` uses the material's larger
+    /// semi-axis plus [`HairSettings::collision_margin`].
+    pub collision_thickness: Option<f32>,
 }
 
 impl HairStrand {
     /// A strand through `nodes` (m; root first) whose root edge's material direction is
     /// `material_direction`.
     pub fn from_nodes(nodes: impl Into<Vec<Vec3>>, material_direction: Vec3) -> Self {
-        Self { nodes: nodes.into(), material_direction, material: None, natural_curvature: None }
+        Self {
+            nodes: nodes.into(),
+            material_direction,
+            material: None,
+            natural_curvature: None,
+            collision_thickness: None,
+        }
     }
 
     /// A straight strand `length` m long, split into `segments` edges, growing from `root` along
@@ -59,6 +68,12 @@ impl HairStrand {
         self.natural_curvature = Some(curvature_per_metre);
         self
     }
+
+    /// Sets the collision thickness, m, see [`HairStrand::collision_thickness`].
+    pub fn with_collision_thickness(mut self, thickness: f32) -> Self {
+        self.collision_thickness = Some(thickness);
+        self
+    }
 }
 
 /// Why a [`HairStrand`] could not be simulated.
@@ -67,6 +82,9 @@ pub enum StrandSpawnError {
     /// The shape or material was rejected by the mechanics core.
     #[error(transparent)]
     Rod(#[from] RodError),
+    /// The collision thickness was negative, NaN or infinite.
+    #[error("the collision thickness {0} m is not zero or positive and finite")]
+    InvalidCollisionThickness(f32),
     /// The natural curvature was NaN or infinite.
     #[error("the natural curvature {0} is not finite")]
     NonFiniteCurvature(Vec2),
@@ -120,6 +138,7 @@ pub struct Strand {
     spawn_head: HeadPose,
     head: HeadPose,
     follows_default_material: bool,
+    collision_thickness: Option<f64>,
     last_report: Option<StepReport>,
     snap_pose: bool,
     #[reflect(ignore)]
@@ -147,6 +166,12 @@ impl Strand {
             }
             rod.set_natural_curvature(DVec2::new(f64::from(curvature.x), f64::from(curvature.y)));
         }
+        let collision_thickness = spec.collision_thickness.map(f64::from);
+        if let Some(thickness) = spec.collision_thickness
+            && !(thickness.is_finite() && thickness >= 0.0)
+        {
+            return Err(StrandSpawnError::InvalidCollisionThickness(thickness));
+        }
         let anchor = head.map(|_| RootAnchor { position: root, edge: local[1] - root, material_direction });
         Ok(Self {
             rod,
@@ -154,6 +179,7 @@ impl Strand {
             spawn_head: pose,
             head: pose,
             follows_default_material: spec.material.is_none(),
+            collision_thickness,
             last_report: None,
             snap_pose: true,
             workspace: RodWorkspace::default(),
@@ -179,6 +205,14 @@ impl Strand {
     /// The head's world pose at the last step (identity for a free strand).
     pub fn head_pose(&self) -> &HeadPose {
         &self.head
+    }
+
+    /// Distance from the centre line that stays outside colliders, m, with a collision margin of
+    /// `margin` m: the strand's own [`HairStrand::collision_thickness`], or its larger semi-axis plus
+    /// `margin`.
+    pub fn collision_thickness(&self, margin: f64) -> f64 {
+        let material = self.rod.material();
+        self.collision_thickness.unwrap_or(material.semi_axis_1.max(material.semi_axis_2) + margin)
     }
 
     /// What the last successful step measured.
@@ -210,10 +244,15 @@ impl Strand {
         self.rod.clamp_edge(0, start, end, material_direction)
     }
 
-    /// Advances the strand by one step. A step that fails on invalid input (a non-finite force) changes
+    /// Advances the strand by one step, kept outside the colliders of `contacts`. A step that fails on invalid input (a non-finite force) changes
     /// nothing; any other failure (divergence) resets the strand to its rest pose on its head.
-    pub(crate) fn advance(&mut self, params: &StepParams, forces: &StrandForces) -> Result<StepReport, StepError> {
-        let result = self.rod.step(params, forces.active(), &mut self.workspace);
+    pub(crate) fn advance(
+        &mut self,
+        params: &StepParams,
+        forces: &StrandForces,
+        contacts: &Contacts,
+    ) -> Result<StepReport, StepError> {
+        let result = self.rod.step_with_contacts(params, forces.active(), contacts, &mut self.workspace);
         match &result {
             Ok(report) => self.last_report = Some(*report),
             Err(StepError::InvalidInput(_)) => {}
