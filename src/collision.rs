@@ -20,7 +20,9 @@
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use crate::head::{HairHead, HeadPose, HeadStrands};
+use bevy::ecs::system::SystemParam;
+
+use crate::head::{HairHead, HeadPose, HeadStrands, StrandOf};
 use crate::rod::{ColliderShape, MovingCollider, RigidPose};
 use crate::settings::HairSettings;
 
@@ -201,6 +203,24 @@ impl SharedColliderSet {
     /// The colliders, with their poses at the last step and at this one.
     pub fn colliders(&self) -> &[MovingCollider] {
         self.0.colliders()
+    }
+}
+
+/// The colliders each strand meets this step, for the strands' step.
+#[derive(SystemParam)]
+pub(crate) struct StrandColliders<'w, 's> {
+    head_sets: Query<'w, 's, &'static HeadColliderSet>,
+    shared: Option<Res<'w, SharedColliderSet>>,
+}
+
+impl StrandColliders<'_, '_> {
+    /// The colliders of a strand rooted on `strand_of` (the shared ones for a strand with no head; none
+    /// without [`HairCollisionPlugin`]).
+    pub(crate) fn of(&self, strand_of: Option<&StrandOf>) -> &[MovingCollider] {
+        match strand_of {
+            Some(&StrandOf(head)) => self.head_sets.get(head).map(HeadColliderSet::colliders).unwrap_or_default(),
+            None => self.shared.as_deref().map(SharedColliderSet::colliders).unwrap_or_default(),
+        }
     }
 }
 

@@ -5,7 +5,7 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
-use crate::collision::{HeadColliderSet, SharedColliderSet};
+use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
 use crate::rod::{Contacts, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
@@ -94,8 +94,7 @@ pub(crate) fn step_strands(
     settings: Res<HairSettings>,
     mut statistics: ResMut<HairStatistics>,
     mut strands: Query<(Entity, &mut Strand, &mut StrandForces, Option<&StrandOf>)>,
-    head_colliders: Query<&HeadColliderSet>,
-    shared_colliders: Option<Res<SharedColliderSet>>,
+    colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut tallies: Local<Parallel<StepTally>>,
 ) {
@@ -113,13 +112,9 @@ pub(crate) fn step_strands(
     statistics.settings_error = None;
 
     let started = Instant::now();
-    let shared_colliders = shared_colliders.as_deref().map(SharedColliderSet::colliders).unwrap_or_default();
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
-        let colliders = match strand_of {
-            Some(&StrandOf(head)) => head_colliders.get(head).map(HeadColliderSet::colliders).unwrap_or_default(),
-            None => shared_colliders,
-        };
-        let contacts = Contacts { colliders, thickness: strand.collision_thickness(collision_margin) };
+        let contacts =
+            Contacts { colliders: colliders.of(strand_of), thickness: strand.collision_thickness(collision_margin) };
         let result = strand.advance(&params, &forces, &contacts);
         forces.clear();
         tallies.scope(|tally| {

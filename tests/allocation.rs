@@ -21,12 +21,15 @@ fn allocations_during(work: impl FnOnce()) -> u64 {
     ALLOCATIONS.load(Ordering::Relaxed) - before
 }
 
-/// Allocations per update of an app with one head of `strands` strands (32 edges) that moves, once
-/// running.
+/// Allocations per update of an app with one head of `strands` strands (32 edges) that moves, with
+/// colliders, once running.
 fn allocations_per_update(strands: usize) -> u64 {
     let mut app = hair_app();
     let groom = HairGroom { strand_count: strands, segments: 32, ..default() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
+    // The skull, on the head, and a shared floor that the hair does not reach.
+    app.world_mut().spawn((HairCollider::sphere(0.1), ColliderOf(head), ChildOf(head)));
+    app.world_mut().spawn(HairCollider::plane());
     let mut step = 0;
     let mut run = |app: &mut App, updates: usize| {
         for _ in 0..updates {

@@ -8,10 +8,10 @@ use std::f32::consts::TAU;
 
 use bevy::math::DVec3;
 use bevy::prelude::*;
+use bevy::transform::TransformPlugin;
 use bevy_hair_sim::collision::ColliderMotion;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::RigidPose;
-use bevy::transform::TransformPlugin;
 use common::headless::{DT, hair_app, hair_app_with, strand};
 
 /// Deepest a checked node may be inside a collider grown by the strand's thickness, m.

@@ -315,6 +315,8 @@ impl Rod {
         let fastest = self.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
         let reach = 2.0 * (fastest * params.dt + params.gravity.length() * params.dt * params.dt);
         scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), reach);
+        // Room for every node touching every nearby collider, so that no later iterate allocates.
+        scratch.touching.reserve(self.node_count() * scratch.nearby.len());
     }
 
     /// The contact spring's stiffness for `node`, N/m: [`CONTACT_STIFFNESS_RATIO`] times its inertia
