@@ -29,3 +29,11 @@ fn edges_of_1000_strands(bencher: Bencher, edges: usize) {
     scene.warm_up();
     bencher.counter(divan::counter::ItemsCount::new(1000 * (edges + 1))).bench_local(|| scene.step());
 }
+
+/// 2 000 strands of 32 edges resting on 5 colliders (skull, face, neck, shoulders, torso).
+#[divan::bench]
+fn strands_on_5_colliders(bencher: Bencher) {
+    let mut scene = Scene::new(2000, 32, None).with_colliders(5);
+    scene.warm_up();
+    bencher.counter(divan::counter::ItemsCount::new(2000 * 33)).bench_local(|| scene.step());
+}

@@ -5,7 +5,7 @@
 //! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
 //! started to swing.
 //!
-//! Arguments: the tables to print (`scaling`, `parallel`, `memory`; all by default), `--quick` to measure
+//! Arguments: the tables to print (`scaling`, `collisions`, `parallel`, `memory`; all by default), `--quick` to measure
 //! fewer steps, `--threads N` for the compute threads (one per core by default). Bevy's task pools are
 //! set once per process, so the parallel table runs this program again with `--threads`.
 
@@ -22,9 +22,9 @@ use bevy::tasks::available_parallelism;
 use counting_allocator::BYTES_IN_USE;
 use scene::Scene;
 
-/// Median wall time of `steps` steps, s, after the warm-up.
-fn median_step_seconds(strands: usize, edges: usize, threads: usize, steps: usize) -> f64 {
-    let mut scene = Scene::new(strands, edges, Some(threads));
+/// Median wall time of `steps` steps, s, after the warm-up, with `colliders` colliders.
+fn median_step_seconds(strands: usize, edges: usize, colliders: usize, threads: usize, steps: usize) -> f64 {
+    let mut scene = Scene::new(strands, edges, Some(threads)).with_colliders(colliders);
     scene.warm_up();
     let mut times: Vec<f64> = (0..steps)
         .map(|_| {
@@ -35,6 +35,27 @@ fn median_step_seconds(strands: usize, edges: usize, threads: usize, steps: usiz
         .collect();
     times.sort_by(f64::total_cmp);
     times[times.len() / 2]
+}
+
+/// Median wall time per step of each scene, s, after the warm-up, stepping them in turn so that the
+/// machine's slow drifts fall on all alike.
+fn interleaved_median_step_seconds(scenes: &mut [Scene], steps: usize) -> Vec<f64> {
+    scenes.iter_mut().for_each(Scene::warm_up);
+    let mut times = vec![Vec::with_capacity(steps); scenes.len()];
+    for _ in 0..steps {
+        for (scene, times) in scenes.iter_mut().zip(&mut times) {
+            let started = Instant::now();
+            scene.step();
+            times.push(started.elapsed().as_secs_f64());
+        }
+    }
+    times
+        .into_iter()
+        .map(|mut times| {
+            times.sort_by(f64::total_cmp);
+            times[times.len() / 2]
+        })
+        .collect()
 }
 
 /// The value following `flag` in `args`, parsed.
@@ -51,8 +72,10 @@ fn main() {
     let cores = available_parallelism();
     let threads = flag_value(&args, "--threads").unwrap_or(cores);
     if args.first().is_some_and(|arg| arg == "measure") {
-        let number = |index: usize| args.get(index).and_then(|arg| arg.parse().ok()).expect("measure STRANDS EDGES");
-        println!("{}", median_step_seconds(number(1), number(2), threads, steps));
+        let number = |index: usize| args.get(index).and_then(|arg| arg.parse().ok());
+        let (strands, edges) = number(1).zip(number(2)).expect("measure STRANDS EDGES [COLLIDERS]");
+        let colliders = number(3).unwrap_or(0);
+        println!("{}", median_step_seconds(strands, edges, colliders, threads, steps));
         return;
     }
     let tables: Vec<&str> = args
@@ -65,6 +88,9 @@ fn main() {
     println!("bevy_hair_sim benchmark: {cores} cores, {threads} compute threads, {steps} measured steps per row");
     if wanted("scaling") {
         scaling(threads, steps);
+    }
+    if wanted("collisions") {
+        collisions(threads, steps);
     }
     if wanted("parallel") {
         parallel_efficiency(cores, quick);
@@ -84,7 +110,7 @@ fn scaling(threads: usize, steps: usize) {
     for edges in [16, 32, 64] {
         let mut previous_strands: Option<f64> = None;
         for (row, strands) in strand_counts.into_iter().enumerate() {
-            let seconds = median_step_seconds(strands, edges, threads, steps);
+            let seconds = median_step_seconds(strands, edges, 0, threads, steps);
             let node_steps = (strands * (edges + 1)) as f64 / seconds;
             let ratio = |previous: Option<f64>| previous.map_or(String::new(), |p| format!("{:.2}", seconds / p));
             println!(
@@ -96,6 +122,31 @@ fn scaling(threads: usize, steps: usize) {
             );
             previous_strands = Some(seconds);
             previous_edges[row] = Some(seconds);
+        }
+    }
+}
+
+/// Cost against strands and colliders (skull, face, neck, shoulders, torso), 32 edges: the collision
+/// share is the extra time over the same scene with no colliders, stepped in turn with it.
+fn collisions(threads: usize, steps: usize) {
+    const COLLIDER_COUNTS: [usize; 3] = [0, 1, 5];
+    println!();
+    println!("Collisions, 32 edges, colliders: skull, face, neck, shoulders, torso in that order:");
+    println!("| strands | colliders | ms / step | collision share of the step | µs per strand |");
+    println!("|---:|---:|---:|---:|---:|");
+    for strands in [500, 1000, 2000] {
+        let mut scenes =
+            COLLIDER_COUNTS.map(|colliders| Scene::new(strands, 32, Some(threads)).with_colliders(colliders));
+        let seconds = interleaved_median_step_seconds(&mut scenes, steps);
+        let without = seconds[0];
+        for (colliders, seconds) in COLLIDER_COUNTS.into_iter().zip(seconds) {
+            let extra = seconds - without;
+            println!(
+                "| {strands} | {colliders} | {:.3} | {:.0} % | {:.2} |",
+                1e3 * seconds,
+                100.0 * extra / seconds,
+                1e6 * extra / strands as f64
+            );
         }
     }
 }

@@ -6,7 +6,8 @@
 //! ```
 //!
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
-//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style.
+//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style,
+//! C shows the colliders the hair rests on (skull, face, neck, shoulders, torso).
 //!
 //! Picture mode, for machines without a display (see `shared/visual-check.md`): render a number of frames
 //! of exactly 1/60 s each (one simulation step per frame, however slow the renderer; the panel's frame
@@ -49,7 +50,7 @@ fn main() {
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
         .add_systems(Startup, spawn_scene)
-        .add_systems(Update, (animate_head, walk_body, pick_style, show_statistics));
+        .add_systems(Update, (animate_head, walk_body, hair_keys, show_statistics));
     #[cfg(feature = "egui")]
     {
         use bevy_egui::input::egui_wants_any_pointer_input;
@@ -78,11 +79,14 @@ struct Options {
     segments: usize,
     /// Camera angle around the head, degrees from straight in front (positive: the head's left).
     yaw_degrees: f32,
+    /// Whether the colliders are drawn as wireframes from the start (C toggles it).
+    draw_colliders: bool,
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
-            [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]";
+            [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]
+            [--colliders on|off]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -94,6 +98,7 @@ impl Options {
             strands: groom.strand_count,
             segments: groom.segments,
             yaw_degrees: 35.0,
+            draw_colliders: false,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -104,6 +109,13 @@ impl Options {
                 "--strands" => options.strands = number("a count")? as usize,
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
+                "--colliders" => {
+                    options.draw_colliders = match value.as_str() {
+                        "on" => true,
+                        "off" => false,
+                        _ => return Err(format!("--colliders needs on or off, got {value:?}")),
+                    }
+                }
                 "--style" => {
                     options.style = HairStyle::ALL
                         .into_iter()
@@ -189,7 +201,9 @@ fn spawn_scene(
     mut materials: ResMut<Assets<StandardMaterial>>,
     mut gizmos: ResMut<GizmoConfigStore>,
 ) {
-    gizmos.config_mut::<HairGizmos>().0.line.width = 1.5;
+    let (config, hair_gizmos) = gizmos.config_mut::<HairGizmos>();
+    config.line.width = 1.5;
+    hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
     commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: 0.12, distance: 0.85 }));
     commands.spawn((
@@ -208,58 +222,66 @@ fn spawn_scene(
     let mut part = |mesh: Mesh, material: &Handle<StandardMaterial>, transform: Transform| {
         (Mesh3d(meshes.add(mesh)), MeshMaterial3d(material.clone()), transform)
     };
-    let body = commands
-        .spawn((Body::default(), Transform::default(), Visibility::default()))
-        .with_children(|body| {
-            body.spawn(part(Capsule3d::new(0.12, 0.7).into(), &shirt, Transform::from_xyz(0.0, 0.93, 0.0)));
-            body.spawn(part(
-                Capsule3d::new(0.06, 0.24).into(),
-                &shirt,
-                Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
-            ));
-            body.spawn(part(Cylinder::new(0.045, 0.14).into(), &skin, Transform::from_xyz(0.0, 1.47, 0.0)));
-        })
-        .id();
-
     let scalp = Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() };
     let groom =
         HairGroom { scalp, strand_count: options.strands, segments: options.segments, style: options.style, seed: 1 };
+    let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
+    let head = commands
+        .spawn((HairHead, groom, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0), Visibility::default(), ChildOf(body)))
+        .id();
+    // The hair rests on the skull, face, neck, shoulders and torso: each mesh carries a collider of its
+    // shape (the unit spheres scaled into ellipsoids by their transforms), tied to the head.
+    let collider = |shape: HairCollider| (shape, ColliderOf(head));
     let ellipsoid = |semi_axes: Vec3, centre: Vec3| Transform::from_translation(centre).with_scale(semi_axes);
-    commands.spawn((
-        HairHead,
-        groom,
-        Transform::from_xyz(0.0, NECK_HEIGHT, 0.0),
-        Visibility::default(),
-        ChildOf(body),
-        children![
+    commands.entity(body).with_children(|body| {
+        body.spawn((
+            part(Capsule3d::new(0.12, 0.7).into(), &shirt, Transform::from_xyz(0.0, 0.93, 0.0)),
+            collider(HairCollider::capsule(0.12, 0.35)),
+        ));
+        body.spawn((
+            part(
+                Capsule3d::new(0.06, 0.24).into(),
+                &shirt,
+                Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
+            ),
+            collider(HairCollider::capsule(0.06, 0.12)),
+        ));
+        body.spawn((
+            part(Cylinder::new(0.045, 0.14).into(), &skin, Transform::from_xyz(0.0, 1.47, 0.0)),
+            collider(HairCollider::capsule(0.045, 0.05)),
+        ));
+    });
+    commands.entity(head).with_children(|head| {
+        head.spawn((
             part(Sphere::new(1.0).mesh().uv(48, 24), &skin, ellipsoid(scalp.semi_axes, scalp.centre)),
-            // Face and jaw, in front of and below the skull (the face looks along −Z).
+            collider(HairCollider::sphere(1.0)),
+        ));
+        // Face and jaw, in front of and below the skull (the face looks along −Z).
+        head.spawn((
             part(
                 Sphere::new(1.0).mesh().uv(32, 16),
                 &skin,
-                ellipsoid(Vec3::new(0.062, 0.075, 0.07), Vec3::new(0.0, 0.065, -0.035))
+                ellipsoid(Vec3::new(0.062, 0.075, 0.07), Vec3::new(0.0, 0.065, -0.035)),
             ),
-            part(Sphere::new(0.011).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.084)),
-            part(Sphere::new(0.011).into(), &white, Transform::from_xyz(0.03, 0.115, -0.084)),
-            part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.0935)),
-            part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.0935)),
-            part(
-                Capsule3d::new(0.011, 0.03).into(),
-                &skin,
-                Transform::from_xyz(0.0, 0.085, -0.102).with_rotation(Quat::from_rotation_x(0.35))
-            ),
-            part(
+            collider(HairCollider::sphere(1.0)),
+        ));
+        head.spawn(part(Sphere::new(0.011).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.084)));
+        head.spawn(part(Sphere::new(0.011).into(), &white, Transform::from_xyz(0.03, 0.115, -0.084)));
+        head.spawn(part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.0935)));
+        head.spawn(part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.0935)));
+        head.spawn(part(
+            Capsule3d::new(0.011, 0.03).into(),
+            &skin,
+            Transform::from_xyz(0.0, 0.085, -0.102).with_rotation(Quat::from_rotation_x(0.35)),
+        ));
+        for side in [-1.0, 1.0] {
+            head.spawn(part(
                 Sphere::new(1.0).mesh().uv(16, 8),
                 &skin,
-                ellipsoid(Vec3::new(0.012, 0.028, 0.018), Vec3::new(-0.079, 0.1, 0.01))
-            ),
-            part(
-                Sphere::new(1.0).mesh().uv(16, 8),
-                &skin,
-                ellipsoid(Vec3::new(0.012, 0.028, 0.018), Vec3::new(0.079, 0.1, 0.01))
-            ),
-        ],
-    ));
+                ellipsoid(Vec3::new(0.012, 0.028, 0.018), Vec3::new(side * 0.079, 0.1, 0.01)),
+            ));
+        }
+    });
 }
 
 fn orbit_camera(
@@ -325,8 +347,12 @@ fn walk_body(time: Res<Time>, keys: Res<ButtonInput<KeyCode>>, mut bodies: Query
     }
 }
 
-/// Keys 1 to 5 pick the hair style.
-fn pick_style(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>) {
+/// Keys 1 to 5 pick the hair style; C shows or hides the colliders.
+fn hair_keys(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>, mut gizmos: ResMut<GizmoConfigStore>) {
+    if keys.just_pressed(KeyCode::KeyC) {
+        let hair_gizmos = gizmos.config_mut::<HairGizmos>().1;
+        hair_gizmos.draw_colliders = !hair_gizmos.draw_colliders;
+    }
     let keys_and_styles = [KeyCode::Digit1, KeyCode::Digit2, KeyCode::Digit3, KeyCode::Digit4, KeyCode::Digit5]
         .into_iter()
         .zip(HairStyle::ALL);
@@ -350,9 +376,11 @@ fn show_statistics(
     }
     *since_update = 0.0;
     let title = format!(
-        "bevy_hair_sim: {} strands, {} nodes, step {:.1} ms, {:.0} fps, strain {:.1e}, {} faults, head: {} (Space)",
+        "bevy_hair_sim: {} strands, {} nodes ({} in contact), step {:.1} ms, {:.0} fps, strain {:.1e}, {} faults, \
+         head: {} (Space)",
         statistics.strands,
         statistics.nodes,
+        statistics.contacts,
         1e3 * statistics.step_seconds,
         1.0 / time.delta_secs().max(1e-6),
         statistics.max_strain,
@@ -377,7 +405,7 @@ fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<Animatio
                 }
             }
         });
-        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style");
+        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · C: colliders");
     });
     Ok(())
 }

@@ -1,6 +1,7 @@
 //! A live panel (bevy_egui) to tune the hair and watch it: statistics with a plot of the step time, pause
 //! and single step, the groom of the heads (strand count, edges, style), [`HairSettings`], the default
-//! material in human units and the hair colours. Behind the `egui` feature.
+//! material in human units, collisions (margin, collider wireframes) and the hair colours. Behind the
+//! `egui` feature.
 
 use std::collections::VecDeque;
 
@@ -15,7 +16,7 @@ use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::Strand;
 
 /// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], every
-/// head's [`HairGroom`] and the [`HairGizmos`] colours. Adds `EguiPlugin` when the app has none. Needs a
+/// head's [`HairGroom`] and the [`HairGizmos`] colours and collider drawing. Adds `EguiPlugin` when the app has none. Needs a
 /// window and a camera (it draws in bevy_egui's primary context).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HairPanelPlugin;
@@ -94,8 +95,8 @@ fn hair_panel(
     let mut reset = false;
     let mut groom = memory.held_groom.or_else(|| grooms.iter().next().map(GroomEdit::from));
     let mut groom_held = false;
-    let mut colors = gizmo_store.as_ref().map(|store| store.config::<HairGizmos>().1.clone());
-    let shown_colors = colors.clone();
+    let mut drawing = gizmo_store.as_ref().map(|store| store.config::<HairGizmos>().1.clone());
+    let shown_drawing = drawing.clone();
     egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics, memory.frame_rate);
         step_time_plot(ui, &memory.step_milliseconds);
@@ -115,8 +116,9 @@ fn hair_panel(
         }
         ui.collapsing("simulation", |ui| settings_grid(ui, &mut edited));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
-        if let Some(colors) = colors.as_mut() {
-            ui.collapsing("colour", |ui| color_grid(ui, colors));
+        ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
+        if let Some(drawing) = drawing.as_mut() {
+            ui.collapsing("colour", |ui| color_grid(ui, drawing));
         }
     });
     if edited != *settings {
@@ -133,11 +135,10 @@ fn hair_panel(
             }
         }
     }
-    if let (Some(mut store), Some(colors)) =
-        (gizmo_store, colors.filter(|colors| Some(colors) != shown_colors.as_ref()))
+    if let (Some(mut store), Some(drawing)) =
+        (gizmo_store, drawing.filter(|drawing| Some(drawing) != shown_drawing.as_ref()))
     {
-        let (_, hair) = store.config_mut::<HairGizmos>();
-        (hair.root_color, hair.tip_color) = (colors.root_color, colors.tip_color);
+        *store.config_mut::<HairGizmos>().1 = drawing;
     }
     if reset {
         strands.iter_mut().for_each(|mut strand| strand.reset_to_rest());
@@ -157,6 +158,7 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
         row("frame rate", format!("{frame_rate:.0} fps"));
         row("largest strain", format!("{:.1e}", statistics.max_strain));
         row("Newton iterations", format!("{:.2} per strand", statistics.mean_newton_iterations));
+        row("nodes in contact", statistics.contacts.to_string());
         row("steps / skipped", format!("{} / {}", statistics.steps, statistics.skipped_steps));
         row("faults", statistics.faults.to_string());
     });
@@ -242,6 +244,20 @@ fn material_grid(ui: &mut egui::Ui, material: &mut RodMaterial) {
     }
     if (1e9 * youngs_gigapascals - material.youngs_modulus).abs() > 1.0 {
         *material = RodMaterial::round(radius, 1e9 * youngs_gigapascals, poisson_ratio, material.density);
+    }
+}
+
+/// The collision margin, and whether colliders are drawn (when hair is drawn at all).
+fn collision_grid(ui: &mut egui::Ui, settings: &mut HairSettings, drawing: Option<&mut HairGizmos>) {
+    let mut margin_millimetres = 1e3 * settings.collision_margin;
+    egui::Grid::new("hair collisions").num_columns(2).show(ui, |ui| {
+        grid_row(ui, "collision margin (mm)", egui::Slider::new(&mut margin_millimetres, 0.0..=10.0));
+    });
+    if (1e-3 * margin_millimetres - settings.collision_margin).abs() > 1e-7 {
+        settings.collision_margin = 1e-3 * margin_millimetres;
+    }
+    if let Some(drawing) = drawing {
+        ui.checkbox(&mut drawing.draw_colliders, "draw colliders");
     }
 }
 

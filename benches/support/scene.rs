@@ -1,7 +1,7 @@
 //! The benchmark scene, shared by `benches/hair_step.rs` and `examples/benchmark.rs`: a headless app with
 //! the real plugin, one head with `strands` straight 25 cm human hairs of `edges` edges (radius 40 µm,
 //! E = 3.5 GPa, ρ = 1300 kg/m³), gravity on, the head swaying and turning, one fixed step of 1/60 s per
-//! update.
+//! update; optionally up to 5 colliders (skull, face, neck, shoulders, torso) that the hair rests on.
 
 use bevy::app::TaskPoolPlugin;
 use bevy::prelude::*;
@@ -13,6 +13,22 @@ use bevy_hair_sim::prelude::*;
 pub const HAIR_LENGTH: f32 = 0.25;
 /// Steps run before measuring: the hair falls from straight out and starts to swing.
 pub const WARM_UP_STEPS: usize = 60;
+
+/// The colliders [`Scene::with_colliders`] adds, in order: the skull and face turn with the head, the
+/// neck, shoulders and torso stay below it. Positions are relative to the head's rest position, m.
+fn body_colliders() -> [(HairCollider, Transform, bool); 5] {
+    [
+        (HairCollider::sphere(0.1), Transform::default(), true),
+        (HairCollider::ellipsoid(Vec3::new(0.062, 0.075, 0.07)), Transform::from_xyz(0.0, -0.055, -0.035), true),
+        (HairCollider::capsule(0.045, 0.05), Transform::from_xyz(0.0, -0.15, 0.0), false),
+        (
+            HairCollider::capsule(0.06, 0.12),
+            Transform::from_xyz(0.0, -0.24, 0.0).with_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+            false,
+        ),
+        (HairCollider::capsule(0.12, 0.35), Transform::from_xyz(0.0, -0.67, 0.0), false),
+    ]
+}
 
 /// A hair scene ready to step.
 pub struct Scene {
@@ -47,6 +63,25 @@ impl Scene {
             })
             .id();
         Self { app, head, step: 0 }
+    }
+
+    /// Adds the first `count` (at most 5) of the skull, face, neck, shoulders and torso colliders.
+    pub fn with_colliders(mut self, count: usize) -> Self {
+        let head = self.head;
+        let head_position = Vec3::new(0.0, 1.6, 0.0);
+        for (collider, transform, on_head) in body_colliders().into_iter().take(count) {
+            let world = self.app.world_mut();
+            if on_head {
+                world.spawn((collider, transform, ColliderOf(head), ChildOf(head)));
+            } else {
+                world.spawn((
+                    collider,
+                    transform.with_translation(head_position + transform.translation),
+                    ColliderOf(head),
+                ));
+            }
+        }
+        self
     }
 
     /// Moves the head (a sway of 5 cm and a turn of ±0.4 rad, about once a second) and runs one step.

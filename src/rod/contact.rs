@@ -21,6 +21,8 @@
 //! Cost: per step and strand, one bounding-box test per collider; then, per collider near the strand and
 //! per Newton iteration, one cheap distance bound per node, and exact tests only for what can touch it.
 
+use std::ops::Range;
+
 use bevy::math::{DMat3, DVec3};
 
 use super::banded::BandedMatrix;
@@ -101,8 +103,10 @@ fn is_sticking(slip: DVec3, sticking_slip: f64) -> bool {
 
 /// A collider near the rod, ready for per-node tests: its shape grown by the thickness, and the maps
 /// between its frame and the world at the start and end of the step.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 struct NearbyCollider {
+    /// The nodes that can come near it this step (from the first to the last); the others are not tested.
+    nodes: Range<usize>,
     shape: ColliderShape,
     /// Edges longer than this, m, can dip into the collider deeper than the thickness between two nodes
     /// that touch it (the sagitta `l² / 8ρ` of a chord on a surface of curvature radius `ρ`), so they are
@@ -117,7 +121,7 @@ struct NearbyCollider {
 }
 
 impl NearbyCollider {
-    fn new(collider: &MovingCollider, thickness: f64) -> Self {
+    fn new(collider: &MovingCollider, thickness: f64, nodes: Range<usize>) -> Self {
         let end_rotation = DMat3::from_quat(collider.end.rotation);
         // A plane grows by moving it out along its normal.
         let lift = |pose: &RigidPose| match collider.shape {
@@ -125,6 +129,7 @@ impl NearbyCollider {
             _ => pose.translation,
         };
         Self {
+            nodes,
             shape: collider.shape.inflated(thickness),
             edge_test_length: (8.0 * collider.shape.smallest_curvature_radius() * thickness).sqrt(),
             friction: collider.friction,
@@ -272,24 +277,32 @@ pub(crate) struct ContactScratch {
 }
 
 impl ContactScratch {
-    /// Keeps the colliders of `contacts` whose swept bounds come within `margin` of the box around
-    /// `positions`.
-    fn find_nearby<'a>(&mut self, contacts: &Contacts, positions: impl Iterator<Item = &'a DVec3>, margin: f64) {
-        let (low, high) = positions
-            .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(low, high), position| {
-                (low.min(*position), high.max(*position))
-            });
+    /// Keeps the colliders of `contacts` whose swept bounds come within `margin` of a node, at
+    /// `start_positions` or `positions`, or of an edge between them (`longest_edge` m long at most),
+    /// with the range of nodes that do.
+    fn find_nearby(
+        &mut self,
+        contacts: &Contacts,
+        start_positions: &[DVec3],
+        positions: &[DVec3],
+        longest_edge: f64,
+        margin: f64,
+    ) {
         self.nearby.clear();
-        self.nearby.extend(
-            contacts
-                .colliders
-                .iter()
-                .filter(|collider| {
-                    let (centre, radius) = collider.swept_bounds(contacts.thickness + margin);
-                    centre.clamp(low, high).distance_squared(centre) <= radius * radius
-                })
-                .map(|collider| NearbyCollider::new(collider, contacts.thickness)),
-        );
+        for collider in contacts.colliders {
+            // A point of an edge within the bounds puts one of its ends within half an edge of them.
+            let (centre, radius) = collider.swept_bounds(contacts.thickness + margin + 0.5 * longest_edge);
+            let near = |node: &usize| {
+                let nearest =
+                    start_positions[*node].distance_squared(centre).min(positions[*node].distance_squared(centre));
+                nearest <= radius * radius
+            };
+            let Some(first) = (0..positions.len()).find(near) else {
+                continue;
+            };
+            let last = (first..positions.len()).rev().find(near).unwrap_or(first);
+            self.nearby.push(NearbyCollider::new(collider, contacts.thickness, first..last + 1));
+        }
     }
 }
 
@@ -314,7 +327,7 @@ impl Rod {
         }
         let fastest = self.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
         let reach = 2.0 * (fastest * params.dt + params.gravity.length() * params.dt * params.dt);
-        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), reach);
+        scratch.find_nearby(contacts, start_positions, &self.positions, self.longest_rest_edge(), reach);
         // Room for every node touching every nearby collider, so that no later iterate allocates.
         scratch.touching.reserve(self.node_count() * scratch.nearby.len());
     }
@@ -323,6 +336,13 @@ impl Rod {
     /// `m (1/dt² + γ/dt)` (`inertia_scale` the bracket).
     fn contact_stiffness(&self, node: usize, inertia_scale: f64) -> f64 {
         CONTACT_STIFFNESS_RATIO * self.masses[node] * inertia_scale
+    }
+
+    /// The normal force, N, that stops `node` found `distance` m from a collider's surface (negative
+    /// inside) within the step: `m (1/dt² + γ/dt) (−d)`, what the contact spring settles to when the
+    /// node's inertia carried it that deep (`inertia_scale` the bracket); zero outside.
+    fn stopping_force(&self, node: usize, inertia_scale: f64, distance: f64) -> f64 {
+        self.masses[node] * inertia_scale * (-distance).max(0.0)
     }
 
     /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
@@ -347,7 +367,7 @@ impl Rod {
             contact.first_solve = first_solve;
         }
         for (index, collider) in nearby.iter().enumerate() {
-            for node in (0..self.node_count()).filter(|&node| !self.is_node_prescribed(node)) {
+            for node in collider.nodes.clone().filter(|&node| !self.is_node_prescribed(node)) {
                 let known = || touching.iter().any(|contact| contact.node == node && contact.collider == index);
                 if touched[node] && known() {
                     continue;
@@ -355,7 +375,10 @@ impl Rod {
                 if let Some(mut contact) =
                     collider.new_contact(index, node, self.positions[node], start_positions[node], CONTACT_GAP)
                 {
-                    // A node resting since the last step has its normal force from then.
+                    // A node resting since the last step has its normal force from then, one found inside
+                    // the force that stops it there.
+                    normal_forces[node] =
+                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
                     contact.first_solve = normal_forces[node] == 0.0;
                     touching.push(contact);
                     touched[node] = true;
@@ -392,8 +415,9 @@ impl Rod {
     }
 
     /// After a Newton solve: records each touching node's normal force where the update `node_update`
-    /// puts it (the spring's force, linearised), for the next iterate's friction, and zero for the other
-    /// nodes. Returns whether the update leaves the law it was linearised with: a touching node that
+    /// puts it (the spring's force, linearised), for the next iterate's friction; for a free node that
+    /// would sink into a collider, the force that stops it there (so its new contact has friction from
+    /// its first solve); zero for the other nodes. Returns whether the update leaves the law it was linearised with: a touching node that
     /// would pass from sticking to sliding, a new contact whose friction had no normal force yet, or a
     /// free node that would sink into a collider; the Newton iterations then go on. (A node that lifts off stays listed for
     /// the rest of the step, without force, so that the touching set only grows and the iterations end.)
@@ -422,9 +446,13 @@ impl Rod {
             contact.first_solve = false;
         }
         for (index, collider) in nearby.iter().enumerate() {
-            for node in (0..self.node_count()).filter(|&node| !touched[node] && !self.is_node_prescribed(node)) {
+            for node in collider.nodes.clone().filter(|&node| !touched[node] && !self.is_node_prescribed(node)) {
                 let position = self.positions[node] + node_update(node);
-                changed |= collider.new_contact(index, node, position, start_positions[node], 0.0).is_some();
+                if let Some(contact) = collider.new_contact(index, node, position, start_positions[node], 0.0) {
+                    normal_forces[node] =
+                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
+                    changed = true;
+                }
             }
         }
         changed
@@ -441,7 +469,7 @@ impl Rod {
         projection: &mut ProjectionScratch,
         scratch: &mut ContactScratch,
     ) -> (u32, u32) {
-        scratch.find_nearby(contacts, start_positions.iter().chain(&self.positions), 0.0);
+        scratch.find_nearby(contacts, start_positions, &self.positions, self.longest_rest_edge(), 0.0);
         let ContactScratch { nearby, touching, touched, before_projection, .. } = scratch;
         touched.clear();
         touched.resize(self.node_count(), false);
@@ -503,7 +531,7 @@ impl Rod {
         let ProjectionScratch { inverse_masses, contact_normals, .. } = projection;
         let mut moved = false;
         for collider in nearby {
-            for node in 0..self.node_count() {
+            for node in collider.nodes.clone() {
                 if self.is_node_prescribed(node) {
                     continue;
                 }
@@ -522,7 +550,7 @@ impl Rod {
                 }
             }
             // Edges at a prescribed node (a root inside its head) are left to their free node's test.
-            for edge in 0..self.edge_count() {
+            for edge in collider.nodes.start.saturating_sub(1)..collider.nodes.end.min(self.edge_count()) {
                 if self.is_node_prescribed(edge) || self.is_node_prescribed(edge + 1) {
                     continue;
                 }

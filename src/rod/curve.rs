@@ -167,6 +167,11 @@ impl Rod {
         self.rest_lengths.iter().sum()
     }
 
+    /// Rest length of the longest edge, m.
+    pub fn longest_rest_edge(&self) -> f64 {
+        self.rest_lengths.iter().copied().fold(0.0, f64::max)
+    }
+
     /// Lumped node masses `ρ A l_i` (Voronoi lengths), kg.
     pub fn masses(&self) -> &[f64] {
         &self.masses
