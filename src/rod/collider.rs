@@ -129,13 +129,20 @@ impl ColliderShape {
         }
     }
 
-    /// A lower bound on the distance from `point` to the shape, m (negative inside). Cheap: used to skip
-    /// points that cannot touch the shape this step.
+    /// A lower bound on the signed distance from `point` to the surface, m (negative inside); exact but
+    /// for ellipsoids. Cheap: used to skip points that cannot touch the shape this step.
     pub fn distance_bound(&self, point: DVec3) -> f64 {
         match *self {
             Self::Sphere { radius } => point.length() - radius,
             Self::Capsule { radius, half_length } => (point - capsule_axis_point(point, half_length)).length() - radius,
-            Self::Ellipsoid { semi_axes } => point.length() - semi_axes.max_element(),
+            // `point` lies on the ellipsoid scaled by `s`; the gap between the two surfaces is at least
+            // `(s − 1) a_min` outside (`sE = E ⊕ (s − 1)E ⊇ E ⊕ B((s − 1) a_min)`) and `(s − 1) a_max`
+            // inside (the surface point `point / s` is that close).
+            Self::Ellipsoid { semi_axes } => {
+                let scale = (point / semi_axes).length();
+                let axis = if scale >= 1.0 { semi_axes.min_element() } else { semi_axes.max_element() };
+                (scale - 1.0) * axis
+            }
             Self::Plane => point.y,
         }
     }
@@ -487,6 +494,27 @@ mod tests {
         assert!(surface.point.distance(DVec3::new(0.0, 0.15, 0.0)) < 1e-6);
         assert!(shape.segment_contact(DVec3::new(-0.2, 0.11, 0.0), DVec3::new(0.2, 0.11, 0.0)).is_none());
         assert!(ColliderShape::Plane.segment_contact(DVec3::NEG_Y, DVec3::X).is_none());
+    }
+
+    #[test]
+    fn distance_bounds_never_exceed_the_distance_to_the_surface() {
+        for shape in SHAPES {
+            for point in probe_points() {
+                let distance = if shape.contains(point) {
+                    -point.distance(shape.closest_surface_point(point).point)
+                } else {
+                    // Outside: the distance is the smallest over surface points, sampled by the
+                    // closest points of points inside along the way to the origin.
+                    (1..=400)
+                        .map(|k| point * (k as f64 / 400.0))
+                        .filter(|p| shape.contains(*p))
+                        .map(|p| point.distance(shape.closest_surface_point(p).point))
+                        .fold(f64::INFINITY, f64::min)
+                };
+                let bound = shape.distance_bound(point);
+                assert!(bound <= distance + 1e-12, "{shape:?} {point}: bound {bound} > distance {distance}");
+            }
+        }
     }
 
     #[test]
