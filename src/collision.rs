@@ -13,9 +13,11 @@
 //! colliders its strands meet with their poses at the last step and at this one, so a collider that moves
 //! or turns fast sweeps hair along instead of passing through it.
 //!
-//! Cost: per strand and step, one bounding test per collider of its head; per collider near the strand,
-//! a cheap distance bound per node and Newton iteration and exact tests only for nodes that can touch it.
-//! A head's colliders are gathered into one contiguous list each step, reusing its memory.
+//! Cost: per strand and step, a ball test per node and collider of its head; per collider near the
+//! strand, a cheap distance bound per nearby node and Newton iteration and exact tests only for nodes
+//! that can touch it; one more Newton iteration for a strand whose node lands or starts to slide. A
+//! head's colliders are gathered into one contiguous list each step, reusing its memory. Measured: the
+//! README's "Collisions" table (`cargo run --release --example benchmark collisions`).
 
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;

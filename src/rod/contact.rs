@@ -18,8 +18,10 @@
 //!   their colliders' tangent planes (which keeps them outside a convex collider), and the lengths are
 //!   restored last.
 //!
-//! Cost: per step and strand, one bounding-box test per collider; then, per collider near the strand and
-//! per Newton iteration, one cheap distance bound per node, and exact tests only for what can touch it.
+//! Cost: per step, strand and collider, two ball tests per node (before the solve and after it), which
+//! keep the range of nodes that can come near it; then, per Newton iteration, one cheap distance bound
+//! per node in that range and exact tests only for what can touch. A node that lands on a collider or
+//! starts sliding on it costs one more Newton iteration of its strand.
 
 use std::ops::Range;
 
