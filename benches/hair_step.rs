@@ -35,5 +35,5 @@ fn edges_of_1000_strands(bencher: Bencher, edges: usize) {
 fn strands_on_5_colliders(bencher: Bencher) {
     let mut scene = Scene::new(2000, 32, None).with_colliders(5);
     scene.warm_up();
-    bencher.counter(divan::counter::ItemsCount::new(2000 * 33)).bench_local(|| scene.step());
+    bencher.counter(divan::counter::ItemsCount::new(2000_usize * 33)).bench_local(|| scene.step());
 }

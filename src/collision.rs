@@ -19,10 +19,9 @@
 //! head's colliders are gathered into one contiguous list each step, reusing its memory. Measured: the
 //! README's "Collisions" table (`cargo run --release --example benchmark collisions`).
 
+use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
-
-use bevy::ecs::system::SystemParam;
 
 use crate::head::{HairHead, HeadPose, HeadStrands, StrandOf};
 use crate::rod::{ColliderShape, MovingCollider, RigidPose};
@@ -285,18 +284,17 @@ pub(crate) fn track_colliders(
     }
 }
 
-/// The colliders a head with these filters meets, and the free strands' shared set.
-#[allow(clippy::type_complexity)]
+/// Gathers the free strands' set (the shared colliders) and each head's: its own colliders, the shared
+/// ones and those its [`HairCollisionFilter`] includes, less those it excludes.
 pub(crate) fn gather_colliders(
     mut heads: Query<(Entity, &mut HeadColliderSet, Option<&HairCollisionFilter>)>,
     mut shared_set: ResMut<SharedColliderSet>,
     colliders: Query<(Entity, &ColliderMotion, Option<&ColliderOf>, Has<SharedHairCollider>)>,
     head_colliders: Query<&HeadColliders>,
 ) {
-    let is_shared = |of: Option<&ColliderOf>, shared: bool| of.is_none() || shared;
     shared_set.0.clear();
     for (entity, motion, of, shared) in &colliders {
-        if is_shared(of, shared) {
+        if of.is_none() || shared {
             shared_set.0.add(entity, motion);
         }
     }
@@ -316,11 +314,7 @@ pub(crate) fn gather_colliders(
         };
         let own = head_colliders.get(head).map(HeadColliders::colliders).unwrap_or_default();
         own.iter().copied().for_each(&mut add);
-        for (entity, _, of, shared) in &colliders {
-            if is_shared(of, shared) {
-                add(entity);
-            }
-        }
+        shared_set.0.entities().iter().copied().for_each(&mut add);
         for &included in filter.map(|filter| filter.include.as_slice()).unwrap_or_default() {
             match head_colliders.get(included) {
                 Ok(theirs) => theirs.colliders().iter().copied().for_each(&mut add),
