@@ -18,8 +18,15 @@ fn sphere_penetration(rod: &Rod, centre: DVec3, radius: f64) -> f64 {
 
 #[test]
 fn a_strand_dropped_on_a_sphere_drapes_over_it_and_comes_to_rest() {
+    for friction in [0.1, 0.4, 1.0, 2.0] {
+        drape_on_a_sphere(friction);
+    }
+}
+
+/// Drops a free 20 cm hair on a 5 cm ball with friction `friction` and checks it drapes and rests.
+fn drape_on_a_sphere(friction: f64) {
     let (centre, radius) = (DVec3::ZERO, 0.05);
-    let sphere = MovingCollider::fixed(ColliderShape::sphere(radius), 0.4, RigidPose::default());
+    let sphere = MovingCollider::fixed(ColliderShape::sphere(radius), friction, RigidPose::default());
     let colliders = [sphere];
     let contacts = Contacts { colliders: &colliders, thickness: THICKNESS };
     // A free 20 cm hair, level, its middle 2 cm above the top of the sphere.
@@ -38,20 +45,20 @@ fn a_strand_dropped_on_a_sphere_drapes_over_it_and_comes_to_rest() {
     let ends = [rod.positions()[0], rod.positions()[32]];
     let middle = rod.positions()[16];
     println!(
-        "deepest {:.3e} m, contacts {touched}, speed {:.3e} m/s, middle {middle}, ends {ends:?}",
+        "μ = {friction}: deepest {:.3e} m, contacts {touched}, speed {:.3e} m/s, middle {middle}, ends {ends:?}",
         deepest,
         max_speed(&rod)
     );
-    assert!(deepest <= 1e-4, "a node went {deepest:e} m into the sphere");
-    assert!(max_speed(&rod) < 1e-3, "still moving at {} m/s after 5 s", max_speed(&rod));
+    assert!(deepest <= 1e-4, "μ = {friction}: a node went {deepest:e} m into the sphere");
+    assert!(max_speed(&rod) < 1e-3, "μ = {friction}: still moving at {} m/s after 5 s", max_speed(&rod));
     // Draped: the middle rests on top, near where it landed, and both halves hang down the sides, below
     // the equator (hair this stiff, 5 cm bending length, does not hug a 5 cm ball all the way).
-    assert!((middle.distance(centre) - radius - THICKNESS).abs() < 1e-4, "middle {middle}");
-    assert!(middle.x.abs() < 1e-3 && (middle.z - 0.003).abs() < 2e-3, "the middle slid to {middle}");
+    assert!((middle.distance(centre) - radius - THICKNESS).abs() < 1e-4, "μ = {friction}: middle {middle}");
+    assert!(middle.x.abs() < 1e-3 && (middle.z - 0.003).abs() < 2e-3, "μ = {friction}: the middle slid to {middle}");
     for end in ends {
-        assert!(end.y < 0.0 && end.x.abs() > radius, "an end hangs down the side: {end}");
+        assert!(end.y < 0.0 && end.x.abs() > radius, "μ = {friction}: an end hangs down the side: {end}");
     }
-    assert!(touched >= 8, "{touched} nodes touched");
+    assert!(touched >= 8, "μ = {friction}: {touched} nodes touched");
 }
 
 /// A free strand lying across a plane tilted by `angle`, for 2 s: how far its centre moved down the slope.
