@@ -5,7 +5,7 @@
 //! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
 //! started to swing.
 //!
-//! Arguments: the tables to print (`scaling`, `collisions`, `parallel`, `memory`; all by default), `--quick` to measure
+//! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`; all by default), `--quick` to measure
 //! fewer steps, `--threads N` for the compute threads (one per core by default). Bevy's task pools are
 //! set once per process, so the parallel table runs this program again with `--threads`.
 
@@ -18,9 +18,12 @@ use std::process::Command;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+use bevy::math::DVec3;
 use bevy::tasks::available_parallelism;
+use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::rod::{Contacts, MovingCollider, RigidPose, StepTimings};
 use counting_allocator::BYTES_IN_USE;
-use scene::Scene;
+use scene::{HAIR_LENGTH, Scene, WARM_UP_STEPS};
 
 /// Median wall time of `steps` steps, s, after the warm-up, with `colliders` colliders.
 fn median_step_seconds(strands: usize, edges: usize, colliders: usize, threads: usize, steps: usize) -> f64 {
@@ -89,6 +92,9 @@ fn main() {
     if wanted("scaling") {
         scaling(threads, steps);
     }
+    if wanted("parts") {
+        parts_of_a_step();
+    }
     if wanted("collisions") {
         collisions(threads, steps);
     }
@@ -124,6 +130,72 @@ fn scaling(threads: usize, steps: usize) {
             previous_edges[row] = Some(seconds);
         }
     }
+}
+
+/// One strand's step split into its parts (`RodWorkspace::time_parts`), in the mechanics core: 100 of
+/// the scene's strands stepped one after another on one thread with the scene's head motion, without
+/// and with the 10 cm skull as a collider.
+fn parts_of_a_step() {
+    let (strands, edges, steps) = (100, 32, 600);
+    let roots = Scalp::default().roots(strands).expect("the default scalp holds 100 roots");
+    let skull = MovingCollider::fixed(ColliderShape::sphere(0.1), 0.4, RigidPose::default());
+    println!();
+    println!("One strand's step in parts ({edges} edges, mean of {strands} strands × {steps} steps, one thread):");
+    println!("| part | µs, no collider | share | µs, on the skull | share |");
+    println!("|---|---:|---:|---:|---:|");
+    let timings = [false, true].map(|with_skull| {
+        let mut workspace = RodWorkspace::default();
+        let mut rods: Vec<Rod> = roots
+            .iter()
+            .map(|root| {
+                let (root, normal) = (root.position.as_dvec3(), root.normal.as_dvec3());
+                let nodes: Vec<DVec3> = (0..=edges)
+                    .map(|node| root + normal * f64::from(HAIR_LENGTH) * node as f64 / edges as f64)
+                    .collect();
+                Rod::new(&nodes, normal.any_orthonormal_vector(), RodMaterial::human_hair()).expect("a valid strand")
+            })
+            .collect();
+        let anchors: Vec<[DVec3; 2]> = rods.iter().map(|rod| [rod.positions()[0], rod.positions()[1]]).collect();
+        let material_directions: Vec<DVec3> = rods.iter().map(|rod| rod.material_frame(0).m1).collect();
+        let mut skull = skull;
+        for step in 0..WARM_UP_STEPS + steps {
+            if step == WARM_UP_STEPS {
+                workspace.time_parts(true);
+            }
+            let pose = |step: usize| {
+                let (translation, rotation) = Scene::head_pose(step);
+                RigidPose::new(rotation.as_dquat(), translation.as_dvec3())
+            };
+            (skull.start, skull.end) = (pose(step), pose(step + 1));
+            let colliders = [skull];
+            let contacts = Contacts { colliders: if with_skull { &colliders } else { &[] }, thickness: 1e-3 };
+            let head = skull.end;
+            for ((rod, anchor), direction) in rods.iter_mut().zip(&anchors).zip(&material_directions) {
+                let [root, next] = anchor.map(|point| head.to_world(point));
+                rod.clamp_edge(0, root, next, head.rotation * *direction).expect("a valid clamp");
+                rod.step_with_contacts(&StepParams::default(), None, &contacts, &mut workspace).expect("a stable step");
+            }
+        }
+        *workspace.part_timings().expect("timing is on")
+    });
+    let per_step =
+        |time: std::time::Duration, timings: &StepTimings| 1e6 * time.as_secs_f64() / f64::from(timings.steps);
+    for index in 0..5 {
+        let row = timings.map(|timings| {
+            let (name, time) = timings.parts()[index];
+            (name, per_step(time, &timings), time.as_secs_f64() / timings.total().as_secs_f64())
+        });
+        println!(
+            "| {} | {:.2} | {:.0} % | {:.2} | {:.0} % |",
+            row[0].0,
+            row[0].1,
+            100.0 * row[0].2,
+            row[1].1,
+            100.0 * row[1].2
+        );
+    }
+    let totals = timings.map(|timings| per_step(timings.total(), &timings));
+    println!("| whole step | {:.2} | 100 % | {:.2} | 100 % |", totals[0], totals[1]);
 }
 
 /// Cost against strands and colliders (skull, face, neck, shoulders, torso), 32 edges: the collision

@@ -84,13 +84,20 @@ impl Scene {
         self
     }
 
-    /// Moves the head (a sway of 5 cm and a turn of ±0.4 rad, about once a second) and runs one step.
+    /// The head's position and orientation at step `step`: a sway of 5 cm and a turn of ±0.4 rad, about
+    /// once a second, at 1.6 m.
+    pub fn head_pose(step: usize) -> (Vec3, Quat) {
+        let time = step as f32 / 60.0;
+        let sway = 0.05 * (std::f32::consts::TAU * 0.8 * time).sin();
+        (Vec3::new(sway, 1.6, 0.0), Quat::from_rotation_y(0.4 * (std::f32::consts::TAU * 0.5 * time).sin()))
+    }
+
+    /// Moves the head to [`Scene::head_pose`] and runs one step.
     pub fn step(&mut self) {
         self.step += 1;
-        let time = self.step as f32 / 60.0;
+        let (translation, rotation) = Self::head_pose(self.step);
         let mut head = self.app.world_mut().get_mut::<Transform>(self.head).expect("the head exists");
-        head.translation.x = 0.05 * (std::f32::consts::TAU * 0.8 * time).sin();
-        head.rotation = Quat::from_rotation_y(0.4 * (std::f32::consts::TAU * 0.5 * time).sin());
+        (head.translation, head.rotation) = (translation, rotation);
         self.app.update();
     }
 

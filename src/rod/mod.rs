@@ -33,6 +33,7 @@ pub mod frames;
 mod material;
 mod projection;
 mod solver;
+mod timing;
 
 #[cfg(test)]
 pub(crate) mod test_support;
@@ -45,3 +46,4 @@ pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};
 pub use material::{RodMaterial, Stiffness};
 pub use solver::{RodWorkspace, StepParams, StepReport};
+pub use timing::StepTimings;

@@ -34,6 +34,7 @@ use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count,
 use super::error::{RodError, StepError};
 use super::frames::{perpendicular_unit, signed_angle};
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
+use super::timing::{Part, StepTimings, Stopwatch};
 
 /// Parameters of one time step.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -162,6 +163,20 @@ pub struct RodWorkspace {
     carried: SavedState,
     projection: ProjectionScratch,
     contacts: ContactScratch,
+    stopwatch: Stopwatch,
+}
+
+impl RodWorkspace {
+    /// Starts (or stops) timing the parts of every step taken with this workspace, from zero: see
+    /// [`RodWorkspace::part_timings`]. Off by default.
+    pub fn time_parts(&mut self, enabled: bool) {
+        self.stopwatch.set_enabled(enabled);
+    }
+
+    /// The time spent in each part of the steps since [`RodWorkspace::time_parts`] turned timing on.
+    pub fn part_timings(&self) -> Option<&StepTimings> {
+        self.stopwatch.timings()
+    }
 }
 
 /// The rod's state at the start of a step, to measure displacements and to restore after a failure.
@@ -241,6 +256,7 @@ impl Rod {
                 return Err(RodError::NonFiniteForce { node, force }.into());
             }
         }
+        workspace.stopwatch.start_step();
         workspace.saved.save(self);
         let result = self.integrate(params, external_forces, contacts, workspace);
         if result.is_err() {
@@ -257,9 +273,12 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
         self.carry_with_first_clamp(&mut workspace.material_directions);
+        workspace.stopwatch.lap(Part::Frames);
         workspace.carried.save(self);
         workspace.projection.use_rod_masses(self);
+        workspace.stopwatch.lap(Part::Forces);
         self.begin_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
+        workspace.stopwatch.lap(Part::Collisions);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
@@ -273,10 +292,12 @@ impl Rod {
                 self.snap_to_targets();
             }
             projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
+            workspace.stopwatch.lap(Part::Constraints);
             if last {
                 break;
             }
             self.refresh_frames();
+            workspace.stopwatch.lap(Part::Frames);
         }
         let mut contact_count = 0;
         if !contacts.colliders.is_empty() {
@@ -289,8 +310,10 @@ impl Rod {
             );
             contact_count = in_contact;
             projection_iterations += iterations;
+            workspace.stopwatch.lap(Part::Collisions);
         }
         self.refresh_frames();
+        workspace.stopwatch.lap(Part::Frames);
 
         let saved = &workspace.saved;
         let inverse_dt = 1.0 / params.dt;
@@ -312,6 +335,7 @@ impl Rod {
         if max_strain > params.divergence_strain {
             return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
         }
+        workspace.stopwatch.lap(Part::Forces);
         Ok(StepReport { max_strain, newton_iterations, projection_iterations, contacts: contact_count })
     }
 
@@ -387,6 +411,7 @@ impl Rod {
             carried,
             projection,
             contacts,
+            stopwatch,
             ..
         } = workspace;
         let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
@@ -457,7 +482,9 @@ impl Rod {
                 inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
+        stopwatch.lap(Part::Forces);
         self.add_contact_forces(contacts, &saved.positions, params, inertia_scale, residual, hessian);
+        stopwatch.lap(Part::Collisions);
 
         // Prescribed unknowns move by their remaining displacement `d`: their rows become identity rows
         // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
@@ -496,8 +523,10 @@ impl Rod {
         hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
+        stopwatch.lap(Part::Solve);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let contacts_changed = self.update_contacts(contacts, &saved.positions, params, inertia_scale, node_update);
+        stopwatch.lap(Part::Collisions);
         let largest_turn = (0..self.edge_count())
             .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
             .map(|edge| {
@@ -532,6 +561,7 @@ impl Rod {
             self.twist[edge] += fraction * residual[twist_dof(edge)];
         }
         // The frames are refreshed once the projection has moved the nodes (see `integrate`).
+        stopwatch.lap(Part::Solve);
         Ok((fraction, contacts_changed))
     }
 }
