@@ -32,7 +32,7 @@ use super::contact::{ContactScratch, Contacts};
 use super::curve::Rod;
 use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
-use super::frames::{perpendicular_unit, signed_angle};
+use super::frames::perpendicular_unit;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
 use super::timing::{Part, StepTimings, Stopwatch};
 
@@ -157,7 +157,6 @@ pub struct RodWorkspace {
     displacement: Vec<f64>,
     damping_force: Vec<f64>,
     prescribed: Vec<f64>,
-    material_directions: Vec<DVec3>,
     edges: Vec<EdgeGeometry>,
     saved: SavedState,
     carried: SavedState,
@@ -272,7 +271,7 @@ impl Rod {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
-        self.carry_with_first_clamp(&mut workspace.material_directions);
+        self.carry_with_first_clamp();
         workspace.stopwatch.lap(Part::Frames);
         workspace.carried.save(self);
         workspace.projection.use_rod_masses(self);
@@ -344,7 +343,7 @@ impl Rod {
     /// of the Newton iterations changes, not the equations they solve; starting here, the iterations
     /// need only resolve the hair's motion relative to its root, which is what their linearisation and
     /// trust region handle well, even when a head moves centimetres per step.
-    fn carry_with_first_clamp(&mut self, material_directions: &mut Vec<DVec3>) {
+    fn carry_with_first_clamp(&mut self) {
         let first_clamp = (0..self.edge_count()).find_map(|edge| {
             Some((edge, self.node_targets[edge]?, self.node_targets[edge + 1]?, self.twist_targets[edge]?))
         });
@@ -359,18 +358,15 @@ impl Rod {
         let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1))
             * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
         let pivot = self.positions[edge];
-        material_directions.clear();
-        material_directions.extend((0..self.edge_count()).map(|e| rotation * self.material_frame(e).m1));
         for (node, position) in self.positions.iter_mut().enumerate() {
             *position = match self.node_targets[node] {
                 Some(target) if node == edge || node == edge + 1 => target,
                 _ => start + rotation * (*position - pivot),
             };
         }
-        self.refresh_frames();
-        for (e, carried) in material_directions.iter().enumerate() {
-            let frame = self.material_frame(e);
-            self.twist[e] += signed_angle(frame.m1, *carried, frame.tangent);
+        // The frames turn with the strand: reference twist and twists are unchanged by a rigid motion.
+        for (tangent, director) in self.tangents.iter_mut().zip(&mut self.reference_directors) {
+            (*tangent, *director) = (rotation * *tangent, rotation * *director);
         }
     }
 
