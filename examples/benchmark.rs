@@ -5,9 +5,10 @@
 //! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
 //! started to swing.
 //!
-//! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`; all by default), `--quick` to measure
-//! fewer steps, `--threads N` for the compute threads (one per core by default). Bevy's task pools are
-//! set once per process, so the parallel table runs this program again with `--threads`.
+//! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`; all by
+//! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
+//! default). Bevy's task pools are set once per process, so the parallel table runs this program again
+//! with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;

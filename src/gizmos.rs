@@ -18,8 +18,8 @@ pub struct HairGizmos {
     pub root_color: Color,
     /// Colour at each strand's tip; nodes in between blend linearly.
     pub tip_color: Color,
-    /// Whether every [`crate::collision::HairCollider`] is drawn as a wireframe (its solid, without the strands' collision
-    /// thickness), for tuning colliders against a mesh. Default off.
+    /// Whether every [`crate::collision::HairCollider`] is drawn as a wireframe (its solid, without the
+    /// strands' collision thickness), for tuning colliders against a mesh. Default off.
     pub draw_colliders: bool,
     /// Colour of the collider wireframes.
     pub collider_color: Color,

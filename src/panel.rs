@@ -16,8 +16,8 @@ use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::Strand;
 
 /// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], every
-/// head's [`HairGroom`] and the [`HairGizmos`] colours and collider drawing. Adds `EguiPlugin` when the app has none. Needs a
-/// window and a camera (it draws in bevy_egui's primary context).
+/// head's [`HairGroom`] and the [`HairGizmos`] colours and collider drawing. Adds `EguiPlugin` when the
+/// app has none. Needs a window and a camera (it draws in bevy_egui's primary context).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HairPanelPlugin;
 

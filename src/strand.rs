@@ -166,7 +166,6 @@ impl Strand {
             }
             rod.set_natural_curvature(DVec2::new(f64::from(curvature.x), f64::from(curvature.y)));
         }
-        let collision_thickness = spec.collision_thickness.map(f64::from);
         if let Some(thickness) = spec.collision_thickness
             && !(thickness.is_finite() && thickness >= 0.0)
         {
@@ -179,7 +178,7 @@ impl Strand {
             spawn_head: pose,
             head: pose,
             follows_default_material: spec.material.is_none(),
-            collision_thickness,
+            collision_thickness: spec.collision_thickness.map(f64::from),
             last_report: None,
             snap_pose: true,
             workspace: RodWorkspace::default(),
@@ -244,8 +243,9 @@ impl Strand {
         self.rod.clamp_edge(0, start, end, material_direction)
     }
 
-    /// Advances the strand by one step, kept outside the colliders of `contacts`. A step that fails on invalid input (a non-finite force) changes
-    /// nothing; any other failure (divergence) resets the strand to its rest pose on its head.
+    /// Advances the strand by one step, kept outside the colliders of `contacts`. A step that fails on
+    /// invalid input (a non-finite force) changes nothing; any other failure (divergence) resets the
+    /// strand to its rest pose on its head.
     pub(crate) fn advance(
         &mut self,
         params: &StepParams,

@@ -419,10 +419,11 @@ impl Rod {
     /// After a Newton solve: records each touching node's normal force where the update `node_update`
     /// puts it (the spring's force, linearised), for the next iterate's friction; for a free node that
     /// would sink into a collider, the force that stops it there (so its new contact has friction from
-    /// its first solve); zero for the other nodes. Returns whether the update leaves the law it was linearised with: a touching node that
-    /// would pass from sticking to sliding, a new contact whose friction had no normal force yet, or a
-    /// free node that would sink into a collider; the Newton iterations then go on. (A node that lifts off stays listed for
-    /// the rest of the step, without force, so that the touching set only grows and the iterations end.)
+    /// its first solve); zero for the other nodes. Returns whether the update leaves the law it was
+    /// linearised with: a touching node that would pass from sticking to sliding, a new contact whose
+    /// friction had no normal force yet, or a free node that would sink into a collider; the Newton
+    /// iterations then go on. (A node that lifts off stays listed for the rest of the step, without
+    /// force, so that the touching set only grows and the iterations end.)
     pub(crate) fn update_contacts(
         &self,
         scratch: &mut ContactScratch,
