@@ -144,8 +144,9 @@ fn parts_of_a_step() {
     println!("One strand's step in parts ({edges} edges, mean of {strands} strands × {steps} steps, one thread):");
     println!("| part | µs, no collider | share | µs, on the skull | share |");
     println!("|---|---:|---:|---:|---:|");
-    let timings = [false, true].map(|with_skull| {
+    let runs = [false, true].map(|with_skull| {
         let mut workspace = RodWorkspace::default();
+        let (mut newton_iterations, mut projection_iterations) = (0u64, 0u64);
         let mut rods: Vec<Rod> = roots
             .iter()
             .map(|root| {
@@ -174,11 +175,20 @@ fn parts_of_a_step() {
             for ((rod, anchor), direction) in rods.iter_mut().zip(&anchors).zip(&material_directions) {
                 let [root, next] = anchor.map(|point| head.to_world(point));
                 rod.clamp_edge(0, root, next, head.rotation * *direction).expect("a valid clamp");
-                rod.step_with_contacts(&StepParams::default(), None, &contacts, &mut workspace).expect("a stable step");
+                let report = rod
+                    .step_with_contacts(&StepParams::default(), None, &contacts, &mut workspace)
+                    .expect("a stable step");
+                if step >= WARM_UP_STEPS {
+                    newton_iterations += u64::from(report.newton_iterations);
+                    projection_iterations += u64::from(report.projection_iterations);
+                }
             }
         }
-        *workspace.part_timings().expect("timing is on")
+        let strand_steps = (strands * steps) as f64;
+        let iterations = [newton_iterations, projection_iterations].map(|count| count as f64 / strand_steps);
+        (*workspace.part_timings().expect("timing is on"), iterations)
     });
+    let timings = runs.map(|(timings, _)| timings);
     let per_step =
         |time: std::time::Duration, timings: &StepTimings| 1e6 * time.as_secs_f64() / f64::from(timings.steps);
     for index in 0..5 {
@@ -197,6 +207,9 @@ fn parts_of_a_step() {
     }
     let totals = timings.map(|timings| per_step(timings.total(), &timings));
     println!("| whole step | {:.2} | 100 % | {:.2} | 100 % |", totals[0], totals[1]);
+    let [(_, without), (_, with)] = runs;
+    println!("| Newton iterations per step | {:.2} | | {:.2} | |", without[0], with[0]);
+    println!("| projection iterations per step | {:.2} | | {:.2} | |", without[1], with[1]);
 }
 
 /// Cost against strands and colliders (skull, face, neck, shoulders, torso), 32 edges: the collision
