@@ -3,17 +3,25 @@
 //! A strand's implicit system couples each unknown only to its neighbours within a fixed half-bandwidth
 //! (10 for the `x₀, θ⁰, x₁, θ¹, …` ordering), so a banded Cholesky solves it in `O(n · bandwidth²)` with
 //! no allocation once the storage has its size.
+//!
+//! The half-bandwidth is a compile-time constant and the storage has `HALF_BANDWIDTH` extra identity
+//! rows after the last, so every loop over a band has a fixed length with no clamping at the ends: the
+//! compiler unrolls and vectorises them (a strand's matrix is small, ~130 rows, where loop overhead
+//! would otherwise cost more than the arithmetic).
 
-/// Lower band of a symmetric matrix, stored row by row: row `i` holds columns `i − bandwidth ..= i`.
+/// Lower band of a symmetric matrix, stored row by row: row `i` holds columns `i − HALF_BANDWIDTH ..= i`
+/// (entries left of column 0 are zero).
 #[derive(Debug, Clone, Default)]
-pub struct BandedMatrix {
+pub struct BandedMatrix<const HALF_BANDWIDTH: usize> {
     size: usize,
-    bandwidth: usize,
+    /// `(size + HALF_BANDWIDTH) × (HALF_BANDWIDTH + 1)` entries: the rows, then the identity padding.
     values: Vec<f64>,
     /// `1 / L(i, i)` after [`BandedMatrix::factorize`].
     inverse_diagonal: Vec<f64>,
-    /// Scratch: the column of `L` being applied during [`BandedMatrix::factorize`].
-    column: Vec<f64>,
+    /// Scratch for products and solves: a vector with `HALF_BANDWIDTH` zeros on each side.
+    padded: Vec<f64>,
+    /// Scratch: the result of a product, padded like `padded`.
+    product: Vec<f64>,
 }
 
 /// The factorisation met a non-positive pivot: the matrix is not positive definite.
@@ -23,14 +31,19 @@ pub struct NotPositiveDefinite {
     pub row: usize,
 }
 
-impl BandedMatrix {
-    /// Resizes to `size × size` with the given half-bandwidth and sets every entry to zero.
-    /// Allocates only when the storage grows.
-    pub fn reset(&mut self, size: usize, bandwidth: usize) {
+impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
+    /// Entries stored per row.
+    const WIDTH: usize = HALF_BANDWIDTH + 1;
+
+    /// Resizes to `size × size` and sets every entry to zero. Allocates only when the storage grows.
+    pub fn reset(&mut self, size: usize) {
+        let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
         self.size = size;
-        self.bandwidth = bandwidth;
         self.values.clear();
-        self.values.resize(size * (bandwidth + 1), 0.0);
+        self.values.resize((size + band) * width, 0.0);
+        for row in size..size + band {
+            self.values[row * width + band] = 1.0;
+        }
     }
 
     /// Number of rows.
@@ -40,8 +53,8 @@ impl BandedMatrix {
 
     #[inline]
     fn index(&self, row: usize, column: usize) -> usize {
-        debug_assert!(column <= row && row - column <= self.bandwidth);
-        row * (self.bandwidth + 1) + self.bandwidth + column - row
+        debug_assert!(column <= row && row - column <= HALF_BANDWIDTH && row < self.size);
+        row * Self::WIDTH + HALF_BANDWIDTH + column - row
     }
 
     /// Entry `(row, column)` of the lower band (`column ≤ row`).
@@ -58,15 +71,23 @@ impl BandedMatrix {
         self.values[index] += value;
     }
 
+    /// The stored bands of `rows`, one after another, `HALF_BANDWIDTH + 1` entries each: entry
+    /// `HALF_BANDWIDTH − (row − column)` of a row's band is `(row, column)`, for the columns
+    /// `row − HALF_BANDWIDTH ..= row` (those left of column 0 must stay zero).
+    #[inline]
+    pub fn band_rows_mut(&mut self, rows: std::ops::Range<usize>) -> &mut [f64] {
+        assert!(rows.end <= self.size, "rows {rows:?} of a {} × {} matrix", self.size, self.size);
+        &mut self.values[rows.start * Self::WIDTH..rows.end * Self::WIDTH]
+    }
+
     /// Replaces row and column `dof` by those of the identity, decoupling that unknown.
     pub fn set_identity_row(&mut self, dof: usize) {
-        let first = dof.saturating_sub(self.bandwidth);
-        for column in first..dof {
+        let band = HALF_BANDWIDTH;
+        for column in dof.saturating_sub(band)..dof {
             let index = self.index(dof, column);
             self.values[index] = 0.0;
         }
-        let last = (dof + self.bandwidth).min(self.size - 1);
-        for row in dof + 1..=last {
+        for row in dof + 1..=(dof + band).min(self.size - 1) {
             let index = self.index(row, dof);
             self.values[index] = 0.0;
         }
@@ -76,37 +97,43 @@ impl BandedMatrix {
 
     /// Multiplies every entry by `factor`.
     pub fn scale(&mut self, factor: f64) {
-        self.values.iter_mut().for_each(|value| *value *= factor);
+        let stored = self.size * Self::WIDTH;
+        self.values[..stored].iter_mut().for_each(|value| *value *= factor);
     }
 
     /// `out = A x` for the symmetric matrix.
-    pub fn multiply(&self, x: &[f64], out: &mut [f64]) {
+    pub fn multiply(&mut self, x: &[f64], out: &mut [f64]) {
         self.multiply_columns(0..self.size, x, out);
     }
 
     /// `out = A x` where only `x[columns]` may be non-zero: costs `O(columns · bandwidth)`, so a few
     /// prescribed unknowns do not pay for the whole matrix.
-    pub fn multiply_columns(&self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
-        let width = self.bandwidth + 1;
-        let (x, out) = (&x[..self.size], &mut out[..self.size]);
-        out.fill(0.0);
-        for column in columns.start..columns.end.min(self.size) {
-            let value = x[column];
-            if value == 0.0 {
-                continue;
+    pub fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
+        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
+        let columns = columns.start..columns.end.min(size);
+        let Self { values, padded, product, .. } = self;
+        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around.
+        padded.clear();
+        padded.resize(size + 2 * band, 0.0);
+        padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
+        product.clear();
+        product.resize(size + 2 * band, 0.0);
+        // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
+        // The rows that meet the columns: `columns.start ..< columns.end + band`.
+        for row in columns.start..(columns.end + band).min(size) {
+            let lower = &values[row * width..(row + 1) * width];
+            let near = &padded[row..row + width];
+            let x_row = near[band];
+            let mut sum = 0.0;
+            for ((entry, x), out) in lower.iter().zip(near).zip(&mut product[row..row + width]) {
+                sum += entry * x;
+                // The transposed entry `(column, row)`, above the diagonal.
+                *out += entry * x_row;
             }
-            // Row `column` of the band holds A(column, first..=column); A is symmetric.
-            let first = column.saturating_sub(self.bandwidth);
-            let row_band = &self.values[column * width + self.bandwidth - (column - first)..(column + 1) * width];
-            for (out, entry) in out[first..=column].iter_mut().zip(row_band) {
-                *out += entry * value;
-            }
-            // Column `column` below the diagonal: A(row, column) for row in column + 1 ..= last.
-            let last = (column + self.bandwidth).min(self.size - 1);
-            for (row, out) in out.iter_mut().enumerate().take(last + 1).skip(column + 1) {
-                *out += self.values[row * width + self.bandwidth + column - row] * value;
-            }
+            // The diagonal was counted twice.
+            product[row + band] += sum - lower[band] * x_row;
         }
+        out[..size].copy_from_slice(&product[band..band + size]);
     }
 
     /// Factorises in place into `L Lᵀ` (Cholesky); the band then holds `L`, and the reciprocals of its
@@ -114,36 +141,34 @@ impl BandedMatrix {
     ///
     /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) L(k, j)`. These
     /// updates are independent of each other (no chain of dependent additions) and run along contiguous
-    /// row segments, so the compiler vectorises them.
+    /// row segments of fixed length.
+    #[inline(never)]
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
-        let (width, bandwidth, size) = (self.bandwidth + 1, self.bandwidth, self.size);
-        let Self { values, inverse_diagonal, column, .. } = self;
+        let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
+        let Self { size, values, inverse_diagonal, .. } = self;
         inverse_diagonal.clear();
-        inverse_diagonal.resize(size, 0.0);
-        column.clear();
-        column.resize(bandwidth, 0.0);
-        for j in 0..size {
-            let pivot = values[j * width + bandwidth];
+        inverse_diagonal.resize(*size, 0.0);
+        for (j, inverse) in inverse_diagonal.iter_mut().enumerate() {
+            // Rows `j ..= j + band`, padding included: one bounds check for the whole column.
+            let rows = &mut values[j * width..(j + 1 + band) * width];
+            let pivot = rows[band];
             if !(pivot > 0.0 && pivot.is_finite()) {
                 return Err(NotPositiveDefinite { row: j });
             }
             let diagonal = pivot.sqrt();
-            values[j * width + bandwidth] = diagonal;
-            inverse_diagonal[j] = 1.0 / diagonal;
-            let below = (size - 1 - j).min(bandwidth);
-            // L(j + 1 + t, j) for t < below, kept contiguous for the updates.
-            for (t, entry) in column[..below].iter_mut().enumerate() {
-                let row = j + 1 + t;
-                let index = row * width + bandwidth + j - row;
-                values[index] *= inverse_diagonal[j];
-                *entry = values[index];
+            rows[band] = diagonal;
+            *inverse = 1.0 / diagonal;
+            // L(j + 1 + t, j), at position `band − 1 − t` of row `j + 1 + t` (zero in the padding).
+            let mut column = [0.0; HALF_BANDWIDTH];
+            for (t, entry) in column.iter_mut().enumerate() {
+                let index = (1 + t) * width + band - 1 - t;
+                rows[index] *= *inverse;
+                *entry = rows[index];
             }
-            for t in 0..below {
-                let row = j + 1 + t;
-                // A(row, j + 1 ..= row), contiguous in the row's band.
-                let start = row * width + bandwidth + j + 1 - row;
-                let factor = column[t];
-                for (value, other) in values[start..=start + t].iter_mut().zip(&column[..=t]) {
+            for (t, &factor) in column.iter().enumerate() {
+                // A(j + 1 + t, j + 1 ..= j + 1 + t): positions `band − t ..= band` of row `j + 1 + t`.
+                let start = (1 + t) * width + band - t;
+                for (value, other) in rows[start..=start + t].iter_mut().zip(&column[..=t]) {
                     *value -= factor * other;
                 }
             }
@@ -152,19 +177,33 @@ impl BandedMatrix {
     }
 
     /// Solves `L Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
-    pub fn solve_factorized(&self, rhs: &mut [f64]) {
-        let (width, bandwidth) = (self.bandwidth + 1, self.bandwidth);
-        for row in 0..self.size {
-            let first = row.saturating_sub(bandwidth);
-            let band = &self.values[row * width + bandwidth - (row - first)..row * width + bandwidth];
-            let known: f64 = band.iter().zip(&rhs[first..row]).map(|(l, x)| l * x).sum();
-            rhs[row] = (rhs[row] - known) * self.inverse_diagonal[row];
+    #[inline(never)]
+    pub fn solve_factorized(&mut self, rhs: &mut [f64]) {
+        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
+        let Self { values, inverse_diagonal, padded, .. } = self;
+        padded.clear();
+        padded.resize(size + 2 * band, 0.0);
+        padded[band..band + size].copy_from_slice(&rhs[..size]);
+        // `L y = b`, column by column: each solved entry is removed from the rows below it.
+        for (j, inverse) in inverse_diagonal.iter().enumerate() {
+            let solved = padded[band + j] * inverse;
+            padded[band + j] = solved;
+            let below = &mut padded[band + j + 1..band + j + 1 + band];
+            for (t, value) in below.iter_mut().enumerate() {
+                *value -= values[(j + 1 + t) * width + band - 1 - t] * solved;
+            }
         }
-        for row in (0..self.size).rev() {
-            let last = (row + bandwidth).min(self.size - 1);
-            let known: f64 = (row + 1..=last).map(|k| self.values[k * width + bandwidth - k + row] * rhs[k]).sum();
-            rhs[row] = (rhs[row] - known) * self.inverse_diagonal[row];
+        // `Lᵀ x = y`, from the last row up: each solved entry is removed from the rows above it, along
+        // its own row of `L`.
+        for (j, inverse) in inverse_diagonal.iter().enumerate().rev() {
+            let solved = padded[band + j] * inverse;
+            padded[band + j] = solved;
+            let row = &values[j * width..j * width + band];
+            for (value, entry) in padded[j..j + band].iter_mut().zip(row) {
+                *value -= entry * solved;
+            }
         }
+        rhs[..size].copy_from_slice(&padded[band..band + size]);
     }
 }
 
@@ -175,10 +214,11 @@ mod tests {
 
     #[test]
     fn cholesky_solves_a_random_banded_system() {
-        let (size, bandwidth) = (37, 10);
+        const BANDWIDTH: usize = 10;
+        let (size, bandwidth) = (37, BANDWIDTH);
         let mut random = Lcg(7);
-        let mut banded = BandedMatrix::default();
-        banded.reset(size, bandwidth);
+        let mut banded = BandedMatrix::<BANDWIDTH>::default();
+        banded.reset(size);
         for row in 0..size {
             for column in row.saturating_sub(bandwidth)..row {
                 banded.add(row, column, random.next());
@@ -205,8 +245,8 @@ mod tests {
 
     #[test]
     fn indefinite_matrix_is_reported() {
-        let mut banded = BandedMatrix::default();
-        banded.reset(3, 1);
+        let mut banded = BandedMatrix::<1>::default();
+        banded.reset(3);
         banded.add(0, 0, 1.0);
         banded.add(1, 0, 2.0);
         banded.add(1, 1, 1.0);
@@ -216,8 +256,8 @@ mod tests {
 
     #[test]
     fn identity_rows_decouple_an_unknown() {
-        let mut banded = BandedMatrix::default();
-        banded.reset(3, 2);
+        let mut banded = BandedMatrix::<2>::default();
+        banded.reset(3);
         for (r, c, v) in [(0, 0, 4.0), (1, 0, 1.0), (1, 1, 4.0), (2, 0, 1.0), (2, 1, 1.0), (2, 2, 4.0)] {
             banded.add(r, c, v);
         }

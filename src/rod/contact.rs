@@ -27,10 +27,9 @@ use std::ops::Range;
 
 use bevy::math::{DMat3, DVec3};
 
-use super::banded::BandedMatrix;
 use super::collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
 use super::curve::Rod;
-use super::energy::node_dof;
+use super::energy::{RodMatrix, node_dof};
 use super::error::RodError;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
 use super::solver::{StepParams, copy_into};
@@ -359,7 +358,7 @@ impl Rod {
         params: &StepParams,
         inertia_scale: f64,
         residual: &mut [f64],
-        hessian: &mut BandedMatrix,
+        hessian: &mut RodMatrix,
     ) {
         let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
         for contact in touching.iter_mut() {

@@ -12,6 +12,8 @@ use super::frames::curvature_binormal;
 
 /// Half-bandwidth of a rod's Hessian in the interleaved ordering.
 pub(crate) const BANDWIDTH: usize = 10;
+/// The banded matrix of a rod's implicit system.
+pub(crate) type RodMatrix = BandedMatrix<BANDWIDTH>;
 /// Number of unknowns a vertex's bending and twisting terms touch.
 const STENCIL: usize = 11;
 
@@ -119,11 +121,36 @@ pub(crate) fn vertex_strain(previous: &EdgeGeometry, next: &EdgeGeometry, twist:
     VertexStrain { kappa: DVec2::new(kappa_1, kappa_2), twist, grad_kappa_1, grad_kappa_2, grad_twist }
 }
 
-/// Adds `scale · g gᵀ` over the vertex stencil starting at unknown `offset` to the Hessian.
-fn add_outer_product(hessian: &mut BandedMatrix, offset: usize, scale: f64, g: &[f64; STENCIL]) {
-    for (a, &ga) in g.iter().enumerate() {
-        for (b, &gb) in g[..=a].iter().enumerate() {
-            hessian.add(offset + a, offset + b, scale * ga * gb);
+/// Adds `Σ_k scales_k · g_k g_kᵀ` (the Gauss–Newton terms of one vertex) to the Hessian, over the vertex
+/// stencil whose first unknown is `offset`, writing each row's band as one contiguous run.
+fn add_vertex_hessian(hessian: &mut RodMatrix, offset: usize, scales: [f64; 3], gradients: [&[f64; STENCIL]; 3]) {
+    const WIDTH: usize = BANDWIDTH + 1;
+    let rows = hessian.band_rows_mut(offset..offset + STENCIL);
+    let [g0, g1, g2] = gradients;
+    for (a, band) in rows.chunks_exact_mut(WIDTH).enumerate() {
+        let [w0, w1, w2] = [scales[0] * g0[a], scales[1] * g1[a], scales[2] * g2[a]];
+        // Columns `offset ..= offset + a` sit at positions `BANDWIDTH − a ..= BANDWIDTH`.
+        for (b, entry) in band[BANDWIDTH - a..].iter_mut().enumerate() {
+            *entry += w0 * g0[b] + w1 * g1[b] + w2 * g2[b];
+        }
+    }
+}
+
+/// Adds the stretching Hessian block `K` of the edge whose first unknown is `start` (its nodes at
+/// `start` and `start + 4`): `K` on both diagonal blocks and `−K` between them.
+fn add_edge_hessian(hessian: &mut RodMatrix, start: usize, block: &[[f64; 3]; 3]) {
+    const WIDTH: usize = BANDWIDTH + 1;
+    let rows = hessian.band_rows_mut(start..start + 7);
+    for a in 0..3 {
+        let (first, second) = rows.split_at_mut(4 * WIDTH);
+        let (first_row, second_row) = (&mut first[a * WIDTH..(a + 1) * WIDTH], &mut second[a * WIDTH..(a + 1) * WIDTH]);
+        for b in 0..3 {
+            // Row `start + 4 + a`: column `start + b` at `BANDWIDTH − 4 − a + b`, `start + 4 + b` at `BANDWIDTH − a + b`.
+            second_row[BANDWIDTH - 4 - a + b] -= block[a][b];
+            if b <= a {
+                first_row[BANDWIDTH - a + b] += block[a][b];
+                second_row[BANDWIDTH - a + b] += block[a][b];
+            }
         }
     }
 }
@@ -153,11 +180,12 @@ impl Rod {
 /// its Hessian approximation to `hessian`: the exact stretching Hessian with its transverse part clipped
 /// at zero under compression, and the Gauss–Newton bending and twisting terms `Σ ∇κᵀ B ∇κ / l` — all
 /// positive semi-definite, so the implicit system stays positive definite.
+#[inline(never)]
 pub(crate) fn add_elastic_derivatives(
     rod: &Rod,
     edges: &[EdgeGeometry],
     gradient: &mut [f64],
-    mut hessian: Option<&mut BandedMatrix>,
+    mut hessian: Option<&mut RodMatrix>,
 ) {
     let stiffness = *rod.stiffness();
     for (edge, geometry) in edges.iter().enumerate() {
@@ -171,18 +199,11 @@ pub(crate) fn add_elastic_derivatives(
         if let Some(hessian) = hessian.as_deref_mut() {
             let axial = stiffness.stretching / rest;
             let transverse = axial * (1.0 - rest / geometry.length).max(0.0);
-            let t = geometry.tangent;
-            for a in 0..3 {
-                for b in 0..3 {
-                    let identity = if a == b { 1.0 } else { 0.0 };
-                    let value = (axial - transverse) * t[a] * t[b] + transverse * identity;
-                    if b <= a {
-                        hessian.add(start + a, start + b, value);
-                        hessian.add(end + a, end + b, value);
-                    }
-                    hessian.add(end + a, start + b, -value);
-                }
-            }
+            let t = geometry.tangent.to_array();
+            let block = std::array::from_fn(|a| {
+                std::array::from_fn(|b| (axial - transverse) * t[a] * t[b] + if a == b { transverse } else { 0.0 })
+            });
+            add_edge_hessian(hessian, start, &block);
         }
     }
     for vertex in 1..rod.edge_count() {
@@ -201,9 +222,14 @@ pub(crate) fn add_elastic_derivatives(
             for (slot, value) in gradient[offset..offset + STENCIL].iter_mut().zip(grad) {
                 *slot += modulus * deviation * value;
             }
-            if let Some(hessian) = hessian.as_deref_mut() {
-                add_outer_product(hessian, offset, modulus, grad);
-            }
+        }
+        if let Some(hessian) = hessian.as_deref_mut() {
+            add_vertex_hessian(
+                hessian,
+                offset,
+                coefficients.map(|(modulus, ..)| modulus),
+                coefficients.map(|(.., grad)| grad),
+            );
         }
     }
 }

@@ -27,10 +27,9 @@
 use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
-use super::banded::BandedMatrix;
 use super::contact::{ContactScratch, Contacts};
 use super::curve::Rod;
-use super::energy::{BANDWIDTH, EdgeGeometry, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
+use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
@@ -152,7 +151,7 @@ pub struct StepReport {
 /// grows to the largest rod and then never allocates again.
 #[derive(Debug, Clone, Default)]
 pub struct RodWorkspace {
-    hessian: BandedMatrix,
+    hessian: RodMatrix,
     residual: Vec<f64>,
     displacement: Vec<f64>,
     damping_force: Vec<f64>,
@@ -415,7 +414,7 @@ impl Rod {
         edge_geometry(self, edges);
         residual.clear();
         residual.resize(size, 0.0);
-        hessian.reset(size, BANDWIDTH);
+        hessian.reset(size);
         add_elastic_derivatives(self, edges, residual, Some(hessian));
 
         displacement.clear();

@@ -38,12 +38,12 @@ fn analytic_gradient(rod: &Rod) -> Vec<f64> {
 }
 
 /// The Hessian approximation the integrator assembles for `rod`.
-fn assembled_hessian(rod: &Rod) -> BandedMatrix {
+fn assembled_hessian(rod: &Rod) -> RodMatrix {
     let size = dof_count(rod.node_count());
     let mut edges = Vec::new();
     edge_geometry(rod, &mut edges);
-    let mut hessian = BandedMatrix::default();
-    hessian.reset(size, BANDWIDTH);
+    let mut hessian = RodMatrix::default();
+    hessian.reset(size);
     add_elastic_derivatives(rod, &edges, &mut vec![0.0; size], Some(&mut hessian));
     hessian
 }
@@ -154,7 +154,7 @@ fn gauss_newton_hessian_is_the_jacobian_product() {
     let mut random = Lcg(41);
     let rod = only(random_strand(&mut random, 6), "bending");
     let size = dof_count(rod.node_count());
-    let hessian = assembled_hessian(&rod);
+    let mut hessian = assembled_hessian(&rod);
     let direction: Vec<f64> = (0..size).map(|_| random.next()).collect();
     let mut product = vec![0.0; size];
     hessian.multiply(&direction, &mut product);
