@@ -94,7 +94,7 @@ fn main() {
         scaling(threads, steps);
     }
     if wanted("parts") {
-        parts_of_a_step();
+        parts_of_a_step(if quick { 100 } else { 600 });
     }
     if wanted("collisions") {
         collisions(threads, steps);
@@ -136,8 +136,8 @@ fn scaling(threads: usize, steps: usize) {
 /// One strand's step split into its parts (`RodWorkspace::time_parts`), in the mechanics core: 100 of
 /// the scene's strands stepped one after another on one thread with the scene's head motion, without
 /// and with the 10 cm skull as a collider.
-fn parts_of_a_step() {
-    let (strands, edges, steps) = (100, 32, 600);
+fn parts_of_a_step(steps: usize) {
+    let (strands, edges) = (100, 32);
     let roots = Scalp::default().roots(strands).expect("the default scalp holds 100 roots");
     let skull = MovingCollider::fixed(ColliderShape::sphere(0.1), 0.4, RigidPose::default());
     println!();

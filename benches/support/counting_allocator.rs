@@ -2,10 +2,29 @@
 //! by `examples/benchmark.rs` (memory per node) and `tests/allocation.rs` (no allocation per step).
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::sync::atomic::{AtomicIsize, AtomicU64, Ordering};
 
-/// Allocations and reallocations made so far.
+/// Allocations and reallocations made so far, by all threads.
 pub static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+thread_local! {
+    /// Allocations and reallocations made so far by this thread (constant-initialised, so reading it
+    /// never allocates).
+    static THREAD_ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// Allocations and reallocations made so far by the calling thread: unlike [`ALLOCATIONS`], blind to
+/// other threads (a test harness's main thread allocates while a test runs).
+#[allow(dead_code)]
+pub fn thread_allocations() -> u64 {
+    THREAD_ALLOCATIONS.with(Cell::get)
+}
+
+fn count_allocation() {
+    ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    THREAD_ALLOCATIONS.with(|count| count.set(count.get() + 1));
+}
 /// Heap bytes allocated and not yet freed.
 pub static BYTES_IN_USE: AtomicIsize = AtomicIsize::new(0);
 
@@ -14,7 +33,7 @@ struct CountingAllocator;
 // SAFETY: every call is forwarded to the system allocator unchanged; only counters are added.
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count_allocation();
         BYTES_IN_USE.fetch_add(layout.size() as isize, Ordering::Relaxed);
         // SAFETY: the caller's contract is passed on.
         unsafe { System.alloc(layout) }
@@ -27,7 +46,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        count_allocation();
         BYTES_IN_USE.fetch_add(new_size as isize - layout.size() as isize, Ordering::Relaxed);
         // SAFETY: the caller's contract is passed on.
         unsafe { System.realloc(ptr, layout, new_size) }

@@ -1,7 +1,7 @@
-//! A symmetric positive-definite banded matrix with an in-place Cholesky factorisation.
+//! A symmetric positive-definite banded matrix with an in-place `L D Lᵀ` (Cholesky) factorisation.
 //!
 //! A strand's implicit system couples each unknown only to its neighbours within a fixed half-bandwidth
-//! (10 for the `x₀, θ⁰, x₁, θ¹, …` ordering), so a banded Cholesky solves it in `O(n · bandwidth²)` with
+//! (10 for the `x₀, θ⁰, x₁, θ¹, …` ordering), so a banded `L D Lᵀ` factorisation solves it in `O(n · bandwidth²)` with
 //! no allocation once the storage has its size.
 //!
 //! The half-bandwidth is a compile-time constant and the storage has `HALF_BANDWIDTH` extra identity
@@ -16,7 +16,7 @@ pub struct BandedMatrix<const HALF_BANDWIDTH: usize> {
     size: usize,
     /// `(size + HALF_BANDWIDTH) × (HALF_BANDWIDTH + 1)` entries: the rows, then the identity padding.
     values: Vec<f64>,
-    /// `1 / L(i, i)` after [`BandedMatrix::factorize`].
+    /// `1 / D(i)` after [`BandedMatrix::factorize`].
     inverse_diagonal: Vec<f64>,
     /// Scratch for products and solves: a vector with `HALF_BANDWIDTH` zeros on each side.
     padded: Vec<f64>,
@@ -44,6 +44,10 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         for row in size..size + band {
             self.values[row * width + band] = 1.0;
         }
+        // The scratch vectors get their size here, so that products and solves never allocate.
+        self.padded.resize(size + 2 * band, 0.0);
+        self.product.resize(size + 2 * band, 0.0);
+        self.inverse_diagonal.resize(size, 0.0);
     }
 
     /// Number of rows.
@@ -95,12 +99,6 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         self.values[index] = 1.0;
     }
 
-    /// Multiplies every entry by `factor`.
-    pub fn scale(&mut self, factor: f64) {
-        let stored = self.size * Self::WIDTH;
-        self.values[..stored].iter_mut().for_each(|value| *value *= factor);
-    }
-
     /// `out = A x` for the symmetric matrix.
     pub fn multiply(&mut self, x: &[f64], out: &mut [f64]) {
         self.multiply_columns(0..self.size, x, out);
@@ -136,12 +134,14 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         out[..size].copy_from_slice(&product[band..band + size]);
     }
 
-    /// Factorises in place into `L Lᵀ` (Cholesky); the band then holds `L`, and the reciprocals of its
-    /// diagonal are kept so that neither this nor [`BandedMatrix::solve_factorized`] divides in its loops.
+    /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
+    /// band then holds `L` below the diagonal and `D` on it, and the reciprocals of `D` are kept so that
+    /// [`BandedMatrix::solve_factorized`] does not divide.
     ///
-    /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) L(k, j)`. These
-    /// updates are independent of each other (no chain of dependent additions) and run along contiguous
-    /// row segments of fixed length.
+    /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) D(j) L(k, j)`.
+    /// These updates are independent of each other (no chain of dependent additions) and run along
+    /// contiguous row segments of fixed length; the only chain from one column to the next is one
+    /// division, one multiplication and one update.
     #[inline(never)]
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
         let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
@@ -155,20 +155,21 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
             if !(pivot > 0.0 && pivot.is_finite()) {
                 return Err(NotPositiveDefinite { row: j });
             }
-            let diagonal = pivot.sqrt();
-            rows[band] = diagonal;
-            *inverse = 1.0 / diagonal;
-            // L(j + 1 + t, j), at position `band − 1 − t` of row `j + 1 + t` (zero in the padding).
+            *inverse = 1.0 / pivot;
+            // `D(j) L(j + 1 + t, j)` is the entry at position `band − 1 − t` of row `j + 1 + t` (zero in the
+            // padding); it becomes `L(j + 1 + t, j)`.
+            let mut scaled = [0.0; HALF_BANDWIDTH];
             let mut column = [0.0; HALF_BANDWIDTH];
-            for (t, entry) in column.iter_mut().enumerate() {
+            for (t, (scaled, entry)) in scaled.iter_mut().zip(&mut column).enumerate() {
                 let index = (1 + t) * width + band - 1 - t;
-                rows[index] *= *inverse;
-                *entry = rows[index];
+                *scaled = rows[index];
+                *entry = *scaled * *inverse;
+                rows[index] = *entry;
             }
             for (t, &factor) in column.iter().enumerate() {
                 // A(j + 1 + t, j + 1 ..= j + 1 + t): positions `band − t ..= band` of row `j + 1 + t`.
                 let start = (1 + t) * width + band - t;
-                for (value, other) in rows[start..=start + t].iter_mut().zip(&column[..=t]) {
+                for (value, other) in rows[start..=start + t].iter_mut().zip(&scaled[..=t]) {
                     *value -= factor * other;
                 }
             }
@@ -176,7 +177,7 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         Ok(())
     }
 
-    /// Solves `L Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
+    /// Solves `L D Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
     #[inline(never)]
     pub fn solve_factorized(&mut self, rhs: &mut [f64]) {
         let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
@@ -185,19 +186,20 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         padded.resize(size + 2 * band, 0.0);
         padded[band..band + size].copy_from_slice(&rhs[..size]);
         // `L y = b`, column by column: each solved entry is removed from the rows below it.
-        for (j, inverse) in inverse_diagonal.iter().enumerate() {
-            let solved = padded[band + j] * inverse;
-            padded[band + j] = solved;
+        for j in 0..size {
+            let solved = padded[band + j];
             let below = &mut padded[band + j + 1..band + j + 1 + band];
             for (t, value) in below.iter_mut().enumerate() {
                 *value -= values[(j + 1 + t) * width + band - 1 - t] * solved;
             }
         }
-        // `Lᵀ x = y`, from the last row up: each solved entry is removed from the rows above it, along
-        // its own row of `L`.
-        for (j, inverse) in inverse_diagonal.iter().enumerate().rev() {
-            let solved = padded[band + j] * inverse;
-            padded[band + j] = solved;
+        // `Lᵀ x = D⁻¹ y`, from the last row up: each solved entry is removed from the rows above it,
+        // along its own row of `L`.
+        for (value, inverse) in padded[band..band + size].iter_mut().zip(inverse_diagonal.iter()) {
+            *value *= inverse;
+        }
+        for j in (0..size).rev() {
+            let solved = padded[band + j];
             let row = &values[j * width..j * width + band];
             for (value, entry) in padded[j..j + band].iter_mut().zip(row) {
                 *value -= entry * solved;

@@ -176,8 +176,8 @@ impl Rod {
     }
 }
 
-/// Adds the elastic energy's gradient (N for positions, N·m for twists) to `gradient`, and, when given,
-/// its Hessian approximation to `hessian`: the exact stretching Hessian with its transverse part clipped
+/// Adds the elastic energy's gradient (N for positions, N·m for twists) to `gradient`, and, when given
+/// `(hessian, scale)`, its Hessian approximation times `scale` to `hessian`: the exact stretching Hessian with its transverse part clipped
 /// at zero under compression, and the Gauss–Newton bending and twisting terms `Σ ∇κᵀ B ∇κ / l` — all
 /// positive semi-definite, so the implicit system stays positive definite.
 #[inline(never)]
@@ -185,7 +185,7 @@ pub(crate) fn add_elastic_derivatives(
     rod: &Rod,
     edges: &[EdgeGeometry],
     gradient: &mut [f64],
-    mut hessian: Option<&mut RodMatrix>,
+    mut hessian: Option<(&mut RodMatrix, f64)>,
 ) {
     let stiffness = *rod.stiffness();
     for (edge, geometry) in edges.iter().enumerate() {
@@ -196,8 +196,8 @@ pub(crate) fn add_elastic_derivatives(
             gradient[start + axis] -= force * geometry.tangent[axis];
             gradient[end + axis] += force * geometry.tangent[axis];
         }
-        if let Some(hessian) = hessian.as_deref_mut() {
-            let axial = stiffness.stretching / rest;
+        if let Some((hessian, scale)) = hessian.as_mut() {
+            let axial = *scale * stiffness.stretching / rest;
             let transverse = axial * (1.0 - rest / geometry.length).max(0.0);
             let t = geometry.tangent.to_array();
             let block = std::array::from_fn(|a| {
@@ -223,11 +223,11 @@ pub(crate) fn add_elastic_derivatives(
                 *slot += modulus * deviation * value;
             }
         }
-        if let Some(hessian) = hessian.as_deref_mut() {
+        if let Some((hessian, scale)) = hessian.as_mut() {
             add_vertex_hessian(
                 hessian,
                 offset,
-                coefficients.map(|(modulus, ..)| modulus),
+                coefficients.map(|(modulus, ..)| *scale * modulus),
                 coefficients.map(|(.., grad)| grad),
             );
         }

@@ -158,18 +158,20 @@ fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f
     }
 }
 
-/// Solves a symmetric positive-definite tridiagonal system in place (Thomas algorithm): `diagonal` and
-/// `upper` are overwritten, `rhs` becomes the solution.
+/// Solves a symmetric positive-definite tridiagonal system in place (Thomas algorithm): `diagonal`
+/// becomes the reciprocals of the eliminated pivots (one division per row, none in the back
+/// substitution), `rhs` the solution.
 fn solve_tridiagonal(diagonal: &mut [f64], upper: &[f64], rhs: &mut [f64]) {
     let n = diagonal.len();
+    diagonal[0] = 1.0 / diagonal[0];
     for row in 1..n {
-        let factor = upper[row - 1] / diagonal[row - 1];
-        diagonal[row] -= factor * upper[row - 1];
+        let factor = upper[row - 1] * diagonal[row - 1];
+        diagonal[row] = 1.0 / (diagonal[row] - factor * upper[row - 1]);
         rhs[row] -= factor * rhs[row - 1];
     }
-    rhs[n - 1] /= diagonal[n - 1];
+    rhs[n - 1] *= diagonal[n - 1];
     for row in (0..n - 1).rev() {
-        rhs[row] = (rhs[row] - upper[row] * rhs[row + 1]) / diagonal[row];
+        rhs[row] = (rhs[row] - upper[row] * rhs[row + 1]) * diagonal[row];
     }
 }
 

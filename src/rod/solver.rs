@@ -158,7 +158,10 @@ pub struct RodWorkspace {
     prescribed: Vec<f64>,
     edges: Vec<EdgeGeometry>,
     saved: SavedState,
-    carried: SavedState,
+    /// Positions and twists after the first guess (the strand carried with its root): internal
+    /// damping acts on the deformation from there.
+    carried_positions: Vec<DVec3>,
+    carried_twist: Vec<f64>,
     projection: ProjectionScratch,
     contacts: ContactScratch,
     stopwatch: Stopwatch,
@@ -272,7 +275,8 @@ impl Rod {
     ) -> Result<StepReport, StepError> {
         self.carry_with_first_clamp();
         workspace.stopwatch.lap(Part::Frames);
-        workspace.carried.save(self);
+        copy_into(&mut workspace.carried_positions, &self.positions);
+        copy_into(&mut workspace.carried_twist, &self.twist);
         workspace.projection.use_rod_masses(self);
         workspace.stopwatch.lap(Part::Forces);
         self.begin_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
@@ -403,7 +407,8 @@ impl Rod {
             prescribed,
             edges,
             saved,
-            carried,
+            carried_positions,
+            carried_twist,
             projection,
             contacts,
             stopwatch,
@@ -415,26 +420,30 @@ impl Rod {
         residual.clear();
         residual.resize(size, 0.0);
         hessian.reset(size);
-        add_elastic_derivatives(self, edges, residual, Some(hessian));
+        // Internal damping scales the elastic Hessian: `(1 + β/dt) H`.
+        let damped_scale = 1.0 + beta / dt;
+        add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale)));
 
-        displacement.clear();
+        // Internal friction resists deformation, not the rigid motion the strand was carried with. On
+        // the first iteration the iterate is where the strand was carried: nothing to damp yet.
+        let deformed = self.positions != *carried_positions || self.twist != *carried_twist;
+        // Sized on every iteration (a no-op once grown), so that no later step allocates.
         displacement.resize(size, 0.0);
-        // Internal friction resists deformation, not the rigid motion the strand was carried with.
-        for node in 0..self.node_count() {
-            let offset = self.positions[node] - carried.positions[node];
-            displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-        }
-        for edge in 0..self.edge_count() {
-            displacement[twist_dof(edge)] = self.twist[edge] - carried.twist[edge];
-        }
-        if beta > 0.0 {
-            damping_force.resize(size, 0.0);
+        damping_force.resize(size, 0.0);
+        if beta > 0.0 && deformed {
+            for node in 0..self.node_count() {
+                let offset = self.positions[node] - carried_positions[node];
+                displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
+            }
+            for edge in 0..self.edge_count() {
+                displacement[twist_dof(edge)] = self.twist[edge] - carried_twist[edge];
+            }
             hessian.multiply(displacement, damping_force);
             // Along each edge, `H Δq` would count a turn by `φ` as a stretch by `φ²/2` times the huge
             // axial stiffness: the stretching part damps the true change of length instead.
-            let axial_stiffness = self.stiffness().stretching;
+            let axial_stiffness = damped_scale * self.stiffness().stretching;
             for (edge, geometry) in edges.iter().enumerate() {
-                let carried_length = carried.positions[edge].distance(carried.positions[edge + 1]);
+                let carried_length = carried_positions[edge].distance(carried_positions[edge + 1]);
                 let linearised = geometry.tangent.dot(
                     DVec3::from_slice(&displacement[node_dof(edge + 1)..node_dof(edge + 1) + 3])
                         - DVec3::from_slice(&displacement[node_dof(edge)..node_dof(edge) + 3]),
@@ -447,10 +456,11 @@ impl Rod {
                     damping_force[node_dof(edge + 1) + axis] += correction[axis];
                 }
             }
+            // The product was with the damped `(1 + β/dt) H`.
+            let factor = beta / dt / damped_scale;
             for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
-                *r += beta / dt * f;
+                *r += factor * f;
             }
-            hessian.scale(1.0 + beta / dt);
         }
 
         let inertia_scale = 1.0 / (dt * dt) + gamma / dt;
@@ -500,7 +510,6 @@ impl Rod {
         if let (Some(first), Some(last)) =
             (prescribed.iter().position(|d| *d != 0.0), prescribed.iter().rposition(|d| *d != 0.0))
         {
-            damping_force.resize(size, 0.0);
             hessian.multiply_columns(first..last + 1, prescribed, damping_force);
             for (r, coupling) in residual.iter_mut().zip(damping_force.iter()) {
                 *r += coupling;

@@ -44,7 +44,7 @@ fn assembled_hessian(rod: &Rod) -> RodMatrix {
     edge_geometry(rod, &mut edges);
     let mut hessian = RodMatrix::default();
     hessian.reset(size);
-    add_elastic_derivatives(rod, &edges, &mut vec![0.0; size], Some(&mut hessian));
+    add_elastic_derivatives(rod, &edges, &mut vec![0.0; size], Some((&mut hessian, 1.0)));
     hessian
 }
 
