@@ -7,7 +7,7 @@ use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, StepError};
+use crate::rod::{Contacts, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
 
@@ -97,6 +97,7 @@ pub(crate) fn step_strands(
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut tallies: Local<Parallel<StepTally>>,
+    workspaces: Local<Parallel<RodWorkspace>>,
 ) {
     let (params, collision_margin) = match settings.validated(time.delta_secs_f64()) {
         Ok(validated) => validated,
@@ -115,7 +116,7 @@ pub(crate) fn step_strands(
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.collision_thickness(collision_margin) };
-        let result = strand.advance(&params, &forces, &contacts);
+        let result = workspaces.scope(|workspace| strand.advance(&params, &forces, &contacts, workspace));
         forces.clear();
         tallies.scope(|tally| {
             tally.strands += 1;

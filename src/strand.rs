@@ -129,7 +129,8 @@ impl RootAnchor {
 
 /// The simulated state of a strand, built by the plugin from its [`HairStrand`]: the rod (node positions
 /// and velocities, edge frames and twists, rest lengths, rest curvatures and twists, material; see
-/// [`Rod`]), its root anchor on the head and the solver's scratch memory, all contiguous per strand.
+/// [`Rod`]) and its root anchor on the head, contiguous per strand. The solver's scratch memory is not
+/// here: one workspace per thread serves all the strands that thread steps, and stays in its cache.
 #[derive(Component, Reflect, Debug, Clone)]
 #[reflect(Component, Debug)]
 pub struct Strand {
@@ -141,8 +142,6 @@ pub struct Strand {
     collision_thickness: Option<f64>,
     last_report: Option<StepReport>,
     snap_pose: bool,
-    #[reflect(ignore)]
-    workspace: RodWorkspace,
 }
 
 impl Strand {
@@ -181,7 +180,6 @@ impl Strand {
             collision_thickness: spec.collision_thickness.map(f64::from),
             last_report: None,
             snap_pose: true,
-            workspace: RodWorkspace::default(),
         })
     }
 
@@ -243,16 +241,17 @@ impl Strand {
         self.rod.clamp_edge(0, start, end, material_direction)
     }
 
-    /// Advances the strand by one step, kept outside the colliders of `contacts`. A step that fails on
-    /// invalid input (a non-finite force) changes nothing; any other failure (divergence) resets the
-    /// strand to its rest pose on its head.
+    /// Advances the strand by one step, kept outside the colliders of `contacts`, with the calling
+    /// thread's `workspace`. A step that fails on invalid input (a non-finite force) changes nothing;
+    /// any other failure (divergence) resets the strand to its rest pose on its head.
     pub(crate) fn advance(
         &mut self,
         params: &StepParams,
         forces: &StrandForces,
         contacts: &Contacts,
+        workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
-        let result = self.rod.step_with_contacts(params, forces.active(), contacts, &mut self.workspace);
+        let result = self.rod.step_with_contacts(params, forces.active(), contacts, workspace);
         match &result {
             Ok(report) => self.last_report = Some(*report),
             Err(StepError::InvalidInput(_)) => {}

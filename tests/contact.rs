@@ -61,6 +61,41 @@ fn drape_on_a_sphere(friction: f64) {
     assert!(touched >= 8, "μ = {friction}: {touched} nodes touched");
 }
 
+/// A rod's friction remembers its normal forces from the last step: that memory is the rod's, so one
+/// workspace can step many rods. Two hairs draping over the ball at different places, stepped in turn
+/// with one workspace, move exactly as each does with a workspace of its own.
+#[test]
+fn rods_sharing_a_workspace_move_exactly_as_with_their_own() {
+    let sphere = MovingCollider::fixed(ColliderShape::sphere(0.05), 0.4, RigidPose::default());
+    let colliders = [sphere];
+    let contacts = Contacts { colliders: &colliders, thickness: THICKNESS };
+    let hair = |height: f64, direction: DVec3| {
+        let nodes: Vec<DVec3> = straight_nodes(0.2, 32, direction)
+            .iter()
+            .map(|node| *node - 0.1 * direction + DVec3::new(0.0, height, 0.003))
+            .collect();
+        Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap()
+    };
+    let start = [hair(0.07, DVec3::X), hair(0.06, DVec3::Z)];
+    let params = StepParams::default();
+    let (mut shared, mut shared_workspace) = (start.clone(), RodWorkspace::default());
+    let (mut own, mut own_workspaces) = (start, [RodWorkspace::default(), RodWorkspace::default()]);
+    let mut touching = 0;
+    for _ in 0..120 {
+        for rod in &mut shared {
+            rod.step_with_contacts(&params, None, &contacts, &mut shared_workspace).unwrap();
+        }
+        for (rod, workspace) in own.iter_mut().zip(&mut own_workspaces) {
+            touching += rod.step_with_contacts(&params, None, &contacts, workspace).unwrap().contacts;
+        }
+    }
+    assert!(touching > 1000, "both hairs rest on the ball ({touching} node-steps in contact)");
+    for (index, (shared, own)) in shared.iter().zip(&own).enumerate() {
+        let apart = shared.positions().iter().zip(own.positions()).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+        assert_eq!(apart, 0.0, "hair {index}: sharing the workspace moved a node by {apart:e} m");
+    }
+}
+
 /// A free strand lying across a plane tilted by `angle`, for 2 s: how far its centre moved down the slope.
 fn slide_on_slope(friction: f64, angle: f64) -> f64 {
     let rotation = DQuat::from_rotation_z(angle);

@@ -268,9 +268,10 @@ pub(crate) struct ContactScratch {
     /// Every contact made during the step, refreshed at each Newton iterate (those the iterate has
     /// left have no force).
     touching: Vec<NodeContact>,
-    /// Normal force on each node from the last Newton update, N: friction's lagged `f_n`. It persists
-    /// between steps, so a node resting since the last step has friction from its first iteration.
-    normal_forces: Vec<f64>,
+    /// Normal force on each node from the last Newton update, N: friction's lagged `f_n`. During a step
+    /// this holds the rod's own [`Rod::contact_normal_forces`] (swapped in and out by the solver), so
+    /// that one workspace serves many rods.
+    pub(crate) normal_forces: Vec<f64>,
     /// Per node: listed in `touching` (during the Newton iterations), then in contact (after them).
     touched: Vec<bool>,
     /// Positions before the last length projection of the contact rounds.
@@ -320,7 +321,6 @@ impl Rod {
         scratch.touching.clear();
         scratch.touched.clear();
         scratch.touched.resize(self.node_count(), false);
-        scratch.normal_forces.resize(self.node_count(), 0.0);
         if contacts.colliders.is_empty() {
             scratch.nearby.clear();
             scratch.normal_forces.fill(0.0);

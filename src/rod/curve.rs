@@ -48,6 +48,9 @@ pub struct Rod {
     pub(crate) twist_inertias: Vec<f64>,
     pub(crate) node_targets: Vec<Option<DVec3>>,
     pub(crate) twist_targets: Vec<Option<DVec3>>,
+    /// Normal force on each node from its colliders at the end of the last step, N: friction's lagged
+    /// normal force, so that a node resting since then has friction from its first Newton iteration.
+    pub(crate) contact_normal_forces: Vec<f64>,
     material: RodMaterial,
     pub(crate) stiffness: Stiffness,
     initial_positions: Vec<DVec3>,
@@ -112,6 +115,7 @@ impl Rod {
             rest_twist: vec![0.0; node_count],
             node_targets: vec![None; node_count],
             twist_targets: vec![None; edge_count],
+            contact_normal_forces: vec![0.0; node_count],
             material,
             stiffness,
             initial_positions: positions.to_vec(),
@@ -382,6 +386,7 @@ impl Rod {
         self.twist.fill(0.0);
         self.twist_rates.fill(0.0);
         self.reference_twist.fill(0.0);
+        self.contact_normal_forces.fill(0.0);
         self.refresh_frames();
     }
 

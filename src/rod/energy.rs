@@ -8,7 +8,6 @@ use bevy::math::{DVec2, DVec3};
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
-use super::frames::curvature_binormal;
 
 /// Half-bandwidth of a rod's Hessian in the interleaved ordering.
 pub(crate) const BANDWIDTH: usize = 10;
@@ -58,6 +57,7 @@ impl ElasticEnergy {
 pub(crate) struct EdgeGeometry {
     pub tangent: DVec3,
     pub length: f64,
+    pub inverse_length: f64,
     pub m1: DVec3,
     pub m2: DVec3,
 }
@@ -67,12 +67,8 @@ pub(crate) fn edge_geometry(rod: &Rod, out: &mut Vec<EdgeGeometry>) {
     out.clear();
     out.extend((0..rod.edge_count()).map(|edge| {
         let frame = rod.material_frame(edge);
-        EdgeGeometry {
-            tangent: frame.tangent,
-            length: (rod.positions[edge + 1] - rod.positions[edge]).length(),
-            m1: frame.m1,
-            m2: frame.m2,
-        }
+        let length = (rod.positions[edge + 1] - rod.positions[edge]).length();
+        EdgeGeometry { tangent: frame.tangent, length, inverse_length: 1.0 / length, m1: frame.m1, m2: frame.m2 }
     }));
 }
 
@@ -98,14 +94,15 @@ fn scatter_vertex_gradient(d_previous: DVec3, d_next: DVec3, d_theta: [f64; 2]) 
 /// (Bergou et al. 2008, §7; with `χ = 1 + t^{i−1}·t^i`, `t̃ = (t^{i−1}+t^i)/χ`, `m̃ = (m^{i−1}+m^i)/χ`).
 pub(crate) fn vertex_strain(previous: &EdgeGeometry, next: &EdgeGeometry, twist: f64) -> VertexStrain {
     let (t0, t1) = (previous.tangent, next.tangent);
-    let binormal = curvature_binormal(t0, t1);
-    let chi = 1.0 + t0.dot(t1);
-    let tilde_t = (t0 + t1) / chi;
-    let tilde_m1 = (previous.m1 + next.m1) / chi;
-    let tilde_m2 = (previous.m2 + next.m2) / chi;
+    // One division for the vertex: `1/χ`, with `κb = 2 t^{i−1} × t^i / χ` (see `curvature_binormal`).
+    let inverse_chi = 1.0 / (1.0 + t0.dot(t1));
+    let binormal = 2.0 * inverse_chi * t0.cross(t1);
+    let tilde_t = inverse_chi * (t0 + t1);
+    let tilde_m1 = inverse_chi * (previous.m1 + next.m1);
+    let tilde_m2 = inverse_chi * (previous.m2 + next.m2);
     let kappa_1 = 0.5 * binormal.dot(previous.m2 + next.m2);
     let kappa_2 = -0.5 * binormal.dot(previous.m1 + next.m1);
-    let (inverse_0, inverse_1) = (1.0 / previous.length, 1.0 / next.length);
+    let (inverse_0, inverse_1) = (previous.inverse_length, next.inverse_length);
 
     let grad_kappa_1 = scatter_vertex_gradient(
         (-kappa_1 * tilde_t + t1.cross(tilde_m2)) * inverse_0,

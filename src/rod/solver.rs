@@ -147,8 +147,9 @@ pub struct StepReport {
     pub contacts: u32,
 }
 
-/// Scratch memory for stepping rods. One workspace serves any number of rods (one at a time); it
-/// grows to the largest rod and then never allocates again.
+/// Scratch memory for stepping rods. One workspace serves any number of rods (one at a time: a rod's
+/// state is all in the rod); it grows to the largest rod and then never allocates again. One per
+/// thread keeps it in the core's cache.
 #[derive(Debug, Clone, Default)]
 pub struct RodWorkspace {
     hessian: RodMatrix,
@@ -217,6 +218,7 @@ impl SavedState {
         rod.reference_twist.copy_from_slice(&self.reference_twist);
         rod.velocities.fill(DVec3::ZERO);
         rod.twist_rates.fill(0.0);
+        rod.contact_normal_forces.fill(0.0);
     }
 }
 
@@ -259,7 +261,10 @@ impl Rod {
         }
         workspace.stopwatch.start_step();
         workspace.saved.save(self);
+        // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
+        std::mem::swap(&mut self.contact_normal_forces, &mut workspace.contacts.normal_forces);
         let result = self.integrate(params, external_forces, contacts, workspace);
+        std::mem::swap(&mut self.contact_normal_forces, &mut workspace.contacts.normal_forces);
         if result.is_err() {
             workspace.saved.restore_at_rest(self);
         }
