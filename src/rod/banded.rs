@@ -142,7 +142,6 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// These updates are independent of each other (no chain of dependent additions) and run along
     /// contiguous row segments of fixed length; the only chain from one column to the next is one
     /// division, one multiplication and one update.
-    #[inline(never)]
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
         let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
         let Self { size, values, inverse_diagonal, .. } = self;
@@ -178,7 +177,6 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     }
 
     /// Solves `L D Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
-    #[inline(never)]
     pub fn solve_factorized(&mut self, rhs: &mut [f64]) {
         let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
         let Self { values, inverse_diagonal, padded, .. } = self;

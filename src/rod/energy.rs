@@ -177,7 +177,6 @@ impl Rod {
 /// `(hessian, scale)`, its Hessian approximation times `scale` to `hessian`: the exact stretching Hessian with its transverse part clipped
 /// at zero under compression, and the Gauss–Newton bending and twisting terms `Σ ∇κᵀ B ∇κ / l` — all
 /// positive semi-definite, so the implicit system stays positive definite.
-#[inline(never)]
 pub(crate) fn add_elastic_derivatives(
     rod: &Rod,
     edges: &[EdgeGeometry],

@@ -366,12 +366,10 @@ impl Rod {
         let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1))
             * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
         let pivot = self.positions[edge];
-        for (node, position) in self.positions.iter_mut().enumerate() {
-            *position = match self.node_targets[node] {
-                Some(target) if node == edge || node == edge + 1 => target,
-                _ => start + rotation * (*position - pivot),
-            };
+        for position in &mut self.positions {
+            *position = start + rotation * (*position - pivot);
         }
+        (self.positions[edge], self.positions[edge + 1]) = (start, end);
         // The frames turn with the strand: reference twist and twists are unchanged by a rigid motion.
         for (tangent, director) in self.tangents.iter_mut().zip(&mut self.reference_directors) {
             (*tangent, *director) = (rotation * *tangent, rotation * *director);
