@@ -18,7 +18,7 @@ pub struct StepTimings {
     /// Forces: elastic gradients and Hessian, damping, inertia, gravity and external forces, boundary
     /// conditions; and the bookkeeping around them (saving the state, velocities, the strain check).
     pub forces: Duration,
-    /// Solve: the banded Cholesky factorisation and its solve, the trust region and applying the update.
+    /// Solve: the banded `L D Lᵀ` factorisation and its solve, the trust region and applying the update.
     pub solve: Duration,
     /// Constraints: the inextensibility projection.
     pub constraints: Duration,
