@@ -75,9 +75,17 @@ pub(crate) fn pin_roots(mut strands: Query<(Entity, &mut Strand, &StrandOf)>, he
     });
 }
 
+/// What one thread keeps from step to step: the solver's scratch memory, which stays in that core's
+/// cache for every strand it steps, and the tally of those strands.
+#[derive(Default)]
+pub(crate) struct StepThread {
+    workspace: RodWorkspace,
+    tally: StepTally,
+}
+
 /// What the strands stepped by one thread measured.
 #[derive(Default)]
-pub(crate) struct StepTally {
+struct StepTally {
     strands: usize,
     nodes: usize,
     newton_iterations: u64,
@@ -96,8 +104,7 @@ pub(crate) fn step_strands(
     mut strands: Query<(Entity, &mut Strand, &mut StrandForces, Option<&StrandOf>)>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
-    mut tallies: Local<Parallel<StepTally>>,
-    workspaces: Local<Parallel<RodWorkspace>>,
+    mut threads: Local<Parallel<StepThread>>,
 ) {
     let (params, collision_margin) = match settings.validated(time.delta_secs_f64()) {
         Ok(validated) => validated,
@@ -116,9 +123,9 @@ pub(crate) fn step_strands(
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.collision_thickness(collision_margin) };
-        let result = workspaces.scope(|workspace| strand.advance(&params, &forces, &contacts, workspace));
-        forces.clear();
-        tallies.scope(|tally| {
+        threads.scope(|StepThread { workspace, tally }| {
+            let result = strand.advance(&params, &forces, &contacts, workspace);
+            forces.clear();
             tally.strands += 1;
             tally.nodes += strand.rod().node_count();
             match result {
@@ -134,7 +141,7 @@ pub(crate) fn step_strands(
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);
-    for tally in tallies.iter_mut() {
+    for StepThread { tally, .. } in threads.iter_mut() {
         strands_stepped += tally.strands;
         nodes_stepped += tally.nodes;
         newton_iterations += tally.newton_iterations;
