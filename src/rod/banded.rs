@@ -1,8 +1,8 @@
 //! A symmetric positive-definite banded matrix with an in-place `L D Lᵀ` (Cholesky) factorisation.
 //!
 //! A strand's implicit system couples each unknown only to its neighbours within a fixed half-bandwidth
-//! (10 for the `x₀, θ⁰, x₁, θ¹, …` ordering), so a banded `L D Lᵀ` factorisation solves it in `O(n · bandwidth²)` with
-//! no allocation once the storage has its size.
+//! (10 for the `x₀, θ⁰, x₁, θ¹, …` ordering), so a banded `L D Lᵀ` factorisation solves it in
+//! `O(n · bandwidth²)` with no allocation once the storage has its size.
 //!
 //! The half-bandwidth is a compile-time constant and the storage has `HALF_BANDWIDTH` extra identity
 //! rows after the last, so every loop over a band has a fixed length with no clamping at the ends: the

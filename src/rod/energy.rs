@@ -137,12 +137,13 @@ fn add_vertex_hessian(hessian: &mut RodMatrix, offset: usize, scales: [f64; 3], 
 /// `start` and `start + 4`): `K` on both diagonal blocks and `−K` between them.
 fn add_edge_hessian(hessian: &mut RodMatrix, start: usize, block: &[[f64; 3]; 3]) {
     const WIDTH: usize = BANDWIDTH + 1;
-    let rows = hessian.band_rows_mut(start..start + 7);
+    let (first_node, second_node) = hessian.band_rows_mut(start..start + 7).split_at_mut(4 * WIDTH);
     for a in 0..3 {
-        let (first, second) = rows.split_at_mut(4 * WIDTH);
-        let (first_row, second_row) = (&mut first[a * WIDTH..(a + 1) * WIDTH], &mut second[a * WIDTH..(a + 1) * WIDTH]);
+        let first_row = &mut first_node[a * WIDTH..(a + 1) * WIDTH];
+        let second_row = &mut second_node[a * WIDTH..(a + 1) * WIDTH];
         for b in 0..3 {
-            // Row `start + 4 + a`: column `start + b` at `BANDWIDTH − 4 − a + b`, `start + 4 + b` at `BANDWIDTH − a + b`.
+            // In row `start + 4 + a`, column `start + b` sits at `BANDWIDTH − 4 − a + b` and column
+            // `start + 4 + b` at `BANDWIDTH − a + b`.
             second_row[BANDWIDTH - 4 - a + b] -= block[a][b];
             if b <= a {
                 first_row[BANDWIDTH - a + b] += block[a][b];
@@ -174,9 +175,10 @@ impl Rod {
 }
 
 /// Adds the elastic energy's gradient (N for positions, N·m for twists) to `gradient`, and, when given
-/// `(hessian, scale)`, its Hessian approximation times `scale` to `hessian`: the exact stretching Hessian with its transverse part clipped
-/// at zero under compression, and the Gauss–Newton bending and twisting terms `Σ ∇κᵀ B ∇κ / l` — all
-/// positive semi-definite, so the implicit system stays positive definite.
+/// `(hessian, scale)`, its Hessian approximation times `scale` to `hessian`: the exact stretching
+/// Hessian with its transverse part clipped at zero under compression, and the Gauss–Newton bending
+/// and twisting terms `Σ ∇κᵀ B ∇κ / l` — all positive semi-definite, so the implicit system stays
+/// positive definite.
 pub(crate) fn add_elastic_derivatives(
     rod: &Rod,
     edges: &[EdgeGeometry],
