@@ -236,6 +236,14 @@ mod tests {
         for (a, b) in product.iter().zip(&rhs) {
             assert!((a - b).abs() < 1e-12, "band product matches the dense product");
         }
+        // A vector that is non-zero only on some columns, multiplied over those columns alone.
+        let columns = 14..19;
+        let sparse: Vec<f64> = (0..size).map(|i| if columns.contains(&i) { expected[i] } else { 0.0 }).collect();
+        banded.multiply_columns(columns, &sparse, &mut product);
+        for (row, value) in product.iter().enumerate() {
+            let dense_value: f64 = (0..size).map(|c| dense[row][c] * sparse[c]).sum();
+            assert!((value - dense_value).abs() < 1e-12, "row {row}: {value} against {dense_value}");
+        }
         banded.factorize().expect("diagonally dominant");
         banded.solve_factorized(&mut rhs);
         for (x, e) in rhs.iter().zip(&expected) {
