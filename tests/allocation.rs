@@ -14,19 +14,18 @@ use bevy_hair_sim::prelude::*;
 use common::headless::hair_app;
 use counting_allocator::{ALLOCATIONS, thread_allocations};
 
-/// Allocations made by all threads while `work` runs.
-fn allocations_during(work: impl FnOnce()) -> u64 {
-    let before = ALLOCATIONS.load(Ordering::Relaxed);
-    work();
-    ALLOCATIONS.load(Ordering::Relaxed) - before
+/// Allocations made by all threads so far.
+fn all_threads() -> u64 {
+    ALLOCATIONS.load(Ordering::Relaxed)
 }
 
-/// Allocations made by this thread while `work` runs: the harness's main thread allocates now and then
-/// while a test runs, which a single-threaded measurement must not count.
-fn allocations_of_this_thread_during(work: impl FnOnce()) -> u64 {
-    let before = thread_allocations();
+/// How much `count` (allocations so far: [`all_threads`], or `thread_allocations` for this thread
+/// alone, blind to the harness's main thread, which allocates now and then while a test runs) grows
+/// while `work` runs.
+fn allocations_during(count: fn() -> u64, work: impl FnOnce()) -> u64 {
+    let before = count();
     work();
-    thread_allocations() - before
+    count() - before
 }
 
 /// Allocations per update of an app with one head of `strands` strands (32 edges) that moves, with
@@ -48,7 +47,7 @@ fn allocations_per_update(strands: usize) -> u64 {
     };
     run(&mut app, 30);
     let updates = 30;
-    allocations_during(|| run(&mut app, updates)) / updates as u64
+    allocations_during(all_threads, || run(&mut app, updates)) / updates as u64
 }
 
 // One test, so that no other test allocates while it counts.
@@ -62,7 +61,7 @@ fn stepping_allocates_nothing_once_running() {
     let params = StepParams::default();
     let mut workspace = RodWorkspace::default();
     rod.step(&params, None, &mut workspace).unwrap();
-    let core = allocations_of_this_thread_during(|| {
+    let core = allocations_during(thread_allocations, || {
         for step in 1..=200 {
             let time = step as f64 * params.dt;
             let turn = DQuat::from_rotation_y(4.0 * std::f64::consts::PI * time);

@@ -110,12 +110,10 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
         let columns = columns.start..columns.end.min(size);
         let Self { values, padded, product, .. } = self;
-        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around.
-        padded.clear();
-        padded.resize(size + 2 * band, 0.0);
+        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around (sized in `reset`).
+        padded.fill(0.0);
         padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
-        product.clear();
-        product.resize(size + 2 * band, 0.0);
+        product.fill(0.0);
         // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
         // The rows that meet the columns: `columns.start ..< columns.end + band`.
         for row in columns.start..(columns.end + band).min(size) {
@@ -144,9 +142,8 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// division, one multiplication and one update.
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
         let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
-        let Self { size, values, inverse_diagonal, .. } = self;
-        inverse_diagonal.clear();
-        inverse_diagonal.resize(*size, 0.0);
+        let Self { values, inverse_diagonal, .. } = self;
+        // One entry per row (sized in `reset`).
         for (j, inverse) in inverse_diagonal.iter_mut().enumerate() {
             // Rows `j ..= j + band`, padding included: one bounds check for the whole column.
             let rows = &mut values[j * width..(j + 1 + band) * width];
@@ -180,8 +177,7 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     pub fn solve_factorized(&mut self, rhs: &mut [f64]) {
         let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
         let Self { values, inverse_diagonal, padded, .. } = self;
-        padded.clear();
-        padded.resize(size + 2 * band, 0.0);
+        padded.fill(0.0);
         padded[band..band + size].copy_from_slice(&rhs[..size]);
         // `L y = b`, column by column: each solved entry is removed from the rows below it.
         for j in 0..size {

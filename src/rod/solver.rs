@@ -429,11 +429,11 @@ impl Rod {
 
         // Internal friction resists deformation, not the rigid motion the strand was carried with. On
         // the first iteration the iterate is where the strand was carried: nothing to damp yet.
-        let deformed = self.positions != *carried_positions || self.twist != *carried_twist;
+        let damped = beta > 0.0 && (self.positions != *carried_positions || self.twist != *carried_twist);
         // Sized on every iteration (a no-op once grown), so that no later step allocates.
         displacement.resize(size, 0.0);
         damping_force.resize(size, 0.0);
-        if beta > 0.0 && deformed {
+        if damped {
             for node in 0..self.node_count() {
                 let offset = self.positions[node] - carried_positions[node];
                 displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
