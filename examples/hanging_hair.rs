@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut short = strand(0.03, 16)?;
     let mut curl = strand(0.2, 48)?;
     // Natural curvature of a 1 cm-radius curl, bending towards the strand's m1 (+Y).
-    curl.set_natural_curvature(DVec2::new(100.0, 0.0));
+    curl.set_natural_curvature(DVec2::new(100.0, 0.0))?;
     let params = StepParams::default();
     let mut workspace = RodWorkspace::default();
     let mut strands = [("long 25 cm", &mut long), ("short 3 cm", &mut short), ("curl 20 cm", &mut curl)];

@@ -69,6 +69,15 @@ impl HeadPose {
         self.translation + self.rotation * (self.scale * local)
     }
 
+    /// Whether strands can follow this pose: finite, with a unit rotation (a zero scale leaves the
+    /// rotation undefined).
+    pub fn is_usable(&self) -> bool {
+        self.translation.is_finite()
+            && self.scale.is_finite()
+            && self.rotation.is_finite()
+            && self.rotation.is_normalized()
+    }
+
     /// The rigid motion `(R, t)`, `x ↦ R x + t`, that carries what is attached to `self` along to `other`
     /// (scale changes are not followed).
     pub fn rigid_motion_to(&self, other: &HeadPose) -> (DQuat, DVec3) {
@@ -109,10 +118,12 @@ pub(crate) fn track_heads(
 ) {
     for (head, mut motion) in &mut heads {
         match transforms.compute_global_transform(head) {
-            Ok(transform) if transform.affine().is_finite() => {
+            Ok(transform) if HeadPose::from(&transform).is_usable() => {
                 motion.advance(HeadPose::from(&transform), f64::from(settings.teleport_distance))
             }
-            Ok(_) => warn_once!("hair head {head} has a non-finite transform; its strands keep their last root"),
+            Ok(_) => warn_once!(
+                "hair head {head} has a non-finite or degenerate (zero-scale) transform; its strands keep their last root"
+            ),
             Err(error) => {
                 warn_once!("hair head {head} has no usable transform ({error}); its strands stay where they are")
             }

@@ -27,6 +27,6 @@ pub mod prelude {
     pub use crate::panel::HairPanelPlugin;
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
     pub use crate::settings::{HairPause, HairSettings, HairStatistics};
-    pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandPose, StrandRejected};
+    pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandHealth, StrandPose, StrandRejected};
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

@@ -160,7 +160,7 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
         row("Newton iterations", format!("{:.2} per strand", statistics.mean_newton_iterations));
         row("nodes in contact", statistics.contacts.to_string());
         row("steps / skipped", format!("{} / {}", statistics.steps, statistics.skipped_steps));
-        row("faults", statistics.faults.to_string());
+        row("faults / quarantined", format!("{} / {}", statistics.faults, statistics.quarantined));
     });
     if let Some(error) = &statistics.settings_error {
         ui.colored_label(egui::Color32::LIGHT_RED, error);

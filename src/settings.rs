@@ -19,11 +19,9 @@ pub struct HairSettings {
     /// Most Newton iterations per step and strand. Calm steps take 1; violent head motion takes more.
     /// Default 4.
     pub max_newton_iterations: u32,
-    /// Most iterations of the inextensibility projection per Newton iteration. Default 16.
+    /// Most iterations of the inextensibility projection per Newton iteration (at least 1; a step whose
+    /// edges would end beyond the strain bound takes more, see [`StepParams::strain_bound`]). Default 16.
     pub max_projection_iterations: u32,
-    /// Edge strain, dimensionless, beyond which a strand counts as diverged and is reset to its rest pose
-    /// on its head. Default 0.05.
-    pub divergence_strain: f32,
     /// A head that moves farther than this in one step, m, carries its hair along rigidly (a teleport)
     /// instead of dragging it. Default 0.5 (30 m/s at 60 Hz).
     pub teleport_distance: f32,
@@ -48,7 +46,6 @@ impl Default for HairSettings {
             internal_damping: step.internal_damping as f32,
             max_newton_iterations: step.max_newton_iterations,
             max_projection_iterations: step.max_projection_iterations,
-            divergence_strain: step.divergence_strain as f32,
             teleport_distance: 0.5,
             max_steps_per_frame: 4,
             collision_margin: 0.001,
@@ -58,10 +55,12 @@ impl Default for HairSettings {
 }
 
 impl HairSettings {
-    /// The mechanics core's parameters for a step of `dt` seconds, checked, and the collision margin, m.
+    /// The mechanics core's parameters for a step of `dt` seconds, checked, and the collision margin, m;
+    /// the default material is checked too.
     pub fn validated(&self, dt: f64) -> Result<(StepParams, f64), RodError> {
         let params = self.step_params(dt);
         params.validate()?;
+        self.default_material.validate()?;
         let margin = f64::from(self.collision_margin);
         if !(margin.is_finite() && margin >= 0.0) {
             return Err(RodError::InvalidCollider { parameter: "collision_margin", value: margin });
@@ -78,7 +77,6 @@ impl HairSettings {
             internal_damping: f64::from(self.internal_damping),
             max_newton_iterations: self.max_newton_iterations,
             max_projection_iterations: self.max_projection_iterations,
-            divergence_strain: f64::from(self.divergence_strain),
             ..StepParams::default()
         }
     }
@@ -118,6 +116,9 @@ pub struct HairStatistics {
     pub skipped_steps: u64,
     /// Failed strand steps since start (each reported with a [`crate::strand::StrandFault`]).
     pub faults: u64,
+    /// Strands in quarantine after the last step: they failed again soon after a failure, and are held in
+    /// their rest pose on their head, not stepped, until they are retried (see [`crate::strand::Strand`]).
+    pub quarantined: usize,
     /// Largest edge strain of any strand after the last step, dimensionless.
     pub max_strain: f64,
     /// Nodes touching a collider after the last step.

@@ -9,6 +9,7 @@ use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
 use crate::rod::{Contacts, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
+use crate::strand::StepOutcome;
 use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
@@ -49,9 +50,10 @@ pub(crate) fn stepping(budget: Res<StepBudget>) -> bool {
     budget.stepping
 }
 
-/// Gives strands that follow [`HairSettings::default_material`] its new value when it changes.
+/// Gives strands that follow [`HairSettings::default_material`] its new value when it changes (an
+/// invalid one is reported by [`step_strands`], which pauses the hair until it is fixed).
 pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Query<(Entity, &mut Strand)>) {
-    if !settings.is_changed() {
+    if !settings.is_changed() || settings.default_material.validate().is_err() {
         return;
     }
     for (entity, mut strand) in &mut strands {
@@ -63,14 +65,11 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 }
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
-/// teleported.
-pub(crate) fn pin_roots(mut strands: Query<(Entity, &mut Strand, &StrandOf)>, heads: Query<&HeadMotion>) {
-    strands.par_iter_mut().for_each(|(entity, mut strand, &StrandOf(head))| {
-        let Ok(motion) = heads.get(head) else {
-            return;
-        };
-        if let Err(error) = strand.follow_head(motion.current, motion.teleported) {
-            error!("hair strand {entity} cannot follow head {head}: {error}");
+/// teleported (a root that cannot follow is reported as the strand's fault at its step).
+pub(crate) fn pin_roots(mut strands: Query<(&mut Strand, &StrandOf)>, heads: Query<&HeadMotion>) {
+    strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
+        if let Ok(motion) = heads.get(head) {
+            strand.follow_head(motion.current, motion.teleported);
         }
     });
 }
@@ -91,12 +90,75 @@ struct StepTally {
     newton_iterations: u64,
     contacts: usize,
     max_strain: f64,
-    faults: Vec<StrandFault>,
+    quarantined: usize,
+    faults: Vec<Fault>,
+}
+
+/// A failed strand step, as the thread that stepped it saw it.
+struct Fault {
+    message: StrandFault,
+    first_of_episode: bool,
+    quarantine: Option<f64>,
+}
+
+/// Fault lines logged one by one per [`FAULT_LOG_PERIOD`]; the rest are summed up in one line.
+const FAULT_LINES_PER_PERIOD: u32 = 4;
+
+/// The period of the fault log's summary, s of simulated time.
+const FAULT_LOG_PERIOD: f64 = 1.0;
+
+/// Keeps the log readable while strands fail: each strand's first fault of an episode is logged on its
+/// own (at most [`FAULT_LINES_PER_PERIOD`] per period), everything else is counted and summed up in one
+/// line per [`FAULT_LOG_PERIOD`] at most.
+#[derive(Default)]
+pub(crate) struct FaultLog {
+    period_start: f64,
+    lines: u32,
+    unlogged_faults: u64,
+    quarantines: u64,
+}
+
+impl FaultLog {
+    fn record(&mut self, now: f64, fault: &Fault) {
+        if fault.quarantine.is_some() {
+            self.quarantines += 1;
+        }
+        if !(fault.first_of_episode && self.lines < FAULT_LINES_PER_PERIOD) {
+            self.unlogged_faults += 1;
+            return;
+        }
+        self.lines += 1;
+        let StrandFault { strand, error } = &fault.message;
+        let consequence = match (error, fault.quarantine) {
+            (_, Some(seconds)) => format!("it is quarantined for {seconds} s"),
+            (StepError::InvalidInput(_), None) => "its step was skipped".to_string(),
+            _ => "it was reset to its rest pose".to_string(),
+        };
+        warn!("hair strand {strand} failed a step, {consequence}: {error}");
+        self.summarise(now);
+    }
+
+    /// Logs the period's summary when the period is over and something went unlogged.
+    fn summarise(&mut self, now: f64) {
+        if now - self.period_start < FAULT_LOG_PERIOD {
+            return;
+        }
+        if self.unlogged_faults > 0 {
+            warn!(
+                "hair: {} more strand faults in the last {:.1} s ({} quarantines); StrandFault messages have each one",
+                self.unlogged_faults,
+                now - self.period_start,
+                self.quarantines,
+            );
+        }
+        *self = FaultLog { period_start: now, ..default() };
+    }
 }
 
 /// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
-/// with no head); a strand whose step fails is reset (see [`Strand`]) and reported with
-/// a [`StrandFault`] message and a warning, and the others go on.
+/// with no head); a strand whose step fails is reset or quarantined (see [`Strand`]) and reported with
+/// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn step_strands(
     time: Res<Time>,
     settings: Res<HairSettings>,
@@ -105,6 +167,7 @@ pub(crate) fn step_strands(
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
+    mut fault_log: Local<FaultLog>,
 ) {
     let (params, collision_margin) = match settings.validated(time.delta_secs_f64()) {
         Ok(validated) => validated,
@@ -120,45 +183,52 @@ pub(crate) fn step_strands(
     statistics.settings_error = None;
 
     let started = Instant::now();
+    let now = time.elapsed_secs_f64();
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.collision_thickness(collision_margin) };
         threads.scope(|StepThread { workspace, tally }| {
-            let result = strand.advance(&params, &forces, &contacts, workspace);
+            let outcome = strand.advance(now, &params, &forces, &contacts, workspace);
             forces.clear();
             tally.strands += 1;
             tally.nodes += strand.rod().node_count();
-            match result {
-                Ok(report) => {
+            tally.quarantined += usize::from(strand.is_quarantined());
+            match outcome {
+                StepOutcome::Stepped(report) => {
                     tally.newton_iterations += u64::from(report.newton_iterations);
                     tally.contacts += report.contacts as usize;
                     tally.max_strain = tally.max_strain.max(report.max_strain);
                 }
-                Err(error) => tally.faults.push(StrandFault { strand: entity, error }),
+                StepOutcome::Held => {}
+                StepOutcome::Faulted { error, first_of_episode, quarantine } => tally.faults.push(Fault {
+                    message: StrandFault { strand: entity, error },
+                    first_of_episode,
+                    quarantine,
+                }),
             }
         });
     });
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);
+    let mut quarantined = 0;
     for StepThread { tally, .. } in threads.iter_mut() {
         strands_stepped += tally.strands;
         nodes_stepped += tally.nodes;
         newton_iterations += tally.newton_iterations;
         contacts += tally.contacts;
         max_strain = max_strain.max(tally.max_strain);
+        quarantined += tally.quarantined;
         for fault in tally.faults.drain(..) {
-            let consequence = match fault.error {
-                StepError::InvalidInput(_) => "its step was skipped",
-                _ => "it was reset to its rest pose",
-            };
-            warn!("hair strand {} failed a step, {consequence}: {}", fault.strand, fault.error);
+            fault_log.record(now, &fault);
             statistics.faults += 1;
-            fault_messages.write(fault);
+            fault_messages.write(fault.message);
         }
         // Start the next step from zero, keeping the fault list's memory.
         *tally = StepTally { faults: std::mem::take(&mut tally.faults), ..default() };
     }
+    fault_log.summarise(now);
+    statistics.quarantined = quarantined;
     statistics.step_seconds = started.elapsed().as_secs_f64();
     statistics.steps += 1;
     statistics.strands = strands_stepped;

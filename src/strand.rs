@@ -127,10 +127,59 @@ impl RootAnchor {
     }
 }
 
+/// Seconds after a fault within which another fault quarantines the strand, s of simulated time.
+pub const QUARANTINE_WINDOW: f64 = 1.0;
+
+/// How long a strand's first quarantine of an episode lasts, s of simulated time; each further one in the
+/// same episode lasts twice as long as the one before, up to [`MAX_QUARANTINE`].
+pub const FIRST_QUARANTINE: f64 = 0.5;
+
+/// The longest quarantine, s of simulated time.
+pub const MAX_QUARANTINE: f64 = 32.0;
+
+/// A strand's record of failures: a fault episode starts with a failed step and ends once the strand
+/// has stepped [`QUARANTINE_WINDOW`] seconds without failing.
+#[derive(Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct StrandHealth {
+    /// Failed steps in the current episode (0: none going on).
+    pub faults_in_episode: u32,
+    /// Quarantines in the current episode.
+    pub quarantines_in_episode: u32,
+    /// Simulated time of the last fault, s (the clock of the schedule the hair runs in).
+    pub last_fault: f64,
+    /// Simulated time until which the strand is held in quarantine, s; `None` when it is not.
+    pub quarantined_until: Option<f64>,
+}
+
+/// What [`Strand`]'s step did.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum StepOutcome {
+    /// Stepped.
+    Stepped(StepReport),
+    /// In quarantine: held at its rest pose on its head, not stepped.
+    Held,
+    /// The step failed (see [`Strand`]).
+    Faulted {
+        /// Why.
+        error: StepError,
+        /// Whether this fault starts an episode (it is then logged on its own).
+        first_of_episode: bool,
+        /// Seconds of quarantine this fault started, if it started one.
+        quarantine: Option<f64>,
+    },
+}
+
 /// The simulated state of a strand, built by the plugin from its [`HairStrand`]: the rod (node positions
 /// and velocities, edge frames and twists, rest lengths, rest curvatures and twists, material; see
 /// [`Rod`]) and its root anchor on the head, contiguous per strand. The solver's scratch memory is not
 /// here: one workspace per thread serves all the strands that thread steps, and stays in its cache.
+///
+/// **Faults.** A step that fails (see [`StrandFault`]) puts the strand back in its rest pose on its head
+/// (or, on invalid input such as a non-finite force, skips it). A strand that fails again within
+/// [`QUARANTINE_WINDOW`] of a failure is quarantined: held in its rest pose on its head, following the
+/// head, not stepped, for [`FIRST_QUARANTINE`] seconds, then retried; each further failure in the same
+/// episode doubles the wait, up to [`MAX_QUARANTINE`]. [`Strand::health`] has the record.
 #[derive(Component, Reflect, Debug, Clone)]
 #[reflect(Component, Debug)]
 pub struct Strand {
@@ -142,6 +191,10 @@ pub struct Strand {
     collision_thickness: Option<f64>,
     last_report: Option<StepReport>,
     snap_pose: bool,
+    health: StrandHealth,
+    /// Why the root could not be clamped to the head this step, reported as the step's fault.
+    #[reflect(ignore)]
+    pin_error: Option<RodError>,
 }
 
 impl Strand {
@@ -163,7 +216,7 @@ impl Strand {
             if !curvature.is_finite() {
                 return Err(StrandSpawnError::NonFiniteCurvature(curvature));
             }
-            rod.set_natural_curvature(DVec2::new(f64::from(curvature.x), f64::from(curvature.y)));
+            rod.set_natural_curvature(DVec2::new(f64::from(curvature.x), f64::from(curvature.y)))?;
         }
         if let Some(thickness) = spec.collision_thickness
             && !(thickness.is_finite() && thickness >= 0.0)
@@ -180,6 +233,8 @@ impl Strand {
             collision_thickness: spec.collision_thickness.map(f64::from),
             last_report: None,
             snap_pose: true,
+            health: StrandHealth::default(),
+            pin_error: None,
         })
     }
 
@@ -217,47 +272,96 @@ impl Strand {
         self.last_report.as_ref()
     }
 
+    /// The strand's record of failures and quarantine.
+    pub fn health(&self) -> &StrandHealth {
+        &self.health
+    }
+
+    /// Whether the strand is held in quarantine (see [`Strand`]).
+    pub fn is_quarantined(&self) -> bool {
+        self.health.quarantined_until.is_some()
+    }
+
     /// Puts the strand back in its rest pose on its head, at rest.
     pub fn reset_to_rest(&mut self) {
         self.rod.reset();
         let (rotation, translation) = self.spawn_head.rigid_motion_to(&self.head);
-        self.rod.transform_rigidly(rotation, translation);
+        // Head poses are checked finite and their rotations normalised when recorded (`track_heads`).
+        if let Err(error) = self.rod.transform_rigidly(rotation, translation) {
+            warn_once!("a hair strand's rest pose could not be carried to its head: {error}");
+        }
         self.snap_pose = true;
     }
 
     /// Follows the head to `pose`: clamps the root edge to its anchor there. A teleported head carries the
-    /// whole strand along rigidly first.
-    pub(crate) fn follow_head(&mut self, pose: HeadPose, teleported: bool) -> Result<(), RodError> {
+    /// whole strand along rigidly first. A pose the root cannot follow is reported by the next step.
+    pub(crate) fn follow_head(&mut self, pose: HeadPose, teleported: bool) {
         let Some(anchor) = self.anchor else {
-            return Ok(());
+            return;
         };
         if teleported {
             let (rotation, translation) = self.head.rigid_motion_to(&pose);
-            self.rod.transform_rigidly(rotation, translation);
+            if let Err(error) = self.rod.transform_rigidly(rotation, translation) {
+                self.pin_error = Some(error);
+                return;
+            }
             self.snap_pose = true;
         }
-        self.head = pose;
         let (start, end, material_direction) = anchor.world(&pose);
-        self.rod.clamp_edge(0, start, end, material_direction)
+        match self.rod.clamp_edge(0, start, end, material_direction) {
+            Ok(()) => self.head = pose,
+            Err(error) => self.pin_error = Some(error),
+        }
     }
 
-    /// Advances the strand by one step, kept outside the colliders of `contacts`, with the calling
-    /// thread's `workspace`. A step that fails on invalid input (a non-finite force) changes nothing;
-    /// any other failure (divergence) resets the strand to its rest pose on its head.
+    /// Advances the strand by one step at simulated time `now` (s), kept outside the colliders of
+    /// `contacts`, with the calling thread's `workspace`; handles faults and quarantine (see [`Strand`]).
     pub(crate) fn advance(
         &mut self,
+        now: f64,
         params: &StepParams,
         forces: &StrandForces,
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
-    ) -> Result<StepReport, StepError> {
-        let result = self.rod.step_with_contacts(params, forces.active(), contacts, workspace);
-        match &result {
-            Ok(report) => self.last_report = Some(*report),
-            Err(StepError::InvalidInput(_)) => {}
-            Err(_) => self.reset_to_rest(),
+    ) -> StepOutcome {
+        let retried = match self.health.quarantined_until {
+            Some(until) if now < until => {
+                self.reset_to_rest();
+                return StepOutcome::Held;
+            }
+            Some(_) => true,
+            None => false,
+        };
+        let result = match self.pin_error.take() {
+            Some(error) => Err(StepError::InvalidInput(error)),
+            None => self.rod.step_with_contacts(params, forces.active(), contacts, workspace),
+        };
+        let health = &mut self.health;
+        let error = match result {
+            Ok(report) => {
+                self.last_report = Some(report);
+                health.quarantined_until = None;
+                if health.faults_in_episode > 0 && now - health.last_fault > QUARANTINE_WINDOW {
+                    *health = StrandHealth::default();
+                }
+                return StepOutcome::Stepped(report);
+            }
+            Err(error) => error,
+        };
+        let first_of_episode = health.faults_in_episode == 0;
+        let again = retried || (!first_of_episode && now - health.last_fault <= QUARANTINE_WINDOW);
+        health.faults_in_episode += 1;
+        health.last_fault = now;
+        let quarantine = again.then(|| {
+            let seconds = (FIRST_QUARANTINE * 2f64.powi(health.quarantines_in_episode as i32)).min(MAX_QUARANTINE);
+            health.quarantines_in_episode += 1;
+            health.quarantined_until = Some(now + seconds);
+            seconds
+        });
+        if quarantine.is_some() || !matches!(error, StepError::InvalidInput(_)) {
+            self.reset_to_rest();
         }
-        result
+        StepOutcome::Faulted { error, first_of_episode, quarantine }
     }
 
     /// Uses `material` if the strand follows the default material.
@@ -363,41 +467,58 @@ pub struct StrandFault {
     pub error: StepError,
 }
 
-/// Strands whose spawn description is new or changed, with the components built alongside their rod.
-type ChangedStrands<'w, 's> = Query<
+/// Strands with their spawn description, whether it was rejected, and the components built alongside
+/// their rod.
+type SpawnedStrands<'w, 's> = Query<
     'w,
     's,
-    (Entity, &'static HairStrand, Option<&'static StrandOf>, &'static mut StrandForces, &'static mut StrandPose),
-    Or<(Changed<HairStrand>, Changed<StrandOf>)>,
+    (
+        Entity,
+        Ref<'static, HairStrand>,
+        Option<Ref<'static, StrandOf>>,
+        Option<&'static StrandRejected>,
+        &'static mut StrandForces,
+        &'static mut StrandPose,
+    ),
 >;
 
 /// Builds the simulated [`Strand`] of every new or changed [`HairStrand`] (or one moved to another head
-/// by a new [`StrandOf`]); rejects invalid ones with an
-/// error message naming the entity and the reason.
+/// by a new [`StrandOf`]); rejects invalid ones with an error message naming the entity and the reason.
+/// Rejected strands are tried again when [`HairSettings`] change (their default material may have been
+/// what was wrong).
 pub(crate) fn build_strands(
     mut commands: Commands,
     settings: Res<HairSettings>,
     transforms: bevy::transform::helper::TransformHelper,
-    mut strands: ChangedStrands,
+    mut strands: SpawnedStrands,
 ) {
-    for (entity, spec, strand_of, mut forces, mut pose) in &mut strands {
+    for (entity, spec, strand_of, rejected, mut forces, mut pose) in &mut strands {
+        let changed = spec.is_changed() || strand_of.as_ref().is_some_and(Ref::is_changed);
+        if !(changed || rejected.is_some() && settings.is_changed()) {
+            continue;
+        }
+        let strand_of = strand_of.map(|strand_of| *strand_of);
         let head = strand_of
-            .map(|&StrandOf(head)| {
+            .map(|StrandOf(head)| {
                 transforms
                     .compute_global_transform(head)
                     .map(|transform| HeadPose::from(&transform))
                     .map_err(|error| StrandSpawnError::Head { head, reason: error.to_string() })
             })
             .transpose();
-        match head.and_then(|head| Strand::spawn(spec, head, &settings.default_material)) {
+        match head.and_then(|head| Strand::spawn(&spec, head, &settings.default_material)) {
             Ok(strand) => {
                 forces.resize(strand.rod.node_count());
                 pose.update(strand.rod.positions(), true);
                 commands.entity(entity).try_remove::<StrandRejected>().try_insert(strand);
             }
             Err(error) => {
-                error!("hair strand {entity} rejected: {error}");
-                commands.entity(entity).try_remove::<Strand>().try_insert(StrandRejected { reason: error.to_string() });
+                let reason = error.to_string();
+                // A retry that fails for the same reason is not news.
+                if changed || rejected.is_none_or(|rejected| rejected.reason != reason) {
+                    error!("hair strand {entity} rejected: {reason}");
+                }
+                commands.entity(entity).try_remove::<Strand>().try_insert(StrandRejected { reason });
             }
         }
     }

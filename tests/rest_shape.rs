@@ -50,7 +50,7 @@ fn curl(length: f64, edges: usize, natural: DVec2) -> Rod {
     let nodes = straight_nodes(length, edges, DVec3::X);
     let mut rod = Rod::new(&nodes, DVec3::Y, stiff_rod_material()).unwrap();
     rod.clamp_root_in_place();
-    rod.set_natural_curvature(natural);
+    rod.set_natural_curvature(natural).unwrap();
     let params = StepParams { gravity: DVec3::ZERO, air_damping: 5.0, ..Default::default() };
     let mut workspace = RodWorkspace::default();
     run(&mut rod, &params, 900, &mut workspace);

@@ -84,6 +84,15 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         &mut self.values[rows.start * Self::WIDTH..rows.end * Self::WIDTH]
     }
 
+    /// Multiplies every diagonal entry by `factor` (a Levenberg–Marquardt shift `λ diag(A)` with
+    /// `factor = 1 + λ`).
+    pub fn scale_diagonal(&mut self, factor: f64) {
+        for row in 0..self.size {
+            let index = self.index(row, row);
+            self.values[index] *= factor;
+        }
+    }
+
     /// Replaces row and column `dof` by those of the identity, decoupling that unknown.
     pub fn set_identity_row(&mut self, dof: usize) {
         let band = HALF_BANDWIDTH;

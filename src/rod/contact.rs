@@ -52,6 +52,13 @@ const PUSH_DEPTH: f64 = 1e-5;
 /// its weight sinks `g dt² / 10⁴` (0.3 µm at 60 Hz) into the collider.
 const CONTACT_STIFFNESS_RATIO: f64 = 1e4;
 
+/// A free node closer along the strand to a prescribed node inside a collider than this many times that
+/// node's depth (m, from the collider's surface grown by the thickness) is left free of that collider:
+/// it could not be outside without stretching the strand (a root inside a hat, a hand or a ceiling plane),
+/// so the strand is not torn trying. Hair growing out of a scalp collider has its roots a thickness deep,
+/// so only nodes within two thicknesses of the root are let in.
+const HELD_REACH: f64 = 2.0;
+
 /// Speed, m/s, below which friction acts as a stiff spring on the slip rather than as a constant force
 /// (the smoothing of IPC's friction): a node held below its friction limit creeps at most this fast.
 pub const STICKING_SLIP_SPEED: f64 = 1e-5;
@@ -108,6 +115,8 @@ fn is_sticking(slip: DVec3, sticking_slip: f64) -> bool {
 struct NearbyCollider {
     /// The nodes that can come near it this step (from the first to the last); the others are not tested.
     nodes: Range<usize>,
+    /// The nodes held inside it by prescribed nodes there (see [`HELD_REACH`]), which it does not push.
+    held: Range<usize>,
     shape: ColliderShape,
     /// Edges longer than this, m, can dip into the collider deeper than the thickness between two nodes
     /// that touch it (the sagitta `l² / 8ρ` of a chord on a surface of curvature radius `ρ`), so they are
@@ -131,6 +140,7 @@ impl NearbyCollider {
         };
         Self {
             nodes,
+            held: 0..0,
             shape: collider.shape.inflated(thickness),
             edge_test_length: (8.0 * collider.shape.smallest_curvature_radius() * thickness).sqrt(),
             friction: collider.friction,
@@ -140,6 +150,45 @@ impl NearbyCollider {
             end_inverse: end_rotation.transpose(),
             end_translation: lift(&collider.end),
         }
+    }
+
+    /// The nodes that prescribed nodes inside this collider hold there: within [`HELD_REACH`] times the
+    /// deepest such node's depth of it along the strand, the prescribed nodes included (empty if none
+    /// is inside).
+    fn held_nodes(&self, rod: &Rod) -> Range<usize> {
+        let mut held = 0..0;
+        for (node, target) in rod.node_targets.iter().enumerate() {
+            let Some(local) = target.map(|target| self.local_at_end(target)) else {
+                continue;
+            };
+            if !self.shape.contains(local) {
+                continue;
+            }
+            let surface = self.shape.closest_surface_point(local);
+            let reach = HELD_REACH * (surface.point - local).dot(surface.normal).max(0.0);
+            let (mut first, mut last, mut arc) = (node, node, 0.0);
+            while first > 0 && arc + rod.rest_lengths[first - 1] < reach {
+                arc += rod.rest_lengths[first - 1];
+                first -= 1;
+            }
+            arc = 0.0;
+            while last < rod.edge_count() && arc + rod.rest_lengths[last] < reach {
+                arc += rod.rest_lengths[last];
+                last += 1;
+            }
+            held = if held.is_empty() { first..last + 1 } else { held.start.min(first)..held.end.max(last + 1) };
+        }
+        held
+    }
+
+    /// Whether this collider can push `node`: neither prescribed nor held inside it.
+    fn pushes(&self, rod: &Rod, node: usize) -> bool {
+        !self.held.contains(&node) && !rod.is_node_prescribed(node)
+    }
+
+    /// The nodes near this collider that it can push.
+    fn free_nodes<'a>(&'a self, rod: &'a Rod) -> impl Iterator<Item = usize> + 'a {
+        self.nodes.clone().filter(move |&node| self.pushes(rod, node))
     }
 
     fn local_at_start(&self, world: DVec3) -> DVec3 {
@@ -279,17 +328,11 @@ pub(crate) struct ContactScratch {
 }
 
 impl ContactScratch {
-    /// Keeps the colliders of `contacts` whose swept bounds come within `margin` of a node, at
-    /// `start_positions` or `positions`, or of an edge between them (`longest_edge` m long at most),
-    /// with the range of nodes that do.
-    fn find_nearby(
-        &mut self,
-        contacts: &Contacts,
-        start_positions: &[DVec3],
-        positions: &[DVec3],
-        longest_edge: f64,
-        margin: f64,
-    ) {
+    /// Keeps the colliders of `contacts` whose swept bounds come within `margin` of a node of `rod`, at
+    /// `start_positions` or where it is now, or of an edge between them, with the range of nodes that do
+    /// and the range held inside.
+    fn find_nearby(&mut self, rod: &Rod, contacts: &Contacts, start_positions: &[DVec3], margin: f64) {
+        let (positions, longest_edge) = (&rod.positions, rod.longest_rest_edge());
         self.nearby.clear();
         for collider in contacts.colliders {
             // A point of an edge within the bounds puts one of its ends within half an edge of them.
@@ -303,7 +346,9 @@ impl ContactScratch {
                 continue;
             };
             let last = (first..positions.len()).rev().find(near).unwrap_or(first);
-            self.nearby.push(NearbyCollider::new(collider, contacts.thickness, first..last + 1));
+            let mut nearby = NearbyCollider::new(collider, contacts.thickness, first..last + 1);
+            nearby.held = nearby.held_nodes(rod);
+            self.nearby.push(nearby);
         }
     }
 }
@@ -328,7 +373,7 @@ impl Rod {
         }
         let fastest = self.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
         let reach = 2.0 * (fastest * params.dt + params.gravity.length() * params.dt * params.dt);
-        scratch.find_nearby(contacts, start_positions, &self.positions, self.longest_rest_edge(), reach);
+        scratch.find_nearby(self, contacts, start_positions, reach);
         // Room for every node touching every nearby collider, so that no later iterate allocates.
         scratch.touching.reserve(self.node_count() * scratch.nearby.len());
     }
@@ -368,7 +413,7 @@ impl Rod {
             contact.first_solve = first_solve;
         }
         for (index, collider) in nearby.iter().enumerate() {
-            for node in collider.nodes.clone().filter(|&node| !self.is_node_prescribed(node)) {
+            for node in collider.free_nodes(self) {
                 let known = || touching.iter().any(|contact| contact.node == node && contact.collider == index);
                 if touched[node] && known() {
                     continue;
@@ -448,7 +493,7 @@ impl Rod {
             contact.first_solve = false;
         }
         for (index, collider) in nearby.iter().enumerate() {
-            for node in collider.nodes.clone().filter(|&node| !touched[node] && !self.is_node_prescribed(node)) {
+            for node in collider.free_nodes(self).filter(|&node| !touched[node]) {
                 let position = self.positions[node] + node_update(node);
                 if let Some(contact) = collider.new_contact(index, node, position, start_positions[node], 0.0) {
                     normal_forces[node] =
@@ -471,7 +516,7 @@ impl Rod {
         projection: &mut ProjectionScratch,
         scratch: &mut ContactScratch,
     ) -> (u32, u32) {
-        scratch.find_nearby(contacts, start_positions, &self.positions, self.longest_rest_edge(), 0.0);
+        scratch.find_nearby(self, contacts, start_positions, 0.0);
         let ContactScratch { nearby, touching, touched, before_projection, .. } = scratch;
         touched.clear();
         touched.resize(self.node_count(), false);
@@ -534,7 +579,7 @@ impl Rod {
         let mut moved = false;
         for collider in nearby {
             for node in collider.nodes.clone() {
-                if self.is_node_prescribed(node) {
+                if !collider.pushes(self, node) {
                     continue;
                 }
                 let end = self.positions[node];
@@ -551,9 +596,9 @@ impl Rod {
                     contact_normals[node] = normal;
                 }
             }
-            // Edges at a prescribed node (a root inside its head) are left to their free node's test.
+            // Edges at a prescribed or held node (a root inside its head) are left to their free node's test.
             for edge in collider.nodes.start.saturating_sub(1)..collider.nodes.end.min(self.edge_count()) {
-                if self.is_node_prescribed(edge) || self.is_node_prescribed(edge + 1) {
+                if !(collider.pushes(self, edge) && collider.pushes(self, edge + 1)) {
                     continue;
                 }
                 let (start, end) = (self.positions[edge], self.positions[edge + 1]);

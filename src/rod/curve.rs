@@ -11,6 +11,54 @@ use super::material::{RodMaterial, Stiffness};
 /// Edges shorter than this fraction of the rod's mean edge length are rejected as degenerate.
 const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
 
+/// The largest turning angle between two consecutive edges that a rod is created with or given as rest
+/// curvature, rad (170°, an integrated curvature `2 tan(φ/2)` of 22.9): tighter is a kink, not a
+/// curl. The curvature and its derivatives grow as `1/(π − φ)` and faster towards a fold, and the step
+/// keeps its system solvable there (see [`crate::rod::Rod::step_with_contacts`]), but only a state
+/// folded to within [`FOLDED_STATE_GAP`] of π cannot be stepped at all: this leaves room for a rod
+/// created at the limit to be bent further by its motion.
+pub const MAX_TURNING_ANGLE: f64 = 170.0 * std::f64::consts::PI / 180.0;
+
+/// How close to π a turning angle may come before the state cannot be stepped, rad: the curvature
+/// binormal `2 t × t' / (1 + t·t')` then overflows the step's arithmetic.
+const FOLDED_STATE_GAP: f64 = 1e-6;
+
+/// The smallest angle between a material direction and its edge, rad: closer to the edge, the director
+/// `m1` made perpendicular to it would come from rounding rather than from the direction given.
+pub const MIN_MATERIAL_DIRECTION_ANGLE: f64 = 1e-3;
+
+/// How far a rotation's quaternion may be from unit length, dimensionless, before it is rejected as not a
+/// rotation (within it, it is normalised).
+const ROTATION_LENGTH_TOLERANCE: f64 = 1e-3;
+
+/// The integrated curvature `2 tan(φ/2)` of the largest turning angle [`MAX_TURNING_ANGLE`].
+fn max_integrated_curvature() -> f64 {
+    2.0 * (0.5 * MAX_TURNING_ANGLE).tan()
+}
+
+/// `direction` made perpendicular to the unit `tangent` and normalised, if it is finite and at least
+/// [`MIN_MATERIAL_DIRECTION_ANGLE`] away from the tangent's line.
+fn material_director(direction: DVec3, tangent: DVec3) -> Option<DVec3> {
+    let length = direction.length();
+    let perpendicular = direction - direction.dot(tangent) * tangent;
+    (length.is_finite() && perpendicular.length() >= MIN_MATERIAL_DIRECTION_ANGLE.sin() * length)
+        .then(|| perpendicular.normalize())
+}
+
+/// The first pair of consecutive unit tangents that turn by more than `max_angle` (rad), by the index of
+/// the first edge.
+fn first_fold(tangents: impl Iterator<Item = DVec3>, max_angle: f64) -> Option<usize> {
+    let limit = max_angle.cos();
+    let mut previous: Option<DVec3> = None;
+    for (edge, tangent) in tangents.enumerate() {
+        if previous.is_some_and(|previous| previous.dot(tangent) < limit) {
+            return Some(edge - 1);
+        }
+        previous = Some(tangent);
+    }
+    None
+}
+
 /// The orthonormal material frame `(t, m1, m2)` of one edge.
 #[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct MaterialFrame {
@@ -61,8 +109,9 @@ impl Rod {
     /// Creates a rod through `positions` (m) whose first edge has its first material director `m1` along
     /// `material_direction` (projected perpendicular to the edge). The given shape is the rest shape.
     ///
-    /// Rejects fewer than 3 nodes, non-finite nodes, (nearly) zero-length edges, edges folded back by
-    /// 180°, a material direction parallel to the first edge, and invalid material parameters.
+    /// Rejects fewer than 3 nodes, non-finite nodes, (nearly) zero-length edges, consecutive edges that
+    /// turn by more than [`MAX_TURNING_ANGLE`], a material direction within
+    /// [`MIN_MATERIAL_DIRECTION_ANGLE`] of the first edge, and invalid material parameters.
     pub fn new(positions: &[DVec3], material_direction: DVec3, material: RodMaterial) -> Result<Self, RodError> {
         material.validate()?;
         if positions.len() < 3 {
@@ -79,10 +128,10 @@ impl Rod {
             return Err(RodError::DegenerateEdge { edge, length, minimum });
         }
         let tangents: Vec<DVec3> = positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize()).collect();
-        if let Some(edge) = tangents.windows(2).position(|pair| 1.0 + pair[0].dot(pair[1]) < 1e-9) {
+        if let Some(edge) = first_fold(tangents.iter().copied(), MAX_TURNING_ANGLE) {
             return Err(RodError::FoldedEdges { edge });
         }
-        let first_director = perpendicular_unit(material_direction, tangents[0])
+        let first_director = material_director(material_direction, tangents[0])
             .ok_or(RodError::InvalidMaterialDirection { edge: 0, direction: material_direction })?;
 
         // Space-parallel transport of the first director along the curve.
@@ -146,7 +195,10 @@ impl Rod {
     }
 
     /// Node positions, m, for moving nodes directly (an editor, a scripted pose). The frames follow the
-    /// nodes at the next step; velocities are left as they are.
+    /// nodes at the next step; velocities are left as they are. A state the next step cannot start from
+    /// (a non-finite position, two nodes on top of each other, two edges folded onto each other) is not
+    /// kept: that step puts the rod back in its rest pose and reports
+    /// [`crate::rod::StepError::UnusableState`].
     pub fn positions_mut(&mut self) -> &mut [DVec3] {
         &mut self.positions
     }
@@ -243,15 +295,33 @@ impl Rod {
     }
 
     /// Sets the rest material curvature `(κ̄₁, κ̄₂)` of interior `vertex` (integrated, dimensionless).
+    /// Rejects a non-finite curvature, and one whose magnitude `2 tan(φ/2)` asks the edges to turn by
+    /// more than [`MAX_TURNING_ANGLE`]; the rod is then unchanged.
     pub fn set_rest_curvature(&mut self, vertex: usize, curvature: DVec2) -> Result<(), RodError> {
         self.check_vertex(vertex)?;
+        if !curvature.is_finite() {
+            return Err(RodError::NonFiniteRestShape { what: "curvature", vertex });
+        }
+        let limit = max_integrated_curvature();
+        if curvature.length() > limit {
+            return Err(RodError::RestCurvatureTooLarge {
+                vertex,
+                curvature: curvature.length(),
+                limit,
+                limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
+            });
+        }
         self.rest_curvature[vertex] = curvature;
         Ok(())
     }
 
-    /// Sets the rest twist `τ̄` of interior `vertex` (integrated, rad).
+    /// Sets the rest twist `τ̄` of interior `vertex` (integrated, rad). Rejects a non-finite twist; the
+    /// rod is then unchanged.
     pub fn set_rest_twist(&mut self, vertex: usize, twist: f64) -> Result<(), RodError> {
         self.check_vertex(vertex)?;
+        if !twist.is_finite() {
+            return Err(RodError::NonFiniteRestShape { what: "twist", vertex });
+        }
         self.rest_twist[vertex] = twist;
         Ok(())
     }
@@ -260,9 +330,24 @@ impl Rod {
     /// free of load it curls into a circular arc (a helix when twisted) of curvature `|k|`.
     ///
     /// The discrete rest curvature at vertex i is `2 tan(|k| l_i / 2) k/|k|`: the turning angle between
-    /// edge midpoints a Voronoi length `l_i` apart on a circle of curvature `|k|`.
-    pub fn set_natural_curvature(&mut self, curvature_per_metre: DVec2) {
+    /// edge midpoints a Voronoi length `l_i` apart on a circle of curvature `|k|`. Rejects a non-finite
+    /// curvature, and one that turns some vertex by more than [`MAX_TURNING_ANGLE`] (`|k| l_i` beyond
+    /// it: curls tighter than the rod's edges can draw); the rod is then unchanged.
+    pub fn set_natural_curvature(&mut self, curvature_per_metre: DVec2) -> Result<(), RodError> {
+        if !curvature_per_metre.is_finite() {
+            return Err(RodError::NonFiniteRestShape { what: "natural curvature", vertex: 0 });
+        }
         let magnitude = curvature_per_metre.length();
+        if let Some(vertex) =
+            (1..self.edge_count()).find(|&vertex| magnitude * self.voronoi_lengths[vertex] > MAX_TURNING_ANGLE)
+        {
+            return Err(RodError::RestCurvatureTooLarge {
+                vertex,
+                curvature: 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan().abs(),
+                limit: max_integrated_curvature(),
+                limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
+            });
+        }
         for vertex in 1..self.edge_count() {
             self.rest_curvature[vertex] = if magnitude > 0.0 {
                 curvature_per_metre / magnitude * 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan()
@@ -270,6 +355,7 @@ impl Rod {
                 DVec2::ZERO
             };
         }
+        Ok(())
     }
 
     /// Replaces the material: stiffnesses, masses and spin inertias are recomputed, the rest shape and
@@ -290,7 +376,19 @@ impl Rod {
 
     /// Moves the whole rod rigidly, `x ↦ R x + t`: positions, velocities, frames and boundary targets
     /// turn with it, twists and reference twists are unchanged, so its elastic state is the same.
-    pub fn transform_rigidly(&mut self, rotation: DQuat, translation: DVec3) {
+    ///
+    /// `rotation` is normalised first; one that is not finite, or whose length is off 1 by more than
+    /// 1e-3 (not a rotation: it would scale the rod), is rejected, as is a non-finite `translation`, and
+    /// the rod is then unchanged.
+    pub fn transform_rigidly(&mut self, rotation: DQuat, translation: DVec3) -> Result<(), RodError> {
+        let length = rotation.length();
+        if !(rotation.is_finite() && (length - 1.0).abs() <= ROTATION_LENGTH_TOLERANCE) {
+            return Err(RodError::InvalidRotation { rotation, length });
+        }
+        if !translation.is_finite() {
+            return Err(RodError::NonFiniteTarget { node: 0, target: translation });
+        }
+        let rotation = rotation / length;
         for position in &mut self.positions {
             *position = rotation * *position + translation;
         }
@@ -301,11 +399,14 @@ impl Rod {
         for vector in turned.chain(self.twist_targets.iter_mut().flatten()) {
             *vector = rotation * *vector;
         }
+        Ok(())
     }
 
     /// Clamps `edge`: its two nodes are held at `start` and `end` (m) and its first material director
     /// points along `material_direction`. Call again each step to move the clamp (a hair root following a
     /// head); the step moves the nodes there and turns the edge's twist, continuing from its last value.
+    /// Rejects non-finite or coincident targets and a material direction within
+    /// [`MIN_MATERIAL_DIRECTION_ANGLE`] of the edge.
     pub fn clamp_edge(
         &mut self,
         edge: usize,
@@ -322,7 +423,7 @@ impl Rod {
             }
         }
         let tangent = (end - start).normalize_or_zero();
-        if tangent == DVec3::ZERO || perpendicular_unit(material_direction, tangent).is_none() {
+        if tangent == DVec3::ZERO || material_director(material_direction, tangent).is_none() {
             return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
         }
         self.node_targets[edge] = Some(start);
@@ -388,6 +489,28 @@ impl Rod {
         self.reference_twist.fill(0.0);
         self.contact_normal_forces.fill(0.0);
         self.refresh_frames();
+    }
+
+    /// Why the rod's current positions cannot start a step, if they cannot: the first node with a
+    /// non-finite position, that (nearly) coincides with the next one, or whose two edges fold onto each
+    /// other (within [`FOLDED_STATE_GAP`] of π). (Positions can be written from outside, [`Rod::positions_mut`].)
+    pub(crate) fn unusable_state(&self) -> Option<(usize, &'static str)> {
+        if let Some(node) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Some((node, "not finite"));
+        }
+        if let Some(node) = self.twist.iter().position(|t| !t.is_finite()) {
+            return Some((node, "twist not finite"));
+        }
+        let coincident = |edge: usize| {
+            let length = (self.positions[edge + 1] - self.positions[edge]).length();
+            length <= MIN_RELATIVE_EDGE_LENGTH * self.rest_lengths[edge]
+        };
+        if let Some(edge) = (0..self.edge_count()).find(|&edge| coincident(edge)) {
+            return Some((edge, "on top of the next node"));
+        }
+        let tangents = self.positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize());
+        first_fold(tangents, std::f64::consts::PI - FOLDED_STATE_GAP)
+            .map(|edge| (edge + 1, "edges folded onto each other"))
     }
 
     /// Time-parallel transport: carries each edge's reference director from the tangent it was adapted
@@ -528,7 +651,7 @@ mod tests {
         let before = rod.clone();
         let rotation = DQuat::from_euler(bevy::math::EulerRot::YXZ, 0.7, -1.2, 2.9);
         let translation = DVec3::new(3.0, -1.0, 100.0);
-        rod.transform_rigidly(rotation, translation);
+        rod.transform_rigidly(rotation, translation).unwrap();
         rod.refresh_frames();
         for node in 0..rod.node_count() {
             let expected = rotation * before.positions[node] + translation;

@@ -1,6 +1,6 @@
 //! Errors of the mechanics core: invalid input is rejected with a value that says what is wrong.
 
-use bevy::math::DVec3;
+use bevy::math::{DQuat, DVec3};
 use thiserror::Error;
 
 /// Why a rod, a material or a boundary condition was rejected.
@@ -30,11 +30,44 @@ pub enum RodError {
         /// The shortest accepted length, m.
         minimum: f64,
     },
-    /// Two consecutive edges fold back onto each other, where curvature is undefined.
-    #[error("edges {edge} and {} fold back onto each other (turning angle of 180°)", edge + 1)]
+    /// Two consecutive edges turn by more than [`crate::rod::MAX_TURNING_ANGLE`]: folded (nearly) back
+    /// onto each other, where curvature is undefined and the implicit system cannot be solved.
+    #[error("edges {edge} and {} fold back onto each other (they turn by more than the largest turning angle a rod steps, MAX_TURNING_ANGLE)", edge + 1)]
     FoldedEdges {
         /// Index of the first of the two edges.
         edge: usize,
+    },
+    /// A rest curvature or rest twist is NaN or infinite.
+    #[error("the rest {what} at vertex {vertex} is not finite")]
+    NonFiniteRestShape {
+        /// "curvature", "twist" or "natural curvature".
+        what: &'static str,
+        /// The interior vertex it was meant for (0 for a natural curvature, which applies to all).
+        vertex: usize,
+    },
+    /// A rest curvature that would fold two edges onto each other: its integrated magnitude `2 tan(φ/2)`
+    /// is beyond that of the largest turning angle `φ` the solver steps,
+    /// [`crate::rod::MAX_TURNING_ANGLE`].
+    #[error(
+        "the rest curvature {curvature} at vertex {vertex} turns its edges by more than the {limit_degrees}° a rod can bend between two edges (integrated curvature at most {limit})"
+    )]
+    RestCurvatureTooLarge {
+        /// The interior vertex (for a natural curvature: the first vertex where it is too large).
+        vertex: usize,
+        /// The integrated curvature magnitude `|κ̄|` asked for, dimensionless.
+        curvature: f64,
+        /// The largest integrated curvature accepted there, `2 tan(φ_max/2)`.
+        limit: f64,
+        /// The largest turning angle, degrees.
+        limit_degrees: f64,
+    },
+    /// A rotation that is not a finite unit quaternion (it would scale the rod).
+    #[error("the rotation {rotation} is not a finite unit quaternion (length {length})")]
+    InvalidRotation {
+        /// The rotation that was given.
+        rotation: DQuat,
+        /// Its length.
+        length: f64,
     },
     /// A material parameter is zero, negative, NaN or infinite.
     #[error("material parameter `{parameter}` must be positive and finite, got {value}")]
@@ -44,8 +77,11 @@ pub enum RodError {
         /// The value that was given.
         value: f64,
     },
-    /// A vector that must be finite and not parallel to an edge is not.
-    #[error("the material direction {direction} is not finite or is parallel to edge {edge}")]
+    /// A material direction that is not finite, or lies within
+    /// [`crate::rod::MIN_MATERIAL_DIRECTION_ANGLE`] of its edge (where `m1` would come from rounding).
+    #[error(
+        "the material direction {direction} is not finite or is within MIN_MATERIAL_DIRECTION_ANGLE (1e-3 rad) of edge {edge}"
+    )]
     InvalidMaterialDirection {
         /// The edge the direction was meant for.
         edge: usize,
@@ -108,7 +144,8 @@ pub enum RodError {
     },
 }
 
-/// Why a time step failed. The rod is restored to its state before the step, at rest.
+/// Why a time step failed. The rod is restored to its state before the step, at rest (or, when that state
+/// itself was unusable, to its rest pose).
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum StepError {
     /// The input to the step (parameters or external forces) was invalid; nothing was changed.
@@ -120,20 +157,34 @@ pub enum StepError {
         /// Index of the degree of freedom where the factorisation broke down.
         dof: usize,
     },
+    /// The rod's state was unusable when the step began: a node position that is not finite, or two
+    /// nodes (nearly) on top of each other, written from outside (through [`crate::rod::Rod::positions_mut`]).
+    /// The rod was put back in its rest pose (carried onto its clamp, if it has one), at rest.
+    #[error(
+        "the rod's state at the start of the step was unusable ({reason} at node {node}); it was reset to its rest pose"
+    )]
+    UnusableState {
+        /// The first offending node.
+        node: usize,
+        /// What was wrong with it.
+        reason: &'static str,
+    },
     /// The step produced NaN or infinite values.
     #[error("the step produced a non-finite value at node {node}")]
     NonFinite {
         /// First node with a non-finite position, velocity or twist.
         node: usize,
     },
-    /// An edge ended the step stretched or compressed beyond the allowed strain.
+    /// An edge would end the step stretched or compressed beyond the strain bound,
+    /// [`crate::rod::StepParams::strain_bound`], even after the extra projection (boundary conditions that
+    /// cannot all be met, such as two pins farther apart than the rod is long).
     #[error("edge {edge} is strained by {strain:e}, more than the allowed {limit:e}")]
     OverStrained {
         /// The most strained edge.
         edge: usize,
         /// Its strain `|e|/|ē| − 1`.
         strain: f64,
-        /// The divergence threshold, [`crate::rod::StepParams::divergence_strain`].
+        /// The strain bound, [`crate::rod::StepParams::strain_bound`].
         limit: f64,
     },
 }

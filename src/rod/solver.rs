@@ -35,6 +35,17 @@ use super::frames::perpendicular_unit;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
 use super::timing::{Part, StepTimings, Stopwatch};
 
+/// Projection iterations a step may add, on the whole strand, when its own left an edge beyond
+/// [`StepParams::strain_bound`] (see [`Rod::step_with_contacts`]).
+pub const EXTRA_PROJECTION_ITERATIONS: u32 = 64;
+
+/// The first Levenberg–Marquardt shift λ tried when a Newton system does not factorise (see
+/// [`Rod::newton_iteration`]), dimensionless.
+const FIRST_REGULARISATION: f64 = 1e-8;
+
+/// The largest Levenberg–Marquardt shift λ tried, dimensionless: the diagonal doubled.
+const MAX_REGULARISATION: f64 = 1.0;
+
 /// Parameters of one time step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepParams {
@@ -68,16 +79,15 @@ pub struct StepParams {
     /// (`T / EA`, about 1e-6 for a hanging hair) is kept up to this, anything beyond is projected away,
     /// so edges never stretch more than this plus `strain_tolerance`.
     pub strain_allowance: f64,
-    /// Most projection iterations per step (each one converges quadratically).
+    /// Most projection iterations per Newton iteration (each one converges quadratically). A step whose
+    /// projections end above [`StepParams::strain_bound`] takes more (see [`Rod::step_with_contacts`]).
     pub max_projection_iterations: u32,
-    /// A step that ends with an edge strained beyond this is treated as diverged, dimensionless.
-    pub divergence_strain: f64,
 }
 
 impl Default for StepParams {
     /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
     /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain
-    /// allowance 5e-4, 16 projection iterations, divergence at 5 % strain.
+    /// allowance 5e-4, 16 projection iterations.
     fn default() -> Self {
         Self {
             dt: 1.0 / 60.0,
@@ -90,7 +100,6 @@ impl Default for StepParams {
             strain_tolerance: 1e-6,
             strain_allowance: 5e-4,
             max_projection_iterations: 16,
-            divergence_strain: 0.05,
         }
     }
 }
@@ -127,10 +136,17 @@ impl StepParams {
         if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
             return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
         }
-        if !(self.divergence_strain > self.strain_tolerance && self.divergence_strain.is_finite()) {
-            return invalid("divergence_strain", self.divergence_strain, "must be finite and above strain_tolerance");
+        if self.max_projection_iterations == 0 {
+            return invalid("max_projection_iterations", 0.0, "must be at least 1");
         }
         Ok(())
+    }
+
+    /// The largest edge strain `| |e|/|ē| − 1 |` a successful step ends with, dimensionless:
+    /// `(1 + strain_allowance)(1 + strain_tolerance) − 1`, that is `strain_allowance + strain_tolerance`
+    /// and their product (5.01e-4 by default). A step never returns `Ok` above it.
+    pub fn strain_bound(&self) -> f64 {
+        (1.0 + self.strain_allowance) * (1.0 + self.strain_tolerance) - 1.0
     }
 }
 
@@ -239,9 +255,19 @@ impl Rod {
     /// boundary conditions (prescribed nodes move to their targets over the step), kept outside the
     /// colliders of `contacts` with friction (see [`Contacts`]).
     ///
-    /// On failure (non-finite values, a non-positive-definite system, or strain above
-    /// [`StepParams::divergence_strain`]) the rod is put back where it was before the step, at rest, and
-    /// the error says what happened; invalid input changes nothing.
+    /// No `Ok` step ends with an edge strained beyond [`StepParams::strain_bound`]: when the projections
+    /// of the Newton iterations leave more (they ran out of iterations, or contact pushed the strand),
+    /// up to [`EXTRA_PROJECTION_ITERATIONS`] more run on the whole strand, and if even that is not enough,
+    /// every free node is put at its edge's length from its neighbour towards the nearest prescribed
+    /// node (follow the leader, Müller et al. 2012). Only boundary conditions that cannot all be met
+    /// (pins farther apart than the rod allows) end above the bound: the step is then reported as
+    /// [`StepError::OverStrained`].
+    ///
+    /// On failure (non-finite values, a non-positive-definite system, strain above the bound) the rod is
+    /// put back where it was before the step, at rest, and the error says what happened; invalid input
+    /// changes nothing. A rod whose state cannot start a step (written from outside: a non-finite or
+    /// folded position) is put back in its rest pose, carried onto its clamp, with
+    /// [`StepError::UnusableState`].
     pub fn step_with_contacts(
         &mut self,
         params: &StepParams,
@@ -258,6 +284,11 @@ impl Rod {
             if let Some((node, &force)) = forces.iter().enumerate().find(|(_, f)| !f.is_finite()) {
                 return Err(RodError::NonFiniteForce { node, force }.into());
             }
+        }
+        if let Some((node, reason)) = self.unusable_state() {
+            self.reset();
+            self.carry_with_first_clamp();
+            return Err(StepError::UnusableState { node, reason });
         }
         workspace.stopwatch.start_step();
         workspace.saved.save(self);
@@ -319,6 +350,10 @@ impl Rod {
             projection_iterations += iterations;
             workspace.stopwatch.lap(Part::Collisions);
         }
+        if !(self.max_strain().1 <= params.strain_bound()) {
+            projection_iterations += self.enforce_strain_bound(params, &mut workspace.projection);
+            workspace.stopwatch.lap(Part::Constraints);
+        }
         self.refresh_frames();
         workspace.stopwatch.lap(Part::Frames);
 
@@ -339,8 +374,8 @@ impl Rod {
             return Err(StepError::NonFinite { node });
         }
         let (edge, max_strain) = self.max_strain();
-        if max_strain > params.divergence_strain {
-            return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.divergence_strain });
+        if !(max_strain <= params.strain_bound()) {
+            return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.strain_bound() });
         }
         workspace.stopwatch.lap(Part::Forces);
         Ok(StepReport { max_strain, newton_iterations, projection_iterations, contacts: contact_count })
@@ -376,6 +411,46 @@ impl Rod {
         }
     }
 
+    /// Brings every edge within [`StepParams::strain_bound`] of its rest length after a step whose
+    /// projections left more (see [`Rod::step_with_contacts`]): up to [`EXTRA_PROJECTION_ITERATIONS`] of
+    /// the projection with no contact constraint, then, if need be, follow the leader from the
+    /// prescribed nodes outwards. Returns the projection iterations.
+    fn enforce_strain_bound(&mut self, params: &StepParams, projection: &mut ProjectionScratch) -> u32 {
+        projection.contact_normals.fill(DVec3::ZERO);
+        let extended = StepParams { max_projection_iterations: EXTRA_PROJECTION_ITERATIONS, ..*params };
+        let iterations = project_edge_lengths(self, &extended, projection);
+        if !(self.max_strain().1 <= params.strain_bound()) {
+            self.follow_the_leader(&projection.target_lengths);
+        }
+        iterations
+    }
+
+    /// Puts each free node at its edge's target length (m) from its neighbour on the side of the nearest
+    /// prescribed node, along the edge as it is: past the last prescribed node towards the tip, before
+    /// the first towards the root, from the root for a free rod. Exact lengths in one pass, at the price
+    /// of moving the nodes more than a mass-weighted projection would (Müller et al. 2012, "Fast
+    /// Simulation of Inextensible Hair and Fur"); nodes between two prescribed ones are left.
+    fn follow_the_leader(&mut self, target_lengths: &[f64]) {
+        let node_count = self.node_count();
+        let first = (0..node_count).find(|&node| self.is_node_prescribed(node)).unwrap_or(0);
+        let last = (0..node_count).rfind(|&node| self.is_node_prescribed(node)).unwrap_or(0);
+        let place = |rod: &mut Rod, from: usize, to: usize, edge: usize| {
+            let direction = (rod.positions[to] - rod.positions[from]).normalize_or_zero();
+            let direction = if direction == DVec3::ZERO {
+                if to > from { rod.tangents[edge] } else { -rod.tangents[edge] }
+            } else {
+                direction
+            };
+            rod.positions[to] = rod.positions[from] + target_lengths[edge] * direction;
+        };
+        for node in last + 1..node_count {
+            place(self, node - 1, node, node - 1);
+        }
+        for node in (0..first).rev() {
+            place(self, node + 1, node, node);
+        }
+    }
+
     /// Puts prescribed nodes exactly on their targets and clamped edges exactly at their twist, in
     /// case a Newton update was scaled down before getting there. (The twist targets are measured from
     /// the frames as they are, carried to the target tangents, so the frames need no refresh first.)
@@ -395,12 +470,42 @@ impl Rod {
     /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
     /// fraction of the Newton update that was applied (below 1 when the trust region limited it), and
     /// whether the update changes which nodes touch a collider.
+    ///
+    /// The system's matrix is positive definite in exact arithmetic, but a rod folded nearly back on
+    /// itself, or with edges much shorter than its thickness, has bending terms so much larger than its
+    /// inertia that rounding can break the factorisation. It is then assembled again with its diagonal
+    /// scaled by `1 + λ` (Levenberg–Marquardt), λ from [`FIRST_REGULARISATION`] up a hundredfold at a
+    /// time to [`MAX_REGULARISATION`]: a shorter step in a descent direction instead of a failure.
     fn newton_iteration(
         &mut self,
         params: &StepParams,
         external_forces: Option<&[DVec3]>,
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
+        let mut regularisation = 0.0;
+        loop {
+            self.assemble_newton_system(params, external_forces, workspace, regularisation);
+            match workspace.hessian.factorize() {
+                Ok(()) => break,
+                Err(_) if regularisation < MAX_REGULARISATION => {
+                    regularisation = (100.0 * regularisation).max(FIRST_REGULARISATION);
+                }
+                Err(failure) => return Err(StepError::NotPositiveDefinite { dof: failure.row }),
+            }
+        }
+        self.solve_newton_update(params, workspace)
+    }
+
+    /// Assembles the Newton system at the current iterate into the workspace's matrix and residual:
+    /// elastic forces and Hessian, internal damping, inertia with gravity and external forces, contact,
+    /// prescribed unknowns; the diagonal scaled by `1 + regularisation`.
+    fn assemble_newton_system(
+        &mut self,
+        params: &StepParams,
+        external_forces: Option<&[DVec3]>,
+        workspace: &mut RodWorkspace,
+        regularisation: f64,
+    ) {
         let size = dof_count(self.node_count());
         let RodWorkspace {
             hessian,
@@ -412,7 +517,6 @@ impl Rod {
             saved,
             carried_positions,
             carried_twist,
-            projection,
             contacts,
             stopwatch,
             ..
@@ -518,6 +622,9 @@ impl Rod {
                 *r += coupling;
             }
         }
+        if regularisation > 0.0 {
+            hessian.scale_diagonal(1.0 + regularisation);
+        }
         let prescribed_dofs = (0..self.node_count())
             .filter(|&node| self.node_targets[node].is_some())
             .flat_map(|node| node_dof(node)..node_dof(node) + 3)
@@ -526,8 +633,18 @@ impl Rod {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];
         }
+    }
 
-        hessian.factorize().map_err(|failure| StepError::NotPositiveDefinite { dof: failure.row })?;
+    /// Solves the factorised Newton system and applies the update within the trust region (see
+    /// [`Rod::newton_iteration`]).
+    fn solve_newton_update(
+        &mut self,
+        params: &StepParams,
+        workspace: &mut RodWorkspace,
+    ) -> Result<(f64, bool), StepError> {
+        let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, .. } = workspace;
+        let (dt, gamma) = (params.dt, params.air_damping);
+        let inertia_scale = 1.0 / (dt * dt) + gamma / dt;
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);
