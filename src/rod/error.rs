@@ -160,9 +160,7 @@ pub enum StepError {
     /// The rod's state was unusable when the step began: a node position that is not finite, or two
     /// nodes (nearly) on top of each other, written from outside (through [`crate::rod::Rod::positions_mut`]).
     /// The rod was put back in its rest pose (carried onto its clamp, if it has one), at rest.
-    #[error(
-        "the rod's state at the start of the step was unusable ({reason} at node {node}); it was reset to its rest pose"
-    )]
+    #[error("the rod's state at the start of the step was unusable: {reason} at node {node}")]
     UnusableState {
         /// The first offending node.
         node: usize,

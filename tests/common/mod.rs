@@ -29,3 +29,4 @@ pub fn max_speed(rod: &Rod) -> f64 {
 }
 
 pub mod headless;
+pub mod logs;
