@@ -122,7 +122,7 @@ pub(crate) fn track_heads(
                 motion.advance(HeadPose::from(&transform), f64::from(settings.teleport_distance))
             }
             Ok(_) => warn_once!(
-                "hair head {head} has a non-finite or degenerate (zero-scale) transform; its strands keep their last root"
+                "hair head {head} has a non-finite or zero-scale transform; its strands keep their last root, and new ones wait"
             ),
             Err(error) => {
                 warn_once!("hair head {head} has no usable transform ({error}); its strands stay where they are")

@@ -99,12 +99,17 @@ pub enum StrandSpawnError {
 }
 
 /// Put on a strand whose [`HairStrand`] was rejected (the reason is also logged as an error). The strand
-/// is not simulated until its `HairStrand` is changed into a valid one.
+/// is not simulated until its `HairStrand` is changed into a valid one, [`HairSettings`] change (its
+/// default material may have been what was wrong), or, when it waits for its head, the head has a
+/// usable transform again.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Clone)]
 pub struct StrandRejected {
     /// What was wrong.
     pub reason: String,
+    /// Whether the strand waits for its head's transform (not finite, or of zero scale) to become usable:
+    /// it is then tried again at every step, and not logged (the head's own warning says why).
+    pub waits_for_head: bool,
 }
 
 /// Where a strand's root edge is held in its head's local space, with its material frame.
@@ -494,7 +499,8 @@ pub(crate) fn build_strands(
 ) {
     for (entity, spec, strand_of, rejected, mut forces, mut pose) in &mut strands {
         let changed = spec.is_changed() || strand_of.as_ref().is_some_and(Ref::is_changed);
-        if !(changed || rejected.is_some() && settings.is_changed()) {
+        let retry = rejected.is_some_and(|rejected| rejected.waits_for_head || settings.is_changed());
+        if !(changed || retry) {
             continue;
         }
         let strand_of = strand_of.map(|strand_of| *strand_of);
@@ -502,8 +508,10 @@ pub(crate) fn build_strands(
             .map(|StrandOf(head)| {
                 transforms
                     .compute_global_transform(head)
+                    .map_err(|error| error.to_string())
                     .map(|transform| HeadPose::from(&transform))
-                    .map_err(|error| StrandSpawnError::Head { head, reason: error.to_string() })
+                    .and_then(|pose| pose.is_usable().then_some(pose).ok_or("not finite, or of zero scale".to_string()))
+                    .map_err(|reason| StrandSpawnError::Head { head, reason })
             })
             .transpose();
         match head.and_then(|head| Strand::spawn(&spec, head, &settings.default_material)) {
@@ -513,12 +521,16 @@ pub(crate) fn build_strands(
                 commands.entity(entity).try_remove::<StrandRejected>().try_insert(strand);
             }
             Err(error) => {
+                let waits_for_head = matches!(error, StrandSpawnError::Head { .. });
                 let reason = error.to_string();
                 // A retry that fails for the same reason is not news.
-                if changed || rejected.is_none_or(|rejected| rejected.reason != reason) {
+                let news = changed || rejected.is_none_or(|rejected| rejected.reason != reason);
+                // An invalid default material is reported once, as invalid settings, not per strand.
+                let settings_reported = spec.material.is_none() && settings.default_material.validate().is_err();
+                if news && !waits_for_head && !settings_reported {
                     error!("hair strand {entity} rejected: {reason}");
                 }
-                commands.entity(entity).try_remove::<Strand>().try_insert(StrandRejected { reason });
+                commands.entity(entity).try_remove::<Strand>().try_insert(StrandRejected { reason, waits_for_head });
             }
         }
     }

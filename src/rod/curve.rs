@@ -23,6 +23,10 @@ pub const MAX_TURNING_ANGLE: f64 = 170.0 * std::f64::consts::PI / 180.0;
 /// binormal `2 t × t' / (1 + t·t')` then overflows the step's arithmetic.
 const FOLDED_STATE_GAP: f64 = 1e-6;
 
+/// The largest rest twist `|τ̄|` of a vertex, rad (a hundred turns between two edges): far beyond any
+/// rod's, and far from where the twisting energy would overflow.
+pub const MAX_REST_TWIST: f64 = 200.0 * std::f64::consts::PI;
+
 /// The smallest angle between a material direction and its edge, rad: closer to the edge, the director
 /// `m1` made perpendicular to it would come from rounding rather than from the direction given.
 pub const MIN_MATERIAL_DIRECTION_ANGLE: f64 = 1e-3;
@@ -302,12 +306,10 @@ impl Rod {
         if !curvature.is_finite() {
             return Err(RodError::NonFiniteRestShape { what: "curvature", vertex });
         }
-        let limit = max_integrated_curvature();
-        if curvature.length() > limit {
+        if curvature.length() > max_integrated_curvature() {
             return Err(RodError::RestCurvatureTooLarge {
                 vertex,
-                curvature: curvature.length(),
-                limit,
+                turning_degrees: (2.0 * (0.5 * curvature.length()).atan()).to_degrees(),
                 limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
             });
         }
@@ -315,12 +317,15 @@ impl Rod {
         Ok(())
     }
 
-    /// Sets the rest twist `τ̄` of interior `vertex` (integrated, rad). Rejects a non-finite twist; the
-    /// rod is then unchanged.
+    /// Sets the rest twist `τ̄` of interior `vertex` (integrated, rad). Rejects a non-finite twist and one
+    /// beyond [`MAX_REST_TWIST`]; the rod is then unchanged.
     pub fn set_rest_twist(&mut self, vertex: usize, twist: f64) -> Result<(), RodError> {
         self.check_vertex(vertex)?;
         if !twist.is_finite() {
             return Err(RodError::NonFiniteRestShape { what: "twist", vertex });
+        }
+        if twist.abs() > MAX_REST_TWIST {
+            return Err(RodError::RestTwistTooLarge { vertex, twist, limit: MAX_REST_TWIST });
         }
         self.rest_twist[vertex] = twist;
         Ok(())
@@ -343,8 +348,7 @@ impl Rod {
         {
             return Err(RodError::RestCurvatureTooLarge {
                 vertex,
-                curvature: 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan().abs(),
-                limit: max_integrated_curvature(),
+                turning_degrees: (magnitude * self.voronoi_lengths[vertex]).to_degrees(),
                 limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
             });
         }

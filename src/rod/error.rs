@@ -45,21 +45,28 @@ pub enum RodError {
         /// The interior vertex it was meant for (0 for a natural curvature, which applies to all).
         vertex: usize,
     },
-    /// A rest curvature that would fold two edges onto each other: its integrated magnitude `2 tan(φ/2)`
-    /// is beyond that of the largest turning angle `φ` the solver steps,
-    /// [`crate::rod::MAX_TURNING_ANGLE`].
+    /// A rest curvature that asks two edges to turn by more than [`crate::rod::MAX_TURNING_ANGLE`] (an
+    /// integrated curvature `2 tan(φ/2)` above 22.9): a kink, where the edges nearly fold back.
     #[error(
-        "the rest curvature {curvature} at vertex {vertex} turns its edges by more than the {limit_degrees}° a rod can bend between two edges (integrated curvature at most {limit})"
+        "the rest curvature at vertex {vertex} turns its edges by {turning_degrees:.1}°, more than the {limit_degrees}° a rod can bend between two edges"
     )]
     RestCurvatureTooLarge {
         /// The interior vertex (for a natural curvature: the first vertex where it is too large).
         vertex: usize,
-        /// The integrated curvature magnitude `|κ̄|` asked for, dimensionless.
-        curvature: f64,
-        /// The largest integrated curvature accepted there, `2 tan(φ_max/2)`.
-        limit: f64,
+        /// The turning angle asked for, degrees (for a natural curvature `|k| l_i`, which can exceed 180°).
+        turning_degrees: f64,
         /// The largest turning angle, degrees.
         limit_degrees: f64,
+    },
+    /// A rest twist so large that the twisting energy `GJ (τ − τ̄)² / 2l` would overflow.
+    #[error("the rest twist {twist} rad at vertex {vertex} is beyond ±{limit} rad")]
+    RestTwistTooLarge {
+        /// The interior vertex.
+        vertex: usize,
+        /// The rest twist asked for, rad.
+        twist: f64,
+        /// The largest rest twist in magnitude, [`crate::rod::MAX_REST_TWIST`], rad.
+        limit: f64,
     },
     /// A rotation that is not a finite unit quaternion (it would scale the rod).
     #[error("the rotation {rotation} is not a finite unit quaternion (length {length})")]
@@ -69,8 +76,11 @@ pub enum RodError {
         /// Its length.
         length: f64,
     },
-    /// A material parameter is zero, negative, NaN or infinite.
-    #[error("material parameter `{parameter}` must be positive and finite, got {value}")]
+    /// A material parameter is NaN or outside its range ([`crate::rod::MATERIAL_RANGES`]).
+    #[error(
+        "material parameter `{parameter}` must be positive and finite, {}, got {value}",
+        super::material::material_range(parameter)
+    )]
     InvalidMaterial {
         /// Name of the parameter.
         parameter: &'static str,

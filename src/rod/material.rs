@@ -40,6 +40,26 @@ pub struct Stiffness {
     pub twist_inertia_density: f64,
 }
 
+/// The range each material parameter must lie in, with its unit: wide enough for anything from a
+/// 0.1 µm fibre of jelly to a metre-thick cable ten times stiffer than diamond, narrow enough to keep the
+/// step's arithmetic (stiffness over inertia, squared in the factorisation) far from overflow.
+pub const MATERIAL_RANGES: [(&str, f64, f64, &str); 5] = [
+    ("semi_axis_1", 1e-7, 1.0, "m"),
+    ("semi_axis_2", 1e-7, 1.0, "m"),
+    ("youngs_modulus", 1e2, 1e13, "Pa"),
+    ("shear_modulus", 1e2, 1e13, "Pa"),
+    ("density", 1.0, 1e5, "kg/m³"),
+];
+
+/// `"from … to … unit"` for a parameter of [`MATERIAL_RANGES`].
+pub(crate) fn material_range(parameter: &str) -> String {
+    MATERIAL_RANGES
+        .iter()
+        .find(|(name, ..)| *name == parameter)
+        .map(|(_, low, high, unit)| format!("from {low:e} to {high:e} {unit}"))
+        .unwrap_or_default()
+}
+
 impl RodMaterial {
     /// A round fibre of `radius` (m), Young's modulus (Pa), Poisson ratio (dimensionless) and density (kg/m³).
     /// The shear modulus is `G = E / (2 (1 + ν))`.
@@ -67,8 +87,8 @@ impl RodMaterial {
             ("shear_modulus", self.shear_modulus),
             ("density", self.density),
         ];
-        for (parameter, value) in parameters {
-            if !(value.is_finite() && value > 0.0) {
+        for ((parameter, value), (_, low, high, _)) in parameters.into_iter().zip(MATERIAL_RANGES) {
+            if !(low..=high).contains(&value) {
                 return Err(RodError::InvalidMaterial { parameter, value });
             }
         }

@@ -275,6 +275,11 @@ impl Rod {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
+        if let Some((node, reason)) = self.unusable_state() {
+            self.reset();
+            self.carry_with_first_clamp();
+            return Err(StepError::UnusableState { node, reason });
+        }
         params.validate()?;
         contacts.validate()?;
         if let Some(forces) = external_forces {
@@ -284,11 +289,6 @@ impl Rod {
             if let Some((node, &force)) = forces.iter().enumerate().find(|(_, f)| !f.is_finite()) {
                 return Err(RodError::NonFiniteForce { node, force }.into());
             }
-        }
-        if let Some((node, reason)) = self.unusable_state() {
-            self.reset();
-            self.carry_with_first_clamp();
-            return Err(StepError::UnusableState { node, reason });
         }
         workspace.stopwatch.start_step();
         workspace.saved.save(self);
