@@ -14,9 +14,9 @@ const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
 /// The largest turning angle between two consecutive edges that a rod is created with or given as rest
 /// curvature, rad (170°, an integrated curvature `2 tan(φ/2)` of 22.9): tighter is a kink, not a
 /// curl. The curvature and its derivatives grow as `1/(π − φ)` and faster towards a fold, and the step
-/// keeps its system solvable there (see [`crate::rod::Rod::step_with_contacts`]), but only a state
-/// folded to within [`FOLDED_STATE_GAP`] of π cannot be stepped at all: this leaves room for a rod
-/// created at the limit to be bent further by its motion.
+/// keeps its system solvable there (see [`crate::rod::Rod::step_with_contacts`]), and only a state
+/// folded to within 1e-6 rad of π cannot be stepped at all: this leaves room for a rod created at the
+/// limit to be bent further by its motion.
 pub const MAX_TURNING_ANGLE: f64 = 170.0 * std::f64::consts::PI / 180.0;
 
 /// How close to π a turning angle may come before the state cannot be stepped, rad: the curvature
