@@ -332,6 +332,7 @@ impl Strand {
         let retried = match self.health.quarantined_until {
             Some(until) if now < until => {
                 self.reset_to_rest();
+                self.pin_error = None;
                 return StepOutcome::Held;
             }
             Some(_) => true,
@@ -462,8 +463,9 @@ impl StrandPose {
 }
 
 /// Sent when a strand's step fails: which strand and why. A diverged strand (non-finite, over-strained,
-/// degenerate) has been reset to its rest pose on its head; on invalid input (a non-finite force) the
-/// step was skipped. The other strands are not affected.
+/// degenerate) has been reset to its rest pose on its head; on invalid input (a non-finite force, a head
+/// pose its root cannot follow) the step was skipped. A strand that failed again soon after is also
+/// quarantined (see [`Strand`]). The other strands are not affected.
 #[derive(Message, Debug, Clone, PartialEq)]
 pub struct StrandFault {
     /// The strand entity.
@@ -499,8 +501,11 @@ pub(crate) fn build_strands(
 ) {
     for (entity, spec, strand_of, rejected, mut forces, mut pose) in &mut strands {
         let changed = spec.is_changed() || strand_of.as_ref().is_some_and(Ref::is_changed);
+        // An invalid default material is reported once, as invalid settings, not per strand; strands that
+        // use it wait for it to be fixed before they are tried again.
+        let settings_reported = spec.material.is_none() && settings.default_material.validate().is_err();
         let retry = rejected.is_some_and(|rejected| rejected.waits_for_head || settings.is_changed());
-        if !(changed || retry) {
+        if !(changed || retry && !settings_reported) {
             continue;
         }
         let strand_of = strand_of.map(|strand_of| *strand_of);
@@ -525,8 +530,6 @@ pub(crate) fn build_strands(
                 let reason = error.to_string();
                 // A retry that fails for the same reason is not news.
                 let news = changed || rejected.is_none_or(|rejected| rejected.reason != reason);
-                // An invalid default material is reported once, as invalid settings, not per strand.
-                let settings_reported = spec.material.is_none() && settings.default_material.validate().is_err();
                 if news && !waits_for_head && !settings_reported {
                     error!("hair strand {entity} rejected: {reason}");
                 }

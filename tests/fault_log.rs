@@ -70,7 +70,7 @@ fn a_strand_failing_on_every_step_is_quarantined_with_a_doubling_back_off() {
     let (single, summaries) = fault_lines(&lines);
     println!("{} log lines: {single} single, {summaries} summaries; {lines:#?}", lines.len());
     assert_eq!(single, 1, "one line for the episode");
-    assert!(summaries <= 10 && summaries >= 1, "at most one summary a second");
+    assert!((1..=10).contains(&summaries), "at most one summary a second");
     assert_eq!(lines.len(), single + summaries, "nothing else is logged");
     for &entity in &strands {
         assert!(strand(&app, entity).rod().positions().iter().all(|p| p.is_finite()));

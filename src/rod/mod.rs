@@ -45,5 +45,5 @@ pub use curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE,
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};
 pub use material::{MATERIAL_RANGES, RodMaterial, Stiffness};
-pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepParams, StepReport};
+pub use solver::{EXTRA_PROJECTION_ITERATIONS, MAX_DT, MAX_GRAVITY, RodWorkspace, StepParams, StepReport};
 pub use timing::StepTimings;

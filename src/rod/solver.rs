@@ -39,6 +39,13 @@ use super::timing::{Part, StepTimings, Stopwatch};
 /// [`StepParams::strain_bound`] (see [`Rod::step_with_contacts`]).
 pub const EXTRA_PROJECTION_ITERATIONS: u32 = 64;
 
+/// The longest time step, s: no game steps slower, and a free rod falling for much longer would leave
+/// the range where its node positions keep the edges' lengths to the strain tolerance.
+pub const MAX_DT: f64 = 1.0;
+
+/// The largest gravitational acceleration, m/s² (a thousand times the Earth's).
+pub const MAX_GRAVITY: f64 = 1e4;
+
 /// The first Levenberg–Marquardt shift λ tried when a Newton system does not factorise (see
 /// [`Rod::newton_iteration`]), dimensionless.
 const FIRST_REGULARISATION: f64 = 1e-8;
@@ -49,9 +56,9 @@ const MAX_REGULARISATION: f64 = 1.0;
 /// Parameters of one time step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepParams {
-    /// Time step, s. Any positive value is stable; 1/60 s is a game's fixed step.
+    /// Time step, s, at most [`MAX_DT`]. Any positive value is stable; 1/60 s is a game's fixed step.
     pub dt: f64,
-    /// Gravitational acceleration, m/s².
+    /// Gravitational acceleration, m/s², at most [`MAX_GRAVITY`] in size.
     pub gravity: DVec3,
     /// Air damping `γ`, 1/s: the rate at which velocities (relative to still air) decay, as a drag force
     /// `−γ m v` on each node. A free velocity falls to `1/e` in `1/γ` seconds.
@@ -109,11 +116,11 @@ impl StepParams {
     pub fn validate(&self) -> Result<(), RodError> {
         let invalid =
             |parameter, value, requirement| Err(RodError::InvalidStepParameter { parameter, value, requirement });
-        if !(self.dt.is_finite() && self.dt > 0.0) {
-            return invalid("dt", self.dt, "must be positive and finite");
+        if !(self.dt > 0.0 && self.dt <= MAX_DT) {
+            return invalid("dt", self.dt, "must be positive and at most 1 s");
         }
-        if !self.gravity.is_finite() {
-            return invalid("gravity", f64::NAN, "must be finite");
+        if !self.gravity.is_finite() || self.gravity.length() > MAX_GRAVITY {
+            return invalid("gravity", self.gravity.length(), "must be finite and at most 10 000 m/s² in size");
         }
         for (name, value) in [("air_damping", self.air_damping), ("internal_damping", self.internal_damping)] {
             if !(value.is_finite() && value >= 0.0) {
@@ -147,6 +154,11 @@ impl StepParams {
     /// and their product (5.01e-4 by default). A step never returns `Ok` above it.
     pub fn strain_bound(&self) -> f64 {
         (1.0 + self.strain_allowance) * (1.0 + self.strain_tolerance) - 1.0
+    }
+
+    /// Whether an edge strain is within [`StepParams::strain_bound`] (NaN is not).
+    fn within_strain_bound(&self, strain: f64) -> bool {
+        strain <= self.strain_bound()
     }
 }
 
@@ -350,8 +362,10 @@ impl Rod {
             projection_iterations += iterations;
             workspace.stopwatch.lap(Part::Collisions);
         }
-        if !(self.max_strain().1 <= params.strain_bound()) {
+        let mut strain = self.max_strain();
+        if !params.within_strain_bound(strain.1) {
             projection_iterations += self.enforce_strain_bound(params, &mut workspace.projection);
+            strain = self.max_strain();
             workspace.stopwatch.lap(Part::Constraints);
         }
         self.refresh_frames();
@@ -373,8 +387,8 @@ impl Rod {
         if let Some(node) = (0..self.node_count()).find(|&node| !finite(node)) {
             return Err(StepError::NonFinite { node });
         }
-        let (edge, max_strain) = self.max_strain();
-        if !(max_strain <= params.strain_bound()) {
+        let (edge, max_strain) = strain;
+        if !params.within_strain_bound(max_strain) {
             return Err(StepError::OverStrained { edge, strain: max_strain, limit: params.strain_bound() });
         }
         workspace.stopwatch.lap(Part::Forces);
@@ -419,7 +433,7 @@ impl Rod {
         projection.contact_normals.fill(DVec3::ZERO);
         let extended = StepParams { max_projection_iterations: EXTRA_PROJECTION_ITERATIONS, ..*params };
         let iterations = project_edge_lengths(self, &extended, projection);
-        if !(self.max_strain().1 <= params.strain_bound()) {
+        if !params.within_strain_bound(self.max_strain().1) {
             self.follow_the_leader(&projection.target_lengths);
         }
         iterations
