@@ -152,9 +152,9 @@ impl NearbyCollider {
         }
     }
 
-    /// The nodes that prescribed nodes inside this collider hold there: within [`HELD_REACH`] times the
-    /// deepest such node's depth of it along the strand, the prescribed nodes included (empty if none
-    /// is inside).
+    /// The nodes that prescribed nodes inside this collider hold there: those within [`HELD_REACH`]
+    /// times a prescribed node's depth of it along the strand, the prescribed nodes included, from the
+    /// first to the last (empty if none is inside).
     fn held_nodes(&self, rod: &Rod) -> Range<usize> {
         let mut held = 0..0;
         for (node, target) in rod.node_targets.iter().enumerate() {

@@ -271,9 +271,10 @@ impl Rod {
     /// of the Newton iterations leave more (they ran out of iterations, or contact pushed the strand),
     /// up to [`EXTRA_PROJECTION_ITERATIONS`] more run on the whole strand, and if even that is not enough,
     /// every free node is put at its edge's length from its neighbour towards the nearest prescribed
-    /// node (follow the leader, Müller et al. 2012). Only boundary conditions that cannot all be met
-    /// (pins farther apart than the rod allows) end above the bound: the step is then reported as
-    /// [`StepError::OverStrained`].
+    /// node (follow the leader, Müller et al. 2012). That reaches every node outside the prescribed ones;
+    /// the nodes between two prescribed nodes are the projection's alone, so a rope pinned at both ends
+    /// and pulled (nearly) straight between its pins, or pins farther apart than the rod allows, can end
+    /// above the bound: the step is then reported as [`StepError::OverStrained`].
     ///
     /// On failure (non-finite values, a non-positive-definite system, strain above the bound) the rod is
     /// put back where it was before the step, at rest, and the error says what happened; invalid input
