@@ -28,11 +28,12 @@ use std::ops::Range;
 use bevy::math::{DMat3, DVec3};
 
 use super::collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
+use super::copy_into;
 use super::curve::Rod;
 use super::energy::{RodMatrix, node_dof};
 use super::error::RodError;
+use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
-use super::solver::{StepParams, copy_into};
 
 /// Rounds of "project lengths, push out again" after the first push-out.
 const CONTACT_ROUNDS: u32 = 4;

@@ -31,12 +31,19 @@ mod energy;
 mod error;
 pub mod frames;
 mod material;
+mod params;
 mod projection;
 mod solver;
 mod timing;
 
 #[cfg(test)]
 pub(crate) mod test_support;
+
+/// Copies `source` into `destination`, reusing its memory (scratch that grows once, then never allocates).
+pub(crate) fn copy_into<T: Copy>(destination: &mut Vec<T>, source: &[T]) {
+    destination.clear();
+    destination.extend_from_slice(source);
+}
 
 pub use banded::{BandedMatrix, NotPositiveDefinite};
 pub use collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
@@ -45,5 +52,6 @@ pub use curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE,
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};
 pub use material::{MATERIAL_RANGES, RodMaterial, Stiffness};
-pub use solver::{EXTRA_PROJECTION_ITERATIONS, MAX_DT, MAX_GRAVITY, RodWorkspace, StepParams, StepReport};
+pub use params::{MAX_DT, MAX_GRAVITY, StepParams};
+pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepReport};
 pub use timing::StepTimings;

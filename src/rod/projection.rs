@@ -2,8 +2,9 @@
 
 use bevy::math::DVec3;
 
+use super::copy_into;
 use super::curve::Rod;
-use super::solver::{StepParams, copy_into};
+use super::params::StepParams;
 
 /// Relative weight added to each constraint's own stiffness, dimensionless: consecutive edges folded
 /// onto one line make the projection's system singular, and this keeps it definite.

@@ -28,23 +28,18 @@ use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
 use super::contact::{ContactScratch, Contacts};
+use super::copy_into;
 use super::curve::Rod;
 use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
+use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
 use super::timing::{Part, StepTimings, Stopwatch};
 
 /// Projection iterations a step may add, on the whole strand, when its own left an edge beyond
 /// [`StepParams::strain_bound`] (see [`Rod::step_with_contacts`]).
 pub const EXTRA_PROJECTION_ITERATIONS: u32 = 64;
-
-/// The longest time step, s: no game steps slower, and a free rod falling for much longer would leave
-/// the range where its node positions keep the edges' lengths to the strain tolerance.
-pub const MAX_DT: f64 = 1.0;
-
-/// The largest gravitational acceleration, m/s² (a thousand times the Earth's).
-pub const MAX_GRAVITY: f64 = 1e4;
 
 /// The first Levenberg–Marquardt shift λ tried when a Newton system does not factorise (see
 /// [`Rod::newton_iteration`]), dimensionless.
@@ -53,113 +48,14 @@ const FIRST_REGULARISATION: f64 = 1e-8;
 /// The largest Levenberg–Marquardt shift λ tried, dimensionless: the diagonal doubled.
 const MAX_REGULARISATION: f64 = 1.0;
 
-/// Parameters of one time step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepParams {
-    /// Time step, s, at most [`MAX_DT`]. Any positive value is stable; 1/60 s is a game's fixed step.
-    pub dt: f64,
-    /// Gravitational acceleration, m/s², at most [`MAX_GRAVITY`] in size.
-    pub gravity: DVec3,
-    /// Air damping `γ`, 1/s: the rate at which velocities (relative to still air) decay, as a drag force
-    /// `−γ m v` on each node. A free velocity falls to `1/e` in `1/γ` seconds.
-    pub air_damping: f64,
-    /// Internal damping `β`, s: stiffness-proportional (Rayleigh) friction `−β H v` inside the material.
-    /// An elastic mode of angular frequency `ω` decays at the rate `½ β ω²`. It acts on the motion
-    /// relative to the rigid motion of the root clamp, so a strand carried along by its head is not braked.
-    pub internal_damping: f64,
-    /// Most Newton iterations per step. A step stops after one (linearly implicit Euler) when that
-    /// iteration was not limited by [`StepParams::max_rotation`] and its linearisation left no edge more
-    /// than [`StepParams::newton_strain_tolerance`] longer than intended; violent motion takes more.
-    pub max_newton_iterations: u32,
-    /// Edge strain, dimensionless, that a Newton iteration's linearisation may leave (before projection)
-    /// for the step to end there: a measure of how far edges turned, since a linear step turning an
-    /// edge by `φ` stretches it by about `φ²/2`.
-    pub newton_strain_tolerance: f64,
-    /// Largest turn of any edge in one Newton iteration, rad: larger updates are scaled down (a trust
-    /// region), so a rod released far from equilibrium moves there over several iterations instead of
-    /// following a linear extrapolation.
-    pub max_rotation: f64,
-    /// Relative accuracy, dimensionless, to which the projection restores each edge to the length the
-    /// implicit solve gave it to first order.
-    pub strain_tolerance: f64,
-    /// Largest elastic edge strain, dimensionless, the projection lets stand: stretch from tension
-    /// (`T / EA`, about 1e-6 for a hanging hair) is kept up to this, anything beyond is projected away,
-    /// so edges never stretch more than this plus `strain_tolerance`.
-    pub strain_allowance: f64,
-    /// Most projection iterations per Newton iteration (each one converges quadratically). A step whose
-    /// projections end above [`StepParams::strain_bound`] takes more (see [`Rod::step_with_contacts`]).
-    pub max_projection_iterations: u32,
+/// The inertia's factor `1/dt² + γ/dt` of a step, 1/s²: a node's block of the Newton matrix is `m` times it.
+fn inertia_scale(params: &StepParams) -> f64 {
+    1.0 / (params.dt * params.dt) + params.air_damping / params.dt
 }
 
-impl Default for StepParams {
-    /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
-    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain
-    /// allowance 5e-4, 16 projection iterations.
-    fn default() -> Self {
-        Self {
-            dt: 1.0 / 60.0,
-            gravity: DVec3::new(0.0, -9.81, 0.0),
-            air_damping: 3.0,
-            internal_damping: 1e-3,
-            max_newton_iterations: 4,
-            newton_strain_tolerance: 0.01,
-            max_rotation: 0.25,
-            strain_tolerance: 1e-6,
-            strain_allowance: 5e-4,
-            max_projection_iterations: 16,
-        }
-    }
-}
-
-impl StepParams {
-    /// Checks that every parameter is in its valid range.
-    pub fn validate(&self) -> Result<(), RodError> {
-        let invalid =
-            |parameter, value, requirement| Err(RodError::InvalidStepParameter { parameter, value, requirement });
-        if !(self.dt > 0.0 && self.dt <= MAX_DT) {
-            return invalid("dt", self.dt, "must be positive and at most 1 s");
-        }
-        if !self.gravity.is_finite() || self.gravity.length() > MAX_GRAVITY {
-            return invalid("gravity", self.gravity.length(), "must be finite and at most 10 000 m/s² in size");
-        }
-        for (name, value) in [("air_damping", self.air_damping), ("internal_damping", self.internal_damping)] {
-            if !(value.is_finite() && value >= 0.0) {
-                return invalid(name, value, "must be zero or positive and finite");
-            }
-        }
-        if self.max_newton_iterations == 0 {
-            return invalid("max_newton_iterations", 0.0, "must be at least 1");
-        }
-        for (name, value) in
-            [("newton_strain_tolerance", self.newton_strain_tolerance), ("max_rotation", self.max_rotation)]
-        {
-            if !(value.is_finite() && value > 0.0) {
-                return invalid(name, value, "must be positive and finite");
-            }
-        }
-        if !(self.strain_allowance.is_finite() && (0.0..0.5).contains(&self.strain_allowance)) {
-            return invalid("strain_allowance", self.strain_allowance, "must be at least 0 and below 0.5");
-        }
-        if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
-            return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
-        }
-        if self.max_projection_iterations == 0 {
-            return invalid("max_projection_iterations", 0.0, "must be at least 1");
-        }
-        Ok(())
-    }
-
-    /// The largest edge strain `| |e|/|ē| − 1 |` a successful step ends with, dimensionless:
-    /// `(1 + strain_allowance)(1 + strain_tolerance) − 1`, that is `strain_allowance + strain_tolerance`
-    /// and their product (5.01e-4 by default). A step never returns `Ok` above it.
-    pub fn strain_bound(&self) -> f64 {
-        (1.0 + self.strain_allowance) * (1.0 + self.strain_tolerance) - 1.0
-    }
-
-    /// Whether an edge strain is within [`StepParams::strain_bound`] (NaN is not).
-    fn within_strain_bound(&self, strain: f64) -> bool {
-        strain <= self.strain_bound()
-    }
+/// The elastic Hessian's factor `1 + β/dt` with internal damping.
+fn damped_scale(params: &StepParams) -> f64 {
+    1.0 + params.internal_damping / params.dt
 }
 
 /// What a successful step measured.
@@ -219,11 +115,6 @@ struct SavedState {
     reference_directors: Vec<DVec3>,
     tangents: Vec<DVec3>,
     reference_twist: Vec<f64>,
-}
-
-pub(crate) fn copy_into<T: Copy>(destination: &mut Vec<T>, source: &[T]) {
-    destination.clear();
-    destination.extend_from_slice(source);
 }
 
 impl SavedState {
@@ -511,9 +402,10 @@ impl Rod {
         self.solve_newton_update(params, workspace)
     }
 
-    /// Assembles the Newton system at the current iterate into the workspace's matrix and residual:
-    /// elastic forces and Hessian, internal damping, inertia with gravity and external forces, contact,
-    /// prescribed unknowns; the diagonal scaled by `1 + regularisation`.
+    /// Assembles the Newton system at the current iterate into the workspace's matrix and residual, one
+    /// term at a time (see the module documentation): elastic forces, internal damping, inertia with
+    /// gravity and external forces, contact, the diagonal scaled by `1 + regularisation`, prescribed
+    /// unknowns.
     fn assemble_newton_system(
         &mut self,
         params: &StepParams,
@@ -522,70 +414,97 @@ impl Rod {
         regularisation: f64,
     ) {
         let size = dof_count(self.node_count());
+        edge_geometry(self, &mut workspace.edges);
+        workspace.residual.clear();
+        workspace.residual.resize(size, 0.0);
+        workspace.hessian.reset(size);
+        self.add_elastic_forces(params, workspace);
+        self.add_internal_damping(params, workspace);
+        self.add_inertia_and_external_forces(params, external_forces, workspace);
+        workspace.stopwatch.lap(Part::Forces);
+        let RodWorkspace { hessian, residual, saved, contacts, stopwatch, .. } = workspace;
+        self.add_contact_forces(contacts, &saved.positions, params, inertia_scale(params), residual, hessian);
+        stopwatch.lap(Part::Collisions);
+        if regularisation > 0.0 {
+            hessian.scale_diagonal(1.0 + regularisation);
+        }
+        self.add_prescribed_unknowns(workspace);
+    }
+
+    /// The elastic forces `∇E` and their Hessian `H` ([`super::energy`]), the Hessian scaled by
+    /// `1 + β/dt` for internal damping.
+    fn add_elastic_forces(&self, params: &StepParams, workspace: &mut RodWorkspace) {
+        let RodWorkspace { hessian, residual, edges, .. } = workspace;
+        add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale(params))));
+    }
+
+    /// Internal (Rayleigh) friction `β/dt H (q − q̃)` on the deformation since the first guess `q̃` (the
+    /// strand carried with its root), not on that rigid motion. Along each edge the stretching part
+    /// damps the true change of length, since `H Δq` would count a turn by `φ` as a stretch by `φ²/2`
+    /// times the huge axial stiffness.
+    fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace) {
+        let size = dof_count(self.node_count());
         let RodWorkspace {
             hessian,
             residual,
             displacement,
             damping_force,
-            prescribed,
             edges,
-            saved,
             carried_positions,
             carried_twist,
-            contacts,
-            stopwatch,
             ..
         } = workspace;
-        let (dt, gamma, beta) = (params.dt, params.air_damping, params.internal_damping);
-
-        edge_geometry(self, edges);
-        residual.clear();
-        residual.resize(size, 0.0);
-        hessian.reset(size);
-        // Internal damping scales the elastic Hessian: `(1 + β/dt) H`.
-        let damped_scale = 1.0 + beta / dt;
-        add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale)));
-
-        // Internal friction resists deformation, not the rigid motion the strand was carried with. On
-        // the first iteration the iterate is where the strand was carried: nothing to damp yet.
+        let beta = params.internal_damping;
+        // On the first iteration the iterate is where the strand was carried: nothing to damp yet.
         let damped = beta > 0.0 && (self.positions != *carried_positions || self.twist != *carried_twist);
         // Sized on every iteration (a no-op once grown), so that no later step allocates.
         displacement.resize(size, 0.0);
         damping_force.resize(size, 0.0);
-        if damped {
-            for node in 0..self.node_count() {
-                let offset = self.positions[node] - carried_positions[node];
-                displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-            }
-            for edge in 0..self.edge_count() {
-                displacement[twist_dof(edge)] = self.twist[edge] - carried_twist[edge];
-            }
-            hessian.multiply(displacement, damping_force);
-            // Along each edge, `H Δq` would count a turn by `φ` as a stretch by `φ²/2` times the huge
-            // axial stiffness: the stretching part damps the true change of length instead.
-            let axial_stiffness = damped_scale * self.stiffness().stretching;
-            for (edge, geometry) in edges.iter().enumerate() {
-                let carried_length = carried_positions[edge].distance(carried_positions[edge + 1]);
-                let linearised = geometry.tangent.dot(
-                    DVec3::from_slice(&displacement[node_dof(edge + 1)..node_dof(edge + 1) + 3])
-                        - DVec3::from_slice(&displacement[node_dof(edge)..node_dof(edge) + 3]),
-                );
-                let correction = axial_stiffness / self.rest_lengths[edge]
-                    * (geometry.length - carried_length - linearised)
-                    * geometry.tangent;
-                for axis in 0..3 {
-                    damping_force[node_dof(edge) + axis] -= correction[axis];
-                    damping_force[node_dof(edge + 1) + axis] += correction[axis];
-                }
-            }
-            // The product was with the damped `(1 + β/dt) H`.
-            let factor = beta / dt / damped_scale;
-            for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
-                *r += factor * f;
+        if !damped {
+            return;
+        }
+        for node in 0..self.node_count() {
+            let offset = self.positions[node] - carried_positions[node];
+            displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
+        }
+        for edge in 0..self.edge_count() {
+            displacement[twist_dof(edge)] = self.twist[edge] - carried_twist[edge];
+        }
+        hessian.multiply(displacement, damping_force);
+        let damped_scale = damped_scale(params);
+        let axial_stiffness = damped_scale * self.stiffness().stretching;
+        for (edge, geometry) in edges.iter().enumerate() {
+            let carried_length = carried_positions[edge].distance(carried_positions[edge + 1]);
+            let linearised = geometry.tangent.dot(
+                DVec3::from_slice(&displacement[node_dof(edge + 1)..node_dof(edge + 1) + 3])
+                    - DVec3::from_slice(&displacement[node_dof(edge)..node_dof(edge) + 3]),
+            );
+            let correction = axial_stiffness / self.rest_lengths[edge]
+                * (geometry.length - carried_length - linearised)
+                * geometry.tangent;
+            for axis in 0..3 {
+                damping_force[node_dof(edge) + axis] -= correction[axis];
+                damping_force[node_dof(edge + 1) + axis] += correction[axis];
             }
         }
+        // The product was with the damped `(1 + β/dt) H`.
+        let factor = beta / params.dt / damped_scale;
+        for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
+            *r += factor * f;
+        }
+    }
 
-        let inertia_scale = 1.0 / (dt * dt) + gamma / dt;
+    /// Inertia and air drag `M (q − qₙ − dt vₙ)/dt² + γ M (q − qₙ)/dt` of the nodes and of the edges' spin,
+    /// with Hessian `M (1/dt² + γ/dt)`, and the forces: gravity `M g` and `external_forces` (N).
+    fn add_inertia_and_external_forces(
+        &self,
+        params: &StepParams,
+        external_forces: Option<&[DVec3]>,
+        workspace: &mut RodWorkspace,
+    ) {
+        let RodWorkspace { hessian, residual, saved, .. } = workspace;
+        let (dt, gamma) = (params.dt, params.air_damping);
+        let inertia_scale = inertia_scale(params);
         for node in 0..self.node_count() {
             let mass = self.masses[node];
             let mut force = mass * params.gravity;
@@ -609,12 +528,13 @@ impl Rod {
                 inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
-        stopwatch.lap(Part::Forces);
-        self.add_contact_forces(contacts, &saved.positions, params, inertia_scale, residual, hessian);
-        stopwatch.lap(Part::Collisions);
+    }
 
-        // Prescribed unknowns move by their remaining displacement `d`: their rows become identity rows
-        // with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
+    /// Prescribed unknowns (pins, clamps) move by their remaining displacement `d`: their rows become
+    /// identity rows with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
+    fn add_prescribed_unknowns(&self, workspace: &mut RodWorkspace) {
+        let size = dof_count(self.node_count());
+        let RodWorkspace { hessian, residual, prescribed, damping_force: coupling, .. } = workspace;
         prescribed.clear();
         prescribed.resize(size, 0.0);
         for node in 0..self.node_count() {
@@ -632,13 +552,10 @@ impl Rod {
         if let (Some(first), Some(last)) =
             (prescribed.iter().position(|d| *d != 0.0), prescribed.iter().rposition(|d| *d != 0.0))
         {
-            hessian.multiply_columns(first..last + 1, prescribed, damping_force);
-            for (r, coupling) in residual.iter_mut().zip(damping_force.iter()) {
+            hessian.multiply_columns(first..last + 1, prescribed, coupling);
+            for (r, coupling) in residual.iter_mut().zip(coupling.iter()) {
                 *r += coupling;
             }
-        }
-        if regularisation > 0.0 {
-            hessian.scale_diagonal(1.0 + regularisation);
         }
         let prescribed_dofs = (0..self.node_count())
             .filter(|&node| self.node_targets[node].is_some())
@@ -658,8 +575,7 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
         let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, .. } = workspace;
-        let (dt, gamma) = (params.dt, params.air_damping);
-        let inertia_scale = 1.0 / (dt * dt) + gamma / dt;
+        let inertia_scale = inertia_scale(params);
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);

@@ -1,0 +1,121 @@
+//! The parameters of a time step, with their units and valid ranges.
+
+use bevy::math::DVec3;
+
+use super::error::RodError;
+
+/// The longest time step, s: no game steps slower, and a free rod falling for much longer would leave
+/// the range where its node positions keep the edges' lengths to the strain tolerance.
+pub const MAX_DT: f64 = 1.0;
+
+/// The largest gravitational acceleration, m/s² (a thousand times the Earth's).
+pub const MAX_GRAVITY: f64 = 1e4;
+
+/// Parameters of one time step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepParams {
+    /// Time step, s, at most [`MAX_DT`]. Any positive value is stable; 1/60 s is a game's fixed step.
+    pub dt: f64,
+    /// Gravitational acceleration, m/s², at most [`MAX_GRAVITY`] in size.
+    pub gravity: DVec3,
+    /// Air damping `γ`, 1/s: the rate at which velocities (relative to still air) decay, as a drag force
+    /// `−γ m v` on each node. A free velocity falls to `1/e` in `1/γ` seconds.
+    pub air_damping: f64,
+    /// Internal damping `β`, s: stiffness-proportional (Rayleigh) friction `−β H v` inside the material.
+    /// An elastic mode of angular frequency `ω` decays at the rate `½ β ω²`. It acts on the motion
+    /// relative to the rigid motion of the root clamp, so a strand carried along by its head is not braked.
+    pub internal_damping: f64,
+    /// Most Newton iterations per step. A step stops after one (linearly implicit Euler) when that
+    /// iteration was not limited by [`StepParams::max_rotation`] and its linearisation left no edge more
+    /// than [`StepParams::newton_strain_tolerance`] longer than intended; violent motion takes more.
+    pub max_newton_iterations: u32,
+    /// Edge strain, dimensionless, that a Newton iteration's linearisation may leave (before projection)
+    /// for the step to end there: a measure of how far edges turned, since a linear step turning an
+    /// edge by `φ` stretches it by about `φ²/2`.
+    pub newton_strain_tolerance: f64,
+    /// Largest turn of any edge in one Newton iteration, rad: larger updates are scaled down (a trust
+    /// region), so a rod released far from equilibrium moves there over several iterations instead of
+    /// following a linear extrapolation.
+    pub max_rotation: f64,
+    /// Relative accuracy, dimensionless, to which the projection restores each edge to the length the
+    /// implicit solve gave it to first order.
+    pub strain_tolerance: f64,
+    /// Largest elastic edge strain, dimensionless, the projection lets stand: stretch from tension
+    /// (`T / EA`, about 1e-6 for a hanging hair) is kept up to this, anything beyond is projected away,
+    /// so edges never stretch more than this plus `strain_tolerance`.
+    pub strain_allowance: f64,
+    /// Most projection iterations per Newton iteration (each one converges quadratically). A step whose
+    /// projections end above [`StepParams::strain_bound`] takes more (see [`crate::rod::Rod::step_with_contacts`]).
+    pub max_projection_iterations: u32,
+}
+
+impl Default for StepParams {
+    /// 1/60 s, Earth gravity along −Y, air damping 3/s, internal damping 1 ms, up to 4 Newton
+    /// iterations (linearisation strain 1 %, turns of 0.25 rad), strain tolerance 1e-6, strain
+    /// allowance 5e-4, 16 projection iterations.
+    fn default() -> Self {
+        Self {
+            dt: 1.0 / 60.0,
+            gravity: DVec3::new(0.0, -9.81, 0.0),
+            air_damping: 3.0,
+            internal_damping: 1e-3,
+            max_newton_iterations: 4,
+            newton_strain_tolerance: 0.01,
+            max_rotation: 0.25,
+            strain_tolerance: 1e-6,
+            strain_allowance: 5e-4,
+            max_projection_iterations: 16,
+        }
+    }
+}
+
+impl StepParams {
+    /// Checks that every parameter is in its valid range.
+    pub fn validate(&self) -> Result<(), RodError> {
+        let invalid =
+            |parameter, value, requirement| Err(RodError::InvalidStepParameter { parameter, value, requirement });
+        if !(self.dt > 0.0 && self.dt <= MAX_DT) {
+            return invalid("dt", self.dt, "must be positive and at most 1 s");
+        }
+        if !self.gravity.is_finite() || self.gravity.length() > MAX_GRAVITY {
+            return invalid("gravity", self.gravity.length(), "must be finite and at most 10 000 m/s² in size");
+        }
+        for (name, value) in [("air_damping", self.air_damping), ("internal_damping", self.internal_damping)] {
+            if !(value.is_finite() && value >= 0.0) {
+                return invalid(name, value, "must be zero or positive and finite");
+            }
+        }
+        if self.max_newton_iterations == 0 {
+            return invalid("max_newton_iterations", 0.0, "must be at least 1");
+        }
+        for (name, value) in
+            [("newton_strain_tolerance", self.newton_strain_tolerance), ("max_rotation", self.max_rotation)]
+        {
+            if !(value.is_finite() && value > 0.0) {
+                return invalid(name, value, "must be positive and finite");
+            }
+        }
+        if !(self.strain_allowance.is_finite() && (0.0..0.5).contains(&self.strain_allowance)) {
+            return invalid("strain_allowance", self.strain_allowance, "must be at least 0 and below 0.5");
+        }
+        if !(self.strain_tolerance.is_finite() && self.strain_tolerance > 0.0) {
+            return invalid("strain_tolerance", self.strain_tolerance, "must be positive and finite");
+        }
+        if self.max_projection_iterations == 0 {
+            return invalid("max_projection_iterations", 0.0, "must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// The largest edge strain `| |e|/|ē| − 1 |` a successful step ends with, dimensionless:
+    /// `(1 + strain_allowance)(1 + strain_tolerance) − 1`, that is `strain_allowance + strain_tolerance`
+    /// and their product (5.01e-4 by default). A step never returns `Ok` above it.
+    pub fn strain_bound(&self) -> f64 {
+        (1.0 + self.strain_allowance) * (1.0 + self.strain_tolerance) - 1.0
+    }
+
+    /// Whether an edge strain is within [`StepParams::strain_bound`] (NaN is not).
+    pub(crate) fn within_strain_bound(&self, strain: f64) -> bool {
+        strain <= self.strain_bound()
+    }
+}
