@@ -4,6 +4,7 @@
 pub mod collision;
 pub mod gizmos;
 pub mod groom;
+pub mod groom_file;
 pub mod head;
 #[cfg(feature = "egui")]
 pub mod panel;
@@ -22,6 +23,7 @@ pub mod prelude {
     };
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
+    pub use crate::groom_file::{GroomFile, GroomFileError, GroomFilePlugin};
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]
     pub use crate::panel::HairPanelPlugin;

@@ -8,6 +8,7 @@ use bevy::prelude::*;
 use crate::collision::HairCollisionPlugin;
 use crate::gizmos::HairGizmoPlugin;
 use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
+use crate::groom_file::GroomFilePlugin;
 use crate::head::{HairHead, HeadMotion, HeadPose, HeadStrands, StrandOf, track_heads};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::step::{
@@ -18,7 +19,8 @@ use crate::strand::{
 };
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
-/// ([`HairCollisionPlugin`]) and drawing ([`HairGizmoPlugin`]). Add it once:
+/// ([`HairCollisionPlugin`]), drawing ([`HairGizmoPlugin`]) and groom files ([`GroomFilePlugin`]). Add
+/// it once, after Bevy's plugins:
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -77,6 +79,7 @@ impl PluginGroup for HairPlugin {
             .add(HairSimulationPlugin { schedule: self.schedule })
             .add(HairCollisionPlugin { schedule: self.schedule })
             .add(HairGizmoPlugin)
+            .add(GroomFilePlugin)
     }
 }
 

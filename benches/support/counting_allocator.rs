@@ -1,5 +1,6 @@
 //! The system allocator, counting allocations and the bytes in use: installed as the global allocator
-//! by `examples/benchmark.rs` (memory per node) and `tests/allocation.rs` (no allocation per step).
+//! by `examples/benchmark.rs` (memory per node), `tests/allocation.rs` (no allocation per step) and
+//! `tests/groom_file.rs` (no huge allocation for a corrupt file).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -21,9 +22,27 @@ pub fn thread_allocations() -> u64 {
     THREAD_ALLOCATIONS.with(Cell::get)
 }
 
-fn count_allocation() {
+thread_local! {
+    /// The largest single allocation or reallocation by this thread since [`reset_thread_largest`], bytes.
+    static THREAD_LARGEST: Cell<usize> = const { Cell::new(0) };
+}
+
+/// Starts measuring the calling thread's largest single allocation from zero.
+#[allow(dead_code)]
+pub fn reset_thread_largest() {
+    THREAD_LARGEST.with(|largest| largest.set(0));
+}
+
+/// The calling thread's largest single allocation since [`reset_thread_largest`], bytes.
+#[allow(dead_code)]
+pub fn thread_largest() -> usize {
+    THREAD_LARGEST.with(Cell::get)
+}
+
+fn count_allocation(size: usize) {
     ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
     THREAD_ALLOCATIONS.with(|count| count.set(count.get() + 1));
+    THREAD_LARGEST.with(|largest| largest.set(largest.get().max(size)));
 }
 /// Heap bytes allocated and not yet freed.
 pub static BYTES_IN_USE: AtomicIsize = AtomicIsize::new(0);
@@ -33,7 +52,7 @@ struct CountingAllocator;
 // SAFETY: every call is forwarded to the system allocator unchanged; only counters are added.
 unsafe impl GlobalAlloc for CountingAllocator {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count_allocation();
+        count_allocation(layout.size());
         BYTES_IN_USE.fetch_add(layout.size() as isize, Ordering::Relaxed);
         // SAFETY: the caller's contract is passed on.
         unsafe { System.alloc(layout) }
@@ -46,7 +65,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
     }
 
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count_allocation();
+        count_allocation(new_size);
         BYTES_IN_USE.fetch_add(new_size as isize - layout.size() as isize, Ordering::Relaxed);
         // SAFETY: the caller's contract is passed on.
         unsafe { System.realloc(ptr, layout, new_size) }

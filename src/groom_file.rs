@@ -1,0 +1,416 @@
+//! Grooms from files: TressFX `.tfx` and Cem Yuksel's `.hair` strand files, read into one
+//! [`GroomFile`] asset by [`TfxLoader`] and [`HairFileLoader`] ([`GroomFilePlugin`] registers them).
+//!
+//! Both formats are little-endian binary. Every count and offset is checked against the file's length
+//! before anything is allocated, so a truncated or corrupt file gives a [`GroomFileError`], never a
+//! panic or a huge allocation.
+//!
+//! - **`.tfx`** (TressFX 4): a 160-byte header `f32 version, u32 strands, u32 points per strand`, then the
+//!   byte offsets (0: absent) of the positions (`float4` per point, `w` marks pinned points and is not
+//!   read), strand UVs (`float2` per strand), point UVs (`float2` per point), strand thickness (`f32` per
+//!   strand) and point colours (`float4` per point), and 32 reserved words.
+//! - **`.hair`** (Cem Yuksel, <http://www.cemyuksel.com/research/hairmodels/>): a 128-byte header
+//!   `"HAIR", u32 strands, u32 points, u32 arrays` (bit 0: segments per strand, 1: points, 2: thickness,
+//!   3: transparency, 4: colours), the defaults for absent arrays (`u32 segments, f32 thickness,
+//!   f32 transparency, f32×3 colour`) and 88 bytes of text; then the present arrays in that order
+//!   (`u16` segments per strand, `f32×3` points, `f32` thickness, `f32` transparency, `f32×3` colours per
+//!   point). Strands may have different lengths.
+
+use bevy::app::{App, Plugin};
+use bevy::asset::io::Reader;
+use bevy::asset::{Asset, AssetApp, AssetLoader, AssetPlugin, LoadContext};
+use bevy::log::debug;
+use bevy::math::{Vec2, Vec3};
+use bevy::reflect::TypePath;
+use thiserror::Error;
+
+/// A strand shorter than this fraction of its groom's size (the largest side of the box around all its
+/// points) is a point blurred by rounding, not a strand.
+pub const MIN_RELATIVE_STRAND_LENGTH: f32 = 1e-3;
+
+/// Strands read from a groom file, in the file's own units and axes.
+#[derive(Asset, TypePath, Debug, Clone, Default, PartialEq)]
+pub struct GroomFile {
+    /// Every strand's points, root first, one strand after another.
+    pub points: Vec<Vec3>,
+    /// Where each strand starts in [`GroomFile::points`], with the end of the last as a final entry: strand
+    /// `i` is `points[strand_starts[i]..strand_starts[i + 1]]`.
+    pub strand_starts: Vec<usize>,
+    /// Thickness of each point, in the file's units (`.hair`: its array or default; `.tfx`: its strand
+    /// thickness, a relative width, given to each of the strand's points).
+    pub thickness: Option<Vec<f32>>,
+    /// Transparency of each point, 0 (opaque) to 1 (`.hair` only).
+    pub transparency: Option<Vec<f32>>,
+    /// Colour of each point, linear RGB 0 to 1.
+    pub colors: Option<Vec<Vec3>>,
+    /// Texture coordinate of each strand's root on the scalp (`.tfx` only).
+    pub strand_uvs: Option<Vec<Vec2>>,
+    /// Texture coordinate of each point (`.tfx` only).
+    pub point_uvs: Option<Vec<Vec2>>,
+}
+
+/// Why a groom file could not be read.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum GroomFileError {
+    /// The file could not be read.
+    #[error("the groom file could not be read: {0}")]
+    Io(String),
+    /// The file ends before something it announces.
+    #[error("the groom file is truncated: its {what} needs bytes up to {needed}, the file has {length}")]
+    Truncated {
+        /// What was being read.
+        what: &'static str,
+        /// The byte offset the file must reach.
+        needed: u64,
+        /// The file's length in bytes.
+        length: usize,
+    },
+    /// A `.hair` file without its `HAIR` signature.
+    #[error("not a .hair file: it starts with {0:?}, not \"HAIR\"")]
+    Signature([u8; 4]),
+    /// A header value out of its range.
+    #[error("the groom file's {what} is {value}, {requirement}")]
+    InvalidHeader {
+        /// Which value.
+        what: &'static str,
+        /// The value read.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
+    /// The strands' segment counts do not add up to the file's point count.
+    #[error("the .hair file's strands have {from_segments} points in all, its header says {points}")]
+    PointCountMismatch {
+        /// Points implied by the segment counts.
+        from_segments: u64,
+        /// Points in the header.
+        points: u64,
+    },
+    /// A point whose position is NaN or infinite.
+    #[error("point {point} of the groom file is not finite: {position}")]
+    NonFinitePoint {
+        /// Index of the point in the file.
+        point: usize,
+        /// Its position.
+        position: Vec3,
+    },
+}
+
+/// Little-endian reads from a file's bytes, each checked against its length.
+struct Bytes<'a>(&'a [u8]);
+
+impl<'a> Bytes<'a> {
+    /// `count` records of `stride` bytes from `offset`, checked to lie inside the file.
+    fn array(&self, what: &'static str, offset: u64, count: u64, stride: u64) -> Result<&'a [u8], GroomFileError> {
+        let end = count.checked_mul(stride).and_then(|size| size.checked_add(offset));
+        let length = self.0.len();
+        match end {
+            Some(end) if end <= length as u64 => Ok(&self.0[offset as usize..end as usize]),
+            _ => Err(GroomFileError::Truncated { what, needed: end.unwrap_or(u64::MAX), length }),
+        }
+    }
+
+    fn u32_at(&self, what: &'static str, offset: u64) -> Result<u32, GroomFileError> {
+        let bytes = self.array(what, offset, 1, 4)?;
+        Ok(u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]))
+    }
+
+    fn f32_at(&self, what: &'static str, offset: u64) -> Result<f32, GroomFileError> {
+        Ok(f32::from_bits(self.u32_at(what, offset)?))
+    }
+}
+
+/// The `f32`s of a checked array, `N` at a time.
+fn floats<const N: usize>(bytes: &[u8]) -> impl Iterator<Item = [f32; N]> + '_ {
+    bytes.chunks_exact(4 * N).map(|record| {
+        std::array::from_fn(|i| {
+            f32::from_le_bytes([record[4 * i], record[4 * i + 1], record[4 * i + 2], record[4 * i + 3]])
+        })
+    })
+}
+
+impl GroomFile {
+    /// Number of strands.
+    pub fn strand_count(&self) -> usize {
+        self.strand_starts.len().saturating_sub(1)
+    }
+
+    /// The points of strand `index`, root first.
+    pub fn strand(&self, index: usize) -> &[Vec3] {
+        &self.points[self.strand_starts[index]..self.strand_starts[index + 1]]
+    }
+
+    /// The strands that can be simulated: at least 3 distinct points, and a length above
+    /// [`MIN_RELATIVE_STRAND_LENGTH`] times the size of the whole groom (shorter ones are points blurred
+    /// by rounding).
+    pub fn usable_strands(&self) -> impl Iterator<Item = usize> + '_ {
+        let (low, high) =
+            self.points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), p| (low.min(*p), high.max(*p)));
+        let shortest = MIN_RELATIVE_STRAND_LENGTH * (high - low).max_element().max(0.0);
+        (0..self.strand_count()).filter(move |&index| {
+            let points = self.strand(index);
+            let length: f32 = points.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+            let distinct = points.windows(2).filter(|pair| pair[0] != pair[1]).count() + 1;
+            distinct >= 3 && length > shortest
+        })
+    }
+
+    /// Strand `index` resampled into `edges` edges of equal length, its length over `edges`, root
+    /// first: each node is where the strand leaves the ball of that radius around the node before
+    /// (chords along the curve). The length is kept exactly; since chords cut the bends, the tip reaches
+    /// a little past the file's tip, along the strand's last direction.
+    pub fn resampled_strand(&self, index: usize, edges: usize) -> Vec<Vec3> {
+        let points = self.strand(index);
+        let edges = edges.max(1);
+        let length: f32 = points.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+        let chord = length / edges as f32;
+        let mut resampled = Vec::with_capacity(edges + 1);
+        let mut current = points[0];
+        resampled.push(current);
+        // The walk is on segment `segment`, at `from` (a point of it).
+        let (mut segment, mut from) = (0, points[0]);
+        let mut direction = (points[points.len() - 1] - points[0]).normalize_or(Vec3::Y);
+        for _ in 0..edges {
+            let mut next = None;
+            while segment + 1 < points.len() {
+                let end = points[segment + 1];
+                if end.distance(current) >= chord {
+                    // Where `from + t (end − from)` leaves the ball: the larger root of a quadratic in t.
+                    let (step, offset) = (end - from, from - current);
+                    let (a, b, c) =
+                        (step.length_squared(), 2.0 * offset.dot(step), offset.length_squared() - chord * chord);
+                    let t = if a > 0.0 {
+                        ((-b + (b * b - 4.0 * a * c).max(0.0).sqrt()) / (2.0 * a)).clamp(0.0, 1.0)
+                    } else {
+                        0.0
+                    };
+                    let point = from + t * step;
+                    from = point;
+                    next = Some(point);
+                    break;
+                }
+                segment += 1;
+                from = points[segment];
+            }
+            let point = next.unwrap_or(current + chord * direction);
+            direction = (point - current).normalize_or(direction);
+            current = point;
+            resampled.push(point);
+        }
+        resampled
+    }
+
+    /// Reads a TressFX 4 `.tfx` file (see the module documentation).
+    pub fn from_tfx(bytes: &[u8]) -> Result<Self, GroomFileError> {
+        let file = Bytes(bytes);
+        file.array("header", 0, 1, 160)?;
+        let version = file.f32_at("version", 0)?;
+        if !version.is_finite() {
+            return Err(GroomFileError::InvalidHeader {
+                what: "version",
+                value: f64::from(version),
+                requirement: "must be a finite number",
+            });
+        }
+        let strands = u64::from(file.u32_at("strand count", 4)?);
+        let per_strand = u64::from(file.u32_at("points per strand", 8)?);
+        if per_strand < 2 {
+            return Err(GroomFileError::InvalidHeader {
+                what: "points per strand",
+                value: per_strand as f64,
+                requirement: "must be at least 2",
+            });
+        }
+        let offset = |index: u64| file.u32_at("array offset", 12 + 4 * index).map(u64::from);
+        let (positions, strand_uvs, point_uvs, thickness, colors) =
+            (offset(0)?, offset(1)?, offset(2)?, offset(3)?, offset(4)?);
+        if positions == 0 {
+            return Err(GroomFileError::InvalidHeader {
+                what: "position offset",
+                value: 0.0,
+                requirement: "must not be 0 (positions are required)",
+            });
+        }
+        let point_count = strands.checked_mul(per_strand).unwrap_or(u64::MAX);
+        let positions = file.array("positions", positions, point_count, 16)?;
+        let optional = |what, offset: u64, count, stride| {
+            (offset != 0).then(|| file.array(what, offset, count, stride)).transpose()
+        };
+        let strand_uvs = optional("strand UVs", strand_uvs, strands, 8)?;
+        let point_uvs = optional("point UVs", point_uvs, point_count, 8)?;
+        let thickness = optional("thickness", thickness, strands, 4)?;
+        let colors = optional("colours", colors, point_count, 16)?;
+
+        let points: Vec<Vec3> = floats::<4>(positions).map(|[x, y, z, _]| Vec3::new(x, y, z)).collect();
+        check_finite(&points)?;
+        let per_strand = per_strand as usize;
+        debug!("read a .tfx groom: {strands} strands of {per_strand} points");
+        Ok(Self {
+            strand_starts: (0..=strands as usize).map(|strand| strand * per_strand).collect(),
+            points,
+            thickness: thickness
+                .map(|bytes| floats::<1>(bytes).flat_map(|[width]| std::iter::repeat_n(width, per_strand)).collect()),
+            transparency: None,
+            colors: colors.map(|bytes| floats::<4>(bytes).map(|[r, g, b, _]| Vec3::new(r, g, b)).collect()),
+            strand_uvs: strand_uvs.map(|bytes| floats::<2>(bytes).map(Vec2::from).collect()),
+            point_uvs: point_uvs.map(|bytes| floats::<2>(bytes).map(Vec2::from).collect()),
+        })
+    }
+
+    /// Reads a Cem Yuksel `.hair` file (see the module documentation); absent arrays take the header's
+    /// defaults.
+    pub fn from_hair(bytes: &[u8]) -> Result<Self, GroomFileError> {
+        let file = Bytes(bytes);
+        let header = file.array("header", 0, 1, 128)?;
+        let signature = [header[0], header[1], header[2], header[3]];
+        if &signature != b"HAIR" {
+            return Err(GroomFileError::Signature(signature));
+        }
+        let strands = u64::from(file.u32_at("strand count", 4)?);
+        let points = u64::from(file.u32_at("point count", 8)?);
+        let arrays = file.u32_at("array bits", 12)?;
+        let default_segments = file.u32_at("default segments", 16)?;
+        let default_thickness = file.f32_at("default thickness", 20)?;
+        let default_transparency = file.f32_at("default transparency", 24)?;
+        let default_color =
+            Vec3::new(file.f32_at("colour", 28)?, file.f32_at("colour", 32)?, file.f32_at("colour", 36)?);
+        if arrays & 2 == 0 {
+            return Err(GroomFileError::InvalidHeader {
+                what: "array bits",
+                value: f64::from(arrays),
+                requirement: "must include the points (bit 1)",
+            });
+        }
+        let mut offset = 128;
+        let mut next = |what, present: bool, count: u64, stride: u64| -> Result<Option<&[u8]>, GroomFileError> {
+            if !present {
+                return Ok(None);
+            }
+            let array = file.array(what, offset, count, stride)?;
+            offset += count * stride;
+            Ok(Some(array))
+        };
+        let segments = next("segments", arrays & 1 != 0, strands, 2)?;
+        let positions = next("points", true, points, 12)?.unwrap_or_default();
+        let thickness = next("thickness", arrays & 4 != 0, points, 4)?;
+        let transparency = next("transparency", arrays & 8 != 0, points, 4)?;
+        let colors = next("colours", arrays & 16 != 0, points, 12)?;
+
+        if strands > points {
+            return Err(GroomFileError::InvalidHeader {
+                what: "strand count",
+                value: strands as f64,
+                requirement: "must not exceed the point count (every strand has points)",
+            });
+        }
+        // Strand lengths, checked to add up before any per-strand memory is taken.
+        let segment_count = |strand: usize| match segments {
+            Some(bytes) => u64::from(u16::from_le_bytes([bytes[2 * strand], bytes[2 * strand + 1]])),
+            None => u64::from(default_segments),
+        };
+        let from_segments: u64 = (0..strands as usize).map(|strand| segment_count(strand) + 1).sum();
+        if from_segments != points {
+            return Err(GroomFileError::PointCountMismatch { from_segments, points });
+        }
+        let mut strand_starts = Vec::with_capacity(strands as usize + 1);
+        strand_starts.push(0);
+        for strand in 0..strands as usize {
+            strand_starts.push(strand_starts[strand] + segment_count(strand) as usize + 1);
+        }
+        let points: Vec<Vec3> = floats::<3>(positions).map(Vec3::from).collect();
+        check_finite(&points)?;
+        let per_point = |array: Option<&[u8]>, default: f32| match array {
+            Some(bytes) => floats::<1>(bytes).map(|[value]| value).collect(),
+            None => vec![default; points.len()],
+        };
+        debug!("read a .hair groom: {strands} strands, {} points", points.len());
+        Ok(Self {
+            thickness: Some(per_point(thickness, default_thickness)),
+            transparency: Some(per_point(transparency, default_transparency)),
+            colors: Some(match colors {
+                Some(bytes) => floats::<3>(bytes).map(Vec3::from).collect(),
+                None => vec![default_color; points.len()],
+            }),
+            strand_uvs: None,
+            point_uvs: None,
+            strand_starts,
+            points,
+        })
+    }
+}
+
+/// Rejects a groom with a non-finite point.
+fn check_finite(points: &[Vec3]) -> Result<(), GroomFileError> {
+    match points.iter().position(|point| !point.is_finite()) {
+        Some(point) => Err(GroomFileError::NonFinitePoint { point, position: points[point] }),
+        None => Ok(()),
+    }
+}
+
+/// Reads an asset's bytes.
+async fn read_all(reader: &mut dyn Reader) -> Result<Vec<u8>, GroomFileError> {
+    let mut bytes = Vec::new();
+    reader.read_to_end(&mut bytes).await.map_err(|error| GroomFileError::Io(error.to_string()))?;
+    Ok(bytes)
+}
+
+/// Loads `.tfx` files as [`GroomFile`]s.
+#[derive(Debug, Default, TypePath)]
+pub struct TfxLoader;
+
+impl AssetLoader for TfxLoader {
+    type Asset = GroomFile;
+    type Settings = ();
+    type Error = GroomFileError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<GroomFile, GroomFileError> {
+        GroomFile::from_tfx(&read_all(reader).await?)
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["tfx"]
+    }
+}
+
+/// Loads `.hair` files as [`GroomFile`]s.
+#[derive(Debug, Default, TypePath)]
+pub struct HairFileLoader;
+
+impl AssetLoader for HairFileLoader {
+    type Asset = GroomFile;
+    type Settings = ();
+    type Error = GroomFileError;
+
+    async fn load(
+        &self,
+        reader: &mut dyn Reader,
+        _settings: &(),
+        _load_context: &mut LoadContext<'_>,
+    ) -> Result<GroomFile, GroomFileError> {
+        GroomFile::from_hair(&read_all(reader).await?)
+    }
+
+    fn extensions(&self) -> &[&str] {
+        &["hair"]
+    }
+}
+
+/// Registers the [`GroomFile`] asset and its loaders, when the app has Bevy's `AssetPlugin` (added
+/// before this plugin, as `DefaultPlugins` does); without it, it does nothing.
+#[derive(Debug, Clone, Default)]
+pub struct GroomFilePlugin;
+
+impl Plugin for GroomFilePlugin {
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<AssetPlugin>() {
+            debug!("GroomFilePlugin: no AssetPlugin, so groom files cannot be loaded");
+            return;
+        }
+        app.init_asset::<GroomFile>().init_asset_loader::<TfxLoader>().init_asset_loader::<HairFileLoader>();
+    }
+}

@@ -1,0 +1,217 @@
+//! Groom files: the shipped TressFX groom reads with the file's exact counts and points, `.hair` files
+//! written here read back exactly with every combination of optional arrays, strands resample keeping
+//! their length, and hundreds of truncated or corrupt files give errors, no panic and no huge
+//! allocation.
+
+#[path = "../benches/support/counting_allocator.rs"]
+mod counting_allocator;
+
+use bevy::math::Vec3;
+use bevy_hair_sim::groom_file::{GroomFile, GroomFileError};
+
+/// The shipped groom: TressFX's Ratboy mohawk (MIT licence beside it).
+const RATBOY: &[u8] = include_bytes!("../assets/grooms/Ratboy_mohawk.tfx");
+
+/// What `f` returns, and the largest single allocation it made on this thread, bytes.
+fn largest_allocation<T>(f: impl FnOnce() -> T) -> (T, usize) {
+    counting_allocator::reset_thread_largest();
+    let result = f();
+    (result, counting_allocator::thread_largest())
+}
+
+fn u32_at(bytes: &[u8], offset: usize) -> u32 {
+    u32::from_le_bytes(bytes[offset..offset + 4].try_into().unwrap())
+}
+
+fn f32_at(bytes: &[u8], offset: usize) -> f32 {
+    f32::from_le_bytes(bytes[offset..offset + 4].try_into().unwrap())
+}
+
+#[test]
+fn the_shipped_tfx_groom_reads_with_the_files_counts_and_points() {
+    let started = std::time::Instant::now();
+    let groom = GroomFile::from_tfx(RATBOY).unwrap();
+    println!("Ratboy_mohawk.tfx ({} bytes) read in {:?}", RATBOY.len(), started.elapsed());
+    // Read independently: the header's counts and offsets, the first and last point's coordinates.
+    let (strands, per_strand, positions) =
+        (u32_at(RATBOY, 4) as usize, u32_at(RATBOY, 8) as usize, u32_at(RATBOY, 12) as usize);
+    assert_eq!((strands, per_strand), (2228, 32));
+    assert_eq!(groom.strand_count(), strands);
+    assert_eq!(groom.points.len(), strands * per_strand);
+    let point = |index: usize| {
+        let at = positions + 16 * index;
+        Vec3::new(f32_at(RATBOY, at), f32_at(RATBOY, at + 4), f32_at(RATBOY, at + 8))
+    };
+    assert_eq!(groom.points[0], point(0));
+    assert_eq!(groom.points[strands * per_strand - 1], point(strands * per_strand - 1));
+    assert_eq!(groom.strand(1000)[0], point(1000 * per_strand));
+    assert!(groom.strand_uvs.as_ref().is_some_and(|uvs| uvs.len() == strands), "the file has strand UVs");
+    assert!(groom.point_uvs.is_none() && groom.thickness.is_none() && groom.colors.is_none());
+
+    // Resampled into 16 and 8 edges, every strand keeps its length within 0.5 %.
+    let length = |points: &[Vec3]| points.windows(2).map(|pair| pair[0].distance(pair[1])).sum::<f32>();
+    let mut worst = 0.0_f32;
+    for edges in [16, 8] {
+        for strand in groom.usable_strands() {
+            let original = groom.strand(strand);
+            let resampled = groom.resampled_strand(strand, edges);
+            assert_eq!(resampled.len(), edges + 1);
+            assert_eq!(resampled[0], original[0]);
+            // Every node but an extended tip lies on the strand: within rounding of one of its segments.
+            let on_strand = |p: Vec3| {
+                original.windows(2).any(|pair| {
+                    let (a, b) = (pair[0], pair[1]);
+                    let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+                    p.distance(a + t * (b - a)) < 1e-5
+                })
+            };
+            assert!(resampled[..edges].iter().all(|&p| on_strand(p)), "strand {strand}: a node off the strand");
+            worst = worst.max((length(&resampled) / length(original) - 1.0).abs());
+        }
+    }
+    let degenerate = strands - groom.usable_strands().count();
+    println!(
+        "resampled to 16 and 8 edges: lengths within {:.4} %; {degenerate} degenerate strands skipped",
+        100.0 * worst
+    );
+    assert!(degenerate < strands / 10, "{degenerate} degenerate strands");
+    assert!(worst < 0.005);
+}
+
+/// The optional arrays of a `.hair` file.
+#[derive(Clone, Copy, Debug)]
+struct Arrays {
+    segments: bool,
+    thickness: bool,
+    transparency: bool,
+    colors: bool,
+}
+
+/// A `.hair` file of `strands` (each a list of points), written by the format's description.
+fn write_hair(strands: &[Vec<Vec3>], arrays: Arrays, default_segments: u32) -> Vec<u8> {
+    let points: Vec<Vec3> = strands.iter().flatten().copied().collect();
+    let bits = u32::from(arrays.segments)
+        | 2
+        | u32::from(arrays.thickness) << 2
+        | u32::from(arrays.transparency) << 3
+        | u32::from(arrays.colors) << 4;
+    let mut file = b"HAIR".to_vec();
+    for word in [strands.len() as u32, points.len() as u32, bits, default_segments] {
+        file.extend(word.to_le_bytes());
+    }
+    for value in [0.25_f32, 0.5, 0.1, 0.2, 0.3] {
+        file.extend(value.to_le_bytes());
+    }
+    file.resize(128, 0);
+    if arrays.segments {
+        file.extend(strands.iter().flat_map(|strand| (strand.len() as u16 - 1).to_le_bytes()));
+    }
+    file.extend(points.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes));
+    if arrays.thickness {
+        file.extend((0..points.len()).flat_map(|i| (1.0 + i as f32).to_le_bytes()));
+    }
+    if arrays.transparency {
+        file.extend((0..points.len()).flat_map(|i| (0.01 * i as f32).to_le_bytes()));
+    }
+    if arrays.colors {
+        file.extend((0..points.len()).flat_map(|i| [i as f32, 0.5, 0.25]).flat_map(f32::to_le_bytes));
+    }
+    file
+}
+
+#[test]
+fn hair_files_read_back_exactly_with_every_combination_of_arrays() {
+    let strand = |length: usize, x: f32| {
+        (0..length).map(|i| Vec3::new(x, -0.01 * i as f32, 0.003 * i as f32)).collect::<Vec<_>>()
+    };
+    let uneven = vec![strand(5, 0.0), strand(17, 1.0), strand(2, 2.0), strand(9, 3.0)];
+    let even = vec![strand(6, 0.0), strand(6, 1.0), strand(6, 2.0)];
+    for bits in 0..16 {
+        let arrays = Arrays {
+            segments: bits & 1 != 0,
+            thickness: bits & 2 != 0,
+            transparency: bits & 4 != 0,
+            colors: bits & 8 != 0,
+        };
+        // Without a segments array every strand has the default number of segments.
+        let strands = if arrays.segments { &uneven } else { &even };
+        let groom = GroomFile::from_hair(&write_hair(strands, arrays, 5)).unwrap_or_else(|e| panic!("{arrays:?}: {e}"));
+        assert_eq!(groom.strand_count(), strands.len(), "{arrays:?}");
+        for (index, points) in strands.iter().enumerate() {
+            assert_eq!(groom.strand(index), &points[..], "{arrays:?}");
+        }
+        let count = groom.points.len();
+        let thickness = groom.thickness.unwrap();
+        let transparency = groom.transparency.unwrap();
+        let colors = groom.colors.unwrap();
+        for i in 0..count {
+            assert_eq!(thickness[i], if arrays.thickness { 1.0 + i as f32 } else { 0.25 });
+            assert_eq!(transparency[i], if arrays.transparency { 0.01 * i as f32 } else { 0.5 });
+            assert_eq!(
+                colors[i],
+                if arrays.colors { Vec3::new(i as f32, 0.5, 0.25) } else { Vec3::new(0.1, 0.2, 0.3) }
+            );
+        }
+    }
+}
+
+#[test]
+fn truncated_and_corrupt_files_give_errors_without_panic_or_huge_allocation() {
+    let hair = write_hair(
+        &[(0..12).map(|i| Vec3::splat(i as f32)).collect(), (0..7).map(|i| Vec3::X * i as f32).collect()],
+        Arrays { segments: true, thickness: true, transparency: true, colors: true },
+        0,
+    );
+    let tfx = &RATBOY[..160 + 16 * 32 * 40];
+    let mut tfx = tfx.to_vec();
+    tfx[4..8].copy_from_slice(&40u32.to_le_bytes());
+    tfx[16..20].copy_from_slice(&0u32.to_le_bytes());
+    GroomFile::from_tfx(&tfx).expect("the 40-strand cut of the groom reads");
+    let mut random = fastrand::Rng::with_seed(15);
+    let (mut errors, mut read, mut largest) = (std::collections::BTreeMap::<String, u32>::new(), 0, 0);
+    for case in 0..600 {
+        let (mut bytes, is_tfx) = if case % 2 == 0 { (tfx.clone(), true) } else { (hair.clone(), false) };
+        match case % 6 {
+            // Cut at a random offset.
+            0 | 1 => bytes.truncate(random.usize(..bytes.len())),
+            // Random bytes over a random stretch.
+            2 | 3 => {
+                let start = random.usize(..bytes.len());
+                let end = (start + random.usize(1..64)).min(bytes.len());
+                bytes[start..end].iter_mut().for_each(|byte| *byte = random.u8(..));
+            }
+            // An absurd count or offset in the header.
+            _ => {
+                let word = random.usize(1..8) * 4;
+                let any = random.u32(..);
+                let value = *random.choice(&[u32::MAX, u32::MAX / 2, 1 << 30, any, 0, 1]).unwrap();
+                bytes[word..word + 4].copy_from_slice(&value.to_le_bytes());
+            }
+        }
+        let (result, allocated) =
+            largest_allocation(|| if is_tfx { GroomFile::from_tfx(&bytes) } else { GroomFile::from_hair(&bytes) });
+        largest = largest.max(allocated);
+        assert!(
+            allocated <= 2 * tfx.len(),
+            "case {case}: an allocation of {allocated} bytes for a {}-byte file",
+            bytes.len()
+        );
+        match result {
+            Ok(groom) => {
+                read += 1;
+                assert!(groom.points.iter().all(|p| p.is_finite()), "case {case}: non-finite points accepted");
+                assert_eq!(groom.strand_starts.last().copied(), Some(groom.points.len()));
+            }
+            Err(error) => {
+                let kind = format!("{error:?}").split([' ', '(', '{']).next().unwrap().to_string();
+                *errors.entry(kind).or_default() += 1;
+                assert!(!error.to_string().is_empty());
+            }
+        }
+    }
+    println!(
+        "600 damaged files: {read} still read (damage in data or unused bytes), errors {errors:?}; largest allocation {largest} bytes"
+    );
+    assert!(errors.values().sum::<u32>() >= 300, "most damaged files are refused");
+    assert!(matches!(GroomFile::from_hair(b"HAIX"), Err(GroomFileError::Truncated { .. })));
+}
