@@ -16,13 +16,15 @@
 //!   (`u16` segments per strand, `f32×3` points, `f32` thickness, `f32` transparency, `f32×3` colours per
 //!   point). Strands may have different lengths.
 
-use bevy::app::{App, Plugin};
 use bevy::asset::io::Reader;
-use bevy::asset::{Asset, AssetApp, AssetLoader, AssetPlugin, LoadContext};
-use bevy::log::debug;
-use bevy::math::{Vec2, Vec3};
-use bevy::reflect::TypePath;
+use bevy::asset::{AssetLoader, AssetPlugin, LoadContext};
+use bevy::ecs::schedule::InternedScheduleLabel;
+use bevy::prelude::*;
 use thiserror::Error;
+
+use crate::HairSystems;
+use crate::head::{HairHead, HeadStrands, StrandOf};
+use crate::strand::{HairStrand, build_strands};
 
 /// A strand shorter than this fraction of its groom's size (the largest side of the box around all its
 /// points) is a point blurred by rounding, not a strand.
@@ -231,7 +233,7 @@ impl GroomFile {
                 requirement: "must not be 0 (positions are required)",
             });
         }
-        let point_count = strands.checked_mul(per_strand).unwrap_or(u64::MAX);
+        let point_count = strands.saturating_mul(per_strand);
         let positions = file.array("positions", positions, point_count, 16)?;
         let optional = |what, offset: u64, count, stride| {
             (offset != 0).then(|| file.array(what, offset, count, stride)).transpose()
@@ -400,10 +402,174 @@ impl AssetLoader for HairFileLoader {
     }
 }
 
-/// Registers the [`GroomFile`] asset and its loaders, when the app has Bevy's `AssetPlugin` (added
-/// before this plugin, as `DefaultPlugins` does); without it, it does nothing.
-#[derive(Debug, Clone, Default)]
-pub struct GroomFilePlugin;
+/// Which axis of a groom file points up.
+#[derive(Reflect, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub enum UpAxis {
+    /// +Y is up, as in Bevy (TressFX files).
+    #[default]
+    Y,
+    /// +Z is up (many `.hair` files, Blender and Houdini exports): turned so that +Z becomes +Y.
+    Z,
+}
+
+/// Where a [`GroomFile`]'s strands go on their head, and how many are simulated.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct GroomPlacement {
+    /// Metres per unit of the file (0.01 for a file in centimetres). Default 1.
+    pub metres_per_unit: f32,
+    /// Which of the file's axes points up. Default Y.
+    pub up: UpAxis,
+    /// Moves the groom (in metres, after the unit conversion and the up axis) into the head's local space.
+    pub transform: Transform,
+    /// Edges per simulated strand: every strand is resampled to this many edges of equal length, keeping
+    /// its length. Default 16.
+    pub segments: usize,
+    /// Most strands simulated: when the file has more, this many are picked evenly among them. Default
+    /// 2 000.
+    pub max_strands: usize,
+}
+
+impl Default for GroomPlacement {
+    fn default() -> Self {
+        Self { metres_per_unit: 1.0, up: UpAxis::Y, transform: Transform::IDENTITY, segments: 16, max_strands: 2000 }
+    }
+}
+
+impl GroomPlacement {
+    /// A file point (file units and axes) in the head's local space, m.
+    pub fn place(&self, point: Vec3) -> Vec3 {
+        let point = match self.up {
+            UpAxis::Y => point,
+            UpAxis::Z => Vec3::new(point.x, point.z, -point.y),
+        };
+        self.transform.transform_point(point * self.metres_per_unit)
+    }
+}
+
+/// A groom from a file on a head ([`HairHead`]): its strands, placed by [`GroomPlacement`], become the
+/// head's simulated strands once the file is loaded. Changing the component, or the file (hot
+/// reloading), regrows them; a file that fails to load leaves the head's hair as it was (the asset
+/// server logs why).
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
+///     let groom = HairGroomFile::new(assets.load("grooms/Ratboy_mohawk.tfx"));
+///     commands.spawn((HairHead, groom, Transform::from_xyz(0.0, 1.2, 0.0)));
+/// }
+/// ```
+#[derive(Component, Debug, Clone, PartialEq)]
+#[require(HairHead)]
+pub struct HairGroomFile {
+    /// The groom file.
+    pub file: Handle<GroomFile>,
+    /// Where its strands go and how many.
+    pub placement: GroomPlacement,
+}
+
+impl HairGroomFile {
+    /// The groom of `file`, placed as it is (metres, +Y up), 16 edges per strand, at most 2 000 strands.
+    pub fn new(file: Handle<GroomFile>) -> Self {
+        Self { file, placement: GroomPlacement::default() }
+    }
+
+    /// With `placement`.
+    pub fn with_placement(mut self, placement: GroomPlacement) -> Self {
+        self.placement = placement;
+        self
+    }
+}
+
+/// Marks a strand placed from a head's [`HairGroomFile`]: placing it again replaces these and keeps the
+/// head's other strands.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone)]
+pub struct FileStrand;
+
+/// On a head whose [`HairGroomFile`] has been placed: which file version it was placed from.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct PlacedGroomFile(AssetId<GroomFile>);
+
+impl GroomFile {
+    /// The strands to simulate for `placement`, head-local (m): the usable strands (see
+    /// [`GroomFile::usable_strands`]), at most `max_strands` picked evenly, each resampled to `segments`
+    /// edges. Also returns how many strands were skipped as degenerate.
+    pub fn placed_strands(&self, placement: &GroomPlacement) -> (Vec<HairStrand>, usize) {
+        let usable: Vec<usize> = self.usable_strands().collect();
+        let skipped = self.strand_count() - usable.len();
+        let count = usable.len().min(placement.max_strands);
+        let strands = (0..count)
+            .map(|pick| {
+                let index = usable[pick * usable.len() / count];
+                let nodes: Vec<Vec3> = self
+                    .resampled_strand(index, placement.segments.max(2))
+                    .into_iter()
+                    .map(|point| placement.place(point))
+                    .collect();
+                let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
+                HairStrand::from_nodes(nodes, direction)
+            })
+            .collect();
+        (strands, skipped)
+    }
+}
+
+/// Heads with a groom file, what they were placed from, and their strands.
+type GroomFileHeads<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, Ref<'static, HairGroomFile>, Option<&'static PlacedGroomFile>, Option<&'static HeadStrands>),
+>;
+
+/// Places the strands of every head whose [`HairGroomFile`] is new, changed, newly loaded or reloaded,
+/// replacing the strands it placed before.
+fn place_groom_files(
+    mut commands: Commands,
+    mut events: MessageReader<AssetEvent<GroomFile>>,
+    files: Res<Assets<GroomFile>>,
+    heads: GroomFileHeads,
+    placed: Query<(), With<FileStrand>>,
+) {
+    let reloaded: Vec<AssetId<GroomFile>> = events
+        .read()
+        .filter_map(|event| match event {
+            AssetEvent::Modified { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    for (head, groom, placed_from, strands) in &heads {
+        let id = groom.file.id();
+        let stale = groom.is_changed() || placed_from != Some(&PlacedGroomFile(id)) || reloaded.contains(&id);
+        let Some(file) = files.get(id).filter(|_| stale) else {
+            continue;
+        };
+        for &strand in strands.map_or(&[][..], HeadStrands::strands) {
+            if placed.contains(strand) {
+                commands.entity(strand).despawn();
+            }
+        }
+        let (grown, skipped) = file.placed_strands(&groom.placement);
+        if skipped > 0 {
+            warn!(
+                "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"
+            );
+        }
+        commands.spawn_batch(grown.into_iter().map(move |strand| (strand, StrandOf(head), FileStrand)));
+        commands.entity(head).insert(PlacedGroomFile(id));
+    }
+}
+
+/// Registers the [`GroomFile`] asset and its loaders, and places [`HairGroomFile`]s on their heads in
+/// [`HairSystems::Prepare`], when the app has Bevy's `AssetPlugin` (added before this plugin, as
+/// `DefaultPlugins` does); without it, it does nothing.
+#[derive(Debug, Clone)]
+pub struct GroomFilePlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
 
 impl Plugin for GroomFilePlugin {
     fn build(&self, app: &mut App) {
@@ -411,6 +577,10 @@ impl Plugin for GroomFilePlugin {
             debug!("GroomFilePlugin: no AssetPlugin, so groom files cannot be loaded");
             return;
         }
-        app.init_asset::<GroomFile>().init_asset_loader::<TfxLoader>().init_asset_loader::<HairFileLoader>();
+        app.init_asset::<GroomFile>()
+            .init_asset_loader::<TfxLoader>()
+            .init_asset_loader::<HairFileLoader>()
+            .register_type::<FileStrand>()
+            .add_systems(self.schedule, place_groom_files.in_set(HairSystems::Prepare).before(build_strands));
     }
 }

@@ -23,7 +23,9 @@ pub mod prelude {
     };
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
-    pub use crate::groom_file::{GroomFile, GroomFileError, GroomFilePlugin};
+    pub use crate::groom_file::{
+        FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, UpAxis,
+    };
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]
     pub use crate::panel::HairPanelPlugin;

@@ -79,7 +79,7 @@ impl PluginGroup for HairPlugin {
             .add(HairSimulationPlugin { schedule: self.schedule })
             .add(HairCollisionPlugin { schedule: self.schedule })
             .add(HairGizmoPlugin)
-            .add(GroomFilePlugin)
+            .add(GroomFilePlugin { schedule: self.schedule })
     }
 }
 

@@ -3,11 +3,15 @@
 //! their length, and hundreds of truncated or corrupt files give errors, no panic and no huge
 //! allocation.
 
+mod common;
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;
 
-use bevy::math::Vec3;
+use bevy::asset::AssetPlugin;
+use bevy::prelude::*;
 use bevy_hair_sim::groom_file::{GroomFile, GroomFileError};
+use bevy_hair_sim::prelude::*;
+use common::headless::{DT, hair_app_with, strand};
 
 /// The shipped groom: TressFX's Ratboy mohawk (MIT licence beside it).
 const RATBOY: &[u8] = include_bytes!("../assets/grooms/Ratboy_mohawk.tfx");
@@ -214,4 +218,52 @@ fn truncated_and_corrupt_files_give_errors_without_panic_or_huge_allocation() {
     );
     assert!(errors.values().sum::<u32>() >= 300, "most damaged files are refused");
     assert!(matches!(GroomFile::from_hair(b"HAIX"), Err(GroomFileError::Truncated { .. })));
+}
+
+#[test]
+fn a_groom_file_loaded_through_the_asset_server_follows_its_moving_head() {
+    let mut app = hair_app_with(AssetPlugin::default());
+    let file = app.world().resource::<AssetServer>().load("grooms/Ratboy_mohawk.tfx");
+    let placement = GroomPlacement { segments: 8, max_strands: 100, ..default() };
+    let head = app.world_mut().spawn((HairGroomFile::new(file).with_placement(placement), Transform::default())).id();
+    // Loading runs on Bevy's IO threads: wait for the strands (at most 10 s).
+    let started = std::time::Instant::now();
+    let strands = loop {
+        app.update();
+        let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).map_or(vec![], |s| s.strands().to_vec());
+        if strands.len() == 100 && strands.iter().all(|&e| app.world().get::<Strand>(e).is_some()) {
+            break strands;
+        }
+        assert!(started.elapsed().as_secs() < 10, "the groom did not load: {} strands", strands.len());
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    println!("the groom was loaded and placed in {:?}", started.elapsed());
+    assert!(strands.iter().all(|&e| app.world().get::<FileStrand>(e).is_some()));
+    assert_eq!(strand(&app, strands[0]).rod().edge_count(), 8);
+
+    let mut worst: f64 = 0.0;
+    for step in 0..120 {
+        let time = step as f32 * DT as f32;
+        let transform = Transform::from_xyz(0.3 * (2.0 * time).sin(), 1.0 + 0.05 * (5.0 * time).sin(), 0.0)
+            .with_rotation(Quat::from_rotation_y(1.5 * time) * Quat::from_rotation_x(0.5 * (4.0 * time).sin()));
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = transform;
+        app.update();
+        let head_world = GlobalTransform::from(transform);
+        for &entity in &strands {
+            let spec = app.world().get::<HairStrand>(entity).unwrap();
+            let positions = strand(&app, entity).rod().positions();
+            let root = head_world.transform_point(spec.nodes[0]);
+            let next = root + head_world.rotation() * (spec.nodes[1] - spec.nodes[0]);
+            worst = worst.max(positions[0].distance(root.as_dvec3())).max(positions[1].distance(next.as_dvec3()));
+        }
+    }
+    println!("largest distance of a root node from its anchor over 120 steps: {worst:e} m");
+    assert!(worst <= 1e-6, "a root node was {worst:e} m from its anchor");
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+
+    // A new placement regrows the hair, replacing the file's strands only.
+    app.world_mut().get_mut::<HairGroomFile>(head).unwrap().placement.max_strands = 50;
+    app.update();
+    app.update();
+    assert_eq!(app.world().get::<HeadStrands>(head).unwrap().strands().len(), 50);
 }
