@@ -50,7 +50,7 @@ fn main() {
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
         .add_systems(Startup, spawn_scene)
-        .add_systems(Update, (animate_head, walk_body, hair_keys, show_statistics));
+        .add_systems(Update, (animate_head, walk_body, hair_keys, switch_groom, show_statistics));
     #[cfg(feature = "egui")]
     {
         use bevy_egui::input::egui_wants_any_pointer_input;
@@ -67,6 +67,14 @@ fn main() {
     app.insert_resource(options).run();
 }
 
+/// The example's skull, head-local, m.
+const SCALP: Scalp = Scalp {
+    centre: Vec3::new(0.0, 0.12, 0.01),
+    semi_axes: Vec3::new(0.078, 0.095, 0.1),
+    nape_height: -0.35,
+    brow_height: 0.45,
+};
+
 /// Command-line options: the scene's start and picture mode.
 #[derive(Resource, Debug, Clone)]
 struct Options {
@@ -81,12 +89,15 @@ struct Options {
     yaw_degrees: f32,
     /// Whether the colliders are drawn as wireframes from the start (C toggles it).
     draw_colliders: bool,
+    /// Whether the head starts with the groom from `assets/grooms/Ratboy_mohawk.tfx` instead of the
+    /// procedural one (G toggles it).
+    file_groom: bool,
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
             [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]
-            [--colliders on|off]";
+            [--colliders on|off] [--groom procedural|ratboy]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -99,6 +110,7 @@ impl Options {
             segments: groom.segments,
             yaw_degrees: 35.0,
             draw_colliders: false,
+            file_groom: false,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -114,6 +126,13 @@ impl Options {
                         "on" => true,
                         "off" => false,
                         _ => return Err(format!("--colliders needs on or off, got {value:?}")),
+                    }
+                }
+                "--groom" => {
+                    options.file_groom = match value.as_str() {
+                        "ratboy" => true,
+                        "procedural" => false,
+                        _ => return Err(format!("--groom needs procedural or ratboy, got {value:?}")),
                     }
                 }
                 "--style" => {
@@ -197,6 +216,7 @@ struct Orbit {
 fn spawn_scene(
     mut commands: Commands,
     options: Res<Options>,
+    assets: Res<AssetServer>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
     mut gizmos: ResMut<GizmoConfigStore>,
@@ -222,13 +242,18 @@ fn spawn_scene(
     let mut part = |mesh: Mesh, material: &Handle<StandardMaterial>, transform: Transform| {
         (Mesh3d(meshes.add(mesh)), MeshMaterial3d(material.clone()), transform)
     };
-    let scalp = Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() };
+    let scalp = SCALP;
     let groom =
         HairGroom { scalp, strand_count: options.strands, segments: options.segments, style: options.style, seed: 1 };
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
     let head = commands
-        .spawn((HairHead, groom, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0), Visibility::default(), ChildOf(body)))
+        .spawn((HairHead, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0), Visibility::default(), ChildOf(body)))
         .id();
+    if options.file_groom {
+        commands.entity(head).insert(ratboy_groom(&assets, options.segments));
+    } else {
+        commands.entity(head).insert(groom);
+    }
     // The hair rests on the skull, face, neck, shoulders and torso: each mesh carries a collider of its
     // shape (the unit spheres scaled into ellipsoids by their transforms), tied to the head.
     let collider = |shape: HairCollider| (shape, ColliderOf(head));
@@ -347,6 +372,57 @@ fn walk_body(time: Res<Time>, keys: Res<ButtonInput<KeyCode>>, mut bodies: Query
     }
 }
 
+/// TressFX's Ratboy mohawk (`assets/grooms/`, MIT licence beside it), scaled onto the example's skull.
+fn ratboy_groom(assets: &AssetServer, segments: usize) -> HairGroomFile {
+    let placement = GroomPlacement {
+        metres_per_unit: RATBOY_SCALE,
+        transform: Transform::from_translation(RATBOY_OFFSET).with_rotation(Quat::from_rotation_y(PI)),
+        segments,
+        ..default()
+    };
+    HairGroomFile::new(assets.load("grooms/Ratboy_mohawk.tfx")).with_placement(placement)
+}
+
+/// Metres per unit of the Ratboy groom: its head is about four times as tall as the example's. Its roots
+/// lie on a straight line from the nape to the crown of that tall head, which the example's round skull
+/// cannot follow: the crown's roots sit on the scalp, the nape's inside the skull.
+const RATBOY_SCALE: f32 = 0.25;
+
+/// Where the Ratboy groom's origin goes in the head's space, m.
+const RATBOY_OFFSET: Vec3 = Vec3::new(0.0, 0.0, 0.0);
+
+/// The strands grown from a groom, procedural or from a file.
+type GrownStrands<'w, 's> = Query<'w, 's, Entity, Or<(With<GroomedStrand>, With<FileStrand>)>>;
+
+/// G switches the head between the procedural groom and the Ratboy file.
+fn switch_groom(
+    mut commands: Commands,
+    keys: Res<ButtonInput<KeyCode>>,
+    options: Res<Options>,
+    assets: Res<AssetServer>,
+    heads: Query<(Entity, Has<HairGroomFile>), With<HairHead>>,
+    strands: GrownStrands,
+) {
+    if !keys.just_pressed(KeyCode::KeyG) {
+        return;
+    }
+    strands.iter().for_each(|strand| commands.entity(strand).despawn());
+    for (head, from_file) in &heads {
+        if from_file {
+            let groom = HairGroom {
+                strand_count: options.strands,
+                segments: options.segments,
+                style: options.style,
+                seed: 1,
+                scalp: SCALP,
+            };
+            commands.entity(head).remove::<(HairGroomFile, PlacedGroomFile)>().insert(groom);
+        } else {
+            commands.entity(head).remove::<HairGroom>().insert(ratboy_groom(&assets, options.segments));
+        }
+    }
+}
+
 /// Keys 1 to 5 pick the hair style; C shows or hides the colliders.
 fn hair_keys(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>, mut gizmos: ResMut<GizmoConfigStore>) {
     if keys.just_pressed(KeyCode::KeyC) {
@@ -405,7 +481,7 @@ fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<Animatio
                 }
             }
         });
-        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · C: colliders");
+        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · G: Ratboy groom · C: colliders");
     });
     Ok(())
 }

@@ -24,11 +24,18 @@ use thiserror::Error;
 
 use crate::HairSystems;
 use crate::head::{HairHead, HeadStrands, StrandOf};
+use crate::rod::RodMaterial;
+use crate::settings::HairSettings;
 use crate::strand::{HairStrand, build_strands};
 
 /// A strand shorter than this fraction of its groom's size (the largest side of the box around all its
 /// points) is a point blurred by rounding, not a strand.
 pub const MIN_RELATIVE_STRAND_LENGTH: f32 = 1e-3;
+
+/// Fibre radii, m, that a groom file's thickness is taken as: from a fine hair to a thick fibre. A
+/// thickness outside (a drawing width in pixels, TressFX's relative width) leaves the strand with the
+/// default material.
+pub const FIBRE_RADIUS_RANGE: std::ops::RangeInclusive<f64> = 5e-6..=5e-4;
 
 /// Strands read from a groom file, in the file's own units and axes.
 #[derive(Asset, TypePath, Debug, Clone, Default, PartialEq)]
@@ -155,6 +162,15 @@ impl GroomFile {
             let distinct = points.windows(2).filter(|pair| pair[0] != pair[1]).count() + 1;
             distinct >= 3 && length > shortest
         })
+    }
+
+    /// Half the mean thickness of strand `index` in metres, if the file has thickness and that lies within
+    /// [`FIBRE_RADIUS_RANGE`].
+    pub fn fibre_radius(&self, index: usize, metres_per_unit: f32) -> Option<f64> {
+        let thickness = &self.thickness.as_ref()?[self.strand_starts[index]..self.strand_starts[index + 1]];
+        let mean = thickness.iter().map(|t| f64::from(*t)).sum::<f64>() / thickness.len() as f64;
+        let radius = 0.5 * mean * f64::from(metres_per_unit);
+        FIBRE_RADIUS_RANGE.contains(&radius).then_some(radius)
     }
 
     /// Strand `index` resampled into `edges` edges of equal length, its length over `edges`, root
@@ -496,8 +512,11 @@ pub struct PlacedGroomFile(AssetId<GroomFile>);
 impl GroomFile {
     /// The strands to simulate for `placement`, head-local (m): the usable strands (see
     /// [`GroomFile::usable_strands`]), at most `max_strands` picked evenly, each resampled to `segments`
-    /// edges. Also returns how many strands were skipped as degenerate.
-    pub fn placed_strands(&self, placement: &GroomPlacement) -> (Vec<HairStrand>, usize) {
+    /// edges. A strand whose mean thickness in metres makes a fibre radius within
+    /// [`FIBRE_RADIUS_RANGE`] gets `material` with that radius (so a `.hair` file in real units gives its
+    /// fibres' thickness); others follow the default material. Also returns how many strands were
+    /// skipped as degenerate.
+    pub fn placed_strands(&self, placement: &GroomPlacement, material: &RodMaterial) -> (Vec<HairStrand>, usize) {
         let usable: Vec<usize> = self.usable_strands().collect();
         let skipped = self.strand_count() - usable.len();
         let count = usable.len().min(placement.max_strands);
@@ -510,7 +529,13 @@ impl GroomFile {
                     .map(|point| placement.place(point))
                     .collect();
                 let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
-                HairStrand::from_nodes(nodes, direction)
+                let strand = HairStrand::from_nodes(nodes, direction);
+                match self.fibre_radius(index, placement.metres_per_unit) {
+                    Some(radius) => {
+                        strand.with_material(RodMaterial { semi_axis_1: radius, semi_axis_2: radius, ..*material })
+                    }
+                    None => strand,
+                }
             })
             .collect();
         (strands, skipped)
@@ -530,6 +555,7 @@ fn place_groom_files(
     mut commands: Commands,
     mut events: MessageReader<AssetEvent<GroomFile>>,
     files: Res<Assets<GroomFile>>,
+    settings: Res<HairSettings>,
     heads: GroomFileHeads,
     placed: Query<(), With<FileStrand>>,
 ) {
@@ -551,7 +577,7 @@ fn place_groom_files(
                 commands.entity(strand).despawn();
             }
         }
-        let (grown, skipped) = file.placed_strands(&groom.placement);
+        let (grown, skipped) = file.placed_strands(&groom.placement, &settings.default_material);
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"

@@ -24,7 +24,7 @@ pub mod prelude {
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::groom_file::{
-        FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, UpAxis,
+        FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, PlacedGroomFile, UpAxis,
     };
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]

@@ -144,6 +144,15 @@ fn hair_files_read_back_exactly_with_every_combination_of_arrays() {
         for (index, points) in strands.iter().enumerate() {
             assert_eq!(groom.strand(index), &points[..], "{arrays:?}");
         }
+        // Thickness 1 to 48 units: at 1e-5 m per unit, radii of 5 to 240 µm, taken as the fibre's radius.
+        let (placed, _) =
+            groom.placed_strands(&GroomPlacement { metres_per_unit: 1e-5, ..default() }, &RodMaterial::default());
+        assert_eq!(placed.len(), groom.usable_strands().count());
+        for (index, strand) in groom.usable_strands().zip(&placed) {
+            let expected = groom.fibre_radius(index, 1e-5);
+            assert_eq!(strand.material.map(|material| material.semi_axis_1), expected, "{arrays:?}");
+            assert_eq!(expected.is_some(), arrays.thickness, "{arrays:?}: the default 0.25 is 1.25 µm, too thin");
+        }
         let count = groom.points.len();
         let thickness = groom.thickness.unwrap();
         let transparency = groom.transparency.unwrap();
