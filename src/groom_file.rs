@@ -1,5 +1,6 @@
 //! Grooms from files: TressFX `.tfx` and Cem Yuksel's `.hair` strand files, read into one
-//! [`GroomFile`] asset by [`TfxLoader`] and [`HairFileLoader`] ([`GroomFilePlugin`] registers them).
+//! [`GroomFile`] asset by [`GroomFileLoader`] ([`GroomFilePlugin`] registers it), and put on a head by
+//! [`HairGroomFile`].
 //!
 //! Both formats are little-endian binary. Every count and offset is checked against the file's length
 //! before anything is allocated, so a truncated or corrupt file gives a [`GroomFileError`], never a
@@ -65,7 +66,7 @@ pub enum GroomFileError {
     #[error("the groom file could not be read: {0}")]
     Io(String),
     /// The file ends before something it announces.
-    #[error("the groom file is truncated: its {what} needs bytes up to {needed}, the file has {length}")]
+    #[error("the groom file is truncated: reading its {what} needs bytes up to {needed}, the file has {length}")]
     Truncated {
         /// What was being read.
         what: &'static str,
@@ -372,11 +373,11 @@ async fn read_all(reader: &mut dyn Reader) -> Result<Vec<u8>, GroomFileError> {
     Ok(bytes)
 }
 
-/// Loads `.tfx` files as [`GroomFile`]s.
+/// Loads `.tfx` and `.hair` files as [`GroomFile`]s, telling them apart by their extension.
 #[derive(Debug, Default, TypePath)]
-pub struct TfxLoader;
+pub struct GroomFileLoader;
 
-impl AssetLoader for TfxLoader {
+impl AssetLoader for GroomFileLoader {
     type Asset = GroomFile;
     type Settings = ();
     type Error = GroomFileError;
@@ -385,36 +386,18 @@ impl AssetLoader for TfxLoader {
         &self,
         reader: &mut dyn Reader,
         _settings: &(),
-        _load_context: &mut LoadContext<'_>,
+        load_context: &mut LoadContext<'_>,
     ) -> Result<GroomFile, GroomFileError> {
-        GroomFile::from_tfx(&read_all(reader).await?)
+        let bytes = read_all(reader).await?;
+        let extension = load_context.path().path().extension().and_then(|extension| extension.to_str());
+        match extension {
+            Some(extension) if extension.eq_ignore_ascii_case("tfx") => GroomFile::from_tfx(&bytes),
+            _ => GroomFile::from_hair(&bytes),
+        }
     }
 
     fn extensions(&self) -> &[&str] {
-        &["tfx"]
-    }
-}
-
-/// Loads `.hair` files as [`GroomFile`]s.
-#[derive(Debug, Default, TypePath)]
-pub struct HairFileLoader;
-
-impl AssetLoader for HairFileLoader {
-    type Asset = GroomFile;
-    type Settings = ();
-    type Error = GroomFileError;
-
-    async fn load(
-        &self,
-        reader: &mut dyn Reader,
-        _settings: &(),
-        _load_context: &mut LoadContext<'_>,
-    ) -> Result<GroomFile, GroomFileError> {
-        GroomFile::from_hair(&read_all(reader).await?)
-    }
-
-    fn extensions(&self) -> &[&str] {
-        &["hair"]
+        &["tfx", "hair"]
     }
 }
 
@@ -604,8 +587,7 @@ impl Plugin for GroomFilePlugin {
             return;
         }
         app.init_asset::<GroomFile>()
-            .init_asset_loader::<TfxLoader>()
-            .init_asset_loader::<HairFileLoader>()
+            .init_asset_loader::<GroomFileLoader>()
             .register_type::<FileStrand>()
             .add_systems(self.schedule, place_groom_files.in_set(HairSystems::Prepare).before(build_strands));
     }

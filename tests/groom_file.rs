@@ -276,3 +276,48 @@ fn a_groom_file_loaded_through_the_asset_server_follows_its_moving_head() {
     app.update();
     assert_eq!(app.world().get::<HeadStrands>(head).unwrap().strands().len(), 50);
 }
+
+#[test]
+fn a_hair_file_loads_through_the_asset_server_and_a_corrupt_one_leaves_the_hair_as_it_was() {
+    let directory = std::env::temp_dir().join(format!("bevy_hair_sim_groom_files_{}", std::process::id()));
+    std::fs::create_dir_all(&directory).unwrap();
+    let strands: Vec<Vec<Vec3>> = (0..6)
+        .map(|s| (0..9).map(|i| Vec3::new(0.02 * s as f32, 0.1 - 0.02 * i as f32, 0.005 * i as f32)).collect())
+        .collect();
+    let good = write_hair(&strands, Arrays { segments: true, thickness: false, transparency: false, colors: false }, 0);
+    std::fs::write(directory.join("good.hair"), &good).unwrap();
+    std::fs::write(directory.join("cut.hair"), &good[..good.len() - 7]).unwrap();
+    let asset_root = directory.to_string_lossy().into_owned();
+    let mut app = hair_app_with(AssetPlugin { file_path: asset_root, ..default() });
+    let load = |app: &App, path: &str| app.world().resource::<AssetServer>().load::<GroomFile>(path.to_string());
+    let good_handle = load(&app, "good.hair");
+    let head = app.world_mut().spawn(HairGroomFile::new(good_handle)).id();
+    let strands_of = |app: &App| app.world().get::<HeadStrands>(head).map_or(vec![], |s| s.strands().to_vec());
+    let started = std::time::Instant::now();
+    while strands_of(&app).len() < 6 {
+        assert!(started.elapsed().as_secs() < 10, "the .hair file did not load");
+        app.update();
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let grown = strands_of(&app);
+
+    let cut = load(&app, "cut.hair");
+    app.world_mut().get_mut::<HairGroomFile>(head).unwrap().file = cut.clone();
+    let started = std::time::Instant::now();
+    loop {
+        app.update();
+        let state = app.world().resource::<AssetServer>().load_state(&cut);
+        if let bevy::asset::LoadState::Failed(error) = state {
+            println!("the cut file failed to load: {error}");
+            assert!(error.to_string().contains("truncated"), "{error}");
+            break;
+        }
+        assert!(started.elapsed().as_secs() < 10, "the cut file neither loaded nor failed: {state:?}");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(strands_of(&app), grown, "the head keeps the hair it had");
+    std::fs::remove_dir_all(&directory).ok();
+}
