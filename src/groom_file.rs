@@ -159,7 +159,7 @@ impl GroomFile {
         let shortest = MIN_RELATIVE_STRAND_LENGTH * (high - low).max_element().max(0.0);
         (0..self.strand_count()).filter(move |&index| {
             let points = self.strand(index);
-            let length: f32 = points.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+            let length = polyline_length(points);
             let distinct = points.windows(2).filter(|pair| pair[0] != pair[1]).count() + 1;
             distinct >= 3 && length > shortest
         })
@@ -181,7 +181,7 @@ impl GroomFile {
     pub fn resampled_strand(&self, index: usize, edges: usize) -> Vec<Vec3> {
         let points = self.strand(index);
         let edges = edges.max(1);
-        let length: f32 = points.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+        let length = polyline_length(points);
         let chord = length / edges as f32;
         let mut resampled = Vec::with_capacity(edges + 1);
         let mut current = points[0];
@@ -356,6 +356,11 @@ impl GroomFile {
             points,
         })
     }
+}
+
+/// The length of the polyline through `points`, in their units.
+fn polyline_length(points: &[Vec3]) -> f32 {
+    points.windows(2).map(|pair| pair[0].distance(pair[1])).sum()
 }
 
 /// Rejects a groom with a non-finite point.
