@@ -117,10 +117,8 @@ pub(crate) fn track_heads(
     mut heads: Query<(Entity, &mut HeadMotion), With<HeadStrands>>,
 ) {
     for (head, mut motion) in &mut heads {
-        match transforms.compute_global_transform(head) {
-            Ok(transform) if HeadPose::from(&transform).is_usable() => {
-                motion.advance(HeadPose::from(&transform), f64::from(settings.teleport_distance))
-            }
+        match transforms.compute_global_transform(head).map(|transform| HeadPose::from(&transform)) {
+            Ok(pose) if pose.is_usable() => motion.advance(pose, f64::from(settings.teleport_distance)),
             Ok(_) => warn_once!(
                 "hair head {head} has a non-finite or zero-scale transform; its strands keep their last root, and new ones wait"
             ),

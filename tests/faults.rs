@@ -3,14 +3,8 @@
 mod common;
 
 use bevy::math::DVec3;
-use bevy_hair_sim::rod::{Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
-use common::straight_nodes;
-
-fn hanging_hair() -> Rod {
-    let mut rod = Rod::new(&straight_nodes(0.2, 16, DVec3::NEG_Y), DVec3::X, RodMaterial::human_hair()).unwrap();
-    rod.clamp_root_in_place();
-    rod
-}
+use bevy_hair_sim::rod::{RodError, RodWorkspace, StepError, StepParams};
+use common::hanging_hair;
 
 #[test]
 fn non_finite_forces_are_rejected_and_change_nothing() {

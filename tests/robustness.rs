@@ -10,14 +10,7 @@ use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE};
 use common::headless::{drain_messages, hair_app, spawn_head, strand};
-use common::straight_nodes;
-
-/// A 20 cm hair in 16 edges hanging from a clamped root.
-fn hanging_hair() -> Rod {
-    let mut rod = Rod::new(&straight_nodes(0.2, 16, DVec3::NEG_Y), DVec3::X, RodMaterial::human_hair()).unwrap();
-    rod.clamp_root_in_place();
-    rod
-}
+use common::{hanging_hair, straight_nodes};
 
 /// Nodes of a zigzag in the XY plane whose every vertex turns by `angle` (rad), alternately left and right.
 fn zigzag(angle: f64, edges: usize, edge_length: f64) -> Vec<DVec3> {

@@ -23,6 +23,13 @@ pub fn run(rod: &mut Rod, params: &StepParams, steps: usize, workspace: &mut Rod
     }
 }
 
+/// A 20 cm human hair in 16 edges hanging from a clamped root.
+pub fn hanging_hair() -> Rod {
+    let mut rod = Rod::new(&straight_nodes(0.2, 16, DVec3::NEG_Y), DVec3::X, RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    rod
+}
+
 /// Largest node speed, m/s.
 pub fn max_speed(rod: &Rod) -> f64 {
     rod.velocities().iter().map(|v| v.length()).fold(0.0, f64::max)
