@@ -158,7 +158,7 @@ impl NearbyCollider {
     /// first to the last (empty if none is inside).
     fn held_nodes(&self, rod: &Rod) -> Range<usize> {
         let mut held = 0..0;
-        for (node, target) in rod.node_targets.iter().enumerate() {
+        for (node, target) in rod.constraints.node_targets.iter().enumerate() {
             let Some(local) = target.map(|target| self.local_at_end(target)) else {
                 continue;
             };
@@ -168,13 +168,13 @@ impl NearbyCollider {
             let surface = self.shape.closest_surface_point(local);
             let reach = HELD_REACH * (surface.point - local).dot(surface.normal).max(0.0);
             let (mut first, mut last, mut arc) = (node, node, 0.0);
-            while first > 0 && arc + rod.rest_lengths[first - 1] < reach {
-                arc += rod.rest_lengths[first - 1];
+            while first > 0 && arc + rod.rest.lengths[first - 1] < reach {
+                arc += rod.rest.lengths[first - 1];
                 first -= 1;
             }
             arc = 0.0;
-            while last < rod.edge_count() && arc + rod.rest_lengths[last] < reach {
-                arc += rod.rest_lengths[last];
+            while last < rod.edge_count() && arc + rod.rest.lengths[last] < reach {
+                arc += rod.rest.lengths[last];
                 last += 1;
             }
             held = if held.is_empty() { first..last + 1 } else { held.start.min(first)..held.end.max(last + 1) };
@@ -333,7 +333,7 @@ impl ContactScratch {
     /// `start_positions` or where it is now, or of an edge between them, with the range of nodes that do
     /// and the range held inside.
     fn find_nearby(&mut self, rod: &Rod, contacts: &Contacts, start_positions: &[DVec3], margin: f64) {
-        let (positions, longest_edge) = (&rod.positions, rod.longest_rest_edge());
+        let (positions, longest_edge) = (&rod.state.positions, rod.longest_rest_edge());
         self.nearby.clear();
         for collider in contacts.colliders {
             // A point of an edge within the bounds puts one of its ends within half an edge of them.
@@ -372,7 +372,7 @@ impl Rod {
             scratch.normal_forces.fill(0.0);
             return;
         }
-        let fastest = self.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
+        let fastest = self.state.velocities.iter().map(|v| v.length()).fold(0.0, f64::max);
         let reach = 2.0 * (fastest * params.dt + params.gravity.length() * params.dt * params.dt);
         scratch.find_nearby(self, contacts, start_positions, reach);
         // Room for every node touching every nearby collider, so that no later iterate allocates.
@@ -382,14 +382,14 @@ impl Rod {
     /// The contact spring's stiffness for `node`, N/m: [`CONTACT_STIFFNESS_RATIO`] times its inertia
     /// `m (1/dt² + γ/dt)` (`inertia_scale` the bracket).
     fn contact_stiffness(&self, node: usize, inertia_scale: f64) -> f64 {
-        CONTACT_STIFFNESS_RATIO * self.masses[node] * inertia_scale
+        CONTACT_STIFFNESS_RATIO * self.inertia.masses[node] * inertia_scale
     }
 
     /// The normal force, N, that stops `node` found `distance` m from a collider's surface (negative
     /// inside) within the step: `m (1/dt² + γ/dt) (−d)`, what the contact spring settles to when the
     /// node's inertia carried it that deep (`inertia_scale` the bracket); zero outside.
     fn stopping_force(&self, node: usize, inertia_scale: f64, distance: f64) -> f64 {
-        self.masses[node] * inertia_scale * (-distance).max(0.0)
+        self.inertia.masses[node] * inertia_scale * (-distance).max(0.0)
     }
 
     /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
@@ -409,8 +409,12 @@ impl Rod {
         let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
         for contact in touching.iter_mut() {
             let (node, first_solve) = (contact.node, contact.first_solve);
-            *contact =
-                nearby[contact.collider].contact(contact.collider, node, self.positions[node], start_positions[node]);
+            *contact = nearby[contact.collider].contact(
+                contact.collider,
+                node,
+                self.state.positions[node],
+                start_positions[node],
+            );
             contact.first_solve = first_solve;
         }
         for (index, collider) in nearby.iter().enumerate() {
@@ -420,7 +424,7 @@ impl Rod {
                     continue;
                 }
                 if let Some(mut contact) =
-                    collider.new_contact(index, node, self.positions[node], start_positions[node], CONTACT_GAP)
+                    collider.new_contact(index, node, self.state.positions[node], start_positions[node], CONTACT_GAP)
                 {
                     // A node resting since the last step has its normal force from then, one found inside
                     // the force that stops it there.
@@ -495,7 +499,7 @@ impl Rod {
         }
         for (index, collider) in nearby.iter().enumerate() {
             for node in collider.free_nodes(self).filter(|&node| !touched[node]) {
-                let position = self.positions[node] + node_update(node);
+                let position = self.state.positions[node] + node_update(node);
                 if let Some(contact) = collider.new_contact(index, node, position, start_positions[node], 0.0) {
                     normal_forces[node] =
                         normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
@@ -554,11 +558,11 @@ impl Rod {
         projection: &mut ProjectionScratch,
         before_projection: &mut Vec<DVec3>,
     ) -> u32 {
-        copy_into(before_projection, &self.positions);
+        copy_into(before_projection, &self.state.positions);
         let mut iterations = project_edge_lengths(self, params, projection);
         let error = length_error(self, &projection.target_lengths);
         if error.is_nan() || error > params.strain_tolerance {
-            self.positions.copy_from_slice(before_projection);
+            self.state.positions.copy_from_slice(before_projection);
             projection.contact_normals.fill(DVec3::ZERO);
             iterations += project_edge_lengths(self, params, projection);
         }
@@ -583,7 +587,7 @@ impl Rod {
                 if !collider.pushes(self, node) {
                     continue;
                 }
-                let end = self.positions[node];
+                let end = self.state.positions[node];
                 let resolved = match paths {
                     // Touching nodes moved along the surface on purpose, held by their springs.
                     _ if touched[node] => collider.closest_if_deeper(end, PUSH_DEPTH),
@@ -592,7 +596,7 @@ impl Rod {
                 };
                 if let Some((position, normal)) = resolved {
                     moved |= position.distance_squared(end) > MOVE_TOLERANCE * MOVE_TOLERANCE;
-                    self.positions[node] = position;
+                    self.state.positions[node] = position;
                     touched[node] = true;
                     contact_normals[node] = normal;
                 }
@@ -602,7 +606,7 @@ impl Rod {
                 if !(collider.pushes(self, edge) && collider.pushes(self, edge + 1)) {
                     continue;
                 }
-                let (start, end) = (self.positions[edge], self.positions[edge + 1]);
+                let (start, end) = (self.state.positions[edge], self.state.positions[edge + 1]);
                 if start.distance_squared(end) <= collider.edge_test_length * collider.edge_test_length {
                     continue;
                 }
@@ -615,8 +619,8 @@ impl Rod {
                 if scale <= 0.0 {
                     continue;
                 }
-                self.positions[edge] += start_share / scale * push;
-                self.positions[edge + 1] += end_share / scale * push;
+                self.state.positions[edge] += start_share / scale * push;
+                self.state.positions[edge + 1] += end_share / scale * push;
                 moved |= push.length_squared() > MOVE_TOLERANCE * MOVE_TOLERANCE;
                 let normal = push.normalize_or_zero();
                 for node in [edge, edge + 1] {

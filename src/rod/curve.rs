@@ -7,6 +7,7 @@ use bevy::reflect::Reflect;
 use super::error::RodError;
 use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
 use super::material::{RodMaterial, Stiffness};
+use super::state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState};
 
 /// Edges shorter than this fraction of the rod's mean edge length are rejected as degenerate.
 const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
@@ -85,28 +86,15 @@ pub struct MaterialFrame {
 /// curvature and twist; arrays indexed by vertex have one entry per node, the two ends unused.
 #[derive(Debug, Clone, Reflect)]
 pub struct Rod {
-    pub(crate) positions: Vec<DVec3>,
-    pub(crate) velocities: Vec<DVec3>,
-    pub(crate) twist: Vec<f64>,
-    pub(crate) twist_rates: Vec<f64>,
-    pub(crate) reference_directors: Vec<DVec3>,
-    pub(crate) tangents: Vec<DVec3>,
-    pub(crate) reference_twist: Vec<f64>,
-    pub(crate) rest_lengths: Vec<f64>,
-    pub(crate) voronoi_lengths: Vec<f64>,
-    pub(crate) rest_curvature: Vec<DVec2>,
-    pub(crate) rest_twist: Vec<f64>,
-    pub(crate) masses: Vec<f64>,
-    pub(crate) twist_inertias: Vec<f64>,
-    pub(crate) node_targets: Vec<Option<DVec3>>,
-    pub(crate) twist_targets: Vec<Option<DVec3>>,
-    /// Normal force on each node from its colliders at the end of the last step, N: friction's lagged
-    /// normal force, so that a node resting since then has friction from its first Newton iteration.
-    pub(crate) contact_normal_forces: Vec<f64>,
+    pub(crate) state: RodState,
+    pub(crate) frames: RodFrames,
+    pub(crate) rest: RestShape,
+    pub(crate) inertia: RodInertia,
+    pub(crate) constraints: RodConstraints,
     material: RodMaterial,
     pub(crate) stiffness: Stiffness,
-    initial_positions: Vec<DVec3>,
-    initial_reference_directors: Vec<DVec3>,
+    /// The state and frames the rod was created with, for [`Rod::reset`].
+    initial: RodSnapshot,
 }
 
 impl Rod {
@@ -152,50 +140,54 @@ impl Rod {
             voronoi_lengths[edge] += 0.5 * length;
             voronoi_lengths[edge + 1] += 0.5 * length;
         }
-        let mut rod = Self {
+        let state = RodState {
             positions: positions.to_vec(),
             velocities: vec![DVec3::ZERO; node_count],
             twist: vec![0.0; edge_count],
             twist_rates: vec![0.0; edge_count],
-            reference_directors: reference_directors.clone(),
-            tangents,
-            reference_twist: vec![0.0; node_count],
-            masses: voronoi_lengths.iter().map(|l| stiffness.linear_density * l).collect(),
-            twist_inertias: rest_lengths.iter().map(|l| stiffness.twist_inertia_density * l).collect(),
-            rest_lengths,
-            voronoi_lengths,
-            rest_curvature: vec![DVec2::ZERO; node_count],
-            rest_twist: vec![0.0; node_count],
-            node_targets: vec![None; node_count],
-            twist_targets: vec![None; edge_count],
             contact_normal_forces: vec![0.0; node_count],
+        };
+        let frames = RodFrames { reference_directors, tangents, reference_twist: vec![0.0; node_count] };
+        let mut rod = Self {
+            initial: RodSnapshot { state: state.clone(), frames: frames.clone() },
+            state,
+            frames,
+            inertia: RodInertia {
+                masses: voronoi_lengths.iter().map(|l| stiffness.linear_density * l).collect(),
+                twist_inertias: rest_lengths.iter().map(|l| stiffness.twist_inertia_density * l).collect(),
+            },
+            rest: RestShape {
+                lengths: rest_lengths,
+                voronoi_lengths,
+                curvatures: vec![DVec2::ZERO; node_count],
+                twists: vec![0.0; node_count],
+            },
+            constraints: RodConstraints { node_targets: vec![None; node_count], twist_targets: vec![None; edge_count] },
             material,
             stiffness,
-            initial_positions: positions.to_vec(),
-            initial_reference_directors: reference_directors,
         };
         rod.refresh_frames();
         for vertex in 1..edge_count {
             let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
-            rod.rest_curvature[vertex] = kappa;
-            rod.rest_twist[vertex] = twist;
+            rod.rest.curvatures[vertex] = kappa;
+            rod.rest.twists[vertex] = twist;
         }
         Ok(rod)
     }
 
     /// Number of nodes `n + 1`.
     pub fn node_count(&self) -> usize {
-        self.positions.len()
+        self.state.positions.len()
     }
 
     /// Number of edges `n`.
     pub fn edge_count(&self) -> usize {
-        self.positions.len() - 1
+        self.state.positions.len() - 1
     }
 
     /// Node positions, m.
     pub fn positions(&self) -> &[DVec3] {
-        &self.positions
+        &self.state.positions
     }
 
     /// Node positions, m, for moving nodes directly (an editor, a scripted pose). The frames follow the
@@ -204,37 +196,37 @@ impl Rod {
     /// kept: that step puts the rod back in its rest pose and reports
     /// [`crate::rod::StepError::UnusableState`].
     pub fn positions_mut(&mut self) -> &mut [DVec3] {
-        &mut self.positions
+        &mut self.state.positions
     }
 
     /// Node velocities, m/s.
     pub fn velocities(&self) -> &[DVec3] {
-        &self.velocities
+        &self.state.velocities
     }
 
     /// Per-edge twist angles `θ^i` of the material frames relative to the reference frames, rad.
     pub fn twist_angles(&self) -> &[f64] {
-        &self.twist
+        &self.state.twist
     }
 
     /// Rest lengths `|ē^i|` of the edges, m.
     pub fn rest_lengths(&self) -> &[f64] {
-        &self.rest_lengths
+        &self.rest.lengths
     }
 
     /// Total rest length of the rod, m.
     pub fn rest_length(&self) -> f64 {
-        self.rest_lengths.iter().sum()
+        self.rest.lengths.iter().sum()
     }
 
     /// Rest length of the longest edge, m.
     pub fn longest_rest_edge(&self) -> f64 {
-        self.rest_lengths.iter().copied().fold(0.0, f64::max)
+        self.rest.lengths.iter().copied().fold(0.0, f64::max)
     }
 
     /// Lumped node masses `ρ A l_i` (Voronoi lengths), kg.
     pub fn masses(&self) -> &[f64] {
-        &self.masses
+        &self.inertia.masses
     }
 
     /// The material the rod was made of.
@@ -249,18 +241,18 @@ impl Rod {
 
     /// Rest material curvatures `(κ̄₁, κ̄₂)` per vertex (integrated, dimensionless; ends unused).
     pub fn rest_curvatures(&self) -> &[DVec2] {
-        &self.rest_curvature
+        &self.rest.curvatures
     }
 
     /// Rest twists `τ̄` per vertex (integrated, rad; ends unused).
     pub fn rest_twists(&self) -> &[f64] {
-        &self.rest_twist
+        &self.rest.twists
     }
 
     /// The material frame of `edge`.
     pub fn material_frame(&self, edge: usize) -> MaterialFrame {
-        let tangent = self.tangents[edge];
-        let (m1, m2) = material_directors(self.reference_directors[edge], tangent, self.twist[edge]);
+        let tangent = self.frames.tangents[edge];
+        let (m1, m2) = material_directors(self.frames.reference_directors[edge], tangent, self.state.twist[edge]);
         MaterialFrame { tangent, m1, m2 }
     }
 
@@ -271,15 +263,16 @@ impl Rod {
         let (previous, next) = (self.material_frame(vertex - 1), self.material_frame(vertex));
         let binormal = super::frames::curvature_binormal(previous.tangent, next.tangent);
         let kappa = DVec2::new(0.5 * binormal.dot(previous.m2 + next.m2), -0.5 * binormal.dot(previous.m1 + next.m1));
-        let twist = self.twist[vertex] - self.twist[vertex - 1] + self.reference_twist[vertex];
+        let twist = self.state.twist[vertex] - self.state.twist[vertex - 1] + self.frames.reference_twist[vertex];
         (kappa, twist)
     }
 
     /// The largest edge strain `|e|/|ē| − 1` in absolute value, with the edge it occurs on.
     pub fn max_strain(&self) -> (usize, f64) {
-        self.positions
+        self.state
+            .positions
             .windows(2)
-            .zip(&self.rest_lengths)
+            .zip(&self.rest.lengths)
             .map(|(pair, rest)| ((pair[1] - pair[0]).length() / rest - 1.0).abs())
             .enumerate()
             .fold(
@@ -293,8 +286,9 @@ impl Rod {
     /// Kinetic energy of the nodes and of the edges' spin about their axes, J.
     pub fn kinetic_energy(&self) -> f64 {
         let translational: f64 =
-            self.masses.iter().zip(&self.velocities).map(|(m, v)| 0.5 * m * v.length_squared()).sum();
-        let spin: f64 = self.twist_inertias.iter().zip(&self.twist_rates).map(|(i, w)| 0.5 * i * w * w).sum();
+            self.inertia.masses.iter().zip(&self.state.velocities).map(|(m, v)| 0.5 * m * v.length_squared()).sum();
+        let spin: f64 =
+            self.inertia.twist_inertias.iter().zip(&self.state.twist_rates).map(|(i, w)| 0.5 * i * w * w).sum();
         translational + spin
     }
 
@@ -313,7 +307,7 @@ impl Rod {
                 limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
             });
         }
-        self.rest_curvature[vertex] = curvature;
+        self.rest.curvatures[vertex] = curvature;
         Ok(())
     }
 
@@ -327,7 +321,7 @@ impl Rod {
         if twist.abs() > MAX_REST_TWIST {
             return Err(RodError::RestTwistTooLarge { vertex, twist, limit: MAX_REST_TWIST });
         }
-        self.rest_twist[vertex] = twist;
+        self.rest.twists[vertex] = twist;
         Ok(())
     }
 
@@ -344,17 +338,17 @@ impl Rod {
         }
         let magnitude = curvature_per_metre.length();
         if let Some(vertex) =
-            (1..self.edge_count()).find(|&vertex| magnitude * self.voronoi_lengths[vertex] > MAX_TURNING_ANGLE)
+            (1..self.edge_count()).find(|&vertex| magnitude * self.rest.voronoi_lengths[vertex] > MAX_TURNING_ANGLE)
         {
             return Err(RodError::RestCurvatureTooLarge {
                 vertex,
-                turning_degrees: (magnitude * self.voronoi_lengths[vertex]).to_degrees(),
+                turning_degrees: (magnitude * self.rest.voronoi_lengths[vertex]).to_degrees(),
                 limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
             });
         }
         for vertex in 1..self.edge_count() {
-            self.rest_curvature[vertex] = if magnitude > 0.0 {
-                curvature_per_metre / magnitude * 2.0 * (0.5 * magnitude * self.voronoi_lengths[vertex]).tan()
+            self.rest.curvatures[vertex] = if magnitude > 0.0 {
+                curvature_per_metre / magnitude * 2.0 * (0.5 * magnitude * self.rest.voronoi_lengths[vertex]).tan()
             } else {
                 DVec2::ZERO
             };
@@ -367,10 +361,10 @@ impl Rod {
     pub fn set_material(&mut self, material: RodMaterial) -> Result<(), RodError> {
         material.validate()?;
         let stiffness = material.stiffness();
-        for (mass, length) in self.masses.iter_mut().zip(&self.voronoi_lengths) {
+        for (mass, length) in self.inertia.masses.iter_mut().zip(&self.rest.voronoi_lengths) {
             *mass = stiffness.linear_density * length;
         }
-        for (inertia, length) in self.twist_inertias.iter_mut().zip(&self.rest_lengths) {
+        for (inertia, length) in self.inertia.twist_inertias.iter_mut().zip(&self.rest.lengths) {
             *inertia = stiffness.twist_inertia_density * length;
         }
         self.material = material;
@@ -393,14 +387,19 @@ impl Rod {
             return Err(RodError::NonFiniteTarget { node: 0, target: translation });
         }
         let rotation = rotation / length;
-        for position in &mut self.positions {
+        for position in &mut self.state.positions {
             *position = rotation * *position + translation;
         }
-        for target in self.node_targets.iter_mut().flatten() {
+        for target in self.constraints.node_targets.iter_mut().flatten() {
             *target = rotation * *target + translation;
         }
-        let turned = self.velocities.iter_mut().chain(&mut self.reference_directors).chain(&mut self.tangents);
-        for vector in turned.chain(self.twist_targets.iter_mut().flatten()) {
+        let turned = self
+            .state
+            .velocities
+            .iter_mut()
+            .chain(&mut self.frames.reference_directors)
+            .chain(&mut self.frames.tangents);
+        for vector in turned.chain(self.constraints.twist_targets.iter_mut().flatten()) {
             *vector = rotation * *vector;
         }
         Ok(())
@@ -430,18 +429,18 @@ impl Rod {
         if tangent == DVec3::ZERO || material_director(material_direction, tangent).is_none() {
             return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
         }
-        self.node_targets[edge] = Some(start);
-        self.node_targets[edge + 1] = Some(end);
-        self.twist_targets[edge] = Some(material_direction);
+        self.constraints.node_targets[edge] = Some(start);
+        self.constraints.node_targets[edge + 1] = Some(end);
+        self.constraints.twist_targets[edge] = Some(material_direction);
         Ok(())
     }
 
     /// Clamps the root (edge 0) where it is now, with its current material frame.
     pub fn clamp_root_in_place(&mut self) {
         let frame = self.material_frame(0);
-        self.node_targets[0] = Some(self.positions[0]);
-        self.node_targets[1] = Some(self.positions[1]);
-        self.twist_targets[0] = Some(frame.m1);
+        self.constraints.node_targets[0] = Some(self.state.positions[0]);
+        self.constraints.node_targets[1] = Some(self.state.positions[1]);
+        self.constraints.twist_targets[0] = Some(frame.m1);
     }
 
     /// Pins `node` to `position` (m), leaving its edges free to turn: a hair tie, a rope end.
@@ -450,14 +449,14 @@ impl Rod {
         if !position.is_finite() {
             return Err(RodError::NonFiniteTarget { node, target: position });
         }
-        self.node_targets[node] = Some(position);
+        self.constraints.node_targets[node] = Some(position);
         Ok(())
     }
 
     /// Frees `node` from any pin or clamp.
     pub fn release_node(&mut self, node: usize) -> Result<(), RodError> {
         self.check_node(node)?;
-        self.node_targets[node] = None;
+        self.constraints.node_targets[node] = None;
         Ok(())
     }
 
@@ -466,32 +465,24 @@ impl Rod {
         if edge >= self.edge_count() {
             return Err(RodError::OutOfRange { what: "edge", index: edge, count: self.edge_count() });
         }
-        self.twist_targets[edge] = None;
+        self.constraints.twist_targets[edge] = None;
         Ok(())
     }
 
     /// `1 / m` of `node`, 1/kg; zero when its position is prescribed (it cannot be pushed).
     pub(crate) fn inverse_mass(&self, node: usize) -> f64 {
-        if self.node_targets[node].is_some() { 0.0 } else { 1.0 / self.masses[node] }
+        if self.constraints.node_targets[node].is_some() { 0.0 } else { 1.0 / self.inertia.masses[node] }
     }
 
     /// Whether `node`'s position is prescribed by a pin or a clamp.
     pub fn is_node_prescribed(&self, node: usize) -> bool {
-        self.node_targets.get(node).is_some_and(Option::is_some)
+        self.constraints.node_targets.get(node).is_some_and(Option::is_some)
     }
 
     /// Puts the rod back in the shape and frames it was created with, at rest. Boundary conditions stay.
     pub fn reset(&mut self) {
-        self.positions.copy_from_slice(&self.initial_positions);
-        self.reference_directors.copy_from_slice(&self.initial_reference_directors);
-        for (tangent, pair) in self.tangents.iter_mut().zip(self.initial_positions.windows(2)) {
-            *tangent = (pair[1] - pair[0]).normalize();
-        }
-        self.velocities.fill(DVec3::ZERO);
-        self.twist.fill(0.0);
-        self.twist_rates.fill(0.0);
-        self.reference_twist.fill(0.0);
-        self.contact_normal_forces.fill(0.0);
+        self.state.copy_from(&self.initial.state);
+        self.frames.copy_from(&self.initial.frames);
         self.refresh_frames();
     }
 
@@ -499,20 +490,20 @@ impl Rod {
     /// non-finite position, that (nearly) coincides with the next one, or whose two edges fold onto each
     /// other (within [`FOLDED_STATE_GAP`] of π). (Positions can be written from outside, [`Rod::positions_mut`].)
     pub(crate) fn unusable_state(&self) -> Option<(usize, &'static str)> {
-        if let Some(node) = self.positions.iter().position(|p| !p.is_finite()) {
+        if let Some(node) = self.state.positions.iter().position(|p| !p.is_finite()) {
             return Some((node, "not finite"));
         }
-        if let Some(node) = self.twist.iter().position(|t| !t.is_finite()) {
+        if let Some(node) = self.state.twist.iter().position(|t| !t.is_finite()) {
             return Some((node, "twist not finite"));
         }
         let coincident = |edge: usize| {
-            let length = (self.positions[edge + 1] - self.positions[edge]).length();
-            length <= MIN_RELATIVE_EDGE_LENGTH * self.rest_lengths[edge]
+            let length = (self.state.positions[edge + 1] - self.state.positions[edge]).length();
+            length <= MIN_RELATIVE_EDGE_LENGTH * self.rest.lengths[edge]
         };
         if let Some(edge) = (0..self.edge_count()).find(|&edge| coincident(edge)) {
             return Some((edge, "on top of the next node"));
         }
-        let tangents = self.positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize());
+        let tangents = self.state.positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize());
         first_fold(tangents, std::f64::consts::PI - FOLDED_STATE_GAP)
             .map(|edge| (edge + 1, "edges folded onto each other"))
     }
@@ -522,20 +513,21 @@ impl Rod {
     /// previous value so that they do not wrap at ±π.
     pub(crate) fn refresh_frames(&mut self) {
         for edge in 0..self.edge_count() {
-            let tangent = (self.positions[edge + 1] - self.positions[edge]).normalize();
-            let carried = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
-            self.reference_directors[edge] = perpendicular_unit(carried, tangent).unwrap_or(carried);
-            self.tangents[edge] = tangent;
+            let tangent = (self.state.positions[edge + 1] - self.state.positions[edge]).normalize();
+            let carried =
+                parallel_transport(self.frames.reference_directors[edge], self.frames.tangents[edge], tangent);
+            self.frames.reference_directors[edge] = perpendicular_unit(carried, tangent).unwrap_or(carried);
+            self.frames.tangents[edge] = tangent;
         }
         for vertex in 1..self.edge_count() {
             let carried = parallel_transport(
-                self.reference_directors[vertex - 1],
-                self.tangents[vertex - 1],
-                self.tangents[vertex],
+                self.frames.reference_directors[vertex - 1],
+                self.frames.tangents[vertex - 1],
+                self.frames.tangents[vertex],
             );
-            let angle = signed_angle(carried, self.reference_directors[vertex], self.tangents[vertex]);
-            let previous = self.reference_twist[vertex];
-            self.reference_twist[vertex] = previous + wrap_angle(angle - previous);
+            let angle = signed_angle(carried, self.frames.reference_directors[vertex], self.frames.tangents[vertex]);
+            let previous = self.frames.reference_twist[vertex];
+            self.frames.reference_twist[vertex] = previous + wrap_angle(angle - previous);
         }
     }
 
@@ -544,15 +536,15 @@ impl Rod {
     /// continuing from the current twist so that turning a clamp by 3π is three half turns, not one.
     /// `None` when the edge's twist is free.
     pub(crate) fn twist_target_offset(&self, edge: usize) -> Option<f64> {
-        let direction = self.twist_targets[edge]?;
-        let tangent = match (self.node_targets[edge], self.node_targets[edge + 1]) {
-            (Some(start), Some(end)) => (end - start).normalize_or(self.tangents[edge]),
-            _ => self.tangents[edge],
+        let direction = self.constraints.twist_targets[edge]?;
+        let tangent = match (self.constraints.node_targets[edge], self.constraints.node_targets[edge + 1]) {
+            (Some(start), Some(end)) => (end - start).normalize_or(self.frames.tangents[edge]),
+            _ => self.frames.tangents[edge],
         };
-        let reference = parallel_transport(self.reference_directors[edge], self.tangents[edge], tangent);
+        let reference = parallel_transport(self.frames.reference_directors[edge], self.frames.tangents[edge], tangent);
         let target = perpendicular_unit(direction, tangent)?;
         let angle = signed_angle(reference, target, tangent);
-        Some(wrap_angle(angle - self.twist[edge]))
+        Some(wrap_angle(angle - self.state.twist[edge]))
     }
 
     fn check_node(&self, node: usize) -> Result<(), RodError> {
@@ -616,8 +608,8 @@ mod tests {
         let rod = Rod::new(&helix, DVec3::Z, RodMaterial::human_hair()).unwrap();
         for vertex in 1..rod.edge_count() {
             let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
-            assert!((kappa - rod.rest_curvature[vertex]).length() < 1e-15);
-            assert!((twist - rod.rest_twist[vertex]).abs() < 1e-15);
+            assert!((kappa - rod.rest.curvatures[vertex]).length() < 1e-15);
+            assert!((twist - rod.rest.twists[vertex]).abs() < 1e-15);
             assert!(kappa.length() > 0.01, "a helix is curved");
         }
         let total_mass: f64 = rod.masses().iter().sum();
@@ -628,14 +620,14 @@ mod tests {
     #[test]
     fn frames_stay_orthonormal_and_adapted_after_transport() {
         let mut rod = Rod::new(&straight(6), DVec3::Y, RodMaterial::human_hair()).unwrap();
-        for (i, p) in rod.positions.iter_mut().enumerate() {
+        for (i, p) in rod.state.positions.iter_mut().enumerate() {
             p.y += 0.003 * (i as f64).powi(2);
             p.z -= 0.002 * i as f64;
         }
         rod.refresh_frames();
         for edge in 0..rod.edge_count() {
             let frame = rod.material_frame(edge);
-            let tangent = (rod.positions[edge + 1] - rod.positions[edge]).normalize();
+            let tangent = (rod.state.positions[edge + 1] - rod.state.positions[edge]).normalize();
             assert!((frame.tangent - tangent).length() < 1e-14);
             assert!(frame.m1.dot(tangent).abs() < 1e-14 && frame.m2.dot(tangent).abs() < 1e-14);
             assert!((frame.m1.length() - 1.0).abs() < 1e-14 && frame.m1.dot(frame.m2).abs() < 1e-14);
@@ -645,12 +637,12 @@ mod tests {
     #[test]
     fn a_rigid_motion_keeps_the_elastic_state() {
         let mut rod = Rod::new(&straight(8), DVec3::Y, RodMaterial::human_hair()).unwrap();
-        for (i, p) in rod.positions.iter_mut().enumerate() {
+        for (i, p) in rod.state.positions.iter_mut().enumerate() {
             p.y += 0.002 * (i as f64).powi(2);
             p.z += 0.001 * (i as f64).sin();
         }
-        rod.twist[3] = 0.4;
-        rod.velocities[5] = DVec3::new(0.1, -0.2, 0.3);
+        rod.state.twist[3] = 0.4;
+        rod.state.velocities[5] = DVec3::new(0.1, -0.2, 0.3);
         rod.refresh_frames();
         let before = rod.clone();
         let rotation = DQuat::from_euler(bevy::math::EulerRot::YXZ, 0.7, -1.2, 2.9);
@@ -658,9 +650,9 @@ mod tests {
         rod.transform_rigidly(rotation, translation).unwrap();
         rod.refresh_frames();
         for node in 0..rod.node_count() {
-            let expected = rotation * before.positions[node] + translation;
-            assert!((rod.positions[node] - expected).length() < 1e-12);
-            assert!((rod.velocities[node] - rotation * before.velocities[node]).length() < 1e-14);
+            let expected = rotation * before.state.positions[node] + translation;
+            assert!((rod.state.positions[node] - expected).length() < 1e-12);
+            assert!((rod.state.velocities[node] - rotation * before.state.velocities[node]).length() < 1e-14);
         }
         for vertex in 1..rod.edge_count() {
             let (kappa, twist) = rod.vertex_curvature_and_twist(vertex);
@@ -676,13 +668,13 @@ mod tests {
     #[test]
     fn a_new_material_changes_masses_and_stiffness_but_not_the_shape() {
         let mut rod = Rod::new(&straight(6), DVec3::Y, RodMaterial::human_hair()).unwrap();
-        let positions = rod.positions.clone();
+        let positions = rod.state.positions.clone();
         let dense = RodMaterial { density: 2600.0, ..RodMaterial::human_hair() };
         rod.set_material(dense).unwrap();
         let total: f64 = rod.masses().iter().sum();
         assert!((total - dense.stiffness().linear_density * rod.rest_length()).abs() < 1e-12 * total);
         assert_eq!(rod.stiffness(), &dense.stiffness());
-        assert_eq!(rod.positions, positions);
+        assert_eq!(rod.state.positions, positions);
         let invalid = RodMaterial { youngs_modulus: f64::NAN, ..dense };
         assert!(matches!(
             rod.set_material(invalid),

@@ -67,7 +67,7 @@ pub(crate) fn edge_geometry(rod: &Rod, out: &mut Vec<EdgeGeometry>) {
     out.clear();
     out.extend((0..rod.edge_count()).map(|edge| {
         let frame = rod.material_frame(edge);
-        let length = (rod.positions[edge + 1] - rod.positions[edge]).length();
+        let length = (rod.state.positions[edge + 1] - rod.state.positions[edge]).length();
         EdgeGeometry { tangent: frame.tangent, length, inverse_length: 1.0 / length, m1: frame.m1, m2: frame.m2 }
     }));
 }
@@ -158,14 +158,14 @@ impl Rod {
     pub fn elastic_energy(&self) -> ElasticEnergy {
         let stiffness = self.stiffness();
         let mut energy = ElasticEnergy::default();
-        for (pair, &rest) in self.positions.windows(2).zip(&self.rest_lengths) {
+        for (pair, &rest) in self.state.positions.windows(2).zip(&self.rest.lengths) {
             let strain = (pair[1] - pair[0]).length() / rest - 1.0;
             energy.stretching += 0.5 * stiffness.stretching * strain * strain * rest;
         }
         for vertex in 1..self.edge_count() {
             let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
-            let (bend, turn) = (kappa - self.rest_curvature[vertex], twist - self.rest_twist[vertex]);
-            let length = self.voronoi_lengths[vertex];
+            let (bend, turn) = (kappa - self.rest.curvatures[vertex], twist - self.rest.twists[vertex]);
+            let length = self.rest.voronoi_lengths[vertex];
             energy.bending +=
                 (stiffness.bending_1 * bend.x * bend.x + stiffness.bending_2 * bend.y * bend.y) / (2.0 * length);
             energy.twisting += stiffness.twisting * turn * turn / (2.0 * length);
@@ -187,7 +187,7 @@ pub(crate) fn add_elastic_derivatives(
 ) {
     let stiffness = *rod.stiffness();
     for (edge, geometry) in edges.iter().enumerate() {
-        let rest = rod.rest_lengths[edge];
+        let rest = rod.rest.lengths[edge];
         let force = stiffness.stretching * (geometry.length / rest - 1.0);
         let (start, end) = (node_dof(edge), node_dof(edge + 1));
         for axis in 0..3 {
@@ -205,11 +205,11 @@ pub(crate) fn add_elastic_derivatives(
         }
     }
     for vertex in 1..rod.edge_count() {
-        let twist = rod.twist[vertex] - rod.twist[vertex - 1] + rod.reference_twist[vertex];
+        let twist = rod.state.twist[vertex] - rod.state.twist[vertex - 1] + rod.frames.reference_twist[vertex];
         let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist);
-        let inverse_length = 1.0 / rod.voronoi_lengths[vertex];
-        let bend = strain.kappa - rod.rest_curvature[vertex];
-        let turn = strain.twist - rod.rest_twist[vertex];
+        let inverse_length = 1.0 / rod.rest.voronoi_lengths[vertex];
+        let bend = strain.kappa - rod.rest.curvatures[vertex];
+        let turn = strain.twist - rod.rest.twists[vertex];
         let coefficients = [
             (stiffness.bending_1 * inverse_length, bend.x, &strain.grad_kappa_1),
             (stiffness.bending_2 * inverse_length, bend.y, &strain.grad_kappa_2),

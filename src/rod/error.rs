@@ -132,6 +132,17 @@ pub enum RodError {
         /// Length of the array that was given.
         actual: usize,
     },
+    /// A snapshot restored into a rod it does not fit: another number of nodes, or arrays of the wrong
+    /// lengths.
+    #[error(
+        "the snapshot does not fit this rod of {nodes} nodes (it was taken of {snapshot_nodes} nodes, or is incomplete)"
+    )]
+    SnapshotMismatch {
+        /// Number of nodes of the rod.
+        nodes: usize,
+        /// Number of node positions in the snapshot.
+        snapshot_nodes: usize,
+    },
     /// A collider dimension, friction coefficient or pose, or a collision thickness, is invalid.
     #[error(
         "collider parameter `{parameter}` is invalid: {value} (dimensions must be positive and finite, friction and thickness zero or positive, poses finite)"

@@ -34,6 +34,7 @@ mod material;
 mod params;
 mod projection;
 mod solver;
+mod state;
 mod timing;
 
 #[cfg(test)]
@@ -54,4 +55,5 @@ pub use error::{RodError, StepError};
 pub use material::{MATERIAL_RANGES, RodMaterial, Stiffness};
 pub use params::{MAX_DT, MAX_GRAVITY, StepParams};
 pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepReport};
+pub use state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState};
 pub use timing::StepTimings;

@@ -47,7 +47,8 @@ fn mobility(inverse_mass: f64, contact_normal: DVec3, v: DVec3) -> DVec3 {
 
 /// The largest relative difference between an edge's length and its target length.
 pub(crate) fn length_error(rod: &Rod, target_lengths: &[f64]) -> f64 {
-    rod.positions
+    rod.state
+        .positions
         .windows(2)
         .zip(target_lengths)
         .map(|(pair, target)| ((pair[1] - pair[0]).length() / target - 1.0).abs())
@@ -75,7 +76,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
         upper.clear();
         multipliers.clear();
         for edge in 0..edge_count {
-            let e = rod.positions[edge + 1] - rod.positions[edge];
+            let e = rod.state.positions[edge + 1] - rod.state.positions[edge];
             let target = target_lengths[edge];
             let stiffness = 4.0 * e.dot(moved(edge, e) + moved(edge + 1, e)) / (target * target);
             let free_stiffness =
@@ -91,7 +92,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
                 multipliers.push(0.0);
             }
             if edge + 1 < edge_count {
-                let next = rod.positions[edge + 2] - rod.positions[edge + 1];
+                let next = rod.state.positions[edge + 2] - rod.state.positions[edge + 1];
                 upper.push(-4.0 * e.dot(moved(edge + 1, next)) / (target * target_lengths[edge + 1]));
             }
         }
@@ -108,21 +109,21 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
         }
         solve_tridiagonal(diagonal, upper, multipliers);
 
-        copy_into(start, &rod.positions);
+        copy_into(start, &rod.state.positions);
         let mut fraction = 1.0;
         loop {
             for edge in 0..edge_count {
                 let e = start[edge + 1] - start[edge];
                 let impulse = 2.0 * fraction * multipliers[edge] / target_lengths[edge] * e;
-                rod.positions[edge] += moved(edge, impulse);
-                rod.positions[edge + 1] -= moved(edge + 1, impulse);
+                rod.state.positions[edge] += moved(edge, impulse);
+                rod.state.positions[edge + 1] -= moved(edge + 1, impulse);
             }
             let projected = length_error(rod, target_lengths);
             if projected < strain {
                 strain = projected;
                 break;
             }
-            rod.positions.copy_from_slice(start);
+            rod.state.positions.copy_from_slice(start);
             if fraction < 0.1 {
                 // Too far from the constraints for Newton: exact per-edge projections cannot overshoot.
                 gauss_seidel_sweep(rod, target_lengths, inverse_masses, contact_normals);
@@ -141,7 +142,7 @@ pub(crate) fn project_edge_lengths(rod: &mut Rod, params: &StepParams, scratch: 
 fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f64], contact_normals: &[DVec3]) {
     let edge_count = rod.edge_count();
     for edge in (0..edge_count).chain((0..edge_count).rev()) {
-        let e = rod.positions[edge + 1] - rod.positions[edge];
+        let e = rod.state.positions[edge + 1] - rod.state.positions[edge];
         let length = e.length();
         if length == 0.0 {
             continue;
@@ -154,8 +155,8 @@ fn gauss_seidel_sweep(rod: &mut Rod, target_lengths: &[f64], inverse_masses: &[f
             continue;
         }
         let excess = (length - target_lengths[edge]) / total;
-        rod.positions[edge] += excess * start_move;
-        rod.positions[edge + 1] -= excess * end_move;
+        rod.state.positions[edge] += excess * start_move;
+        rod.state.positions[edge + 1] -= excess * end_move;
     }
 }
 

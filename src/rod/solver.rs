@@ -35,6 +35,7 @@ use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
+use super::state::RodSnapshot;
 use super::timing::{Part, StepTimings, Stopwatch};
 
 /// Projection iterations a step may add, on the whole strand, when its own left an edge beyond
@@ -82,7 +83,7 @@ pub struct RodWorkspace {
     damping_force: Vec<f64>,
     prescribed: Vec<f64>,
     edges: Vec<EdgeGeometry>,
-    saved: SavedState,
+    saved: RodSnapshot,
     /// Positions and twists after the first guess (the strand carried with its root): internal
     /// damping acts on the deformation from there.
     carried_positions: Vec<DVec3>,
@@ -102,42 +103,6 @@ impl RodWorkspace {
     /// The time spent in each part of the steps since [`RodWorkspace::time_parts`] turned timing on.
     pub fn part_timings(&self) -> Option<&StepTimings> {
         self.stopwatch.timings()
-    }
-}
-
-/// The rod's state at the start of a step, to measure displacements and to restore after a failure.
-#[derive(Debug, Clone, Default)]
-struct SavedState {
-    positions: Vec<DVec3>,
-    velocities: Vec<DVec3>,
-    twist: Vec<f64>,
-    twist_rates: Vec<f64>,
-    reference_directors: Vec<DVec3>,
-    tangents: Vec<DVec3>,
-    reference_twist: Vec<f64>,
-}
-
-impl SavedState {
-    fn save(&mut self, rod: &Rod) {
-        copy_into(&mut self.positions, &rod.positions);
-        copy_into(&mut self.velocities, &rod.velocities);
-        copy_into(&mut self.twist, &rod.twist);
-        copy_into(&mut self.twist_rates, &rod.twist_rates);
-        copy_into(&mut self.reference_directors, &rod.reference_directors);
-        copy_into(&mut self.tangents, &rod.tangents);
-        copy_into(&mut self.reference_twist, &rod.reference_twist);
-    }
-
-    /// Puts the saved configuration back, at rest.
-    fn restore_at_rest(&self, rod: &mut Rod) {
-        rod.positions.copy_from_slice(&self.positions);
-        rod.twist.copy_from_slice(&self.twist);
-        rod.reference_directors.copy_from_slice(&self.reference_directors);
-        rod.tangents.copy_from_slice(&self.tangents);
-        rod.reference_twist.copy_from_slice(&self.reference_twist);
-        rod.velocities.fill(DVec3::ZERO);
-        rod.twist_rates.fill(0.0);
-        rod.contact_normal_forces.fill(0.0);
     }
 }
 
@@ -197,11 +162,11 @@ impl Rod {
         workspace.stopwatch.start_step();
         workspace.saved.save(self);
         // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
-        std::mem::swap(&mut self.contact_normal_forces, &mut workspace.contacts.normal_forces);
+        std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
         let result = self.integrate(params, external_forces, contacts, workspace);
-        std::mem::swap(&mut self.contact_normal_forces, &mut workspace.contacts.normal_forces);
+        std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
         if result.is_err() {
-            workspace.saved.restore_at_rest(self);
+            self.restore_at_rest(&workspace.saved);
         }
         result
     }
@@ -215,11 +180,11 @@ impl Rod {
     ) -> Result<StepReport, StepError> {
         self.carry_with_first_clamp();
         workspace.stopwatch.lap(Part::Frames);
-        copy_into(&mut workspace.carried_positions, &self.positions);
-        copy_into(&mut workspace.carried_twist, &self.twist);
+        copy_into(&mut workspace.carried_positions, &self.state.positions);
+        copy_into(&mut workspace.carried_twist, &self.state.twist);
         workspace.projection.use_rod_masses(self);
         workspace.stopwatch.lap(Part::Forces);
-        self.begin_contacts(contacts, params, &workspace.saved.positions, &mut workspace.contacts);
+        self.begin_contacts(contacts, params, &workspace.saved.state.positions, &mut workspace.contacts);
         workspace.stopwatch.lap(Part::Collisions);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
@@ -245,7 +210,7 @@ impl Rod {
         if !contacts.colliders.is_empty() {
             let (in_contact, iterations) = self.resolve_contacts(
                 contacts,
-                &workspace.saved.positions,
+                &workspace.saved.state.positions,
                 params,
                 &mut workspace.projection,
                 &mut workspace.contacts,
@@ -266,15 +231,15 @@ impl Rod {
         let saved = &workspace.saved;
         let inverse_dt = 1.0 / params.dt;
         for node in 0..self.node_count() {
-            self.velocities[node] = (self.positions[node] - saved.positions[node]) * inverse_dt;
+            self.state.velocities[node] = (self.state.positions[node] - saved.state.positions[node]) * inverse_dt;
         }
         for edge in 0..self.edge_count() {
-            self.twist_rates[edge] = (self.twist[edge] - saved.twist[edge]) * inverse_dt;
+            self.state.twist_rates[edge] = (self.state.twist[edge] - saved.state.twist[edge]) * inverse_dt;
         }
         let finite = |node: usize| {
-            self.positions[node].is_finite()
-                && self.velocities[node].is_finite()
-                && (node == self.edge_count() || self.twist[node].is_finite())
+            self.state.positions[node].is_finite()
+                && self.state.velocities[node].is_finite()
+                && (node == self.edge_count() || self.state.twist[node].is_finite())
         };
         if let Some(node) = (0..self.node_count()).find(|&node| !finite(node)) {
             return Err(StepError::NonFinite { node });
@@ -294,7 +259,12 @@ impl Rod {
     /// trust region handle well, even when a head moves centimetres per step.
     fn carry_with_first_clamp(&mut self) {
         let first_clamp = (0..self.edge_count()).find_map(|edge| {
-            Some((edge, self.node_targets[edge]?, self.node_targets[edge + 1]?, self.twist_targets[edge]?))
+            Some((
+                edge,
+                self.constraints.node_targets[edge]?,
+                self.constraints.node_targets[edge + 1]?,
+                self.constraints.twist_targets[edge]?,
+            ))
         });
         let Some((edge, start, end, direction)) = first_clamp else {
             return;
@@ -306,13 +276,13 @@ impl Rod {
         };
         let rotation = DMat3::from_cols(tangent, m1, tangent.cross(m1))
             * DMat3::from_cols(old.tangent, old.m1, old.m2).transpose();
-        let pivot = self.positions[edge];
-        for position in &mut self.positions {
+        let pivot = self.state.positions[edge];
+        for position in &mut self.state.positions {
             *position = start + rotation * (*position - pivot);
         }
-        (self.positions[edge], self.positions[edge + 1]) = (start, end);
+        (self.state.positions[edge], self.state.positions[edge + 1]) = (start, end);
         // The frames turn with the strand: reference twist and twists are unchanged by a rigid motion.
-        for (tangent, director) in self.tangents.iter_mut().zip(&mut self.reference_directors) {
+        for (tangent, director) in self.frames.tangents.iter_mut().zip(&mut self.frames.reference_directors) {
             (*tangent, *director) = (rotation * *tangent, rotation * *director);
         }
     }
@@ -341,13 +311,13 @@ impl Rod {
         let first = (0..node_count).find(|&node| self.is_node_prescribed(node)).unwrap_or(0);
         let last = (0..node_count).rfind(|&node| self.is_node_prescribed(node)).unwrap_or(0);
         let place = |rod: &mut Rod, from: usize, to: usize, edge: usize| {
-            let direction = (rod.positions[to] - rod.positions[from]).normalize_or_zero();
+            let direction = (rod.state.positions[to] - rod.state.positions[from]).normalize_or_zero();
             let direction = if direction == DVec3::ZERO {
-                if to > from { rod.tangents[edge] } else { -rod.tangents[edge] }
+                if to > from { rod.frames.tangents[edge] } else { -rod.frames.tangents[edge] }
             } else {
                 direction
             };
-            rod.positions[to] = rod.positions[from] + target_lengths[edge] * direction;
+            rod.state.positions[to] = rod.state.positions[from] + target_lengths[edge] * direction;
         };
         for node in last + 1..node_count {
             place(self, node - 1, node, node - 1);
@@ -361,14 +331,14 @@ impl Rod {
     /// case a Newton update was scaled down before getting there. (The twist targets are measured from
     /// the frames as they are, carried to the target tangents, so the frames need no refresh first.)
     fn snap_to_targets(&mut self) {
-        for (position, target) in self.positions.iter_mut().zip(&self.node_targets) {
+        for (position, target) in self.state.positions.iter_mut().zip(&self.constraints.node_targets) {
             if let Some(target) = target {
                 *position = *target;
             }
         }
         for edge in 0..self.edge_count() {
             if let Some(offset) = self.twist_target_offset(edge) {
-                self.twist[edge] += offset;
+                self.state.twist[edge] += offset;
             }
         }
     }
@@ -423,7 +393,7 @@ impl Rod {
         self.add_inertia_and_external_forces(params, external_forces, workspace);
         workspace.stopwatch.lap(Part::Forces);
         let RodWorkspace { hessian, residual, saved, contacts, stopwatch, .. } = workspace;
-        self.add_contact_forces(contacts, &saved.positions, params, inertia_scale(params), residual, hessian);
+        self.add_contact_forces(contacts, &saved.state.positions, params, inertia_scale(params), residual, hessian);
         stopwatch.lap(Part::Collisions);
         if regularisation > 0.0 {
             hessian.scale_diagonal(1.0 + regularisation);
@@ -456,7 +426,7 @@ impl Rod {
         } = workspace;
         let beta = params.internal_damping;
         // On the first iteration the iterate is where the strand was carried: nothing to damp yet.
-        let damped = beta > 0.0 && (self.positions != *carried_positions || self.twist != *carried_twist);
+        let damped = beta > 0.0 && (self.state.positions != *carried_positions || self.state.twist != *carried_twist);
         // Sized on every iteration (a no-op once grown), so that no later step allocates.
         displacement.resize(size, 0.0);
         damping_force.resize(size, 0.0);
@@ -464,11 +434,11 @@ impl Rod {
             return;
         }
         for node in 0..self.node_count() {
-            let offset = self.positions[node] - carried_positions[node];
+            let offset = self.state.positions[node] - carried_positions[node];
             displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
         }
         for edge in 0..self.edge_count() {
-            displacement[twist_dof(edge)] = self.twist[edge] - carried_twist[edge];
+            displacement[twist_dof(edge)] = self.state.twist[edge] - carried_twist[edge];
         }
         hessian.multiply(displacement, damping_force);
         let damped_scale = damped_scale(params);
@@ -479,7 +449,7 @@ impl Rod {
                 DVec3::from_slice(&displacement[node_dof(edge + 1)..node_dof(edge + 1) + 3])
                     - DVec3::from_slice(&displacement[node_dof(edge)..node_dof(edge) + 3]),
             );
-            let correction = axial_stiffness / self.rest_lengths[edge]
+            let correction = axial_stiffness / self.rest.lengths[edge]
                 * (geometry.length - carried_length - linearised)
                 * geometry.tangent;
             for axis in 0..3 {
@@ -506,13 +476,13 @@ impl Rod {
         let (dt, gamma) = (params.dt, params.air_damping);
         let inertia_scale = inertia_scale(params);
         for node in 0..self.node_count() {
-            let mass = self.masses[node];
+            let mass = self.inertia.masses[node];
             let mut force = mass * params.gravity;
             if let Some(forces) = external_forces {
                 force += forces[node];
             }
-            let offset = self.positions[node] - saved.positions[node];
-            let inertial = mass / (dt * dt) * (offset - dt * saved.velocities[node]) + gamma * mass / dt * offset;
+            let offset = self.state.positions[node] - saved.state.positions[node];
+            let inertial = mass / (dt * dt) * (offset - dt * saved.state.velocities[node]) + gamma * mass / dt * offset;
             let residual_node = inertial - force;
             for axis in 0..3 {
                 let dof = node_dof(node) + axis;
@@ -521,11 +491,11 @@ impl Rod {
             }
         }
         for edge in 0..self.edge_count() {
-            let inertia = self.twist_inertias[edge];
-            let offset = self.twist[edge] - saved.twist[edge];
+            let inertia = self.inertia.twist_inertias[edge];
+            let offset = self.state.twist[edge] - saved.state.twist[edge];
             let dof = twist_dof(edge);
             residual[dof] +=
-                inertia / (dt * dt) * (offset - dt * saved.twist_rates[edge]) + gamma * inertia / dt * offset;
+                inertia / (dt * dt) * (offset - dt * saved.state.twist_rates[edge]) + gamma * inertia / dt * offset;
             hessian.add(dof, dof, inertia * inertia_scale);
         }
     }
@@ -538,8 +508,8 @@ impl Rod {
         prescribed.clear();
         prescribed.resize(size, 0.0);
         for node in 0..self.node_count() {
-            if let Some(target) = self.node_targets[node] {
-                let offset = target - self.positions[node];
+            if let Some(target) = self.constraints.node_targets[node] {
+                let offset = target - self.state.positions[node];
                 prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
             }
         }
@@ -558,9 +528,11 @@ impl Rod {
             }
         }
         let prescribed_dofs = (0..self.node_count())
-            .filter(|&node| self.node_targets[node].is_some())
+            .filter(|&node| self.constraints.node_targets[node].is_some())
             .flat_map(|node| node_dof(node)..node_dof(node) + 3)
-            .chain((0..self.edge_count()).filter(|&edge| self.twist_targets[edge].is_some()).map(twist_dof));
+            .chain(
+                (0..self.edge_count()).filter(|&edge| self.constraints.twist_targets[edge].is_some()).map(twist_dof),
+            );
         for dof in prescribed_dofs {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];
@@ -580,12 +552,15 @@ impl Rod {
         hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
-        let contacts_changed = self.update_contacts(contacts, &saved.positions, params, inertia_scale, node_update);
+        let contacts_changed =
+            self.update_contacts(contacts, &saved.state.positions, params, inertia_scale, node_update);
         stopwatch.lap(Part::Collisions);
         let largest_turn = (0..self.edge_count())
-            .filter(|&edge| self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none())
+            .filter(|&edge| {
+                self.constraints.node_targets[edge].is_none() || self.constraints.node_targets[edge + 1].is_none()
+            })
             .map(|edge| {
-                let e = self.positions[edge + 1] - self.positions[edge];
+                let e = self.state.positions[edge + 1] - self.state.positions[edge];
                 let change = node_update(edge + 1) - node_update(edge);
                 let along = change.dot(e) / e.length_squared();
                 // Turning, and shrinking towards a fold, both count as turning.
@@ -603,17 +578,17 @@ impl Rod {
         let target_lengths = &mut projection.target_lengths;
         target_lengths.clear();
         target_lengths.extend((0..self.edge_count()).map(|edge| {
-            let e = self.positions[edge + 1] - self.positions[edge];
+            let e = self.state.positions[edge + 1] - self.state.positions[edge];
             let change = fraction * (node_update(edge + 1) - node_update(edge));
-            let rest = self.rest_lengths[edge];
+            let rest = self.rest.lengths[edge];
             let allowance = params.strain_allowance * rest;
             (e.length() + change.dot(e) / e.length()).clamp(rest - allowance, rest + allowance)
         }));
         for node in 0..self.node_count() {
-            self.positions[node] += fraction * node_update(node);
+            self.state.positions[node] += fraction * node_update(node);
         }
         for edge in 0..self.edge_count() {
-            self.twist[edge] += fraction * residual[twist_dof(edge)];
+            self.state.twist[edge] += fraction * residual[twist_dof(edge)];
         }
         // The frames are refreshed once the projection has moved the nodes (see `integrate`).
         stopwatch.lap(Part::Solve);

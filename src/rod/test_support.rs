@@ -44,10 +44,10 @@ pub fn random_strand(random: &mut Lcg, edges: usize) -> Rod {
         rod.set_rest_twist(vertex, random.next()).unwrap();
     }
     for edge in 0..edges {
-        rod.twist[edge] = 2.0 * random.next();
+        rod.state.twist[edge] = 2.0 * random.next();
     }
     for node in 0..=edges {
-        rod.positions[node] += 0.002 * random.vector();
+        rod.state.positions[node] += 0.002 * random.vector();
     }
     rod.refresh_frames();
     rod

@@ -11,9 +11,9 @@ const TOLERANCE: f64 = 1e-5;
 fn perturbed(rod: &Rod, dof: usize, delta: f64) -> Rod {
     let mut moved = rod.clone();
     if dof % 4 == 3 {
-        moved.twist[dof / 4] += delta;
+        moved.state.twist[dof / 4] += delta;
     } else {
-        moved.positions[dof / 4][dof % 4] += delta;
+        moved.state.positions[dof / 4][dof % 4] += delta;
     }
     moved.refresh_frames();
     moved
@@ -94,7 +94,7 @@ fn curvature_and_twist_jacobians_match_finite_differences() {
     let mut edges = Vec::new();
     edge_geometry(&rod, &mut edges);
     for vertex in 1..rod.edge_count() {
-        let twist = rod.twist[vertex] - rod.twist[vertex - 1] + rod.reference_twist[vertex];
+        let twist = rod.state.twist[vertex] - rod.state.twist[vertex - 1] + rod.frames.reference_twist[vertex];
         let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist);
         let (kappa, tau) = rod.vertex_curvature_and_twist(vertex);
         assert!((strain.kappa - kappa).length() < 1e-14 && (strain.twist - tau).abs() < 1e-14);
@@ -122,10 +122,10 @@ fn stretching_hessian_matches_finite_differences_of_the_gradient() {
     let mut random = Lcg(23);
     let mut rod = only(random_strand(&mut random, 5), "stretching");
     // Stretch every edge by 30 %, so the transverse part is not clipped and the Hessian is exact.
-    let edges_before: Vec<DVec3> = rod.positions.windows(2).map(|pair| pair[1] - pair[0]).collect();
+    let edges_before: Vec<DVec3> = rod.state.positions.windows(2).map(|pair| pair[1] - pair[0]).collect();
     for (edge, e) in edges_before.iter().enumerate() {
-        let rest = rod.rest_lengths[edge];
-        rod.positions[edge + 1] = rod.positions[edge] + 1.3 * rest * e.normalize();
+        let rest = rod.rest.lengths[edge];
+        rod.state.positions[edge + 1] = rod.state.positions[edge] + 1.3 * rest * e.normalize();
     }
     rod.refresh_frames();
     let size = dof_count(rod.node_count());
@@ -164,9 +164,9 @@ fn gauss_newton_hessian_is_the_jacobian_product() {
         let mut moved = rod.clone();
         for (dof, d) in direction.iter().enumerate() {
             if dof % 4 == 3 {
-                moved.twist[dof / 4] += sign * h * d;
+                moved.state.twist[dof / 4] += sign * h * d;
             } else {
-                moved.positions[dof / 4][dof % 4] += sign * h * d;
+                moved.state.positions[dof / 4][dof % 4] += sign * h * d;
             }
         }
         moved.refresh_frames();
@@ -179,7 +179,7 @@ fn gauss_newton_hessian_is_the_jacobian_product() {
             let rate =
                 (plus.vertex_curvature_and_twist(vertex).0 - minus.vertex_curvature_and_twist(vertex).0) / (2.0 * h);
             (stiffness.bending_1 * rate.x * rate.x + stiffness.bending_2 * rate.y * rate.y)
-                / rod.voronoi_lengths[vertex]
+                / rod.rest.voronoi_lengths[vertex]
         })
         .sum();
     assert!((analytic - numeric).abs() < TOLERANCE * numeric.abs(), "{analytic} vs {numeric}");

@@ -1,0 +1,192 @@
+//! The groups of data a [`Rod`] is made of: its motion ([`RodState`]), its reference frames
+//! ([`RodFrames`]), its rest shape ([`RestShape`]), its mass ([`RodInertia`]) and its boundary conditions
+//! ([`RodConstraints`]). A step reads the rest shape, inertia and constraints and advances the state and
+//! the frames; [`RodSnapshot`] is those two, which is all a step starts from.
+
+use bevy::math::{DVec2, DVec3};
+use bevy::reflect::{Reflect, std_traits::ReflectDefault};
+
+use super::copy_into;
+use super::curve::Rod;
+use super::error::RodError;
+
+/// What a step advances, besides the frames: node positions and velocities, edge twists and their rates.
+/// Indexed by node (`n + 1` entries) or by edge (`n`).
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RodState {
+    /// Node positions `x_i`, m.
+    pub positions: Vec<DVec3>,
+    /// Node velocities, m/s.
+    pub velocities: Vec<DVec3>,
+    /// Twist angle `θ^i` of each edge's material frame from its reference frame, rad.
+    pub twist: Vec<f64>,
+    /// `dθ^i/dt` of each edge, rad/s.
+    pub twist_rates: Vec<f64>,
+    /// Normal force on each node from its colliders at the end of the last step, N: friction's lagged
+    /// normal force, so that a node resting since then has friction from its first Newton iteration.
+    pub contact_normal_forces: Vec<f64>,
+}
+
+/// Each edge's reference frame, kept adapted to the edge by time-parallel transport (Bergou et al. 2008,
+/// §4.2), and the reference twist between consecutive frames. History matters here: the frames a step
+/// ends with depend on those it started from.
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RodFrames {
+    /// Unit tangent `t^i` of each edge.
+    pub tangents: Vec<DVec3>,
+    /// Reference director `u^i` of each edge: unit, perpendicular to its tangent.
+    pub reference_directors: Vec<DVec3>,
+    /// Reference twist `m_i` at each vertex (integrated, rad; ends unused): the angle between `u^{i−1}`
+    /// carried onto edge `i` and `u^i`, continued from step to step so that it does not wrap at ±π.
+    pub reference_twist: Vec<f64>,
+}
+
+/// The shape a rod has no elastic energy in: rest edge lengths, and the rest curvature and twist of each
+/// interior vertex (Bergou et al. 2008, §4.1–4.2). Arrays indexed by vertex have one entry per node, the
+/// two ends unused.
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RestShape {
+    /// Rest length `|ē^i|` of each edge, m.
+    pub lengths: Vec<f64>,
+    /// Voronoi length `l_i = (|ē^{i−1}| + |ē^i|)/2` of each node (half an edge at the ends), m.
+    pub voronoi_lengths: Vec<f64>,
+    /// Rest material curvature `(κ̄₁, κ̄₂)` of each vertex (integrated, dimensionless).
+    pub curvatures: Vec<DVec2>,
+    /// Rest twist `τ̄` of each vertex (integrated, rad).
+    pub twists: Vec<f64>,
+}
+
+/// The rod's lumped mass: what its material's density gives its Voronoi lengths and edges.
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RodInertia {
+    /// Node masses `ρ A l_i`, kg.
+    pub masses: Vec<f64>,
+    /// Each edge's moment of inertia about its own axis, `ρ J |ē^i|`, kg·m².
+    pub twist_inertias: Vec<f64>,
+}
+
+/// The rod's boundary conditions: prescribed node positions and clamped edge twists.
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RodConstraints {
+    /// Where each node is held, m; `None` where it is free.
+    pub node_targets: Vec<Option<DVec3>>,
+    /// The direction each clamped edge's `m1` is turned to; `None` where the twist is free.
+    pub twist_targets: Vec<Option<DVec3>>,
+}
+
+/// Everything a step starts from that it changes: the state and the frames. Restoring a snapshot taken
+/// after step `k` makes the following steps repeat steps `k + 1, …` bit for bit (with the same inputs).
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct RodSnapshot {
+    /// Positions, velocities, twists.
+    pub state: RodState,
+    /// Reference frames and twists.
+    pub frames: RodFrames,
+}
+
+impl RodState {
+    /// Copies `source` into `self`, reusing its memory (a derived `clone_from` would allocate).
+    pub fn copy_from(&mut self, source: &Self) {
+        copy_into(&mut self.positions, &source.positions);
+        copy_into(&mut self.velocities, &source.velocities);
+        copy_into(&mut self.twist, &source.twist);
+        copy_into(&mut self.twist_rates, &source.twist_rates);
+        copy_into(&mut self.contact_normal_forces, &source.contact_normal_forces);
+    }
+}
+
+impl RodFrames {
+    /// Copies `source` into `self`, reusing its memory.
+    pub fn copy_from(&mut self, source: &Self) {
+        copy_into(&mut self.tangents, &source.tangents);
+        copy_into(&mut self.reference_directors, &source.reference_directors);
+        copy_into(&mut self.reference_twist, &source.reference_twist);
+    }
+}
+
+impl RodSnapshot {
+    /// Copies `rod`'s state and frames into `self`, reusing its memory.
+    pub fn save(&mut self, rod: &Rod) {
+        self.state.copy_from(&rod.state);
+        self.frames.copy_from(&rod.frames);
+    }
+
+    /// Number of nodes the snapshot was taken of.
+    pub fn node_count(&self) -> usize {
+        self.state.positions.len()
+    }
+
+    /// Whether every array has the length a rod of `nodes` nodes needs.
+    fn fits(&self, nodes: usize) -> bool {
+        let (state, frames) = (&self.state, &self.frames);
+        let edges = nodes.saturating_sub(1);
+        [state.positions.len(), state.velocities.len(), state.contact_normal_forces.len(), frames.reference_twist.len()]
+            .iter()
+            .all(|&len| len == nodes)
+            && [state.twist.len(), state.twist_rates.len(), frames.tangents.len(), frames.reference_directors.len()]
+                .iter()
+                .all(|&len| len == edges)
+    }
+}
+
+impl Rod {
+    /// The rod's motion: positions, velocities, twists.
+    pub fn state(&self) -> &RodState {
+        &self.state
+    }
+
+    /// The edges' reference frames and the reference twists.
+    pub fn frames(&self) -> &RodFrames {
+        &self.frames
+    }
+
+    /// The rest shape: rest lengths, curvatures and twists.
+    pub fn rest_shape(&self) -> &RestShape {
+        &self.rest
+    }
+
+    /// The lumped masses and spin inertias.
+    pub fn inertia(&self) -> &RodInertia {
+        &self.inertia
+    }
+
+    /// The boundary conditions.
+    pub fn constraints(&self) -> &RodConstraints {
+        &self.constraints
+    }
+
+    /// A copy of what the next step starts from (see [`RodSnapshot`]).
+    pub fn snapshot(&self) -> RodSnapshot {
+        RodSnapshot { state: self.state.clone(), frames: self.frames.clone() }
+    }
+
+    /// Puts `snapshot` back: the following steps repeat those that followed it, bit for bit. Rejects a
+    /// snapshot of a rod with another number of nodes (the rod is then unchanged); a snapshot with
+    /// non-finite values is accepted here and reported by the next step as
+    /// [`crate::rod::StepError::UnusableState`].
+    pub fn restore(&mut self, snapshot: &RodSnapshot) -> Result<(), RodError> {
+        if !snapshot.fits(self.node_count()) {
+            return Err(RodError::SnapshotMismatch { nodes: self.node_count(), snapshot_nodes: snapshot.node_count() });
+        }
+        self.state.copy_from(&snapshot.state);
+        self.frames.copy_from(&snapshot.frames);
+        Ok(())
+    }
+
+    /// Puts the configuration of `snapshot` back (positions, twists, frames), at rest: the step's own
+    /// roll-back after a failure. `snapshot` was saved from this rod.
+    pub(crate) fn restore_at_rest(&mut self, snapshot: &RodSnapshot) {
+        copy_into(&mut self.state.positions, &snapshot.state.positions);
+        copy_into(&mut self.state.twist, &snapshot.state.twist);
+        self.frames.copy_from(&snapshot.frames);
+        self.state.velocities.fill(DVec3::ZERO);
+        self.state.twist_rates.fill(0.0);
+        self.state.contact_normal_forces.fill(0.0);
+    }
+}
