@@ -256,7 +256,7 @@ fn spawn_scene(
     }
     // The hair rests on the skull, face, neck, shoulders and torso: each mesh carries a collider of its
     // shape (the unit spheres scaled into ellipsoids by their transforms), tied to the head.
-    let collider = |shape: HairCollider| (shape, ColliderOf(head));
+    let collider = |shape: HairCollider| (shape, HairColliderOf(head));
     let ellipsoid = |semi_axes: Vec3, centre: Vec3| Transform::from_translation(centre).with_scale(semi_axes);
     commands.entity(body).with_children(|body| {
         body.spawn((

@@ -3,7 +3,7 @@
 //!
 //! Put a [`HairCollider`] on any entity; it moves with the entity's transform (through its parents).
 //! Which strands meet it:
-//! - a collider with [`ColliderOf`] belongs to that head: its strands meet it, other heads' do not;
+//! - a collider with [`HairColliderOf`] belongs to that head: its strands meet it, other heads' do not;
 //! - a collider with no head (a floor, a wall), or one marked [`SharedHairCollider`], is met by every
 //!   strand, free strands too;
 //! - a head's [`HairCollisionFilter`] adds other heads' colliders and leaves out any collider.
@@ -23,7 +23,7 @@ use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use crate::head::{HairHead, HeadPose, HeadStrands, StrandOf};
+use crate::head::{HairHead, HeadStrands, ScaledPose, StrandOf};
 use crate::rod::{ColliderShape, MovingCollider, RigidPose};
 use crate::settings::HairSettings;
 
@@ -37,7 +37,7 @@ use crate::settings::HairSettings;
 /// # let mut world = World::new();
 /// let head = world.spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
 /// // The skull, on the head; a floor that every strand meets.
-/// world.spawn((HairCollider::ellipsoid(Vec3::new(0.078, 0.095, 0.1)), ColliderOf(head), ChildOf(head)));
+/// world.spawn((HairCollider::ellipsoid(Vec3::new(0.078, 0.095, 0.1)), HairColliderOf(head), ChildOf(head)));
 /// world.spawn(HairCollider::plane().with_friction(0.6));
 /// ```
 #[derive(Component, Reflect, Debug, Clone, Copy, PartialEq)]
@@ -95,12 +95,12 @@ impl HairCollider {
 #[derive(Component, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
 #[reflect(Component, Debug, PartialEq, Clone)]
 #[relationship(relationship_target = HeadColliders)]
-pub struct ColliderOf(pub Entity);
+pub struct HairColliderOf(pub Entity);
 
-/// The colliders tied to a head with [`ColliderOf`], kept by Bevy.
+/// The colliders tied to a head with [`HairColliderOf`], kept by Bevy.
 #[derive(Component, Reflect, Debug, Default, PartialEq, Eq)]
 #[reflect(Component, Debug, Default)]
-#[relationship_target(relationship = ColliderOf)]
+#[relationship_target(relationship = HairColliderOf)]
 pub struct HeadColliders(Vec<Entity>);
 
 impl HeadColliders {
@@ -238,7 +238,7 @@ pub struct HairCollisionPlugin {
 impl Plugin for HairCollisionPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<HairCollider>()
-            .register_type::<ColliderOf>()
+            .register_type::<HairColliderOf>()
             .register_type::<HeadColliders>()
             .register_type::<SharedHairCollider>()
             .register_type::<HairCollisionFilter>()
@@ -272,7 +272,7 @@ pub(crate) fn track_colliders(
                 continue;
             }
         };
-        let HeadPose { translation, rotation, scale } = HeadPose::from(&transform);
+        let ScaledPose { translation, rotation, scale } = ScaledPose::from(&transform);
         let shape = collider.shape.scaled(scale);
         let friction = f64::from(collider.friction);
         let moving = MovingCollider::fixed(shape, friction, RigidPose::new(rotation, translation));
@@ -290,7 +290,7 @@ pub(crate) fn track_colliders(
 pub(crate) fn gather_colliders(
     mut heads: Query<(Entity, &mut HeadColliderSet, Option<&HairCollisionFilter>)>,
     mut shared_set: ResMut<SharedColliderSet>,
-    colliders: Query<(Entity, &ColliderMotion, Option<&ColliderOf>, Has<SharedHairCollider>)>,
+    colliders: Query<(Entity, &ColliderMotion, Option<&HairColliderOf>, Has<SharedHairCollider>)>,
     head_colliders: Query<&HeadColliders>,
 ) {
     shared_set.0.clear();
@@ -301,9 +301,10 @@ pub(crate) fn gather_colliders(
     }
     for (head, mut set, filter) in &mut heads {
         set.clear();
-        let excluded = |entity: Entity, of: Option<&ColliderOf>| {
+        let excluded = |entity: Entity, of: Option<&HairColliderOf>| {
             filter.is_some_and(|filter| {
-                filter.exclude.contains(&entity) || of.is_some_and(|&ColliderOf(owner)| filter.exclude.contains(&owner))
+                filter.exclude.contains(&entity)
+                    || of.is_some_and(|&HairColliderOf(owner)| filter.exclude.contains(&owner))
             })
         };
         let mut add = |entity: Entity| {

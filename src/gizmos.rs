@@ -7,7 +7,8 @@ use bevy::prelude::*;
 
 use crate::collision::ColliderMotion;
 use crate::rod::ColliderShape;
-use crate::strand::{Strand, StrandPose};
+use crate::strand::SimulatedStrand;
+use crate::strand_data::StrandNodes;
 
 /// The gizmo group hair is drawn in, with its colours. Change it (and the line width, depth bias, …) at
 /// run time through `GizmoConfigStore::config_mut::<HairGizmos>()`.
@@ -87,15 +88,15 @@ impl Plugin for HairGizmoPlugin {
 pub fn draw_strands(
     mut gizmos: Gizmos<HairGizmos>,
     fixed_time: Res<Time<Fixed>>,
-    strands: Query<&StrandPose, With<Strand>>,
+    strands: Query<&StrandNodes, With<SimulatedStrand>>,
 ) {
     let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
     let root = gizmos.config_ext.root_color.to_linear();
     let tip = gizmos.config_ext.tip_color.to_linear();
-    for pose in &strands {
-        let last = pose.current.len().saturating_sub(1).max(1) as f32;
-        let colors = (0..pose.current.len()).map(|node| root.mix(&tip, node as f32 / last));
-        gizmos.linestrip_gradient(pose.interpolated(alpha).zip(colors));
+    for nodes in &strands {
+        let last = nodes.positions.len().saturating_sub(1).max(1) as f32;
+        let colors = (0..nodes.positions.len()).map(|node| root.mix(&tip, node as f32 / last));
+        gizmos.linestrip_gradient(nodes.interpolated(alpha).zip(colors));
     }
 }
 

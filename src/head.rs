@@ -38,10 +38,11 @@ impl HeadStrands {
     }
 }
 
-/// A head's world pose in double precision: `x ↦ translation + rotation · (scale ⊙ x)`.
+/// A world pose with scale in double precision, `x ↦ translation + rotation · (scale ⊙ x)`: a head's, or a
+/// collider's.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Default, Clone, PartialEq)]
-pub struct HeadPose {
+pub(crate) struct ScaledPose {
     /// World position of the head's origin, m.
     pub translation: DVec3,
     /// World orientation.
@@ -50,20 +51,20 @@ pub struct HeadPose {
     pub scale: DVec3,
 }
 
-impl Default for HeadPose {
+impl Default for ScaledPose {
     fn default() -> Self {
         Self { translation: DVec3::ZERO, rotation: DQuat::IDENTITY, scale: DVec3::ONE }
     }
 }
 
-impl From<&GlobalTransform> for HeadPose {
+impl From<&GlobalTransform> for ScaledPose {
     fn from(transform: &GlobalTransform) -> Self {
         let (scale, rotation, translation) = transform.to_scale_rotation_translation();
         Self { translation: translation.as_dvec3(), rotation: rotation.as_dquat().normalize(), scale: scale.as_dvec3() }
     }
 }
 
-impl HeadPose {
+impl ScaledPose {
     /// World position of the head-local point `local`, m.
     pub fn transform_point(&self, local: DVec3) -> DVec3 {
         self.translation + self.rotation * (self.scale * local)
@@ -80,7 +81,7 @@ impl HeadPose {
 
     /// The rigid motion `(R, t)`, `x ↦ R x + t`, that carries what is attached to `self` along to `other`
     /// (scale changes are not followed).
-    pub fn rigid_motion_to(&self, other: &HeadPose) -> (DQuat, DVec3) {
+    pub fn rigid_motion_to(&self, other: &ScaledPose) -> (DQuat, DVec3) {
         let rotation = (other.rotation * self.rotation.inverse()).normalize();
         (rotation, other.translation - rotation * self.translation)
     }
@@ -91,17 +92,37 @@ impl HeadPose {
 #[reflect(Component, Debug, Default, Clone)]
 pub struct HeadMotion {
     /// Pose at the current step.
-    pub current: HeadPose,
+    pub(crate) current: ScaledPose,
     /// Pose at the previous step.
-    pub previous: HeadPose,
-    /// Whether the head moved farther than [`HairSettings::teleport_distance`] since the previous step; its
-    /// strands are then carried along rigidly instead of being whipped.
-    pub teleported: bool,
+    pub(crate) previous: ScaledPose,
+    /// Whether the head moved farther than [`HairSettings::teleport_distance`] since the previous step.
+    pub(crate) teleported: bool,
     tracked: bool,
 }
 
 impl HeadMotion {
-    fn advance(&mut self, pose: HeadPose, teleport_distance: f64) {
+    /// World position of the head's origin at this step, m.
+    pub fn translation(&self) -> Vec3 {
+        self.current.translation.as_vec3()
+    }
+
+    /// World orientation of the head at this step.
+    pub fn rotation(&self) -> Quat {
+        self.current.rotation.as_quat()
+    }
+
+    /// How far the head's origin moved since the previous step, m.
+    pub fn displacement(&self) -> Vec3 {
+        (self.current.translation - self.previous.translation).as_vec3()
+    }
+
+    /// Whether the head moved farther than [`HairSettings::teleport_distance`] since the previous step; its
+    /// strands were then carried along rigidly instead of being whipped.
+    pub fn teleported(&self) -> bool {
+        self.teleported
+    }
+
+    fn advance(&mut self, pose: ScaledPose, teleport_distance: f64) {
         self.previous = if self.tracked { self.current } else { pose };
         self.current = pose;
         self.teleported = self.tracked && pose.translation.distance(self.previous.translation) > teleport_distance;
@@ -117,7 +138,7 @@ pub(crate) fn track_heads(
     mut heads: Query<(Entity, &mut HeadMotion), With<HeadStrands>>,
 ) {
     for (head, mut motion) in &mut heads {
-        match transforms.compute_global_transform(head).map(|transform| HeadPose::from(&transform)) {
+        match transforms.compute_global_transform(head).map(|transform| ScaledPose::from(&transform)) {
             Ok(pose) if pose.is_usable() => motion.advance(pose, f64::from(settings.teleport_distance)),
             Ok(_) => warn_once!(
                 "hair head {head} has a non-finite or zero-scale transform; its strands keep their last root, and new ones wait"

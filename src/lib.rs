@@ -13,13 +13,14 @@ pub mod rod;
 pub mod settings;
 mod step;
 pub mod strand;
+pub mod strand_data;
 
 pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 
 /// The types most users need.
 pub mod prelude {
     pub use crate::collision::{
-        ColliderOf, HairCollider, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
+        HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
@@ -31,6 +32,9 @@ pub mod prelude {
     pub use crate::panel::HairPanelPlugin;
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
     pub use crate::settings::{HairPause, HairSettings, HairStatistics};
-    pub use crate::strand::{HairStrand, Strand, StrandFault, StrandForces, StrandHealth, StrandPose, StrandRejected};
+    pub use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandHealth, StrandRejected};
+    pub use crate::strand_data::{
+        EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, StrandSnapshot, StrandSnapshotData,
+    };
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

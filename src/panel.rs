@@ -13,7 +13,7 @@ use crate::gizmos::HairGizmos;
 use crate::groom::{HairGroom, HairStyle};
 use crate::rod::RodMaterial;
 use crate::settings::{HairPause, HairSettings, HairStatistics};
-use crate::strand::Strand;
+use crate::strand::SimulatedStrand;
 
 /// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], every
 /// head's [`HairGroom`] and the [`HairGizmos`] colours and collider drawing. Adds `EguiPlugin` when the
@@ -85,7 +85,7 @@ fn hair_panel(
     mut pause: ResMut<HairPause>,
     statistics: Res<HairStatistics>,
     gizmo_store: Option<ResMut<GizmoConfigStore>>,
-    mut strands: Query<&mut Strand>,
+    mut strands: Query<&mut SimulatedStrand>,
     mut grooms: Query<&mut HairGroom>,
     mut memory: Local<PanelMemory>,
 ) -> Result {

@@ -9,13 +9,14 @@ use crate::collision::HairCollisionPlugin;
 use crate::gizmos::HairGizmoPlugin;
 use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
 use crate::groom_file::GroomFilePlugin;
-use crate::head::{HairHead, HeadMotion, HeadPose, HeadStrands, StrandOf, track_heads};
+use crate::head::{HairHead, HeadMotion, HeadStrands, StrandOf, track_heads};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::step::{
-    StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping, write_poses,
+    StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping,
 };
-use crate::strand::{
-    HairStrand, RootAnchor, Strand, StrandFault, StrandForces, StrandPose, StrandRejected, build_strands,
+use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandRejected, build_strands};
+use crate::strand_data::{
+    EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits, write_strand_data,
 };
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
@@ -89,7 +90,7 @@ impl PluginGroup for HairPlugin {
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairSystems {
     /// Grows the hair of new or changed [`HairGroom`]s, builds strands from new or changed
-    /// [`HairStrand`]s, applies changed settings, decides whether this step runs (see [`HairPause`] and
+    /// [`HairStrand`]s, applies changed settings and edited [`StrandRestShape`]s, decides whether this step runs (see [`HairPause`] and
     /// [`HairSettings::max_steps_per_frame`]). Always runs.
     Prepare,
     /// Moves every strand's root edge to its anchor on its head, and records where every
@@ -102,7 +103,7 @@ pub enum HairSystems {
     Step,
     /// After the step: the place for checks of the new state and constraints of your own.
     PostStep,
-    /// Copies the simulated positions into the drawn [`StrandPose`]s.
+    /// Copies the simulated state into [`StrandNodes`] and [`StrandFrames`].
     Writeback,
 }
 
@@ -132,12 +133,13 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<StrandOf>()
             .register_type::<HeadStrands>()
             .register_type::<HeadMotion>()
-            .register_type::<HeadPose>()
             .register_type::<HairStrand>()
-            .register_type::<Strand>()
-            .register_type::<RootAnchor>()
+            .register_type::<SimulatedStrand>()
             .register_type::<StrandForces>()
-            .register_type::<StrandPose>()
+            .register_type::<StrandNodes>()
+            .register_type::<StrandFrames>()
+            .register_type::<EdgeFrame>()
+            .register_type::<StrandRestShape>()
             .register_type::<StrandRejected>()
             .register_type::<HairGroom>()
             .register_type::<GroomedStrand>()
@@ -178,12 +180,12 @@ impl Plugin for HairSimulationPlugin {
         .add_systems(
             schedule,
             (
-                (grow_groomed_hair, build_strands, apply_default_material, open_step)
+                (grow_groomed_hair, build_strands, apply_default_material, apply_rest_shape_edits, open_step)
                     .chain()
                     .in_set(HairSystems::Prepare),
                 (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
                 step_strands.in_set(HairSystems::Step),
-                write_poses.in_set(HairSystems::Writeback),
+                write_strand_data.in_set(HairSystems::Writeback),
             ),
         );
     }

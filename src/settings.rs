@@ -117,7 +117,7 @@ pub struct HairStatistics {
     /// Failed strand steps since start (each reported with a [`crate::strand::StrandFault`]).
     pub faults: u64,
     /// Strands in quarantine after the last step: they failed again soon after a failure, and are held in
-    /// their rest pose on their head, not stepped, until they are retried (see [`crate::strand::Strand`]).
+    /// their rest pose on their head, not stepped, until they are retried (see [`crate::strand::SimulatedStrand`]).
     pub quarantined: usize,
     /// Largest edge strain of any strand after the last step, dimensionless.
     pub max_strain: f64,

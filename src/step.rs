@@ -10,7 +10,7 @@ use crate::head::{HeadMotion, StrandOf};
 use crate::rod::{Contacts, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
-use crate::strand::{Strand, StrandFault, StrandForces, StrandPose};
+use crate::strand::{SimulatedStrand, StrandFault, StrandForces};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]
@@ -52,7 +52,7 @@ pub(crate) fn stepping(budget: Res<StepBudget>) -> bool {
 
 /// Gives strands that follow [`HairSettings::default_material`] its new value when it changes (an
 /// invalid one is reported by [`step_strands`], which pauses the hair until it is fixed).
-pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Query<(Entity, &mut Strand)>) {
+pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Query<(Entity, &mut SimulatedStrand)>) {
     if !settings.is_changed() || settings.default_material.validate().is_err() {
         return;
     }
@@ -66,7 +66,7 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
 /// teleported (a root that cannot follow is reported as the strand's fault at its step).
-pub(crate) fn pin_roots(mut strands: Query<(&mut Strand, &StrandOf)>, heads: Query<&HeadMotion>) {
+pub(crate) fn pin_roots(mut strands: Query<(&mut SimulatedStrand, &StrandOf)>, heads: Query<&HeadMotion>) {
     strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
         if let Ok(motion) = heads.get(head) {
             strand.follow_head(motion.current, motion.teleported);
@@ -156,14 +156,14 @@ impl FaultLog {
 }
 
 /// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
-/// with no head); a strand whose step fails is reset or quarantined (see [`Strand`]) and reported with
+/// with no head); a strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with
 /// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn step_strands(
     time: Res<Time>,
     settings: Res<HairSettings>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<(Entity, &mut Strand, &mut StrandForces, Option<&StrandOf>)>,
+    mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandForces, Option<&StrandOf>)>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
@@ -186,7 +186,7 @@ pub(crate) fn step_strands(
     let now = time.elapsed_secs_f64();
     strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
         let contacts =
-            Contacts { colliders: colliders.of(strand_of), thickness: strand.collision_thickness(collision_margin) };
+            Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
         threads.scope(|StepThread { workspace, tally }| {
             let outcome = strand.advance(now, &params, &forces, &contacts, workspace);
             forces.clear();
@@ -237,12 +237,4 @@ pub(crate) fn step_strands(
     statistics.contacts = contacts;
     statistics.mean_newton_iterations =
         if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };
-}
-
-/// Copies every strand's positions into its drawn [`StrandPose`].
-pub(crate) fn write_poses(mut strands: Query<(&mut Strand, &mut StrandPose)>) {
-    strands.par_iter_mut().for_each(|(mut strand, mut pose)| {
-        let snap = strand.take_snap();
-        pose.update(strand.rod().positions(), snap);
-    });
 }

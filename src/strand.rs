@@ -5,18 +5,19 @@ use bevy::math::{DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::head::{HeadPose, StrandOf};
+use crate::head::{ScaledPose, StrandOf};
 use crate::rod::{Contacts, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport};
 use crate::settings::HairSettings;
+use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
 
 /// A hair strand to simulate, as it is spawned. Add it (with [`StrandOf`] to root it on a head) and the
-/// plugin builds its simulated [`Strand`] at the next fixed step. Changing it (or its `StrandOf`) later
+/// plugin builds its simulated [`SimulatedStrand`] at the next fixed step. Changing it (or its `StrandOf`) later
 /// respawns the strand.
 ///
 /// The spawned shape is the rest shape: a curly strand spawned as a helix keeps its curls.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Clone, PartialEq)]
-#[require(StrandForces, StrandPose)]
+#[require(StrandForces, StrandNodes, StrandFrames, StrandRestShape)]
 pub struct HairStrand {
     /// Node positions, m: in the head's local space when the strand has a head ([`StrandOf`]), in world
     /// space otherwise. Node 0 is the root, node 1 ends the root edge that the head holds. At least 3.
@@ -115,7 +116,7 @@ pub struct StrandRejected {
 /// Where a strand's root edge is held in its head's local space, with its material frame.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Clone)]
-pub struct RootAnchor {
+pub(crate) struct RootAnchor {
     /// Root node, head-local, m (scaled with the head).
     pub position: DVec3,
     /// The root edge `x_1 − x_0`, head-local, m (turned with the head, never scaled).
@@ -126,7 +127,7 @@ pub struct RootAnchor {
 
 impl RootAnchor {
     /// World positions of the root edge's two nodes and its material direction, for a head at `pose`.
-    pub fn world(&self, pose: &HeadPose) -> (DVec3, DVec3, DVec3) {
+    pub(crate) fn world(&self, pose: &ScaledPose) -> (DVec3, DVec3, DVec3) {
         let root = pose.transform_point(self.position);
         (root, root + pose.rotation * self.edge, pose.rotation * self.material_direction)
     }
@@ -157,14 +158,14 @@ pub struct StrandHealth {
     pub quarantined_until: Option<f64>,
 }
 
-/// What [`Strand`]'s step did.
+/// What [`SimulatedStrand`]'s step did.
 #[derive(Debug, Clone, PartialEq)]
 pub(crate) enum StepOutcome {
     /// Stepped.
     Stepped(StepReport),
     /// In quarantine: held at its rest pose on its head, not stepped.
     Held,
-    /// The step failed (see [`Strand`]).
+    /// The step failed (see [`SimulatedStrand`]).
     Faulted {
         /// Why.
         error: StepError,
@@ -184,14 +185,14 @@ pub(crate) enum StepOutcome {
 /// (or, on invalid input such as a non-finite force, skips it). A strand that fails again within
 /// [`QUARANTINE_WINDOW`] of a failure is quarantined: held in its rest pose on its head, following the
 /// head, not stepped, for [`FIRST_QUARANTINE`] seconds, then retried; each further failure in the same
-/// episode doubles the wait, up to [`MAX_QUARANTINE`]. [`Strand::health`] has the record.
+/// episode doubles the wait, up to [`MAX_QUARANTINE`]. [`SimulatedStrand::health`] has the record.
 #[derive(Component, Reflect, Debug, Clone)]
 #[reflect(Component, Debug)]
-pub struct Strand {
+pub struct SimulatedStrand {
     rod: Rod,
     anchor: Option<RootAnchor>,
-    spawn_head: HeadPose,
-    head: HeadPose,
+    spawn_head: ScaledPose,
+    head: ScaledPose,
     follows_default_material: bool,
     collision_thickness: Option<f64>,
     last_report: Option<StepReport>,
@@ -202,11 +203,11 @@ pub struct Strand {
     pin_error: Option<RodError>,
 }
 
-impl Strand {
+impl SimulatedStrand {
     /// Builds the strand for `spec`, rooted on a head at `head` (world space when `None`).
-    pub fn spawn(
+    pub(crate) fn spawn(
         spec: &HairStrand,
-        head: Option<HeadPose>,
+        head: Option<ScaledPose>,
         default_material: &RodMaterial,
     ) -> Result<Self, StrandSpawnError> {
         let pose = head.unwrap_or_default();
@@ -254,20 +255,31 @@ impl Strand {
         &mut self.rod
     }
 
-    /// Where the root edge is held on the head, in the head's local space; `None` for a free strand.
-    pub fn anchor(&self) -> Option<&RootAnchor> {
-        self.anchor.as_ref()
-    }
-
-    /// The head's world pose at the last step (identity for a free strand).
-    pub fn head_pose(&self) -> &HeadPose {
-        &self.head
+    /// Gives the rod the rest shape `lengths`, `curvatures`, `twists` (see [`Rod::set_rest_shape`]); the
+    /// root edge's anchor on the head takes the new length of the root edge.
+    pub(crate) fn set_rest_shape(
+        &mut self,
+        lengths: &[f64],
+        curvatures: &[DVec2],
+        twists: &[f64],
+    ) -> Result<(), RodError> {
+        let old_root_length = self.rod.rest_lengths()[0];
+        self.rod.set_rest_shape(lengths, curvatures, twists)?;
+        if let Some(anchor) = &mut self.anchor {
+            anchor.edge *= lengths[0] / old_root_length;
+        }
+        Ok(())
     }
 
     /// Distance from the centre line that stays outside colliders, m, with a collision margin of
-    /// `margin` m: the strand's own [`HairStrand::collision_thickness`], or its larger semi-axis plus
-    /// `margin`.
-    pub fn collision_thickness(&self, margin: f64) -> f64 {
+    /// `margin` m ([`HairSettings::collision_margin`]): the strand's own
+    /// [`HairStrand::collision_thickness`], or its larger semi-axis plus `margin`.
+    pub fn collision_thickness(&self, margin: f32) -> f32 {
+        self.contact_thickness(f64::from(margin)) as f32
+    }
+
+    /// [`SimulatedStrand::collision_thickness`] in double precision, for the step.
+    pub(crate) fn contact_thickness(&self, margin: f64) -> f64 {
         let material = self.rod.material();
         self.collision_thickness.unwrap_or(material.semi_axis_1.max(material.semi_axis_2) + margin)
     }
@@ -282,7 +294,7 @@ impl Strand {
         &self.health
     }
 
-    /// Whether the strand is held in quarantine (see [`Strand`]).
+    /// Whether the strand is held in quarantine (see [`SimulatedStrand`]).
     pub fn is_quarantined(&self) -> bool {
         self.health.quarantined_until.is_some()
     }
@@ -300,7 +312,7 @@ impl Strand {
 
     /// Follows the head to `pose`: clamps the root edge to its anchor there. A teleported head carries the
     /// whole strand along rigidly first. A pose the root cannot follow is reported by the next step.
-    pub(crate) fn follow_head(&mut self, pose: HeadPose, teleported: bool) {
+    pub(crate) fn follow_head(&mut self, pose: ScaledPose, teleported: bool) {
         let Some(anchor) = self.anchor else {
             return;
         };
@@ -320,7 +332,7 @@ impl Strand {
     }
 
     /// Advances the strand by one step at simulated time `now` (s), kept outside the colliders of
-    /// `contacts`, with the calling thread's `workspace`; handles faults and quarantine (see [`Strand`]).
+    /// `contacts`, with the calling thread's `workspace`; handles faults and quarantine (see [`SimulatedStrand`]).
     pub(crate) fn advance(
         &mut self,
         now: f64,
@@ -412,9 +424,9 @@ impl StrandForces {
         self.active = true;
     }
 
-    /// The forces on each node, N (empty before the strand is built).
-    pub fn forces(&self) -> &[DVec3] {
-        &self.forces
+    /// The force on each node for the coming step, N (none before the strand is built).
+    pub fn forces(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
+        self.forces.iter().map(|force| force.as_vec3())
     }
 
     fn active(&self) -> Option<&[DVec3]> {
@@ -435,37 +447,10 @@ impl StrandForces {
     }
 }
 
-/// A strand's node positions at the last two steps, m, single precision: what is drawn, interpolated
-/// between steps.
-#[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
-#[reflect(Component, Debug, Default, Clone)]
-pub struct StrandPose {
-    /// Node positions after the previous step.
-    pub previous: Vec<Vec3>,
-    /// Node positions after the last step.
-    pub current: Vec<Vec3>,
-}
-
-impl StrandPose {
-    /// Node positions a fraction `alpha` (0 to 1) of the way from the previous step to the last.
-    pub fn interpolated(&self, alpha: f32) -> impl Iterator<Item = Vec3> + '_ {
-        self.previous.iter().zip(&self.current).map(move |(previous, current)| previous.lerp(*current, alpha))
-    }
-
-    pub(crate) fn update(&mut self, positions: &[DVec3], snap: bool) {
-        std::mem::swap(&mut self.previous, &mut self.current);
-        self.current.clear();
-        self.current.extend(positions.iter().map(|position| position.as_vec3()));
-        if snap || self.previous.len() != self.current.len() {
-            self.previous.clone_from(&self.current);
-        }
-    }
-}
-
 /// Sent when a strand's step fails: which strand and why. A diverged strand (non-finite, over-strained,
 /// degenerate) has been reset to its rest pose on its head; on invalid input (a non-finite force, a head
 /// pose its root cannot follow) the step was skipped. A strand that failed again soon after is also
-/// quarantined (see [`Strand`]). The other strands are not affected.
+/// quarantined (see [`SimulatedStrand`]). The other strands are not affected.
 #[derive(Message, Debug, Clone, PartialEq)]
 pub struct StrandFault {
     /// The strand entity.
@@ -485,11 +470,13 @@ type SpawnedStrands<'w, 's> = Query<
         Option<Ref<'static, StrandOf>>,
         Option<&'static StrandRejected>,
         &'static mut StrandForces,
-        &'static mut StrandPose,
+        &'static mut StrandNodes,
+        &'static mut StrandFrames,
+        &'static mut StrandRestShape,
     ),
 >;
 
-/// Builds the simulated [`Strand`] of every new or changed [`HairStrand`] (or one moved to another head
+/// Builds the simulated [`SimulatedStrand`] of every new or changed [`HairStrand`] (or one moved to another head
 /// by a new [`StrandOf`]); rejects invalid ones with an error message naming the entity and the reason.
 /// Rejected strands are tried again when [`HairSettings`] change (their default material may have been
 /// what was wrong).
@@ -499,7 +486,7 @@ pub(crate) fn build_strands(
     transforms: bevy::transform::helper::TransformHelper,
     mut strands: SpawnedStrands,
 ) {
-    for (entity, spec, strand_of, rejected, mut forces, mut pose) in &mut strands {
+    for (entity, spec, strand_of, rejected, mut forces, mut nodes, mut frames, mut rest_shape) in &mut strands {
         let changed = spec.is_changed() || strand_of.as_ref().is_some_and(Ref::is_changed);
         // An invalid default material is reported once, as invalid settings, not per strand; strands that
         // use it wait for it to be fixed before they are tried again.
@@ -514,15 +501,17 @@ pub(crate) fn build_strands(
                 transforms
                     .compute_global_transform(head)
                     .map_err(|error| error.to_string())
-                    .map(|transform| HeadPose::from(&transform))
+                    .map(|transform| ScaledPose::from(&transform))
                     .and_then(|pose| pose.is_usable().then_some(pose).ok_or("not finite, or of zero scale".to_string()))
                     .map_err(|reason| StrandSpawnError::Head { head, reason })
             })
             .transpose();
-        match head.and_then(|head| Strand::spawn(&spec, head, &settings.default_material)) {
+        match head.and_then(|head| SimulatedStrand::spawn(&spec, head, &settings.default_material)) {
             Ok(strand) => {
                 forces.resize(strand.rod.node_count());
-                pose.update(strand.rod.positions(), true);
+                nodes.update(strand.rod.state(), true);
+                frames.update(strand.rod.frames(), strand.rod.twist_angles());
+                rest_shape.update(&strand.rod);
                 commands.entity(entity).try_remove::<StrandRejected>().try_insert(strand);
             }
             Err(error) => {
@@ -533,7 +522,10 @@ pub(crate) fn build_strands(
                 if news && !waits_for_head && !settings_reported {
                     error!("hair strand {entity} rejected: {reason}");
                 }
-                commands.entity(entity).try_remove::<Strand>().try_insert(StrandRejected { reason, waits_for_head });
+                commands
+                    .entity(entity)
+                    .try_remove::<SimulatedStrand>()
+                    .try_insert(StrandRejected { reason, waits_for_head });
             }
         }
     }

@@ -35,7 +35,7 @@ fn allocations_per_update(strands: usize) -> u64 {
     let groom = HairGroom { strand_count: strands, segments: 32, ..default() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
     // The skull, on the head, and a shared floor that the hair does not reach.
-    app.world_mut().spawn((HairCollider::sphere(0.1), ColliderOf(head), ChildOf(head)));
+    app.world_mut().spawn((HairCollider::sphere(0.1), HairColliderOf(head), ChildOf(head)));
     app.world_mut().spawn(HairCollider::plane());
     let mut step = 0;
     let mut run = |app: &mut App, updates: usize| {

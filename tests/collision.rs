@@ -37,12 +37,12 @@ fn depth(app: &App, entity: Entity, thickness: f64, point: DVec3) -> f64 {
 
 /// The deepest free node of `strands` inside `collider`, m.
 fn deepest_node(app: &App, strands: &[Entity], collider: Entity) -> f64 {
-    let margin = f64::from(app.world().resource::<HairSettings>().collision_margin);
+    let margin = app.world().resource::<HairSettings>().collision_margin;
     strands
         .iter()
         .flat_map(|&entity| {
             let strand = strand(app, entity);
-            let thickness = strand.collision_thickness(margin);
+            let thickness = f64::from(strand.collision_thickness(margin));
             let rod = strand.rod();
             (0..rod.node_count())
                 .filter(|&node| !rod.is_node_prescribed(node))
@@ -57,12 +57,13 @@ fn hair_on_a_head_spun_at_2_rev_per_s_and_shaken_at_5_m_per_s_stays_outside_its_
     let scalp = Scalp { semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() };
     let groom = HairGroom { scalp, strand_count: 500, segments: 16, ..default() };
     let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
-    let skull = app.world_mut().spawn((HairCollider::ellipsoid(scalp.semi_axes), ColliderOf(head), ChildOf(head))).id();
+    let skull =
+        app.world_mut().spawn((HairCollider::ellipsoid(scalp.semi_axes), HairColliderOf(head), ChildOf(head))).id();
     let neck = app
         .world_mut()
         .spawn((
             HairCollider::capsule(0.045, 0.06),
-            ColliderOf(head),
+            HairColliderOf(head),
             ChildOf(head),
             Transform::from_xyz(0.0, -0.13, 0.0),
         ))
@@ -113,7 +114,8 @@ fn strand_over_another_heads_ball() -> (App, Entity, Entity, Entity, Entity) {
     let strand =
         app.world_mut().spawn((HairStrand::straight(Vec3::new(0.0, 0.3, 0.0), Vec3::X, 0.2, 16), StrandOf(head))).id();
     let other_head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.08, 0.2, 0.0))).id();
-    let ball = app.world_mut().spawn((HairCollider::sphere(0.04), ColliderOf(other_head), ChildOf(other_head))).id();
+    let ball =
+        app.world_mut().spawn((HairCollider::sphere(0.04), HairColliderOf(other_head), ChildOf(other_head))).id();
     (app, strand, ball, head, other_head)
 }
 

@@ -1,5 +1,5 @@
 //! Every control of the example's panel changes what the simulation does: the test writes the same
-//! resources and components the panel writes (`HairSettings`, `HairPause`, `HairGroom`, `Strand`) and
+//! resources and components the panel writes (`HairSettings`, `HairPause`, `HairGroom`, `SimulatedStrand`) and
 //! checks the effect against an unchanged run.
 
 mod common;
@@ -131,7 +131,7 @@ fn groom_count_segments_and_style_respawn_the_hair() {
     app.update();
     let statistics = app.world().resource::<HairStatistics>();
     assert_eq!((statistics.strands, statistics.nodes), (46, 45 * 11 + 5));
-    assert!(app.world().get::<Strand>(hand_made).is_some(), "a strand spawned by hand is kept");
+    assert!(app.world().get::<SimulatedStrand>(hand_made).is_some(), "a strand spawned by hand is kept");
 
     // Curly hair keeps its curls while the head moves: its bending stays near its rest curvature, far
     // above what straight hair bends to in the same motion.
@@ -234,7 +234,7 @@ fn pause_single_step_and_reset() {
 
     // The panel's reset button: every strand back in its rest pose, at rest.
     for &entity in &strands {
-        app.world_mut().get_mut::<Strand>(entity).unwrap().reset_to_rest();
+        app.world_mut().get_mut::<SimulatedStrand>(entity).unwrap().reset_to_rest();
     }
     for (&entity, rest) in strands.iter().zip(&rest) {
         let rod = strand(&app, entity).rod();

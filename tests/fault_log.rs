@@ -14,7 +14,7 @@ use common::logs;
 #[derive(Resource, Default)]
 struct Poisoned(Vec<Entity>);
 
-fn poison(poisoned: Res<Poisoned>, mut strands: Query<&mut Strand>) {
+fn poison(poisoned: Res<Poisoned>, mut strands: Query<&mut SimulatedStrand>) {
     for &entity in &poisoned.0 {
         if let Ok(mut strand) = strands.get_mut(entity) {
             strand.rod_mut().positions_mut()[5] = DVec3::NAN;

@@ -394,7 +394,7 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
         let velocity = (unit_vector(&mut rng) * log_uniform(&mut rng, -2.0, 0.5)).as_vec3();
         let mut entity = app.world_mut().spawn((collider, Transform::from_translation(position)));
         if rng.bool() {
-            entity.insert(ColliderOf(head));
+            entity.insert(HairColliderOf(head));
         }
         colliders.push((entity.id(), velocity));
     }
@@ -457,7 +457,8 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
             settings_valid = true;
         }
         // Strands: forces (huge, non-finite), written states, respawns, despawns, new ones.
-        let strands: Vec<Entity> = app.world_mut().query_filtered::<Entity, With<Strand>>().iter(app.world()).collect();
+        let strands: Vec<Entity> =
+            app.world_mut().query_filtered::<Entity, With<SimulatedStrand>>().iter(app.world()).collect();
         for &entity in &strands {
             let event = rng.f64();
             let world = app.world_mut();
@@ -466,7 +467,7 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
             } else if event < 0.06 {
                 world.get_mut::<StrandForces>(entity).unwrap().add_to_all(Vec3::new(1e6, f32::NAN, 0.0));
             } else if event < 0.065 && settings_valid {
-                let mut strand = world.get_mut::<Strand>(entity).unwrap();
+                let mut strand = world.get_mut::<SimulatedStrand>(entity).unwrap();
                 let node = rng.usize(..strand.rod().node_count());
                 strand.rod_mut().positions_mut()[node] = DVec3::NAN;
             } else if event < 0.07 {
@@ -497,7 +498,7 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
         let statistics = app.world().resource::<HairStatistics>().clone();
         tally.largest_quarantined = tally.largest_quarantined.max(statistics.quarantined);
         let bound = StepParams::default().strain_bound();
-        let mut query = app.world_mut().query::<&Strand>();
+        let mut query = app.world_mut().query::<&SimulatedStrand>();
         for strand in query.iter(app.world()) {
             let rod = strand.rod();
             let finite = rod.positions().iter().chain(rod.velocities()).all(|v| v.is_finite())

@@ -240,7 +240,7 @@ fn a_groom_file_loaded_through_the_asset_server_follows_its_moving_head() {
     let strands = loop {
         app.update();
         let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).map_or(vec![], |s| s.strands().to_vec());
-        if strands.len() == 100 && strands.iter().all(|&e| app.world().get::<Strand>(e).is_some()) {
+        if strands.len() == 100 && strands.iter().all(|&e| app.world().get::<SimulatedStrand>(e).is_some()) {
             break strands;
         }
         assert!(started.elapsed().as_secs() < 10, "the groom did not load: {} strands", strands.len());

@@ -100,7 +100,7 @@ fn settings_changed_at_run_time_apply_at_the_next_step() {
 
 /// Number of entities with a simulated strand.
 fn simulated_strands(app: &mut App) -> usize {
-    app.world_mut().query::<&Strand>().iter(app.world()).count()
+    app.world_mut().query::<&SimulatedStrand>().iter(app.world()).count()
 }
 
 #[test]
@@ -181,9 +181,9 @@ fn every_strand_is_drawn_as_an_interpolated_line_strip() {
     let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
     assert!(alpha > 0.1 && alpha < 0.9, "the frame falls between steps ({alpha})");
     let drawn = gizmo_strips(&app);
-    let pose = app.world().get::<StrandPose>(strands[0]).unwrap();
-    let tip = pose.previous[10].lerp(pose.current[10], alpha);
-    assert!(pose.previous[10].distance(pose.current[10]) > 1e-5, "the tip moved during the step");
+    let pose = app.world().get::<StrandNodes>(strands[0]).unwrap();
+    let tip = pose.previous_positions[10].lerp(pose.positions[10], alpha);
+    assert!(pose.previous_positions[10].distance(pose.positions[10]) > 1e-5, "the tip moved during the step");
     assert!(drawn[10].distance(tip) < 1e-6, "tip drawn at {} instead of {tip}", drawn[10]);
 }
 

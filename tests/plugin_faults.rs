@@ -25,7 +25,7 @@ fn a_strand_poisoned_with_nan_is_reset_and_reported_and_its_neighbours_are_unaff
     let (mut clean, strands) = setup();
     let (mut poisoned, _) = setup();
     let victim = strands[3];
-    poisoned.world_mut().get_mut::<Strand>(victim).unwrap().rod_mut().positions_mut()[5] = DVec3::NAN;
+    poisoned.world_mut().get_mut::<SimulatedStrand>(victim).unwrap().rod_mut().positions_mut()[5] = DVec3::NAN;
     clean.update();
     poisoned.update();
 
@@ -135,9 +135,9 @@ fn invalid_strands_are_rejected_with_a_reason_and_the_rest_run() {
     for (entity, reason) in &rejected {
         let rejection = app.world().get::<StrandRejected>(*entity).expect("rejected");
         assert!(rejection.reason.contains(reason), "{entity}: {} should mention {reason}", rejection.reason);
-        assert!(app.world().get::<Strand>(*entity).is_none());
+        assert!(app.world().get::<SimulatedStrand>(*entity).is_none());
     }
-    assert!(app.world().get::<Strand>(good).is_some());
+    assert!(app.world().get::<SimulatedStrand>(good).is_some());
     assert_eq!(app.world().resource::<HairStatistics>().strands, 1);
 
     // Fixing the spawn description brings the strand to life.
@@ -145,5 +145,5 @@ fn invalid_strands_are_rejected_with_a_reason_and_the_rest_run() {
     app.world_mut().get_mut::<HairStrand>(fixed).unwrap().nodes.push(2.0 * Vec3::X);
     app.update();
     assert!(app.world().get::<StrandRejected>(fixed).is_none());
-    assert!(app.world().get::<Strand>(fixed).is_some());
+    assert!(app.world().get::<SimulatedStrand>(fixed).is_some());
 }

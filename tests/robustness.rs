@@ -77,7 +77,7 @@ fn a_ball_passing_through_the_scalp_and_jumping_onto_it_leaves_the_hair_running(
     let (mut app, strands) = groomed_head(
         |app, head| {
             let transform = Transform::from_xyz(-0.4, 1.7, 0.0);
-            ball = app.world_mut().spawn((HairCollider::sphere(0.08), ColliderOf(head), transform)).id();
+            ball = app.world_mut().spawn((HairCollider::sphere(0.08), HairColliderOf(head), transform)).id();
         },
         0,
     );
@@ -95,7 +95,7 @@ fn a_ball_passing_through_the_scalp_and_jumping_onto_it_leaves_the_hair_running(
 fn hair_rooted_on_a_collider_still_lies_on_it() {
     let mut app = hair_app();
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
-    app.world_mut().spawn((HairCollider::sphere(0.1), ColliderOf(head), ChildOf(head)));
+    app.world_mut().spawn((HairCollider::sphere(0.1), HairColliderOf(head), ChildOf(head)));
     // Eight 20 cm strands rooted on the crown of the 10 cm skull, growing out level in eight directions.
     let strands: Vec<Entity> = (0..8)
         .map(|i| {

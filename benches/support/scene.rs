@@ -72,12 +72,12 @@ impl Scene {
         for (collider, transform, on_head) in body_colliders().into_iter().take(count) {
             let world = self.app.world_mut();
             if on_head {
-                world.spawn((collider, transform, ColliderOf(head), ChildOf(head)));
+                world.spawn((collider, transform, HairColliderOf(head), ChildOf(head)));
             } else {
                 world.spawn((
                     collider,
                     transform.with_translation(head_position + transform.translation),
-                    ColliderOf(head),
+                    HairColliderOf(head),
                 ));
             }
         }

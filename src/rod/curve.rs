@@ -41,6 +41,33 @@ fn max_integrated_curvature() -> f64 {
     2.0 * (0.5 * MAX_TURNING_ANGLE).tan()
 }
 
+/// Rejects a rest curvature of `vertex` that is not finite, or whose magnitude `2 tan(φ/2)` asks the
+/// edges to turn by more than [`MAX_TURNING_ANGLE`].
+fn check_rest_curvature(vertex: usize, curvature: DVec2) -> Result<(), RodError> {
+    if !curvature.is_finite() {
+        return Err(RodError::NonFiniteRestShape { what: "curvature", vertex });
+    }
+    if curvature.length() > max_integrated_curvature() {
+        return Err(RodError::RestCurvatureTooLarge {
+            vertex,
+            turning_degrees: (2.0 * (0.5 * curvature.length()).atan()).to_degrees(),
+            limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
+        });
+    }
+    Ok(())
+}
+
+/// Rejects a rest twist of `vertex` that is not finite or beyond [`MAX_REST_TWIST`].
+fn check_rest_twist(vertex: usize, twist: f64) -> Result<(), RodError> {
+    if !twist.is_finite() {
+        return Err(RodError::NonFiniteRestShape { what: "twist", vertex });
+    }
+    if twist.abs() > MAX_REST_TWIST {
+        return Err(RodError::RestTwistTooLarge { vertex, twist, limit: MAX_REST_TWIST });
+    }
+    Ok(())
+}
+
 /// `direction` made perpendicular to the unit `tangent` and normalised, if it is finite and at least
 /// [`MIN_MATERIAL_DIRECTION_ANGLE`] away from the tangent's line.
 fn material_director(direction: DVec3, tangent: DVec3) -> Option<DVec3> {
@@ -297,16 +324,7 @@ impl Rod {
     /// more than [`MAX_TURNING_ANGLE`]; the rod is then unchanged.
     pub fn set_rest_curvature(&mut self, vertex: usize, curvature: DVec2) -> Result<(), RodError> {
         self.check_vertex(vertex)?;
-        if !curvature.is_finite() {
-            return Err(RodError::NonFiniteRestShape { what: "curvature", vertex });
-        }
-        if curvature.length() > max_integrated_curvature() {
-            return Err(RodError::RestCurvatureTooLarge {
-                vertex,
-                turning_degrees: (2.0 * (0.5 * curvature.length()).atan()).to_degrees(),
-                limit_degrees: MAX_TURNING_ANGLE.to_degrees(),
-            });
-        }
+        check_rest_curvature(vertex, curvature)?;
         self.rest.curvatures[vertex] = curvature;
         Ok(())
     }
@@ -315,14 +333,55 @@ impl Rod {
     /// beyond [`MAX_REST_TWIST`]; the rod is then unchanged.
     pub fn set_rest_twist(&mut self, vertex: usize, twist: f64) -> Result<(), RodError> {
         self.check_vertex(vertex)?;
-        if !twist.is_finite() {
-            return Err(RodError::NonFiniteRestShape { what: "twist", vertex });
-        }
-        if twist.abs() > MAX_REST_TWIST {
-            return Err(RodError::RestTwistTooLarge { vertex, twist, limit: MAX_REST_TWIST });
-        }
+        check_rest_twist(vertex, twist)?;
         self.rest.twists[vertex] = twist;
         Ok(())
+    }
+
+    /// Replaces the whole rest shape at once: rest edge lengths (m), rest curvatures and rest twists per
+    /// vertex (integrated; the two ends are ignored). Voronoi lengths, masses and spin inertias follow the
+    /// new lengths. All or nothing: rejects arrays of the wrong length, a non-finite entry, an edge shorter
+    /// than a millionth of the mean, a curvature or twist [`Rod::set_rest_curvature`] or
+    /// [`Rod::set_rest_twist`] would reject; the rod is then unchanged.
+    pub fn set_rest_shape(&mut self, lengths: &[f64], curvatures: &[DVec2], twists: &[f64]) -> Result<(), RodError> {
+        let (nodes, edges) = (self.node_count(), self.edge_count());
+        for (expected, actual) in [(edges, lengths.len()), (nodes, curvatures.len()), (nodes, twists.len())] {
+            if expected != actual {
+                return Err(RodError::WrongLength { expected, actual });
+            }
+        }
+        if let Some(edge) = lengths.iter().position(|length| !length.is_finite()) {
+            return Err(RodError::NonFiniteRestShape { what: "length", vertex: edge });
+        }
+        let minimum = MIN_RELATIVE_EDGE_LENGTH * lengths.iter().sum::<f64>() / edges as f64;
+        if let Some((edge, &length)) = lengths.iter().enumerate().find(|(_, length)| **length <= minimum) {
+            return Err(RodError::DegenerateEdge { edge, length, minimum });
+        }
+        for vertex in 1..edges {
+            check_rest_curvature(vertex, curvatures[vertex])?;
+            check_rest_twist(vertex, twists[vertex])?;
+        }
+        self.rest.lengths.copy_from_slice(lengths);
+        self.rest.curvatures[1..edges].copy_from_slice(&curvatures[1..edges]);
+        self.rest.twists[1..edges].copy_from_slice(&twists[1..edges]);
+        self.rest.voronoi_lengths.fill(0.0);
+        for (edge, &length) in lengths.iter().enumerate() {
+            self.rest.voronoi_lengths[edge] += 0.5 * length;
+            self.rest.voronoi_lengths[edge + 1] += 0.5 * length;
+        }
+        self.update_inertia();
+        Ok(())
+    }
+
+    /// Masses and spin inertias from the rest lengths and the material's stiffness (densities).
+    fn update_inertia(&mut self) {
+        let stiffness = &self.stiffness;
+        for (mass, length) in self.inertia.masses.iter_mut().zip(&self.rest.voronoi_lengths) {
+            *mass = stiffness.linear_density * length;
+        }
+        for (inertia, length) in self.inertia.twist_inertias.iter_mut().zip(&self.rest.lengths) {
+            *inertia = stiffness.twist_inertia_density * length;
+        }
     }
 
     /// Gives the whole rod a uniform natural curvature `(k₁, k₂)` in 1/m, in its material frame:
@@ -360,15 +419,9 @@ impl Rod {
     /// the current state stay. Rejects an invalid material and leaves the rod unchanged.
     pub fn set_material(&mut self, material: RodMaterial) -> Result<(), RodError> {
         material.validate()?;
-        let stiffness = material.stiffness();
-        for (mass, length) in self.inertia.masses.iter_mut().zip(&self.rest.voronoi_lengths) {
-            *mass = stiffness.linear_density * length;
-        }
-        for (inertia, length) in self.inertia.twist_inertias.iter_mut().zip(&self.rest.lengths) {
-            *inertia = stiffness.twist_inertia_density * length;
-        }
+        self.stiffness = material.stiffness();
+        self.update_inertia();
         self.material = material;
-        self.stiffness = stiffness;
         Ok(())
     }
 

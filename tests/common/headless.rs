@@ -49,8 +49,8 @@ pub fn spawn_head(app: &mut App, transform: Transform, count: usize, segments: u
 }
 
 /// The simulated strand of `entity`.
-pub fn strand(app: &App, entity: Entity) -> &Strand {
-    app.world().get::<Strand>(entity).unwrap_or_else(|| {
+pub fn strand(app: &App, entity: Entity) -> &SimulatedStrand {
+    app.world().get::<SimulatedStrand>(entity).unwrap_or_else(|| {
         let rejection = app.world().get::<StrandRejected>(entity);
         panic!("strand {entity} is not simulated: {rejection:?}")
     })
