@@ -9,7 +9,8 @@
 //! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style,
 //! C shows the colliders the hair rests on (skull, face, neck, shoulders, torso).
 //!
-//! Picture mode, for machines without a display (see `shared/visual-check.md`): render a number of frames
+//! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
+//! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
 //! of exactly 1/60 s each (one simulation step per frame, however slow the renderer; the panel's frame
 //! rate then reads this clock's 60), save a PNG with Bevy's screenshot API and exit.
 //!
