@@ -15,9 +15,7 @@ use crate::step::{
     StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping,
 };
 use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandRejected, build_strands};
-use crate::strand_data::{
-    EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits, write_strand_data,
-};
+use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits};
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
 /// ([`HairCollisionPlugin`]), drawing ([`HairGizmoPlugin`]) and groom files ([`GroomFilePlugin`]). Add
@@ -85,13 +83,14 @@ impl PluginGroup for HairPlugin {
 }
 
 /// The steps of hair simulation, run in this order once per fixed step. Order your own systems against
-/// them: add per-node forces in [`HairSystems::ExternalForces`], read results after
-/// [`HairSystems::PostStep`].
+/// them: edit strands before [`HairSystems::Prepare`] ends, add per-node forces in
+/// [`HairSystems::ExternalForces`], read results ([`StrandNodes`], [`StrandFrames`]) after
+/// [`HairSystems::Step`].
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairSystems {
     /// Grows the hair of new or changed [`HairGroom`]s, builds strands from new or changed
-    /// [`HairStrand`]s, applies changed settings and edited [`StrandRestShape`]s, decides whether this step runs (see [`HairPause`] and
-    /// [`HairSettings::max_steps_per_frame`]). Always runs.
+    /// [`HairStrand`]s, applies changed settings and edited [`StrandRestShape`]s, decides whether this
+    /// step runs (see [`HairPause`] and [`HairSettings::max_steps_per_frame`]). Always runs.
     Prepare,
     /// Moves every strand's root edge to its anchor on its head, and records where every
     /// [`crate::collision::HairCollider`] is.
@@ -99,12 +98,11 @@ pub enum HairSystems {
     /// Where users add [`StrandForces`]; gravity comes from [`HairSettings::gravity`].
     ExternalForces,
     /// Elastic forces (stretching, bending, twisting), contact with colliders and implicit integration of
-    /// every strand, in parallel; failed strands are reset and reported.
+    /// every strand, in parallel; failed strands are reset and reported. Each strand's [`StrandNodes`] and
+    /// [`StrandFrames`] are written as soon as it has stepped.
     Step,
     /// After the step: the place for checks of the new state and constraints of your own.
     PostStep,
-    /// Copies the simulated state into [`StrandNodes`] and [`StrandFrames`].
-    Writeback,
 }
 
 /// The hair simulation: strands as entities rooted on heads, stepped in a fixed-timestep schedule.
@@ -162,19 +160,12 @@ impl Plugin for HairSimulationPlugin {
                 HairSystems::ExternalForces,
                 HairSystems::Step,
                 HairSystems::PostStep,
-                HairSystems::Writeback,
             )
                 .chain(),
         )
         .configure_sets(
             schedule,
-            (
-                HairSystems::PinRoots,
-                HairSystems::ExternalForces,
-                HairSystems::Step,
-                HairSystems::PostStep,
-                HairSystems::Writeback,
-            )
+            (HairSystems::PinRoots, HairSystems::ExternalForces, HairSystems::Step, HairSystems::PostStep)
                 .run_if(stepping),
         )
         .add_systems(
@@ -185,7 +176,6 @@ impl Plugin for HairSimulationPlugin {
                     .in_set(HairSystems::Prepare),
                 (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
                 step_strands.in_set(HairSystems::Step),
-                write_strand_data.in_set(HairSystems::Writeback),
             ),
         );
     }

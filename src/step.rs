@@ -11,6 +11,7 @@ use crate::rod::{Contacts, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{SimulatedStrand, StrandFault, StrandForces};
+use crate::strand_data::{StrandFrames, StrandNodes, write_strand_data};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]
@@ -155,6 +156,16 @@ impl FaultLog {
     }
 }
 
+/// What [`step_strands`] reads and writes of each strand.
+type StepItem = (
+    Entity,
+    &'static mut SimulatedStrand,
+    &'static mut StrandForces,
+    &'static mut StrandNodes,
+    &'static mut StrandFrames,
+    Option<&'static StrandOf>,
+);
+
 /// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
 /// with no head); a strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with
 /// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on.
@@ -163,7 +174,7 @@ pub(crate) fn step_strands(
     time: Res<Time>,
     settings: Res<HairSettings>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandForces, Option<&StrandOf>)>,
+    mut strands: Query<StepItem>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
@@ -184,12 +195,14 @@ pub(crate) fn step_strands(
 
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
-    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, strand_of)| {
+    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
         threads.scope(|StepThread { workspace, tally }| {
             let outcome = strand.advance(now, &params, &forces, &contacts, workspace);
             forces.clear();
+            // Written here, while the strand is in this core's cache.
+            write_strand_data(&mut strand, &mut nodes, &mut frames);
             tally.strands += 1;
             tally.nodes += strand.rod().node_count();
             tally.quarantined += usize::from(strand.is_quarantined());

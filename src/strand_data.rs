@@ -3,7 +3,7 @@
 //! [`StrandSnapshot`], to save a strand and resume it later exactly.
 //!
 //! The simulation itself runs in double precision on [`SimulatedStrand`]'s rod; these components are
-//! written from it after every step ([`crate::HairSystems::Writeback`]), and edits of the rest shape are
+//! written from it by every step ([`crate::HairSystems::Step`]), and edits of the rest shape are
 //! read back into it before the next one ([`crate::HairSystems::Prepare`]).
 
 use bevy::ecs::query::QueryData;
@@ -219,14 +219,12 @@ impl StrandSnapshot {
     }
 }
 
-/// Copies every strand's simulated state into its [`StrandNodes`] and [`StrandFrames`].
-pub(crate) fn write_strand_data(mut strands: Query<(&mut SimulatedStrand, &mut StrandNodes, &mut StrandFrames)>) {
-    strands.par_iter_mut().for_each(|(mut strand, mut nodes, mut frames)| {
-        let snap = strand.take_snap();
-        let rod = strand.rod();
-        nodes.update(rod.state(), snap);
-        frames.update(rod.frames(), rod.twist_angles());
-    });
+/// Copies a strand's simulated state into its [`StrandNodes`] and [`StrandFrames`] (after its step).
+pub(crate) fn write_strand_data(strand: &mut SimulatedStrand, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
+    let snap = strand.take_snap();
+    let rod = strand.rod();
+    nodes.update(rod.state(), snap);
+    frames.update(rod.frames(), rod.twist_angles());
 }
 
 /// Gives every strand whose [`StrandRestShape`] was edited its new rest shape; an edit the rod rejects is

@@ -4,6 +4,7 @@
 use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::reflect::Reflect;
 
+use super::copy_into;
 use super::error::RodError;
 use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
 use super::material::{RodMaterial, Stiffness};
@@ -614,6 +615,69 @@ impl Rod {
         } else {
             Err(RodError::OutOfRange { what: "interior vertex", index: vertex, count: self.edge_count() - 1 })
         }
+    }
+}
+
+/// The rod's data by group, and snapshots of what a step starts from.
+impl Rod {
+    /// The rod's motion: positions, velocities, twists.
+    pub fn state(&self) -> &RodState {
+        &self.state
+    }
+
+    /// The edges' reference frames and the reference twists.
+    pub fn frames(&self) -> &RodFrames {
+        &self.frames
+    }
+
+    /// The rest shape: rest lengths, curvatures and twists.
+    pub fn rest_shape(&self) -> &RestShape {
+        &self.rest
+    }
+
+    /// The lumped masses and spin inertias.
+    pub fn inertia(&self) -> &RodInertia {
+        &self.inertia
+    }
+
+    /// The boundary conditions.
+    pub fn constraints(&self) -> &RodConstraints {
+        &self.constraints
+    }
+
+    /// A copy of what the next step starts from (see [`RodSnapshot`]).
+    pub fn snapshot(&self) -> RodSnapshot {
+        RodSnapshot { state: self.state.clone(), frames: self.frames.clone() }
+    }
+
+    /// Puts `snapshot` back: the following steps repeat those that followed it, bit for bit. Rejects a
+    /// snapshot of a rod with another number of nodes (the rod is then unchanged); a snapshot with
+    /// non-finite values is accepted here and reported by the next step as
+    /// [`crate::rod::StepError::UnusableState`].
+    pub fn restore(&mut self, snapshot: &RodSnapshot) -> Result<(), RodError> {
+        if !snapshot.fits(self.node_count()) {
+            return Err(RodError::SnapshotMismatch { nodes: self.node_count(), snapshot_nodes: snapshot.node_count() });
+        }
+        self.state.copy_from(&snapshot.state);
+        self.frames.copy_from(&snapshot.frames);
+        Ok(())
+    }
+
+    /// Copies the state and frames into `snapshot`, reusing its memory.
+    pub(crate) fn save_into(&self, snapshot: &mut RodSnapshot) {
+        snapshot.state.copy_from(&self.state);
+        snapshot.frames.copy_from(&self.frames);
+    }
+
+    /// Puts the configuration of `snapshot` back (positions, twists, frames), at rest: the step's own
+    /// roll-back after a failure. `snapshot` was saved from this rod.
+    pub(crate) fn restore_at_rest(&mut self, snapshot: &RodSnapshot) {
+        copy_into(&mut self.state.positions, &snapshot.state.positions);
+        copy_into(&mut self.state.twist, &snapshot.state.twist);
+        self.frames.copy_from(&snapshot.frames);
+        self.state.velocities.fill(DVec3::ZERO);
+        self.state.twist_rates.fill(0.0);
+        self.state.contact_normal_forces.fill(0.0);
     }
 }
 

@@ -77,15 +77,18 @@ pub enum RodError {
         length: f64,
     },
     /// A material parameter is NaN or outside its range ([`crate::rod::MATERIAL_RANGES`]).
-    #[error(
-        "material parameter `{parameter}` must be positive and finite, {}, got {value}",
-        super::material::material_range(parameter)
-    )]
+    #[error("material parameter `{parameter}` must be finite, from {low:e} to {high:e} {unit}, got {value}")]
     InvalidMaterial {
         /// Name of the parameter.
         parameter: &'static str,
         /// The value that was given.
         value: f64,
+        /// The smallest value allowed.
+        low: f64,
+        /// The largest value allowed.
+        high: f64,
+        /// The parameter's unit.
+        unit: &'static str,
     },
     /// A material direction that is not finite, or lies within
     /// [`crate::rod::MIN_MATERIAL_DIRECTION_ANGLE`] of its edge (where `m1` would come from rounding).

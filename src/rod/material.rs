@@ -51,15 +51,6 @@ pub const MATERIAL_RANGES: [(&str, f64, f64, &str); 5] = [
     ("density", 1.0, 1e5, "kg/m³"),
 ];
 
-/// `"from … to … unit"` for a parameter of [`MATERIAL_RANGES`].
-pub(crate) fn material_range(parameter: &str) -> String {
-    MATERIAL_RANGES
-        .iter()
-        .find(|(name, ..)| *name == parameter)
-        .map(|(_, low, high, unit)| format!("from {low:e} to {high:e} {unit}"))
-        .unwrap_or_default()
-}
-
 impl RodMaterial {
     /// A round fibre of `radius` (m), Young's modulus (Pa), Poisson ratio (dimensionless) and density (kg/m³).
     /// The shear modulus is `G = E / (2 (1 + ν))`.
@@ -87,9 +78,9 @@ impl RodMaterial {
             ("shear_modulus", self.shear_modulus),
             ("density", self.density),
         ];
-        for ((parameter, value), (_, low, high, _)) in parameters.into_iter().zip(MATERIAL_RANGES) {
+        for ((parameter, value), (_, low, high, unit)) in parameters.into_iter().zip(MATERIAL_RANGES) {
             if !(low..=high).contains(&value) {
-                return Err(RodError::InvalidMaterial { parameter, value });
+                return Err(RodError::InvalidMaterial { parameter, value, low, high, unit });
             }
         }
         Ok(())
@@ -152,7 +143,10 @@ mod tests {
     fn invalid_parameters_are_named() {
         let mut material = RodMaterial::human_hair();
         material.density = -1.0;
-        assert_eq!(material.validate(), Err(RodError::InvalidMaterial { parameter: "density", value: -1.0 }));
+        assert_eq!(
+            material.validate(),
+            Err(RodError::InvalidMaterial { parameter: "density", value: -1.0, low: 1.0, high: 1e5, unit: "kg/m³" })
+        );
         material.density = 1300.0;
         material.semi_axis_2 = f64::NAN;
         assert!(matches!(material.validate(), Err(RodError::InvalidMaterial { parameter: "semi_axis_2", .. })));

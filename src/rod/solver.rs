@@ -160,7 +160,7 @@ impl Rod {
             }
         }
         workspace.stopwatch.start_step();
-        workspace.saved.save(self);
+        self.save_into(&mut workspace.saved);
         // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
         std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
         let result = self.integrate(params, external_forces, contacts, workspace);

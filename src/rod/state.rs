@@ -1,4 +1,4 @@
-//! The groups of data a [`Rod`] is made of: its motion ([`RodState`]), its reference frames
+//! The groups of data a [`crate::rod::Rod`] is made of: its motion ([`RodState`]), its reference frames
 //! ([`RodFrames`]), its rest shape ([`RestShape`]), its mass ([`RodInertia`]) and its boundary conditions
 //! ([`RodConstraints`]). A step reads the rest shape, inertia and constraints and advances the state and
 //! the frames; [`RodSnapshot`] is those two, which is all a step starts from.
@@ -7,8 +7,6 @@ use bevy::math::{DVec2, DVec3};
 use bevy::reflect::{Reflect, std_traits::ReflectDefault};
 
 use super::copy_into;
-use super::curve::Rod;
-use super::error::RodError;
 
 /// What a step advances, besides the frames: node positions and velocities, edge twists and their rates.
 /// Indexed by node (`n + 1` entries) or by edge (`n`).
@@ -111,19 +109,13 @@ impl RodFrames {
 }
 
 impl RodSnapshot {
-    /// Copies `rod`'s state and frames into `self`, reusing its memory.
-    pub fn save(&mut self, rod: &Rod) {
-        self.state.copy_from(&rod.state);
-        self.frames.copy_from(&rod.frames);
-    }
-
     /// Number of nodes the snapshot was taken of.
     pub fn node_count(&self) -> usize {
         self.state.positions.len()
     }
 
     /// Whether every array has the length a rod of `nodes` nodes needs.
-    fn fits(&self, nodes: usize) -> bool {
+    pub(crate) fn fits(&self, nodes: usize) -> bool {
         let (state, frames) = (&self.state, &self.frames);
         let edges = nodes.saturating_sub(1);
         [state.positions.len(), state.velocities.len(), state.contact_normal_forces.len(), frames.reference_twist.len()]
@@ -132,61 +124,5 @@ impl RodSnapshot {
             && [state.twist.len(), state.twist_rates.len(), frames.tangents.len(), frames.reference_directors.len()]
                 .iter()
                 .all(|&len| len == edges)
-    }
-}
-
-impl Rod {
-    /// The rod's motion: positions, velocities, twists.
-    pub fn state(&self) -> &RodState {
-        &self.state
-    }
-
-    /// The edges' reference frames and the reference twists.
-    pub fn frames(&self) -> &RodFrames {
-        &self.frames
-    }
-
-    /// The rest shape: rest lengths, curvatures and twists.
-    pub fn rest_shape(&self) -> &RestShape {
-        &self.rest
-    }
-
-    /// The lumped masses and spin inertias.
-    pub fn inertia(&self) -> &RodInertia {
-        &self.inertia
-    }
-
-    /// The boundary conditions.
-    pub fn constraints(&self) -> &RodConstraints {
-        &self.constraints
-    }
-
-    /// A copy of what the next step starts from (see [`RodSnapshot`]).
-    pub fn snapshot(&self) -> RodSnapshot {
-        RodSnapshot { state: self.state.clone(), frames: self.frames.clone() }
-    }
-
-    /// Puts `snapshot` back: the following steps repeat those that followed it, bit for bit. Rejects a
-    /// snapshot of a rod with another number of nodes (the rod is then unchanged); a snapshot with
-    /// non-finite values is accepted here and reported by the next step as
-    /// [`crate::rod::StepError::UnusableState`].
-    pub fn restore(&mut self, snapshot: &RodSnapshot) -> Result<(), RodError> {
-        if !snapshot.fits(self.node_count()) {
-            return Err(RodError::SnapshotMismatch { nodes: self.node_count(), snapshot_nodes: snapshot.node_count() });
-        }
-        self.state.copy_from(&snapshot.state);
-        self.frames.copy_from(&snapshot.frames);
-        Ok(())
-    }
-
-    /// Puts the configuration of `snapshot` back (positions, twists, frames), at rest: the step's own
-    /// roll-back after a failure. `snapshot` was saved from this rod.
-    pub(crate) fn restore_at_rest(&mut self, snapshot: &RodSnapshot) {
-        copy_into(&mut self.state.positions, &snapshot.state.positions);
-        copy_into(&mut self.state.twist, &snapshot.state.twist);
-        self.frames.copy_from(&snapshot.frames);
-        self.state.velocities.fill(DVec3::ZERO);
-        self.state.twist_rates.fill(0.0);
-        self.state.contact_normal_forces.fill(0.0);
     }
 }
