@@ -140,29 +140,32 @@ impl StrandRestShape {
             && self.twists.iter().copied().eq(rest.twists.iter().map(|&twist| twist as f32)))
     }
 
-    /// Gives the rod this rest shape: the entries that differ from the rod's in single precision are
+    /// Gives the strand this rest shape: the entries that differ from the rod's in single precision are
     /// taken from here, the others keep the rod's double-precision values.
     fn apply_to(&self, strand: &mut SimulatedStrand, scratch: &mut RestShapeScratch) -> Result<(), RodError> {
         let rest = strand.rod().rest_shape();
-        let merged = |ours: &[f32], theirs: &[f64], out: &mut Vec<f64>| {
-            out.clear();
-            out.extend(
-                ours.iter()
-                    .zip(theirs.iter().chain(std::iter::repeat(&f64::NAN)))
-                    .map(|(&ours, &theirs)| if ours == theirs as f32 { theirs } else { f64::from(ours) }),
-            );
-        };
-        merged(&self.lengths, &rest.lengths, &mut scratch.lengths);
-        merged(&self.twists, &rest.twists, &mut scratch.twists);
-        scratch.curvatures.clear();
-        scratch.curvatures.extend(
-            self.curvatures
-                .iter()
-                .zip(rest.curvatures.iter().chain(std::iter::repeat(&DVec2::NAN)))
-                .map(|(&ours, &theirs)| if ours == theirs.as_vec2() { theirs } else { ours.as_dvec2() }),
-        );
+        merge_edits(&self.lengths, &rest.lengths, |length| length as f32, f64::from, &mut scratch.lengths);
+        merge_edits(&self.curvatures, &rest.curvatures, DVec2::as_vec2, Vec2::as_dvec2, &mut scratch.curvatures);
+        merge_edits(&self.twists, &rest.twists, |twist| twist as f32, f64::from, &mut scratch.twists);
         strand.set_rest_shape(&scratch.lengths, &scratch.curvatures, &scratch.twists)
     }
+}
+
+/// `edited` in double precision, into `out`: each entry that `narrow` of the `current` one (single
+/// precision) equals keeps the current value, the others are `widen`ed from `edited` (as are entries
+/// past the end of `current`).
+fn merge_edits<S: Copy + PartialEq, D: Copy>(
+    edited: &[S],
+    current: &[D],
+    narrow: impl Fn(D) -> S,
+    widen: impl Fn(S) -> D,
+    out: &mut Vec<D>,
+) {
+    out.clear();
+    out.extend(edited.iter().enumerate().map(|(index, &ours)| match current.get(index) {
+        Some(&theirs) if narrow(theirs) == ours => theirs,
+        _ => widen(ours),
+    }));
 }
 
 /// Memory reused from edit to edit of rest shapes.
