@@ -156,6 +156,16 @@ pub enum RodError {
         /// The value that was given (NaN for a pose).
         value: f64,
     },
+    /// A gravity-preload parameter is out of its valid range.
+    #[error("gravity preload parameter `{parameter}` is invalid: {value} ({requirement})")]
+    InvalidPreload {
+        /// Name of the parameter.
+        parameter: &'static str,
+        /// The value that was given.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
     /// A step parameter is out of its valid range.
     #[error("step parameter `{parameter}` is invalid: {value} ({requirement})")]
     InvalidStepParameter {

@@ -1,0 +1,237 @@
+//! Gravity preloading (sag-free rest shapes): rest curvatures and twists that make a rod's current shape
+//! its static equilibrium under gravity, so that a groomed strand keeps its groomed shape instead of
+//! sagging as soon as it is simulated (the inverse statics of Derouet-Jourdan et al. 2010, here on the
+//! discrete rod of Bergou et al. 2008).
+//!
+//! **Method.** The root edge is held (nodes 0 and 1, twist 0). Equilibrium at every other unknown is
+//! `Σ_v s_v · ∇(κ₁, κ₂, τ)_v + Σ_j T_j ∇|e^j| = m g` (at nodes; zero at twists), with the bending and
+//! twisting stresses `s_v = (EI₁ (κ₁ − κ̄₁), EI₂ (κ₂ − κ̄₂), GJ (τ − τ̄)) / l_v` and the edge tensions `T_j`.
+//! A vertex's terms touch the nodes `v − 1 … v + 1`, so the system is triangular from the tip: node
+//! `v + 1`'s three force equations and edge `v`'s twist equation give `s_v` and `T_v` by one 4 × 4 solve,
+//! once the vertices beyond are known. The rest curvature and twist follow from `s_v`; the tension is
+//! the inextensible rod's own (a strain of `T/EA`, around 1e-9 for hair).
+//!
+//! Nodes resting on a collider (`supported`) pass their load to it: their vertex carries no preload
+//! (rest shape = current shape there) and no tension, which is exact for hair lying on a skull under its
+//! own weight and an approximation where a collider must also hold the pull of hair hanging below.
+//!
+//! **Safeguards.** Where no sensible rest shape exists (a long strand held out sideways needs rest curls
+//! tighter than its edges), each vertex's rest curvature is bounded at [`MAX_PRELOAD_TURN`] and its rest
+//! twist at [`MAX_REST_TWIST`]: such a strand sags to where the bounded rest shape holds it, and the
+//! report counts the vertices that were bounded. Gravity is baked into the rest shape, not applied as a
+//! force: turned upside down or under another gravity, the hair responds physically.
+
+use bevy::math::{DMat4, DVec3, DVec4};
+
+use super::curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, Rod};
+use super::energy::{EdgeGeometry, edge_geometry, vertex_strain};
+use super::error::RodError;
+
+/// The largest turn between two edges a preloaded rest shape asks for, rad (150°): short of
+/// [`MAX_TURNING_ANGLE`], so that a strand preloaded to the bound can still bend further under load.
+pub const MAX_PRELOAD_TURN: f64 = 150.0 * std::f64::consts::PI / 180.0;
+
+/// What [`Rod::preload_for_gravity`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PreloadReport {
+    /// Interior vertices whose rest curvature or twist had to be bounded (the strand will sag there).
+    pub bounded_vertices: usize,
+    /// Largest change of rest curvature, integrated (dimensionless).
+    pub max_curvature_change: f64,
+    /// Vertices left without preload because the node beyond them is supported.
+    pub supported_vertices: usize,
+}
+
+impl Rod {
+    /// Gives the rod rest curvatures and twists in which its current shape is in static equilibrium
+    /// under `gravity` (m/s²), with the root edge held and the nodes marked in `supported` (one flag
+    /// per node) resting on colliders; `factor` (0 to 1) blends from the current rest shape (0) to the
+    /// sag-free one (1). Rest lengths are kept. See the [module documentation](self).
+    ///
+    /// Rejects a non-finite `gravity`, a `factor` outside 0 to 1 and a `supported` of the wrong length,
+    /// and leaves the rod unchanged.
+    pub fn preload_for_gravity(
+        &mut self,
+        gravity: DVec3,
+        supported: &[bool],
+        factor: f64,
+    ) -> Result<PreloadReport, RodError> {
+        if !gravity.is_finite() {
+            return Err(RodError::InvalidPreload {
+                parameter: "gravity",
+                value: gravity.length(),
+                requirement: "must be finite",
+            });
+        }
+        if !(0.0..=1.0).contains(&factor) {
+            return Err(RodError::InvalidPreload {
+                parameter: "factor",
+                value: factor,
+                requirement: "must lie in 0 to 1",
+            });
+        }
+        if supported.len() != self.node_count() {
+            return Err(RodError::WrongLength { expected: self.node_count(), actual: supported.len() });
+        }
+        let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
+        edge_geometry(self, &mut edges);
+        let stresses = self.equilibrium_stresses(&edges, gravity, supported);
+
+        let stiffness = *self.stiffness();
+        let mut report = PreloadReport::default();
+        let largest = 2.0 * (0.5 * MAX_PRELOAD_TURN).tan();
+        for vertex in 1..self.edge_count() {
+            let Some(stress) = stresses[vertex] else {
+                report.supported_vertices += 1;
+                continue;
+            };
+            let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
+            let length = self.rest.voronoi_lengths[vertex];
+            let sag_free = bevy::math::DVec2::new(
+                kappa.x - stress.x * length / stiffness.bending_1,
+                kappa.y - stress.y * length / stiffness.bending_2,
+            );
+            let old = self.rest.curvatures[vertex];
+            let mut curvature = old + factor * (sag_free - old);
+            if curvature.length() > largest {
+                curvature *= largest / curvature.length();
+                report.bounded_vertices += 1;
+            }
+            report.max_curvature_change = report.max_curvature_change.max((curvature - old).length());
+            let sag_free_twist = twist - stress.z * length / stiffness.twisting;
+            let old_twist = self.rest.twists[vertex];
+            let rest_twist = old_twist + factor * (sag_free_twist - old_twist);
+            if rest_twist.abs() > MAX_REST_TWIST {
+                report.bounded_vertices += 1;
+            }
+            self.rest.curvatures[vertex] = curvature;
+            self.rest.twists[vertex] = rest_twist.clamp(-MAX_REST_TWIST, MAX_REST_TWIST);
+        }
+        debug_assert!(largest < 2.0 * (0.5 * MAX_TURNING_ANGLE).tan());
+        Ok(report)
+    }
+
+    /// The bending and twisting stresses `s_v` (N·m) that hold the rod's current shape against `gravity`,
+    /// per interior vertex (`None` at the ends and where the node beyond is supported), solved from the
+    /// tip towards the root.
+    fn equilibrium_stresses(&self, edges: &[EdgeGeometry], gravity: DVec3, supported: &[bool]) -> Vec<Option<DVec3>> {
+        let (nodes, edge_count) = (self.node_count(), self.edge_count());
+        // Force and twisting moment on every unknown from what is already known (gravity, the vertices
+        // and edges solved so far), as gradient components: equilibrium makes each total zero.
+        let mut node_force: Vec<DVec3> = (0..nodes).map(|node| -self.inertia.masses[node] * gravity).collect();
+        let mut edge_torque = vec![0.0; edge_count];
+        let mut stresses = vec![None; nodes];
+        let twist_at = |vertex: usize| {
+            self.state.twist[vertex] - self.state.twist[vertex - 1] + self.frames.reference_twist[vertex]
+        };
+        for vertex in (1..edge_count).rev() {
+            let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist_at(vertex));
+            let gradients = [&strain.grad_kappa_1, &strain.grad_kappa_2, &strain.grad_twist];
+            let (stress, tension) = if supported[vertex + 1] {
+                (DVec3::ZERO, 0.0)
+            } else {
+                // Columns: each stress's force on node v + 1 (stencil 8..11) and torque on edge v (7);
+                // the tension's force on node v + 1 is along the edge.
+                let column = |g: &[f64; 11]| DVec4::new(g[8], g[9], g[10], g[7]);
+                let tangent = edges[vertex].tangent;
+                let matrix = DMat4::from_cols(
+                    column(gradients[0]),
+                    column(gradients[1]),
+                    column(gradients[2]),
+                    DVec4::new(tangent.x, tangent.y, tangent.z, 0.0),
+                );
+                let known = node_force[vertex + 1];
+                let rhs = -DVec4::new(known.x, known.y, known.z, edge_torque[vertex]);
+                let determinant = matrix.determinant();
+                if !(determinant.is_finite() && determinant.abs() > f64::MIN_POSITIVE) {
+                    (DVec3::ZERO, 0.0)
+                } else {
+                    let solution = matrix.inverse() * rhs;
+                    (solution.truncate(), solution.w)
+                }
+            };
+            if !stress.is_finite() || !tension.is_finite() {
+                continue;
+            }
+            stresses[vertex] = (!supported[vertex + 1]).then_some(stress);
+            // Spread this vertex's stress and this edge's tension over the unknowns they touch.
+            for (s, gradient) in stress.to_array().into_iter().zip(gradients) {
+                for node in 0..3 {
+                    let slot = &mut node_force[vertex - 1 + node];
+                    *slot += s * DVec3::new(gradient[4 * node], gradient[4 * node + 1], gradient[4 * node + 2]);
+                }
+                edge_torque[vertex - 1] += s * gradient[3];
+                edge_torque[vertex] += s * gradient[7];
+            }
+            node_force[vertex] -= tension * edges[vertex].tangent;
+            node_force[vertex + 1] += tension * edges[vertex].tangent;
+        }
+        stresses
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::math::DVec3;
+
+    use super::super::energy::{add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
+    use super::super::test_support::{Lcg, random_strand};
+    use super::super::RodError;
+    use super::*;
+
+    /// The largest force (N) and twisting moment (N·m) left unbalanced at the free unknowns of `rod`
+    /// under `gravity`, once each free edge carries the tension that balances its tip-side node along it.
+    fn unbalanced(rod: &Rod, gravity: DVec3) -> (f64, f64) {
+        let mut edges = Vec::new();
+        edge_geometry(rod, &mut edges);
+        let mut gradient = vec![0.0; dof_count(rod.node_count())];
+        add_elastic_derivatives(rod, &edges, &mut gradient, None);
+        let residual = |node: usize| {
+            let d = node_dof(node);
+            DVec3::new(gradient[d], gradient[d + 1], gradient[d + 2]) - rod.masses()[node] * gravity
+        };
+        let (mut force, mut tension) = (0.0_f64, 0.0);
+        for node in (2..rod.node_count()).rev() {
+            let beyond = if node + 1 < rod.node_count() { -tension * edges[node].tangent } else { DVec3::ZERO };
+            let load = residual(node) + beyond;
+            tension = -load.dot(edges[node - 1].tangent);
+            force = force.max((load + tension * edges[node - 1].tangent).length());
+        }
+        let torque = (1..rod.edge_count()).map(|edge| gradient[twist_dof(edge)].abs()).fold(0.0, f64::max);
+        (force, torque)
+    }
+
+    #[test]
+    fn preloaded_rest_shapes_balance_gravity_at_every_free_unknown() {
+        let mut random = Lcg(7);
+        let gravity = DVec3::new(0.3, -9.81, 0.2);
+        for _ in 0..20 {
+            let mut rod = random_strand(&mut random, 12);
+            // The stretch of the random strand is its rest length: no stretching force at this shape.
+            let lengths: Vec<f64> = rod.state.positions.windows(2).map(|p| p[0].distance(p[1])).collect();
+            let (curvatures, twists) = (rod.rest.curvatures.clone(), rod.rest.twists.clone());
+            rod.set_rest_shape(&lengths, &curvatures, &twists).unwrap();
+            let weight = rod.masses()[5] * gravity.length();
+            let before = unbalanced(&rod, gravity);
+            let report = rod.preload_for_gravity(gravity, &vec![false; rod.node_count()], 1.0).unwrap();
+            let (force, torque) = unbalanced(&rod, gravity);
+            assert_eq!(report.bounded_vertices, 0);
+            assert!(before.0 > 10.0 * weight, "unbalanced before: {} N against a node weight of {weight} N", before.0);
+            assert!(force < 1e-9 * before.0 && torque < 1e-9 * before.1.max(weight * 0.01), "{force} N, {torque} N·m");
+        }
+    }
+
+    #[test]
+    fn invalid_preload_parameters_are_rejected_without_change() {
+        let mut rod = random_strand(&mut Lcg(3), 6);
+        let before = rod.rest_shape().clone();
+        let supported = vec![false; 7];
+        assert!(matches!(
+            rod.preload_for_gravity(DVec3::NAN, &supported, 1.0),
+            Err(RodError::InvalidPreload { parameter: "gravity", .. })
+        ));
+        assert!(rod.preload_for_gravity(DVec3::NEG_Y, &supported, 1.5).is_err());
+        assert!(rod.preload_for_gravity(DVec3::NEG_Y, &supported[..3], 1.0).is_err());
+        assert_eq!(rod.rest_shape(), &before);
+    }
+}
