@@ -127,7 +127,8 @@ pub enum HairStyle {
     /// Helical curls of radius 6 mm (never less than one edge, so they stay resolved), 14 to 22 cm of
     /// fibre.
     Curly,
-    /// Short straight hair, 3 to 6 cm: stiff enough to stand out from the scalp.
+    /// Short straight hair, 3 to 6 cm: combed, it lies along the scalp all the way; uncombed, it is stiff
+    /// enough to stand out from it.
     Short,
     /// Long straight hair, 32 to 45 cm: hangs.
     Long,
@@ -177,19 +178,68 @@ pub struct HairGroom {
     pub style: HairStyle,
     /// Seed of the per-strand variation (lengths, curl phases): the same seed grows the same hair.
     pub seed: u64,
+    /// How the hair is combed: `Some` lays each strand along the scalp from its root, away from a parting
+    /// and back from the face, until the scalp turns under it, and lets the rest fall from there in the
+    /// style's shape; `None` grows each strand straight out along the scalp's normal. Default: combed.
+    pub combing: Option<Combing>,
+    /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1 makes the grown
+    /// shape the shape at rest under gravity, lying on the skull collider where it was combed onto it; 0
+    /// lets it sag. Default 1.
+    pub gravity_preload: f32,
 }
 
 impl Default for HairGroom {
     fn default() -> Self {
-        Self { scalp: Scalp::default(), strand_count: 2000, segments: 24, style: HairStyle::Straight, seed: 0 }
+        Self {
+            scalp: Scalp::default(),
+            strand_count: 2000,
+            segments: 24,
+            style: HairStyle::Straight,
+            seed: 0,
+            combing: Some(Combing::default()),
+            gravity_preload: 1.0,
+        }
+    }
+}
+
+/// How a [`HairGroom`] is combed (all head-local). Hair is laid along the scalp in the direction of a
+/// combing field: away from the parting line, back from the face, and down; where the scalp turns under
+/// it (its normal points below the horizontal), a strand leaves it and falls.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct Combing {
+    /// Sideways position of the parting line, m, from the skull's centre along +x (the head's right
+    /// for a face looking along −Z). Default 0.02 (a side parting).
+    pub parting: f32,
+    /// How strongly hair in front is combed back from the face, dimensionless (0: only sideways and
+    /// down; 1: back as much as sideways). Default 1.2.
+    pub sweep_back: f32,
+    /// Height of the lowest layer of hair over the skull, m: it should clear the strands' collision
+    /// thickness (their radius plus [`crate::settings::HairSettings::collision_margin`], 1.04 mm by
+    /// default). Default 0.0013.
+    pub lift: f32,
+    /// How much higher the highest layer lies, m: each strand's lift is spread over this. Default 0.0008.
+    pub layer_spread: f32,
+}
+
+impl Default for Combing {
+    fn default() -> Self {
+        Self { parting: 0.02, sweep_back: 1.2, lift: 0.0013, layer_spread: 0.0008 }
     }
 }
 
 impl HairGroom {
-    /// The strands of this groom, in the head's local space; each root edge lies along the scalp's normal.
+    /// The strands of this groom, in the head's local space: combed along the scalp (see [`Combing`]), or,
+    /// without combing, each growing out along the scalp's normal.
     pub fn grow(&self) -> Result<Vec<HairStrand>, GroomError> {
         if self.segments < 2 {
             return Err(GroomError::TooFewSegments(self.segments));
+        }
+        if !(0.0..=1.0).contains(&self.gravity_preload) {
+            return Err(GroomError::GravityPreload(self.gravity_preload));
+        }
+        if let Some(combing) = &self.combing {
+            combing.validate()?;
         }
         let mut random = fastrand::Rng::with_seed(self.seed);
         let (shortest, longest) = self.style.length_range();
@@ -199,19 +249,144 @@ impl HairGroom {
             .into_iter()
             .map(|root| {
                 let length = shortest + (longest - shortest) * random.f32();
-                let shape = StrandShape::new(self.style, root.normal, length / self.segments as f32, &mut random);
-                let mut nodes = Vec::with_capacity(self.segments + 1);
-                let mut node = root.position;
-                nodes.push(node);
-                for edge in 0..self.segments {
-                    node += shape.edge(edge);
-                    nodes.push(node);
-                }
-                HairStrand::from_nodes(nodes, shape.down_the_scalp)
+                let edge_length = length / self.segments as f32;
+                let strand = match &self.combing {
+                    Some(combing) => {
+                        let lift = combing.lift + combing.layer_spread * random.f32();
+                        let path = CombedPath { scalp: &self.scalp, combing, lift };
+                        let (nodes, material_direction) =
+                            path.grow(root, self.style, length, self.segments, &mut random);
+                        HairStrand::from_nodes(nodes, material_direction)
+                    }
+                    None => {
+                        let shape = StrandShape::new(self.style, root.normal, edge_length, &mut random);
+                        let mut nodes = Vec::with_capacity(self.segments + 1);
+                        let mut node = root.position;
+                        nodes.push(node);
+                        for edge in 0..self.segments {
+                            node += shape.edge(edge);
+                            nodes.push(node);
+                        }
+                        HairStrand::from_nodes(nodes, shape.down_the_scalp)
+                    }
+                };
+                strand.with_gravity_preload(self.gravity_preload)
             })
             .collect();
         Ok(strands)
     }
+}
+
+impl Combing {
+    fn validate(&self) -> Result<(), GroomError> {
+        let finite = [self.parting, self.sweep_back, self.lift, self.layer_spread].iter().all(|v| v.is_finite());
+        if !finite || self.sweep_back < 0.0 || self.lift < 0.0 || self.layer_spread < 0.0 {
+            return Err(GroomError::Combing(*self));
+        }
+        Ok(())
+    }
+
+    /// The direction hair at `position` (head-local, on the scalp `scalp`) is combed in, with the
+    /// scalp's outward `normal` there: away from the parting, back from the face, down; in the tangent
+    /// plane, unit.
+    fn direction(&self, scalp: &Scalp, position: Vec3, normal: Vec3) -> Vec3 {
+        let sideways = ((position.x - scalp.centre.x - self.parting) / 0.015).clamp(-1.0, 1.0);
+        let facing_front = (-normal.z).clamp(0.0, 1.0);
+        let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), self.sweep_back * facing_front);
+        let along = wanted.reject_from_normalized(normal);
+        if along.length_squared() > 1e-6 { along.normalize() } else { Vec3::Z.reject_from_normalized(normal).normalize() }
+    }
+}
+
+/// A strand combed along the scalp, then falling.
+struct CombedPath<'a> {
+    scalp: &'a Scalp,
+    combing: &'a Combing,
+    /// Height of this strand over the skull where it lies on it, m.
+    lift: f32,
+}
+
+impl CombedPath<'_> {
+    /// Step of the path traced before it is cut into edges, m.
+    const STEP: f32 = 0.0005;
+    /// Arc length over which a falling strand turns from the scalp's direction to its style's, m.
+    const TURN: f32 = 0.03;
+
+    /// The point of the skull's surface radially under `point`, with the outward normal there.
+    fn on_skull(&self, point: Vec3) -> (Vec3, Vec3) {
+        let local = (point - self.scalp.centre) / self.scalp.semi_axes;
+        let unit = local.normalize_or(Vec3::Y);
+        let surface = self.scalp.centre + unit * self.scalp.semi_axes;
+        (surface, (unit / self.scalp.semi_axes).normalize())
+    }
+
+    /// The nodes of a strand `length` m long in `segments` equal edges from `root`, and its material
+    /// direction: traced along the scalp while the scalp faces up (all the way for short hair), rising
+    /// from the root to `lift` over its first edge, then falling in `style`'s shape.
+    fn grow(
+        &self,
+        root: ScalpRoot,
+        style: HairStyle,
+        length: f32,
+        segments: usize,
+        random: &mut fastrand::Rng,
+    ) -> (Vec<Vec3>, Vec3) {
+        let edge_length = length / segments as f32;
+        let mut path = vec![root.position];
+        let (mut surface, mut normal) = (root.position, root.normal);
+        let mut tangent = self.combing.direction(self.scalp, surface, normal);
+        let first_direction = tangent;
+        let mut arc = 0.0;
+        // Along the scalp; short hair all the way, the nape's too.
+        let lies_everywhere = style == HairStyle::Short;
+        while arc < length && (normal.y > 0.0 || lies_everywhere) {
+            tangent = self.combing.direction(self.scalp, surface, normal);
+            (surface, normal) = self.on_skull(surface + Self::STEP * tangent);
+            arc += Self::STEP;
+            let height = self.lift * (arc / edge_length).min(1.0);
+            path.push(surface + height * normal);
+        }
+        // Falling, turning from the scalp's direction into the style's.
+        if arc < length {
+            let outward = Vec3::new(normal.x, 0.0, normal.z).normalize_or(Vec3::Z);
+            let shape = StrandShape::new(style, Vec3::NEG_Y, edge_length, random).facing(outward);
+            let mut point = *path.last().unwrap_or(&root.position);
+            let start = arc;
+            while arc < length {
+                let fallen = arc - start;
+                let blend = (fallen / Self::TURN).min(1.0);
+                let blend = blend * blend * (3.0 - 2.0 * blend);
+                let direction = tangent.lerp(shape.tangent(fallen), blend).normalize_or(Vec3::NEG_Y);
+                point += Self::STEP * direction;
+                arc += Self::STEP;
+                path.push(point);
+            }
+        }
+        (resample(&path, edge_length, segments), root.normal.cross(first_direction))
+    }
+}
+
+/// `segments + 1` points at arc lengths `0, edge, 2 edge, …` along the polyline `path` (the last point
+/// where the path ends short).
+fn resample(path: &[Vec3], edge: f32, segments: usize) -> Vec<Vec3> {
+    let mut nodes = Vec::with_capacity(segments + 1);
+    let (mut walked, mut index) = (0.0, 0);
+    for node in 0..=segments {
+        let wanted = edge * node as f32;
+        while index + 1 < path.len() && walked + path[index].distance(path[index + 1]) < wanted {
+            walked += path[index].distance(path[index + 1]);
+            index += 1;
+        }
+        let point = match path.get(index + 1) {
+            Some(&next) => {
+                let span = path[index].distance(next).max(f32::MIN_POSITIVE);
+                path[index].lerp(next, ((wanted - walked) / span).clamp(0.0, 1.0))
+            }
+            None => path[index],
+        };
+        nodes.push(point);
+    }
+    nodes
 }
 
 /// The rest shape of one strand: its edges, built from a tangent that turns with arc length.
@@ -251,10 +426,22 @@ impl StrandShape {
         }
     }
 
+    /// The same shape with its waves and curls turned to start towards `outward` (perpendicular to its
+    /// growing direction).
+    fn facing(mut self, outward: Vec3) -> Self {
+        self.down_the_scalp = outward;
+        self.across = self.normal.cross(outward);
+        self
+    }
+
     /// Edge `index`, m: `edge_length` along the tangent at its start, so the root edge lies along the normal.
     fn edge(&self, index: usize) -> Vec3 {
-        let arc = self.edge_length * index as f32;
-        let tangent = match self.style {
+        self.edge_length * self.tangent(self.edge_length * index as f32)
+    }
+
+    /// The unit tangent `arc` m along the strand.
+    fn tangent(&self, arc: f32) -> Vec3 {
+        match self.style {
             HairStyle::Straight | HairStyle::Short | HairStyle::Long => self.normal,
             HairStyle::Wavy => {
                 let angle = Self::WAVE_ANGLE * (TAU * arc / Self::WAVELENGTH).sin();
@@ -267,8 +454,7 @@ impl StrandShape {
                 let sideways = around.cos() * self.down_the_scalp + around.sin() * self.across;
                 angle.cos() * self.normal + angle.sin() * sideways
             }
-        };
-        self.edge_length * tangent
+        }
     }
 }
 
@@ -296,6 +482,12 @@ pub enum GroomError {
         /// The height given.
         height: f32,
     },
+    /// The gravity preload is outside 0 to 1.
+    #[error("the groom's gravity preload must lie between 0 and 1, got {0}")]
+    GravityPreload(f32),
+    /// A combing parameter is negative or not finite.
+    #[error("the groom's combing needs finite values, with sweep_back, lift and layer_spread not negative: {0:?}")]
+    Combing(Combing),
     /// The hairline leaves less than 0.1 % of the skull to grow hair on.
     #[error("the scalp's hairline (nape height {nape_height}, brow height {brow_height}) leaves no room for hair")]
     EmptyScalp {

@@ -12,7 +12,7 @@ use crate::groom_file::GroomFilePlugin;
 use crate::head::{HairHead, HeadMotion, HeadStrands, StrandOf, track_heads};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::step::{
-    StepBudget, apply_default_material, open_step, pin_roots, reset_step_budget, step_strands, stepping,
+    StepBudget, apply_default_material, open_step, pin_roots, preload_rest_shapes, reset_step_budget, step_strands, stepping,
 };
 use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandRejected, build_strands};
 use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits};
@@ -175,7 +175,7 @@ impl Plugin for HairSimulationPlugin {
                     .chain()
                     .in_set(HairSystems::Prepare),
                 (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
-                step_strands.in_set(HairSystems::Step),
+                (preload_rest_shapes, step_strands).chain().in_set(HairSystems::Step),
             ),
         );
     }

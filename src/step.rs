@@ -1,6 +1,7 @@
 //! The systems of one simulation step: pin roots to heads, step every strand in parallel, report
 //! faults, write the drawn poses.
 
+use bevy::math::DVec3;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
@@ -10,8 +11,8 @@ use crate::head::{HeadMotion, StrandOf};
 use crate::rod::{Contacts, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
-use crate::strand::{SimulatedStrand, StrandFault, StrandForces};
-use crate::strand_data::{StrandFrames, StrandNodes, write_strand_data};
+use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
+use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape, write_strand_data};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]
@@ -63,6 +64,47 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
             return;
         }
     }
+}
+
+/// Runs the pending gravity preloads (strands just built with [`HairStrand::gravity_preload`], or asked
+/// with [`SimulatedStrand::preload_gravity`]): from each strand's shape now, the gravity of
+/// [`HairSettings`] and the colliders of its head, the nodes within [`PRELOAD_SUPPORT_DISTANCE`] of one
+/// resting on it. Writes the new rest shape into [`StrandRestShape`].
+///
+/// [`HairStrand::gravity_preload`]: crate::strand::HairStrand::gravity_preload
+pub(crate) fn preload_rest_shapes(
+    settings: Res<HairSettings>,
+    mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape, Option<&StrandOf>)>,
+    colliders: StrandColliders,
+) {
+    let gravity = settings.gravity.as_dvec3();
+    let margin = f64::from(settings.collision_margin);
+    strands.par_iter_mut().for_each(|(entity, mut strand, mut rest_shape, strand_of)| {
+        if !strand.preload_pending() {
+            return;
+        }
+        let reach = strand.contact_thickness(margin) + f64::from(PRELOAD_SUPPORT_DISTANCE);
+        let nearby = colliders.of(strand_of);
+        let supports: Vec<Option<DVec3>> = strand
+            .rod()
+            .positions()
+            .iter()
+            .map(|&node| {
+                nearby.iter().find_map(|collider| {
+                    let local = collider.end.to_local(node);
+                    collider
+                        .shape
+                        .inflated(reach)
+                        .contains(local)
+                        .then(|| collider.end.rotation * collider.shape.closest_surface_point(local).normal)
+                })
+            })
+            .collect();
+        match strand.run_pending_preload(gravity, &supports) {
+            Ok(_) => rest_shape.update(strand.rod()),
+            Err(error) => error!("hair strand {entity}: gravity preload failed, its rest shape is unchanged: {error}"),
+        }
+    });
 }
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head

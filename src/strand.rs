@@ -6,7 +6,9 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use crate::head::{ScaledPose, StrandOf};
-use crate::rod::{Contacts, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport};
+use crate::rod::{
+    Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport,
+};
 use crate::settings::HairSettings;
 use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
 
@@ -34,6 +36,13 @@ pub struct HairStrand {
     /// Distance from the centre line that stays outside colliders, m; `None` uses the material's larger
     /// semi-axis plus [`HairSettings::collision_margin`].
     pub collision_thickness: Option<f32>,
+    /// Gravity preload, 0 to 1: how much of the spawned shape's sag under [`HairSettings::gravity`] the
+    /// rest shape takes up, so that the strand keeps its spawned shape at rest (1) or sags as a strand
+    /// of that rest shape would (0, the default). Computed once when the strand is built, from its shape,
+    /// the gravity and the colliders it rests on (see [`crate::rod::Rod::preload_for_gravity`]); gravity
+    /// is baked into the rest shape, so turning the head over or changing gravity later moves the hair.
+    /// Needs a head ([`StrandOf`]): a free strand has nothing to hang from.
+    pub gravity_preload: f32,
 }
 
 impl HairStrand {
@@ -46,6 +55,7 @@ impl HairStrand {
             material: None,
             natural_curvature: None,
             collision_thickness: None,
+            gravity_preload: 0.0,
         }
     }
 
@@ -70,6 +80,12 @@ impl HairStrand {
         self
     }
 
+    /// Sets the gravity preload (0 to 1), see [`HairStrand::gravity_preload`].
+    pub fn with_gravity_preload(mut self, preload: f32) -> Self {
+        self.gravity_preload = preload;
+        self
+    }
+
     /// Sets the collision thickness, m, see [`HairStrand::collision_thickness`].
     pub fn with_collision_thickness(mut self, thickness: f32) -> Self {
         self.collision_thickness = Some(thickness);
@@ -83,6 +99,9 @@ pub enum StrandSpawnError {
     /// The shape or material was rejected by the mechanics core.
     #[error(transparent)]
     Rod(#[from] RodError),
+    /// The gravity preload was outside 0 to 1, or NaN.
+    #[error("the gravity preload {0} is not between 0 and 1")]
+    InvalidGravityPreload(f32),
     /// The collision thickness was negative, NaN or infinite.
     #[error("the collision thickness {0} m is not zero or positive and finite")]
     InvalidCollisionThickness(f32),
@@ -132,6 +151,11 @@ impl RootAnchor {
         (root, root + pose.rotation * self.edge, pose.rotation * self.material_direction)
     }
 }
+
+/// How far beyond its collision thickness a node may be from a collider's surface and still count as
+/// resting on it for the gravity preload ([`HairStrand::gravity_preload`]), m: hair groomed lying on a
+/// skull, a layer or two above it.
+pub const PRELOAD_SUPPORT_DISTANCE: f32 = 0.003;
 
 /// Seconds after a fault within which another fault quarantines the strand, s of simulated time.
 pub const QUARANTINE_WINDOW: f64 = 1.0;
@@ -201,6 +225,11 @@ pub struct SimulatedStrand {
     /// Why the root could not be clamped to the head this step, reported as the step's fault.
     #[reflect(ignore)]
     pin_error: Option<RodError>,
+    /// The gravity preload factor to compute before the next step, if one is pending.
+    pending_preload: Option<f32>,
+    /// What the last gravity preload did.
+    #[reflect(ignore)]
+    preload_report: Option<PreloadReport>,
 }
 
 impl SimulatedStrand {
@@ -229,6 +258,9 @@ impl SimulatedStrand {
         {
             return Err(StrandSpawnError::InvalidCollisionThickness(thickness));
         }
+        if !(0.0..=1.0).contains(&spec.gravity_preload) {
+            return Err(StrandSpawnError::InvalidGravityPreload(spec.gravity_preload));
+        }
         let anchor = head.map(|_| RootAnchor { position: root, edge: local[1] - root, material_direction });
         Ok(Self {
             rod,
@@ -241,6 +273,8 @@ impl SimulatedStrand {
             snap_pose: true,
             health: StrandHealth::default(),
             pin_error: None,
+            pending_preload: (head.is_some() && spec.gravity_preload > 0.0).then_some(spec.gravity_preload),
+            preload_report: None,
         })
     }
 
@@ -269,6 +303,39 @@ impl SimulatedStrand {
             anchor.edge *= lengths[0] / old_root_length;
         }
         Ok(())
+    }
+
+    /// Asks for the rest shape to be preloaded against gravity before the next step, by `factor` (0 to 1;
+    /// clamped), from the strand's shape then: see [`HairStrand::gravity_preload`]. For a strand with a
+    /// head; a free strand is left as it is.
+    pub fn preload_gravity(&mut self, factor: f32) {
+        if self.anchor.is_some() {
+            self.pending_preload = Some(factor.clamp(0.0, 1.0));
+        }
+    }
+
+    /// What the last gravity preload did (`None` before one ran).
+    pub fn preload_report(&self) -> Option<&PreloadReport> {
+        self.preload_report.as_ref()
+    }
+
+    /// Runs a pending gravity preload under `gravity` (m/s²), with the nodes resting on colliders given
+    /// the outward normals under them in `supports`; returns whether one ran.
+    pub(crate) fn run_pending_preload(
+        &mut self,
+        gravity: DVec3,
+        supports: &[Option<DVec3>],
+    ) -> Result<bool, RodError> {
+        let Some(factor) = self.pending_preload.take() else {
+            return Ok(false);
+        };
+        self.preload_report = Some(self.rod.preload_for_gravity(gravity, supports, f64::from(factor))?);
+        Ok(true)
+    }
+
+    /// Whether a gravity preload waits for the next step.
+    pub(crate) fn preload_pending(&self) -> bool {
+        self.pending_preload.is_some()
     }
 
     /// Distance from the centre line that stays outside colliders, m, with a collision margin of

@@ -32,7 +32,7 @@ fn drift(rod: &mut Rod, params: &StepParams, seconds: f64) -> f64 {
 #[test]
 fn a_preloaded_strand_keeps_its_groomed_shape_and_half_a_preload_sags_half_way() {
     let params = StepParams { dt: 1.0 / 60.0, ..StepParams::default() };
-    let supported = vec![false; 17];
+    let supported = vec![None; 17];
     let sag = drift(&mut groomed_hair(), &params, 3.0);
 
     let mut half = groomed_hair();
@@ -54,7 +54,7 @@ fn a_preloaded_strand_keeps_its_groomed_shape_and_half_a_preload_sags_half_way()
 fn a_preloaded_strand_falls_when_gravity_turns_upside_down() {
     let params = StepParams { dt: 1.0 / 60.0, ..StepParams::default() };
     let mut rod = groomed_hair();
-    rod.preload_for_gravity(params.gravity, &vec![false; 17], 1.0).unwrap();
+    rod.preload_for_gravity(params.gravity, &vec![None; 17], 1.0).unwrap();
     let upside_down = StepParams { gravity: -params.gravity, ..params };
     let moved = drift(&mut rod, &upside_down, 2.0);
     println!("with gravity reversed the preloaded hair moves {moved:.3} m");
@@ -68,7 +68,7 @@ fn a_strand_held_out_too_far_is_bounded_and_sags() {
     let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
     rod.clamp_root_in_place();
     let params = StepParams { dt: 1.0 / 60.0, ..StepParams::default() };
-    let report = rod.preload_for_gravity(params.gravity, &vec![false; 17], 1.0).unwrap();
+    let report = rod.preload_for_gravity(params.gravity, &vec![None; 17], 1.0).unwrap();
     println!("{report:?}");
     assert!(report.bounded_vertices > 0);
     let limit = 2.0 * (0.5 * bevy_hair_sim::rod::MAX_PRELOAD_TURN).tan();

@@ -11,9 +11,11 @@
 //! once the vertices beyond are known. The rest curvature and twist follow from `s_v`; the tension is
 //! the inextensible rod's own (a strain of `T/EA`, around 1e-9 for hair).
 //!
-//! Nodes resting on a collider (`supported`) pass their load to it: their vertex carries no preload
-//! (rest shape = current shape there) and no tension, which is exact for hair lying on a skull under its
-//! own weight and an approximation where a collider must also hold the pull of hair hanging below.
+//! A node resting on a collider (`supports`: the outward normal of the surface under it) passes to it the
+//! part of its load that pushes into the surface, as a frictionless support would: hair lying on the top
+//! of a skull needs no preload there, hair lying on its steep sides is held by its bending stiffness and
+//! its tension from the root against the part of its weight along the surface. Friction, which the
+//! simulation has, only adds to what holds it.
 //!
 //! **Safeguards.** Where no sensible rest shape exists (a long strand held out sideways needs rest curls
 //! tighter than its edges), each vertex's rest curvature is bounded at [`MAX_PRELOAD_TURN`] and its rest
@@ -38,22 +40,23 @@ pub struct PreloadReport {
     pub bounded_vertices: usize,
     /// Largest change of rest curvature, integrated (dimensionless).
     pub max_curvature_change: f64,
-    /// Vertices left without preload because the node beyond them is supported.
-    pub supported_vertices: usize,
+    /// Nodes resting on a collider.
+    pub supported_nodes: usize,
 }
 
 impl Rod {
     /// Gives the rod rest curvatures and twists in which its current shape is in static equilibrium
-    /// under `gravity` (m/s²), with the root edge held and the nodes marked in `supported` (one flag
-    /// per node) resting on colliders; `factor` (0 to 1) blends from the current rest shape (0) to the
-    /// sag-free one (1). Rest lengths are kept. See the [module documentation](self).
+    /// under `gravity` (m/s²), with the root edge held and each node for which `supports` gives the
+    /// outward unit normal of a surface resting on it (one entry per node, `None` for a free node);
+    /// `factor` (0 to 1) blends from the current rest shape (0) to the sag-free one (1). Rest lengths are
+    /// kept. See the [module documentation](self).
     ///
-    /// Rejects a non-finite `gravity`, a `factor` outside 0 to 1 and a `supported` of the wrong length,
-    /// and leaves the rod unchanged.
+    /// Rejects a non-finite `gravity`, a `factor` outside 0 to 1, `supports` of the wrong length or with
+    /// a normal that is not finite, and leaves the rod unchanged.
     pub fn preload_for_gravity(
         &mut self,
         gravity: DVec3,
-        supported: &[bool],
+        supports: &[Option<DVec3>],
         factor: f64,
     ) -> Result<PreloadReport, RodError> {
         if !gravity.is_finite() {
@@ -70,19 +73,26 @@ impl Rod {
                 requirement: "must lie in 0 to 1",
             });
         }
-        if supported.len() != self.node_count() {
-            return Err(RodError::WrongLength { expected: self.node_count(), actual: supported.len() });
+        if supports.len() != self.node_count() {
+            return Err(RodError::WrongLength { expected: self.node_count(), actual: supports.len() });
+        }
+        if let Some(normal) = supports.iter().flatten().find(|normal| !normal.is_finite()) {
+            return Err(RodError::InvalidPreload {
+                parameter: "support normal",
+                value: normal.length(),
+                requirement: "must be finite",
+            });
         }
         let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
         edge_geometry(self, &mut edges);
-        let stresses = self.equilibrium_stresses(&edges, gravity, supported);
+        let stresses = self.equilibrium_stresses(&edges, gravity, supports);
 
         let stiffness = *self.stiffness();
-        let mut report = PreloadReport::default();
+        let mut report =
+            PreloadReport { supported_nodes: supports.iter().flatten().count(), ..PreloadReport::default() };
         let largest = 2.0 * (0.5 * MAX_PRELOAD_TURN).tan();
         for vertex in 1..self.edge_count() {
             let Some(stress) = stresses[vertex] else {
-                report.supported_vertices += 1;
                 continue;
             };
             let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
@@ -112,9 +122,14 @@ impl Rod {
     }
 
     /// The bending and twisting stresses `s_v` (N·m) that hold the rod's current shape against `gravity`,
-    /// per interior vertex (`None` at the ends and where the node beyond is supported), solved from the
-    /// tip towards the root.
-    fn equilibrium_stresses(&self, edges: &[EdgeGeometry], gravity: DVec3, supported: &[bool]) -> Vec<Option<DVec3>> {
+    /// per interior vertex (`None` at the ends and where the shape is singular), solved from the tip
+    /// towards the root.
+    fn equilibrium_stresses(
+        &self,
+        edges: &[EdgeGeometry],
+        gravity: DVec3,
+        supports: &[Option<DVec3>],
+    ) -> Vec<Option<DVec3>> {
         let (nodes, edge_count) = (self.node_count(), self.edge_count());
         // Force and twisting moment on every unknown from what is already known (gravity, the vertices
         // and edges solved so far), as gradient components: equilibrium makes each total zero.
@@ -127,33 +142,32 @@ impl Rod {
         for vertex in (1..edge_count).rev() {
             let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist_at(vertex));
             let gradients = [&strain.grad_kappa_1, &strain.grad_kappa_2, &strain.grad_twist];
-            let (stress, tension) = if supported[vertex + 1] {
-                (DVec3::ZERO, 0.0)
-            } else {
-                // Columns: each stress's force on node v + 1 (stencil 8..11) and torque on edge v (7);
-                // the tension's force on node v + 1 is along the edge.
-                let column = |g: &[f64; 11]| DVec4::new(g[8], g[9], g[10], g[7]);
-                let tangent = edges[vertex].tangent;
-                let matrix = DMat4::from_cols(
-                    column(gradients[0]),
-                    column(gradients[1]),
-                    column(gradients[2]),
-                    DVec4::new(tangent.x, tangent.y, tangent.z, 0.0),
-                );
-                let known = node_force[vertex + 1];
-                let rhs = -DVec4::new(known.x, known.y, known.z, edge_torque[vertex]);
-                let determinant = matrix.determinant();
-                if !(determinant.is_finite() && determinant.abs() > f64::MIN_POSITIVE) {
-                    (DVec3::ZERO, 0.0)
-                } else {
-                    let solution = matrix.inverse() * rhs;
-                    (solution.truncate(), solution.w)
-                }
-            };
+            // Columns: each stress's force on node v + 1 (stencil 8..11) and torque on edge v (7); the
+            // tension's force on node v + 1 is along the edge.
+            let column = |g: &[f64; 11]| DVec4::new(g[8], g[9], g[10], g[7]);
+            let tangent = edges[vertex].tangent;
+            let matrix = DMat4::from_cols(
+                column(gradients[0]),
+                column(gradients[1]),
+                column(gradients[2]),
+                DVec4::new(tangent.x, tangent.y, tangent.z, 0.0),
+            );
+            // A surface under the node takes the part of its load that pushes into it.
+            let mut load = node_force[vertex + 1];
+            if let Some(normal) = supports[vertex + 1] {
+                load -= load.dot(normal).max(0.0) * normal;
+            }
+            let rhs = -DVec4::new(load.x, load.y, load.z, edge_torque[vertex]);
+            let determinant = matrix.determinant();
+            if !(determinant.is_finite() && determinant.abs() > f64::MIN_POSITIVE) {
+                continue;
+            }
+            let solution = matrix.inverse() * rhs;
+            let (stress, tension) = (solution.truncate(), solution.w);
             if !stress.is_finite() || !tension.is_finite() {
                 continue;
             }
-            stresses[vertex] = (!supported[vertex + 1]).then_some(stress);
+            stresses[vertex] = Some(stress);
             // Spread this vertex's stress and this edge's tension over the unknowns they touch.
             for (s, gradient) in stress.to_array().into_iter().zip(gradients) {
                 for node in 0..3 {
@@ -213,7 +227,7 @@ mod tests {
             rod.set_rest_shape(&lengths, &curvatures, &twists).unwrap();
             let weight = rod.masses()[5] * gravity.length();
             let before = unbalanced(&rod, gravity);
-            let report = rod.preload_for_gravity(gravity, &vec![false; rod.node_count()], 1.0).unwrap();
+            let report = rod.preload_for_gravity(gravity, &vec![None; rod.node_count()], 1.0).unwrap();
             let (force, torque) = unbalanced(&rod, gravity);
             assert_eq!(report.bounded_vertices, 0);
             assert!(before.0 > 10.0 * weight, "unbalanced before: {} N against a node weight of {weight} N", before.0);
@@ -225,7 +239,7 @@ mod tests {
     fn invalid_preload_parameters_are_rejected_without_change() {
         let mut rod = random_strand(&mut Lcg(3), 6);
         let before = rod.rest_shape().clone();
-        let supported = vec![false; 7];
+        let supported = vec![None; 7];
         assert!(matches!(
             rod.preload_for_gravity(DVec3::NAN, &supported, 1.0),
             Err(RodError::InvalidPreload { parameter: "gravity", .. })

@@ -1,0 +1,146 @@
+//! Combed grooms and gravity preloading in the plugin: a combed groom holds its groomed shape at rest,
+//! keeps the face clear, lies on the scalp when short, and falls when the head is turned over.
+
+mod common;
+
+use bevy::prelude::*;
+use bevy_hair_sim::prelude::*;
+use common::headless::{hair_app, strand};
+
+/// A head at 1.6 m with a groom on a skull ellipsoid collider of the scalp's own size.
+fn groomed_head(groom: HairGroom) -> (App, Entity) {
+    let mut app = hair_app();
+    let skull = groom.scalp.semi_axes;
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), Transform::from_xyz(0.0, 1.6, 0.0)));
+    app.update();
+    (app, head)
+}
+
+/// Every strand of `head`, in spawn order.
+fn strands_of(app: &App, head: Entity) -> Vec<Entity> {
+    app.world().get::<HeadStrands>(head).map(|strands| strands.strands().to_vec()).unwrap_or_default()
+}
+
+/// Node positions of every strand, world space.
+fn shape(app: &App, strands: &[Entity]) -> Vec<Vec<Vec3>> {
+    strands.iter().map(|&entity| app.world().get::<StrandNodes>(entity).unwrap().positions.clone()).collect()
+}
+
+/// RMS distance of all nodes, and of the tips, between two shapes, m.
+fn rms(a: &[Vec<Vec3>], b: &[Vec<Vec3>]) -> (f32, f32) {
+    let (mut all, mut count, mut tips) = (0.0, 0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        for (p, q) in x.iter().zip(y) {
+            all += p.distance_squared(*q);
+            count += 1;
+        }
+        tips += x.last().unwrap().distance_squared(*y.last().unwrap());
+    }
+    ((all / count as f32).sqrt(), (tips / a.len() as f32).sqrt())
+}
+
+/// The groomed shape and the shape after `seconds` of a groom with `preload`.
+fn settle(groom: HairGroom, seconds: f32) -> (Vec<Vec<Vec3>>, Vec<Vec<Vec3>>, App, Entity) {
+    let (mut app, head) = groomed_head(groom);
+    app.update();
+    let strands = strands_of(&app, head);
+    let groomed = shape(&app, &strands);
+    for _ in 0..(seconds * 60.0) as usize {
+        app.update();
+    }
+    let settled = shape(&app, &strands);
+    (groomed, settled, app, head)
+}
+
+#[test]
+fn a_combed_groom_holds_its_shape_at_rest_and_half_a_preload_sags_part_of_the_way() {
+    let groom = |gravity_preload| HairGroom { strand_count: 500, gravity_preload, ..default() };
+    let mut errors = Vec::new();
+    for preload in [1.0, 0.5, 0.0] {
+        let (groomed, settled, app, _) = settle(groom(preload), 3.0);
+        let statistics = app.world().resource::<HairStatistics>();
+        assert_eq!(statistics.faults, 0);
+        errors.push(rms(&groomed, &settled));
+        println!("preload {preload}: RMS {:?} m (all nodes, tips) after 3 s", errors.last().unwrap());
+    }
+    let ([full, full_tips], [half, _], [none, _]) = (errors[0].into(), errors[1].into(), errors[2].into());
+    assert!(full < 0.002 && full_tips < 0.005, "held within 2 mm RMS (5 mm at the tips): {full}, {full_tips}");
+    assert!(none > 2.0 * full, "without preload it sags more: {none} against {full}");
+    assert!(half > full && half < none, "half a preload sags part of the way: {half}");
+}
+
+/// The distance of `point` (head-local) outside the scalp ellipsoid of `groom`, m (radially, close
+/// enough for points near it).
+fn height_over_scalp(groom: &HairGroom, point: Vec3) -> f32 {
+    let local = point - groom.scalp.centre;
+    let scale = (local / groom.scalp.semi_axes).length();
+    local.length() * (1.0 - 1.0 / scale)
+}
+
+#[test]
+fn the_default_combed_groom_keeps_the_face_clear_at_rest() {
+    let groom = HairGroom { strand_count: 1000, ..default() };
+    let (_, settled, _, _) = settle(groom.clone(), 3.0);
+    // The face: in front of the skull (−z), between the brow and the chin, within its width.
+    let in_front = settled
+        .iter()
+        .flatten()
+        .map(|node| *node - Vec3::new(0.0, 1.6, 0.0))
+        .filter(|node| node.z < -0.04 && node.x.abs() < 0.055 && (-0.13..0.04).contains(&node.y))
+        .count();
+    let total: usize = settled.iter().map(Vec::len).sum();
+    println!("{in_front} of {total} nodes in front of the face");
+    assert_eq!(in_front, 0, "no hair hangs over the face");
+    // And the hair does cover the head: nodes beside and behind it.
+    assert!(settled.iter().flatten().any(|node| node.z > 0.09));
+}
+
+#[test]
+fn short_combed_hair_lies_along_the_scalp() {
+    let groom = HairGroom { strand_count: 600, style: HairStyle::Short, ..default() };
+    let (_, settled, _, _) = settle(groom.clone(), 3.0);
+    let highest = settled
+        .iter()
+        .flatten()
+        .map(|node| height_over_scalp(&groom, *node - Vec3::new(0.0, 1.6, 0.0)))
+        .fold(0.0, f32::max);
+    println!("short hair at rest: highest node {:.1} mm over the scalp", 1e3 * highest);
+    assert!(highest < 0.015, "within 1.5 cm of the scalp: {highest} m");
+}
+
+#[test]
+fn preloaded_hair_falls_when_the_head_is_turned_upside_down() {
+    let groom = HairGroom { strand_count: 300, ..default() };
+    let (mut app, head) = groomed_head(groom);
+    for _ in 0..60 {
+        app.update();
+    }
+    let strands = strands_of(&app, head);
+    // Turn the head over (slowly enough not to be a teleport), collider with it.
+    let colliders: Vec<Entity> = app.world().get::<HeadColliders>(head).unwrap().colliders().to_vec();
+    for step in 1..=60 {
+        let rotation = Quat::from_rotation_z(std::f32::consts::PI * step as f32 / 60.0);
+        for entity in std::iter::once(head).chain(colliders.iter().copied()) {
+            app.world_mut().get_mut::<Transform>(entity).unwrap().rotation = rotation;
+        }
+        app.update();
+    }
+    for _ in 0..120 {
+        app.update();
+    }
+    // Relative to the head, the hair now hangs the other way: its tips lie above the head's centre in
+    // the head's frame, as gravity pulls them towards the head's crown.
+    let rotation = Quat::from_rotation_z(std::f32::consts::PI);
+    let tips_towards_crown = strands
+        .iter()
+        .filter(|&&entity| {
+            let tip = *app.world().get::<StrandNodes>(entity).unwrap().positions.last().unwrap();
+            (rotation.inverse() * (tip - Vec3::new(0.0, 1.6, 0.0))).y > 0.1
+        })
+        .count();
+    println!("{tips_towards_crown} of {} tips beyond the crown after turning over", strands.len());
+    assert!(tips_towards_crown > strands.len() / 2, "the hair falls: {tips_towards_crown}");
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+    let _ = strand(&app, strands[0]);
+}
