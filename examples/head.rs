@@ -6,8 +6,9 @@
 //! ```
 //!
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
-//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style,
-//! C shows the colliders the hair rests on (skull, face, neck, shoulders, torso).
+//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style, K
+//! combs it along the scalp or grows it straight out, C shows the colliders the hair rests on (skull,
+//! face, neck, shoulders, torso).
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
@@ -93,12 +94,14 @@ struct Options {
     /// Whether the head starts with the groom from `assets/grooms/Ratboy_mohawk.tfx` instead of the
     /// procedural one (G toggles it).
     file_groom: bool,
+    /// Whether the procedural groom is combed along the scalp (K toggles it).
+    combed: bool,
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
             [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]
-            [--colliders on|off] [--groom procedural|ratboy]";
+            [--colliders on|off] [--groom procedural|ratboy] [--combing on|off]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -112,6 +115,7 @@ impl Options {
             yaw_degrees: 35.0,
             draw_colliders: false,
             file_groom: false,
+            combed: groom.combing.is_some(),
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -127,6 +131,13 @@ impl Options {
                         "on" => true,
                         "off" => false,
                         _ => return Err(format!("--colliders needs on or off, got {value:?}")),
+                    }
+                }
+                "--combing" => {
+                    options.combed = match value.as_str() {
+                        "on" => true,
+                        "off" => false,
+                        _ => return Err(format!("--combing needs on or off, got {value:?}")),
                     }
                 }
                 "--groom" => {
@@ -244,8 +255,15 @@ fn spawn_scene(
         (Mesh3d(meshes.add(mesh)), MeshMaterial3d(material.clone()), transform)
     };
     let scalp = SCALP;
-    let groom =
-        HairGroom { scalp, strand_count: options.strands, segments: options.segments, style: options.style, seed: 1 };
+    let groom = HairGroom {
+        scalp,
+        strand_count: options.strands,
+        segments: options.segments,
+        style: options.style,
+        seed: 1,
+        combing: options.combed.then(Combing::default),
+        ..default()
+    };
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
     let head = commands
         .spawn((HairHead, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0), Visibility::default(), ChildOf(body)))
@@ -416,6 +434,8 @@ fn switch_groom(
                 style: options.style,
                 seed: 1,
                 scalp: SCALP,
+                combing: options.combed.then(Combing::default),
+                ..default()
             };
             commands.entity(head).remove::<(HairGroomFile, PlacedGroomFile)>().insert(groom);
         } else {
@@ -424,11 +444,16 @@ fn switch_groom(
     }
 }
 
-/// Keys 1 to 5 pick the hair style; C shows or hides the colliders.
+/// Keys 1 to 5 pick the hair style; K combs it or not; C shows or hides the colliders.
 fn hair_keys(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>, mut gizmos: ResMut<GizmoConfigStore>) {
     if keys.just_pressed(KeyCode::KeyC) {
         let hair_gizmos = gizmos.config_mut::<HairGizmos>().1;
         hair_gizmos.draw_colliders = !hair_gizmos.draw_colliders;
+    }
+    if keys.just_pressed(KeyCode::KeyK) {
+        for mut groom in &mut grooms {
+            groom.combing = if groom.combing.is_some() { None } else { Some(Combing::default()) };
+        }
     }
     let keys_and_styles = [KeyCode::Digit1, KeyCode::Digit2, KeyCode::Digit3, KeyCode::Digit4, KeyCode::Digit5]
         .into_iter()
@@ -482,7 +507,7 @@ fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<Animatio
                 }
             }
         });
-        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · G: Ratboy groom · C: colliders");
+        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · K: combed · G: Ratboy groom · C: colliders");
     });
     Ok(())
 }

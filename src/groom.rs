@@ -294,7 +294,11 @@ impl Combing {
         let facing_front = (-normal.z).clamp(0.0, 1.0);
         let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), self.sweep_back * facing_front);
         let along = wanted.reject_from_normalized(normal);
-        if along.length_squared() > 1e-6 { along.normalize() } else { Vec3::Z.reject_from_normalized(normal).normalize() }
+        if along.length_squared() > 1e-6 {
+            along.normalize()
+        } else {
+            Vec3::Z.reject_from_normalized(normal).normalize()
+        }
     }
 }
 
@@ -351,7 +355,7 @@ impl CombedPath<'_> {
             let outward = Vec3::new(normal.x, 0.0, normal.z).normalize_or(Vec3::Z);
             let shape = StrandShape::new(style, Vec3::NEG_Y, edge_length, random).facing(outward);
             let mut point = *path.last().unwrap_or(&root.position);
-            let start = arc;
+            let (start, lifted) = (arc, self.lift * (arc / edge_length).min(1.0));
             while arc < length {
                 let fallen = arc - start;
                 let blend = (fallen / Self::TURN).min(1.0);
@@ -359,10 +363,15 @@ impl CombedPath<'_> {
                 let direction = tangent.lerp(shape.tangent(fallen), blend).normalize_or(Vec3::NEG_Y);
                 point += Self::STEP * direction;
                 arc += Self::STEP;
-                path.push(point);
+                // A strand that falls from its root still rises to its lift over the first edge.
+                let rise = self.lift * (arc / edge_length).min(1.0) - lifted;
+                path.push(point + rise * normal);
             }
         }
-        (resample(&path, edge_length, segments), root.normal.cross(first_direction))
+        let nodes = resample(&path, edge_length, segments);
+        let material_direction =
+            root.normal.cross(nodes[1] - nodes[0]).normalize_or(root.normal.cross(first_direction));
+        (nodes, material_direction)
     }
 }
 

@@ -23,7 +23,7 @@ pub mod prelude {
         HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
-    pub use crate::groom::{GroomedStrand, HairGroom, HairStyle, Scalp};
+    pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::groom_file::{
         FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, PlacedGroomFile, UpAxis,
     };

@@ -10,7 +10,7 @@ use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::gizmos::HairGizmos;
-use crate::groom::{HairGroom, HairStyle};
+use crate::groom::{Combing, HairGroom, HairStyle};
 use crate::rod::RodMaterial;
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::SimulatedStrand;
@@ -68,11 +68,30 @@ struct GroomEdit {
     strand_count: usize,
     segments: usize,
     style: HairStyle,
+    combed: bool,
+    gravity_preload: f32,
 }
 
 impl From<&HairGroom> for GroomEdit {
     fn from(groom: &HairGroom) -> Self {
-        Self { strand_count: groom.strand_count, segments: groom.segments, style: groom.style }
+        Self {
+            strand_count: groom.strand_count,
+            segments: groom.segments,
+            style: groom.style,
+            combed: groom.combing.is_some(),
+            gravity_preload: groom.gravity_preload,
+        }
+    }
+}
+
+impl GroomEdit {
+    /// Writes the edited parts into `groom` (a combing switched on gets the default combing).
+    fn apply(&self, groom: &mut HairGroom) {
+        (groom.strand_count, groom.segments, groom.style) = (self.strand_count, self.segments, self.style);
+        groom.gravity_preload = self.gravity_preload;
+        if self.combed != groom.combing.is_some() {
+            groom.combing = self.combed.then(Combing::default);
+        }
     }
 }
 
@@ -131,7 +150,7 @@ fn hair_panel(
     if let Some(edit) = groom.filter(|_| !groom_held) {
         for mut groom in &mut grooms {
             if GroomEdit::from(&*groom) != edit {
-                (groom.strand_count, groom.segments, groom.style) = (edit.strand_count, edit.segments, edit.style);
+                edit.apply(&mut groom);
             }
         }
     }
@@ -202,6 +221,10 @@ fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
             }
         });
         ui.end_row();
+        ui.label("combed");
+        ui.checkbox(&mut groom.combed, "along the scalp, from a parting");
+        ui.end_row();
+        held |= grid_row(ui, "gravity preload", egui::Slider::new(&mut groom.gravity_preload, 0.0..=1.0)).dragged();
     });
     held
 }

@@ -12,7 +12,8 @@ use crate::groom_file::GroomFilePlugin;
 use crate::head::{HairHead, HeadMotion, HeadStrands, StrandOf, track_heads};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::step::{
-    StepBudget, apply_default_material, open_step, pin_roots, preload_rest_shapes, reset_step_budget, step_strands, stepping,
+    StepBudget, apply_default_material, open_step, pin_roots, preload_rest_shapes, reset_step_budget, step_strands,
+    stepping,
 };
 use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandRejected, build_strands};
 use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits};

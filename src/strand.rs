@@ -321,11 +321,7 @@ impl SimulatedStrand {
 
     /// Runs a pending gravity preload under `gravity` (m/s²), with the nodes resting on colliders given
     /// the outward normals under them in `supports`; returns whether one ran.
-    pub(crate) fn run_pending_preload(
-        &mut self,
-        gravity: DVec3,
-        supports: &[Option<DVec3>],
-    ) -> Result<bool, RodError> {
+    pub(crate) fn run_pending_preload(&mut self, gravity: DVec3, supports: &[Option<DVec3>]) -> Result<bool, RodError> {
         let Some(factor) = self.pending_preload.take() else {
             return Ok(false);
         };

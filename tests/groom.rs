@@ -71,7 +71,8 @@ fn roots_are_spread_evenly_without_clumps_or_bald_patches() {
 #[test]
 fn grown_strands_have_the_style_lengths_and_root_along_the_normal() {
     for style in HairStyle::ALL {
-        let groom = HairGroom { scalp: skull(), strand_count: 300, segments: 16, style, seed: 7 };
+        let groom =
+            HairGroom { scalp: skull(), strand_count: 300, segments: 16, style, seed: 7, combing: None, ..default() };
         let strands = groom.grow().unwrap();
         let roots = groom.scalp.roots(300).unwrap();
         assert_eq!(strands.len(), 300);
@@ -92,6 +93,33 @@ fn grown_strands_have_the_style_lengths_and_root_along_the_normal() {
 }
 
 #[test]
+fn combed_strands_have_the_style_lengths_and_leave_the_root_along_the_scalp() {
+    for style in HairStyle::ALL {
+        let groom = HairGroom { scalp: skull(), strand_count: 300, segments: 16, style, seed: 7, ..default() };
+        let combing = groom.combing.unwrap();
+        let strands = groom.grow().unwrap();
+        let roots = groom.scalp.roots(300).unwrap();
+        let (shortest, longest) = style.length_range();
+        for (strand, root) in strands.iter().zip(&roots) {
+            let length: f32 = strand.nodes.windows(2).map(|edge| edge[0].distance(edge[1])).sum();
+            assert_eq!(strand.nodes[0], root.position);
+            let root_edge = strand.nodes[1] - strand.nodes[0];
+            // Nearly along the scalp (within 30° of its tangent plane, or rising only by the lift on a
+            // short edge), ending above it.
+            let rise = root_edge.dot(root.normal);
+            let lift = combing.lift + combing.layer_spread;
+            assert!(rise < 0.5 * root_edge.length() || rise <= lift + 1e-5, "{style:?}: the root edge rises {rise} m");
+            let above = (strand.nodes[1] - groom.scalp.centre) / groom.scalp.semi_axes;
+            assert!(above.length() > 1.0 + 0.5 * combing.lift / 0.1, "{style:?}: node 1 is not above the scalp");
+            // Chords of a path of the style's length: a little shorter where it bends, never longer.
+            assert!((0.97 * shortest..=longest + 1e-5).contains(&length), "{style:?} strand of {length} m");
+            assert!(strand.material_direction.dot(root_edge.normalize()).abs() < 1e-3, "{style:?} material direction");
+            assert_eq!(strand.gravity_preload, 1.0);
+        }
+    }
+}
+
+#[test]
 fn the_same_seed_grows_the_same_hair_and_another_seed_other_hair() {
     let groom = HairGroom { strand_count: 50, style: HairStyle::Curly, ..default() };
     assert_eq!(groom.grow().unwrap(), groom.grow().unwrap());
@@ -107,6 +135,8 @@ fn invalid_grooms_are_rejected_with_their_reason() {
         (HairGroom { scalp: Scalp { nape_height: f32::NAN, ..default() }, ..default() }, "nape height"),
         (HairGroom { scalp: Scalp { brow_height: 1.5, ..default() }, ..default() }, "brow height"),
         (HairGroom { scalp: Scalp { nape_height: 1.0, brow_height: 1.0, ..default() }, ..default() }, "no room"),
+        (HairGroom { gravity_preload: 1.5, ..default() }, "gravity preload"),
+        (HairGroom { combing: Some(Combing { lift: -0.001, ..default() }), ..default() }, "combing"),
     ];
     for (groom, reason) in cases {
         let error: GroomError = groom.grow().unwrap_err();

@@ -42,7 +42,9 @@ fn a_preloaded_strand_keeps_its_groomed_shape_and_half_a_preload_sags_half_way()
     let mut full = groomed_hair();
     let report = full.preload_for_gravity(params.gravity, &supported, 1.0).unwrap();
     let full_sag = drift(&mut full, &params, 3.0);
-    println!("largest drift after 3 s: {sag:.4} m without preload, {half_sag:.4} m at 0.5, {full_sag:.2e} m at 1 ({report:?})");
+    println!(
+        "largest drift after 3 s: {sag:.4} m without preload, {half_sag:.4} m at 0.5, {full_sag:.2e} m at 1 ({report:?})"
+    );
 
     assert!(sag > 0.02, "without preload the hair sags: {sag} m");
     assert!(full_sag < 1e-4, "preloaded, it holds its shape within 0.1 mm: {full_sag} m");

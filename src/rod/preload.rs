@@ -188,9 +188,9 @@ impl Rod {
 mod tests {
     use bevy::math::DVec3;
 
+    use super::super::RodError;
     use super::super::energy::{add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
     use super::super::test_support::{Lcg, random_strand};
-    use super::super::RodError;
     use super::*;
 
     /// The largest force (N) and twisting moment (N·m) left unbalanced at the free unknowns of `rod`
