@@ -105,6 +105,50 @@ fn main() {
     if wanted("memory") {
         memory_per_node(threads);
     }
+    if wanted("preload") {
+        preload_cost();
+    }
+}
+
+/// What gravity preloading costs when a groom is grown: 1 000 combed strands (the default groom) on a
+/// skull collider, one thread, the supports found as the plugin finds them; the fastest of 5 runs.
+fn preload_cost() {
+    use bevy_hair_sim::rod::{ColliderShape, RodMaterial};
+    println!();
+    println!("| strands × edges | ms per 1 000 strands, preload (supports included) | µs per strand |");
+    println!("|---|---:|---:|");
+    for segments in [16, 24, 32] {
+        let groom = HairGroom { strand_count: 1000, segments, ..HairGroom::default() };
+        let skull = ColliderShape::Ellipsoid { semi_axes: groom.scalp.semi_axes.as_dvec3() };
+        let reach = 40e-6 + 1e-3 + f64::from(bevy_hair_sim::strand::PRELOAD_SUPPORT_DISTANCE);
+        let rods: Vec<Rod> = groom
+            .grow()
+            .unwrap()
+            .iter()
+            .map(|strand| {
+                let nodes: Vec<DVec3> = strand.nodes.iter().map(|node| node.as_dvec3()).collect();
+                Rod::new(&nodes, strand.material_direction.as_dvec3(), RodMaterial::human_hair()).unwrap()
+            })
+            .collect();
+        let fastest = (0..5)
+            .map(|_| {
+                let mut rods = rods.clone();
+                let started = Instant::now();
+                for rod in &mut rods {
+                    let supports: Vec<Option<DVec3>> = rod
+                        .positions()
+                        .iter()
+                        .map(|&node| {
+                            skull.inflated(reach).contains(node).then(|| skull.closest_surface_point(node).normal)
+                        })
+                        .collect();
+                    rod.preload_for_gravity(DVec3::new(0.0, -9.81, 0.0), &supports, 1.0).unwrap();
+                }
+                started.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min);
+        println!("| 1 000 × {segments} | {:.2} | {:.2} |", 1e3 * fastest, 1e3 * fastest);
+    }
 }
 
 /// Cost against strands and edges, with the ratio to the row with half as many.

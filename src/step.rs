@@ -8,7 +8,7 @@ use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, RodWorkspace, StepError};
+use crate::rod::{Contacts, HELD_REACH, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
@@ -83,19 +83,34 @@ pub(crate) fn preload_rest_shapes(
         if !strand.preload_pending() {
             return;
         }
-        let reach = strand.contact_thickness(margin) + f64::from(PRELOAD_SUPPORT_DISTANCE);
-        let nearby = colliders.of(strand_of);
-        let supports: Vec<Option<DVec3>> = strand
-            .rod()
+        let thickness = strand.contact_thickness(margin);
+        let reach = thickness + f64::from(PRELOAD_SUPPORT_DISTANCE);
+        let rod = strand.rod();
+        // Arc length from the root to each node, m.
+        let arcs: Vec<f64> = std::iter::once(0.0)
+            .chain(rod.rest_lengths().iter().scan(0.0, |arc, length| {
+                *arc += length;
+                Some(*arc)
+            }))
+            .collect();
+        let supports: Vec<Option<DVec3>> = rod
             .positions()
             .iter()
-            .map(|&node| {
-                nearby.iter().find_map(|collider| {
+            .zip(&arcs)
+            .map(|(&node, &arc)| {
+                colliders.of(strand_of).iter().find_map(|collider| {
+                    // As in the step, a collider holding the root inside it leaves the nodes near the root
+                    // (within `HELD_REACH` times the root's depth) free of it: hair grows out of it.
+                    let root = collider.end.to_local(rod.positions()[0]);
+                    let grown = collider.shape.inflated(thickness);
+                    let held = if grown.contains(root) {
+                        let surface = grown.closest_surface_point(root);
+                        HELD_REACH * (surface.point - root).dot(surface.normal).max(0.0)
+                    } else {
+                        0.0
+                    };
                     let local = collider.end.to_local(node);
-                    collider
-                        .shape
-                        .inflated(reach)
-                        .contains(local)
+                    (arc > held && collider.shape.inflated(reach).contains(local))
                         .then(|| collider.end.rotation * collider.shape.closest_surface_point(local).normal)
                 })
             })

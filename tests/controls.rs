@@ -54,16 +54,22 @@ fn tip(app: &App, entity: Entity) -> bevy::math::DVec3 {
 }
 
 /// A small groom of short hair: stiff enough that its sag tells the material apart.
+/// The grooms these tests tune: grown straight out along the scalp's normal and not preloaded, so that
+/// gravity, damping and the material show in how they sag (combed, preloaded grooms: `tests/combed.rs`).
+fn uncombed() -> HairGroom {
+    HairGroom { combing: None, gravity_preload: 0.0, ..default() }
+}
+
 fn short_hair() -> HairGroom {
-    HairGroom { strand_count: 40, segments: 8, style: HairStyle::Short, ..default() }
+    HairGroom { strand_count: 40, segments: 8, style: HairStyle::Short, ..uncombed() }
 }
 
 #[test]
 fn gravity_and_damping_change_the_motion() {
-    let baseline = run(HairGroom { strand_count: 40, segments: 8, ..default() }, 30, |_| {});
-    let weightless = run(HairGroom { strand_count: 40, segments: 8, ..default() }, 30, |s| s.gravity = Vec3::ZERO);
-    let still_air = run(HairGroom { strand_count: 40, segments: 8, ..default() }, 30, |s| s.air_damping = 0.0);
-    let thick_air = run(HairGroom { strand_count: 40, segments: 8, ..default() }, 30, |s| s.air_damping = 30.0);
+    let baseline = run(HairGroom { strand_count: 40, segments: 8, ..uncombed() }, 30, |_| {});
+    let weightless = run(HairGroom { strand_count: 40, segments: 8, ..uncombed() }, 30, |s| s.gravity = Vec3::ZERO);
+    let still_air = run(HairGroom { strand_count: 40, segments: 8, ..uncombed() }, 30, |s| s.air_damping = 0.0);
+    let thick_air = run(HairGroom { strand_count: 40, segments: 8, ..uncombed() }, 30, |s| s.air_damping = 30.0);
     // Internal damping acts on elastic vibration: short hair on the turning head rings.
     let elastic = run(short_hair(), 30, |s| s.air_damping = 0.0);
     let viscous = run(short_hair(), 30, |s| {
@@ -108,7 +114,7 @@ fn the_material_changes_how_far_short_hair_sags() {
 
 #[test]
 fn solver_limits_apply() {
-    let groom = HairGroom { strand_count: 20, segments: 8, ..default() };
+    let groom = HairGroom { strand_count: 20, segments: 8, ..uncombed() };
     let capped = run(groom.clone(), 10, |settings| settings.max_newton_iterations = 1);
     assert!(capped.mean_newton_iterations <= 1.0, "{} Newton iterations", capped.mean_newton_iterations);
     let stopped = run(groom, 10, |settings| settings.max_steps_per_frame = 0);
@@ -118,7 +124,7 @@ fn solver_limits_apply() {
 #[test]
 fn groom_count_segments_and_style_respawn_the_hair() {
     let mut app = hair_app();
-    let groom = HairGroom { strand_count: 30, segments: 6, ..default() };
+    let groom = HairGroom { strand_count: 30, segments: 6, ..uncombed() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
     let hand_made = app.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::Y, 0.1, 4), StrandOf(head))).id();
     app.update();
@@ -174,7 +180,7 @@ fn groom_count_segments_and_style_respawn_the_hair() {
 #[test]
 fn short_hair_stands_out_and_long_hair_hangs() {
     let mut app = hair_app();
-    let groom = HairGroom { strand_count: 60, segments: 12, style: HairStyle::Short, ..default() };
+    let groom = HairGroom { strand_count: 60, segments: 12, style: HairStyle::Short, ..uncombed() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
     // How far the strands point along their root normal, as a fraction of their length, once settled.
     let outwards = |app: &mut App| -> f64 {
@@ -202,7 +208,7 @@ fn short_hair_stands_out_and_long_hair_hangs() {
 #[test]
 fn pause_single_step_and_reset() {
     let mut app = hair_app();
-    let groom = HairGroom { strand_count: 10, segments: 8, ..default() };
+    let groom = HairGroom { strand_count: 10, segments: 8, ..uncombed() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
     app.update();
     let strands: Vec<Entity> = groomed_strands(&app, head).collect();

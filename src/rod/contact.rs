@@ -58,7 +58,7 @@ const CONTACT_STIFFNESS_RATIO: f64 = 1e4;
 /// it could not be outside without stretching the strand (a root inside a hat, a hand or a ceiling plane),
 /// so the strand is not torn trying. Hair growing out of a scalp collider has its roots a thickness deep,
 /// so only nodes within two thicknesses of the root are let in.
-const HELD_REACH: f64 = 2.0;
+pub(crate) const HELD_REACH: f64 = 2.0;
 
 /// Speed, m/s, below which friction acts as a stiff spring on the slip rather than as a constant force
 /// (the smoothing of IPC's friction): a node held below its friction limit creeps at most this fast.
