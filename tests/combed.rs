@@ -144,3 +144,43 @@ fn preloaded_hair_falls_when_the_head_is_turned_upside_down() {
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
     let _ = strand(&app, strands[0]);
 }
+
+#[test]
+fn combed_hair_swings_back_to_its_groomed_shape_after_the_head_shakes() {
+    let (mut app, head) = groomed_head(HairGroom { strand_count: 300, ..default() });
+    app.update();
+    let strands = strands_of(&app, head);
+    let groomed = shape(&app, &strands);
+    let colliders: Vec<Entity> = app.world().get::<HeadColliders>(head).unwrap().colliders().to_vec();
+    // Shaken sideways, 5 cm at 3 Hz, for a second; then still at its place for 4 s.
+    let mut farthest = 0.0_f32;
+    for step in 1..=(60 + 240) {
+        let t = step as f32 / 60.0;
+        let x = if step <= 60 { 0.05 * (std::f32::consts::TAU * 3.0 * t).sin() } else { 0.0 };
+        for entity in std::iter::once(head).chain(colliders.iter().copied()) {
+            app.world_mut().get_mut::<Transform>(entity).unwrap().translation.x = x;
+        }
+        app.update();
+        if step == 45 {
+            farthest = rms(&groomed, &shape(&app, &strands)).1;
+        }
+    }
+    let settled = shape(&app, &strands);
+    let (all, tips) = rms(&groomed, &settled);
+    let mut offsets: Vec<f32> =
+        groomed.iter().zip(&settled).map(|(a, b)| a.last().unwrap().distance(*b.last().unwrap())).collect();
+    offsets.sort_by(f32::total_cmp);
+    let back = offsets.iter().filter(|&&offset| offset < 0.005).count();
+    println!(
+        "shaking moved the tips {farthest:.4} m RMS; 4 s after, {all:.4} m RMS from the groom (tips {tips:.4} m); \
+         {back} of {} tips within 5 mm of where they were groomed, median {:.4} m, worst {:.4} m",
+        offsets.len(),
+        offsets[offsets.len() / 2],
+        offsets[offsets.len() - 1]
+    );
+    assert!(farthest > 0.02, "the shake moved the hair: {farthest} m");
+    // Most hair swings back; strands rooted on the parting may come to rest on its other side.
+    assert!(back >= offsets.len() * 8 / 10, "{back} tips back within 5 mm");
+    assert!(offsets[offsets.len() / 2] < 0.002, "median tip {} m from the groom", offsets[offsets.len() / 2]);
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+}
