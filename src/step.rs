@@ -8,7 +8,7 @@ use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, HELD_REACH, RodWorkspace, StepError};
+use crate::rod::{Contacts, HELD_REACH, MovingCollider, Rod, RodWorkspace, StepError};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
@@ -83,43 +83,45 @@ pub(crate) fn preload_rest_shapes(
         if !strand.preload_pending() {
             return;
         }
-        let thickness = strand.contact_thickness(margin);
-        let reach = thickness + f64::from(PRELOAD_SUPPORT_DISTANCE);
-        let rod = strand.rod();
-        // Arc length from the root to each node, m.
-        let arcs: Vec<f64> = std::iter::once(0.0)
-            .chain(rod.rest_lengths().iter().scan(0.0, |arc, length| {
-                *arc += length;
-                Some(*arc)
-            }))
-            .collect();
-        let supports: Vec<Option<DVec3>> = rod
-            .positions()
-            .iter()
-            .zip(&arcs)
-            .map(|(&node, &arc)| {
-                colliders.of(strand_of).iter().find_map(|collider| {
-                    // As in the step, a collider holding the root inside it leaves the nodes near the root
-                    // (within `HELD_REACH` times the root's depth) free of it: hair grows out of it.
-                    let root = collider.end.to_local(rod.positions()[0]);
-                    let grown = collider.shape.inflated(thickness);
-                    let held = if grown.contains(root) {
-                        let surface = grown.closest_surface_point(root);
-                        HELD_REACH * (surface.point - root).dot(surface.normal).max(0.0)
-                    } else {
-                        0.0
-                    };
-                    let local = collider.end.to_local(node);
-                    (arc > held && collider.shape.inflated(reach).contains(local))
-                        .then(|| collider.end.rotation * collider.shape.closest_surface_point(local).normal)
-                })
-            })
-            .collect();
+        let supports = preload_supports(strand.rod(), colliders.of(strand_of), strand.contact_thickness(margin));
         match strand.run_pending_preload(gravity, &supports) {
             Ok(_) => rest_shape.update(strand.rod()),
             Err(error) => error!("hair strand {entity}: gravity preload failed, its rest shape is unchanged: {error}"),
         }
     });
+}
+
+/// For each node of `rod`, the outward normal of the first of `colliders` it rests on (within `thickness`
+/// plus [`PRELOAD_SUPPORT_DISTANCE`] of it), if any. As in the step, a collider that holds the root inside
+/// it leaves the nodes near the root (within [`HELD_REACH`] times the root's depth, along the strand)
+/// free of it: hair grows out of it.
+fn preload_supports(rod: &Rod, colliders: &[MovingCollider], thickness: f64) -> Vec<Option<DVec3>> {
+    let reach = thickness + f64::from(PRELOAD_SUPPORT_DISTANCE);
+    let held: Vec<f64> = colliders
+        .iter()
+        .map(|collider| {
+            let root = collider.end.to_local(rod.positions()[0]);
+            let grown = collider.shape.inflated(thickness);
+            if !grown.contains(root) {
+                return 0.0;
+            }
+            let surface = grown.closest_surface_point(root);
+            HELD_REACH * (surface.point - root).dot(surface.normal).max(0.0)
+        })
+        .collect();
+    let mut arc = 0.0;
+    rod.positions()
+        .iter()
+        .enumerate()
+        .map(|(node, &position)| {
+            arc += if node > 0 { rod.rest_lengths()[node - 1] } else { 0.0 };
+            colliders.iter().zip(&held).find_map(|(collider, &held)| {
+                let local = collider.end.to_local(position);
+                (arc > held && collider.shape.inflated(reach).contains(local))
+                    .then(|| collider.end.rotation * collider.shape.closest_surface_point(local).normal)
+            })
+        })
+        .collect()
 }
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head

@@ -91,8 +91,8 @@ impl Rod {
         let mut report =
             PreloadReport { supported_nodes: supports.iter().flatten().count(), ..PreloadReport::default() };
         let largest = 2.0 * (0.5 * MAX_PRELOAD_TURN).tan();
-        for vertex in 1..self.edge_count() {
-            let Some(stress) = stresses[vertex] else {
+        for (vertex, stress) in stresses.iter().enumerate() {
+            let Some(stress) = *stress else {
                 continue;
             };
             let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
