@@ -184,3 +184,52 @@ fn combed_hair_swings_back_to_its_groomed_shape_after_the_head_shakes() {
     assert!(offsets[offsets.len() / 2] < 0.002, "median tip {} m from the groom", offsets[offsets.len() / 2]);
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
 }
+
+/// Largest distance of a strand's nodes from `reference`, m.
+fn drift(app: &App, strand: Entity, reference: &[Vec3]) -> f32 {
+    let nodes = &app.world().get::<StrandNodes>(strand).unwrap().positions;
+    nodes.iter().zip(reference).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max)
+}
+
+#[test]
+fn a_strand_of_your_own_is_preloaded_when_built_and_again_on_demand() {
+    let mut app = hair_app();
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    // 10 cm of hair held out sideways from the head, preloaded or not.
+    let spawn = |app: &mut App, preload: f32| {
+        let strand = HairStrand::straight(Vec3::new(0.1, 0.0, 0.0), Vec3::X, 0.1, 12).with_gravity_preload(preload);
+        app.world_mut().spawn((strand, StrandOf(head))).id()
+    };
+    let (held, free) = (spawn(&mut app, 1.0), spawn(&mut app, 0.0));
+    app.update();
+    let spawned = app.world().get::<StrandNodes>(held).unwrap().positions.clone();
+    for _ in 0..180 {
+        app.update();
+    }
+    let (held_drift, free_drift) = (drift(&app, held, &spawned), drift(&app, free, &spawned));
+    println!("after 3 s: preloaded {held_drift:.2e} m, not preloaded {free_drift:.4} m");
+    assert!(held_drift < 1e-4 && free_drift > 0.01, "{held_drift} m, {free_drift} m");
+    assert_eq!(strand(&app, held).preload_report().map(|report| report.bounded_vertices), Some(0));
+
+    // Gravity turns sideways: the hair swings away; preloaded again where it hangs, it stays there.
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::new(0.0, 0.0, -9.81);
+    for _ in 0..120 {
+        app.update();
+    }
+    let swung = app.world().get::<StrandNodes>(held).unwrap().positions.clone();
+    assert!(drift(&app, held, &spawned) > 0.01, "the preloaded hair responds to the new gravity");
+    app.world_mut().get_mut::<SimulatedStrand>(held).unwrap().preload_gravity(1.0);
+    app.update(); // preloaded under the sideways gravity, before this step
+    for _ in 0..60 {
+        app.update();
+    }
+    let still = drift(&app, held, &swung);
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    for _ in 0..180 {
+        app.update();
+    }
+    let relaxed = drift(&app, held, &swung);
+    println!("preloaded again under sideways gravity: moved {still:.2e} m in 1 s; then weightless: {relaxed:.4} m");
+    assert!(still < 1e-3, "preloaded where it hangs, it stays: {still} m");
+    assert!(relaxed > 0.005, "with gravity gone, the new rest shape (which bends against it) moves the hair");
+}
