@@ -6,6 +6,7 @@ use bevy::gizmos::config::GizmoConfigGroup;
 use bevy::prelude::*;
 
 use crate::collision::ColliderMotion;
+use crate::followers::FollowerNodes;
 use crate::rod::ColliderShape;
 use crate::strand::SimulatedStrand;
 use crate::strand_data::StrandNodes;
@@ -24,6 +25,9 @@ pub struct HairGizmos {
     pub draw_colliders: bool,
     /// Colour of the collider wireframes.
     pub collider_color: Color,
+    /// Whether follower hairs ([`crate::followers`]) are drawn, besides the simulated strands; off shows
+    /// the guides alone. Default on.
+    pub draw_followers: bool,
 }
 
 impl Default for HairGizmos {
@@ -34,6 +38,7 @@ impl Default for HairGizmos {
             tip_color: Color::srgb(0.55, 0.38, 0.22),
             draw_colliders: false,
             collider_color: Color::srgb(0.2, 0.9, 0.4),
+            draw_followers: true,
         }
     }
 }
@@ -88,15 +93,23 @@ impl Plugin for HairGizmoPlugin {
 pub fn draw_strands(
     mut gizmos: Gizmos<HairGizmos>,
     fixed_time: Res<Time<Fixed>>,
-    strands: Query<&StrandNodes, With<SimulatedStrand>>,
+    strands: Query<(&StrandNodes, Option<&FollowerNodes>), With<SimulatedStrand>>,
 ) {
     let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
     let root = gizmos.config_ext.root_color.to_linear();
     let tip = gizmos.config_ext.tip_color.to_linear();
-    for nodes in &strands {
-        let last = nodes.positions.len().saturating_sub(1).max(1) as f32;
-        let colors = (0..nodes.positions.len()).map(|node| root.mix(&tip, node as f32 / last));
-        gizmos.linestrip_gradient(nodes.interpolated(alpha).zip(colors));
+    let draw_followers = gizmos.config_ext.draw_followers;
+    for (nodes, followers) in &strands {
+        let count = nodes.positions.len();
+        let last = count.saturating_sub(1).max(1) as f32;
+        let colors = move || (0..count).map(move |node| root.mix(&tip, node as f32 / last));
+        gizmos.linestrip_gradient(nodes.interpolated(alpha).zip(colors()));
+        let Some(followers) = followers.filter(|_| draw_followers) else {
+            continue;
+        };
+        for follower in 0..followers.count() {
+            gizmos.linestrip_gradient(followers.interpolated(follower, alpha).zip(colors()));
+        }
     }
 }
 

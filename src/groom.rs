@@ -9,6 +9,7 @@ use std::f32::consts::{FRAC_PI_3, TAU};
 use bevy::prelude::*;
 use thiserror::Error;
 
+use crate::followers::HairFollowers;
 use crate::head::{HeadStrands, StrandOf};
 use crate::strand::HairStrand;
 
@@ -182,6 +183,10 @@ pub struct HairGroom {
     /// and back from the face, until the scalp turns under it, and lets the rest fall from there in the
     /// style's shape; `None` grows each strand straight out along the scalp's normal. Default: combed.
     pub combing: Option<Combing>,
+    /// Follower hairs per simulated strand (see [`crate::followers`]): each guide strand carries this
+    /// many unsimulated hairs with roots of their own, spread evenly between the guides' roots, placed
+    /// from the guide's motion every step. 0 (the default) simulates every hair drawn.
+    pub followers_per_guide: usize,
     /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1 makes the grown
     /// shape the shape at rest under gravity, lying on the skull collider where it was combed onto it; 0
     /// lets it sag. Default 1.
@@ -197,6 +202,7 @@ impl Default for HairGroom {
             style: HairStyle::Straight,
             seed: 0,
             combing: Some(Combing::default()),
+            followers_per_guide: 0,
             gravity_preload: 1.0,
         }
     }
@@ -232,6 +238,47 @@ impl HairGroom {
     /// The strands of this groom, in the head's local space: combed along the scalp (see [`Combing`]), or,
     /// without combing, each growing out along the scalp's normal.
     pub fn grow(&self) -> Result<Vec<HairStrand>, GroomError> {
+        self.validate()?;
+        let mut random = fastrand::Rng::with_seed(self.seed);
+        let strands = self.scalp.roots(self.strand_count)?.into_iter().map(|root| self.grow_strand(root, &mut random));
+        Ok(strands.collect())
+    }
+
+    /// The guide strands of this groom with their followers ([`HairGroom::followers_per_guide`]): the
+    /// roots of `strand_count × (1 + followers_per_guide)` hairs spread evenly over the scalp, every
+    /// `1 + followers_per_guide`-th of them a guide, the others each following the guide whose root is
+    /// nearest.
+    pub fn grow_with_followers(&self) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
+        if self.followers_per_guide == 0 {
+            return Ok(self.grow()?.into_iter().map(|strand| (strand, HairFollowers::default())).collect());
+        }
+        self.validate()?;
+        let every = 1 + self.followers_per_guide;
+        let roots = self.scalp.roots(self.strand_count.saturating_mul(every))?;
+        let mut random = fastrand::Rng::with_seed(self.seed);
+        let mut grown: Vec<(HairStrand, HairFollowers)> = Vec::with_capacity(self.strand_count);
+        let mut guide_roots = Vec::with_capacity(self.strand_count);
+        let (guides, followers): (Vec<_>, Vec<_>) =
+            roots.into_iter().enumerate().partition(|(index, _)| index % every == 0);
+        for (_, root) in guides {
+            guide_roots.push(root.position);
+            grown.push((self.grow_strand(root, &mut random), HairFollowers::default()));
+        }
+        for (_, root) in followers {
+            let nearest = guide_roots
+                .iter()
+                .enumerate()
+                .min_by(|a, b| a.1.distance_squared(root.position).total_cmp(&b.1.distance_squared(root.position)))
+                .map(|(index, _)| index);
+            let follower = self.grow_strand(root, &mut random);
+            if let Some(guide) = nearest {
+                grown[guide].1.curves.push(follower.nodes);
+            }
+        }
+        Ok(grown)
+    }
+
+    fn validate(&self) -> Result<(), GroomError> {
         if self.segments < 2 {
             return Err(GroomError::TooFewSegments(self.segments));
         }
@@ -241,39 +288,34 @@ impl HairGroom {
         if let Some(combing) = &self.combing {
             combing.validate()?;
         }
-        let mut random = fastrand::Rng::with_seed(self.seed);
+        Ok(())
+    }
+
+    /// One strand of this groom from `root`, in the head's local space.
+    fn grow_strand(&self, root: ScalpRoot, random: &mut fastrand::Rng) -> HairStrand {
         let (shortest, longest) = self.style.length_range();
-        let strands = self
-            .scalp
-            .roots(self.strand_count)?
-            .into_iter()
-            .map(|root| {
-                let length = shortest + (longest - shortest) * random.f32();
-                let edge_length = length / self.segments as f32;
-                let strand = match &self.combing {
-                    Some(combing) => {
-                        let lift = combing.lift + combing.layer_spread * random.f32();
-                        let path = CombedPath { scalp: &self.scalp, combing, lift };
-                        let (nodes, material_direction) =
-                            path.grow(root, self.style, length, self.segments, &mut random);
-                        HairStrand::from_nodes(nodes, material_direction)
-                    }
-                    None => {
-                        let shape = StrandShape::new(self.style, root.normal, edge_length, &mut random);
-                        let mut nodes = Vec::with_capacity(self.segments + 1);
-                        let mut node = root.position;
-                        nodes.push(node);
-                        for edge in 0..self.segments {
-                            node += shape.edge(edge);
-                            nodes.push(node);
-                        }
-                        HairStrand::from_nodes(nodes, shape.down_the_scalp)
-                    }
-                };
-                strand.with_gravity_preload(self.gravity_preload)
-            })
-            .collect();
-        Ok(strands)
+        let length = shortest + (longest - shortest) * random.f32();
+        let edge_length = length / self.segments as f32;
+        let strand = match &self.combing {
+            Some(combing) => {
+                let lift = combing.lift + combing.layer_spread * random.f32();
+                let path = CombedPath { scalp: &self.scalp, combing, lift };
+                let (nodes, material_direction) = path.grow(root, self.style, length, self.segments, random);
+                HairStrand::from_nodes(nodes, material_direction)
+            }
+            None => {
+                let shape = StrandShape::new(self.style, root.normal, edge_length, random);
+                let mut nodes = Vec::with_capacity(self.segments + 1);
+                let mut node = root.position;
+                nodes.push(node);
+                for edge in 0..self.segments {
+                    node += shape.edge(edge);
+                    nodes.push(node);
+                }
+                HairStrand::from_nodes(nodes, shape.down_the_scalp)
+            }
+        };
+        strand.with_gravity_preload(self.gravity_preload)
     }
 }
 
@@ -519,7 +561,7 @@ pub(crate) fn grow_groomed_hair(
     groomed: Query<(), With<GroomedStrand>>,
 ) {
     for (head, groom, strands) in &heads {
-        let grown = match groom.grow() {
+        let grown = match groom.grow_with_followers() {
             Ok(grown) => grown,
             Err(error) => {
                 error!("hair groom of head {head} rejected, it keeps its hair: {error}");
@@ -531,6 +573,8 @@ pub(crate) fn grow_groomed_hair(
                 commands.entity(strand).despawn();
             }
         }
-        commands.spawn_batch(grown.into_iter().map(move |strand| (strand, StrandOf(head), GroomedStrand)));
+        commands.spawn_batch(
+            grown.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), GroomedStrand)),
+        );
     }
 }

@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod followers;
 pub mod gizmos;
 pub mod groom;
 pub mod groom_file;
@@ -22,6 +23,7 @@ pub mod prelude {
     pub use crate::collision::{
         HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };
+    pub use crate::followers::{FollowerNodes, HairFollowers};
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::groom_file::{

@@ -6,6 +6,7 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
 use crate::collision::HairCollisionPlugin;
+use crate::followers::{FollowerNodes, HairFollowers, bind_followers, place_followers};
 use crate::gizmos::HairGizmoPlugin;
 use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
 use crate::groom_file::GroomFilePlugin;
@@ -139,6 +140,8 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<StrandFrames>()
             .register_type::<EdgeFrame>()
             .register_type::<StrandRestShape>()
+            .register_type::<HairFollowers>()
+            .register_type::<FollowerNodes>()
             .register_type::<StrandRejected>()
             .register_type::<HairGroom>()
             .register_type::<GroomedStrand>()
@@ -172,11 +175,18 @@ impl Plugin for HairSimulationPlugin {
         .add_systems(
             schedule,
             (
-                (grow_groomed_hair, build_strands, apply_default_material, apply_rest_shape_edits, open_step)
+                (
+                    grow_groomed_hair,
+                    build_strands,
+                    bind_followers,
+                    apply_default_material,
+                    apply_rest_shape_edits,
+                    open_step,
+                )
                     .chain()
                     .in_set(HairSystems::Prepare),
                 (track_heads, pin_roots).chain().in_set(HairSystems::PinRoots),
-                (preload_rest_shapes, step_strands).chain().in_set(HairSystems::Step),
+                (preload_rest_shapes, step_strands, place_followers).chain().in_set(HairSystems::Step),
             ),
         );
     }

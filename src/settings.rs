@@ -127,6 +127,10 @@ pub struct HairStatistics {
     pub mean_newton_iterations: f64,
     /// Wall-clock time the last step of all strands took, s.
     pub step_seconds: f64,
+    /// Follower hairs placed after the last step ([`crate::followers`]).
+    pub followers: usize,
+    /// Wall-clock time placing them took, s.
+    pub follower_seconds: f64,
     /// Why the current settings cannot be used, while they cannot.
     pub settings_error: Option<String>,
 }

@@ -1,0 +1,195 @@
+//! Follower hairs: dense hair at a game's budget. A few thousand *guide* strands are simulated; each
+//! carries *followers*, hairs that are not simulated but placed every step from their guide's motion.
+//!
+//! **Scheme.** Each follower node keeps its rest offset from the guide's node of the same index, in the
+//! guide's material frame there (`t, m1, m2` of the edge arriving at the node; of the root edge at the
+//! root): `x_f = x_g + o_t t + o_1 m1 + o_2 m2`. Bending, turning or twisting a guide bends, turns and
+//! twists its followers with it, and a follower keeps its own rest shape (its curls, its length within
+//! the guide's node count) relative to its guide. This is the single-guide scheme of TressFX's follow
+//! hairs, expressed in DER's material frames rather than in a frame built from the tangent alone, so
+//! that twist is carried; blending two or three guides (Unity's hair, Jolt) spreads followers more
+//! smoothly between guides that move apart, but averages away the twist and costs a multiple. Here the
+//! followers of one guide are its clump; how far they spread is how far their roots lie from the guide's
+//! (the groom spreads them evenly between guide roots).
+//!
+//! **Out of the head.** After placement, follower nodes inside one of their head's colliders (grown by
+//! the guide's collision thickness) are moved out to its surface along the shortest way; a bounding
+//! ball per collider keeps this cheap for nodes far from it.
+//!
+//! **Data.** A guide's followers live on the guide's entity, contiguous ([`FollowerNodes`]): one
+//! allocation per guide, written by the thread that steps the guide's neighbours, and read by the
+//! renderer and the gizmos (interpolated between steps like [`crate::strand_data::StrandNodes`]).
+
+use bevy::math::{DVec3, Vec3};
+use bevy::platform::time::Instant;
+use bevy::prelude::*;
+
+use crate::head::StrandOf;
+use crate::rod::{MovingCollider, Rod, RodMaterial};
+use crate::settings::{HairSettings, HairStatistics};
+use crate::strand::{HairStrand, SimulatedStrand};
+use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes};
+
+/// The followers of a guide strand, as spawned: each a curve of as many nodes as the guide's
+/// [`HairStrand`], in the same space (the head's local space for a strand with a head), root first. Put
+/// it beside a `HairStrand`; the plugin places the followers from the guide's motion every step
+/// ([`FollowerNodes`]). Changing it rebinds them.
+#[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+#[require(FollowerNodes)]
+pub struct HairFollowers {
+    /// Node positions of each follower at rest, m.
+    pub curves: Vec<Vec<Vec3>>,
+}
+
+/// Where a guide's followers are, world space, single precision: written every step after the guides'
+/// step (see the [module documentation](self)).
+#[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct FollowerNodes {
+    /// Nodes per follower (the guide's node count).
+    nodes_per_follower: usize,
+    /// Each follower node's rest offset from the guide's node, in the guide's material frame `(t, m1, m2)`.
+    offsets: Vec<Vec3>,
+    /// Follower node positions after the last step, m: follower after follower.
+    pub positions: Vec<Vec3>,
+    /// Follower node positions after the step before, m.
+    pub previous_positions: Vec<Vec3>,
+    /// The guide's material frame at each node this step (scratch, reused).
+    #[reflect(ignore)]
+    node_frames: Vec<Option<EdgeFrame>>,
+}
+
+impl FollowerNodes {
+    /// Number of followers.
+    pub fn count(&self) -> usize {
+        self.positions.len().checked_div(self.nodes_per_follower).unwrap_or(0)
+    }
+
+    /// Nodes of each follower.
+    pub fn nodes_per_follower(&self) -> usize {
+        self.nodes_per_follower
+    }
+
+    /// Follower `index`'s nodes after the last step, m.
+    pub fn follower(&self, index: usize) -> &[Vec3] {
+        &self.positions[index * self.nodes_per_follower..(index + 1) * self.nodes_per_follower]
+    }
+
+    /// Follower `index`'s nodes a fraction `alpha` (0 to 1) of the way from the step before to the last.
+    pub fn interpolated(&self, index: usize, alpha: f32) -> impl Iterator<Item = Vec3> + '_ {
+        let range = index * self.nodes_per_follower..(index + 1) * self.nodes_per_follower;
+        let previous = self.previous_positions.get(range.clone()).unwrap_or(&self.positions[range.clone()]);
+        previous.iter().zip(&self.positions[range]).map(move |(a, b)| a.lerp(*b, alpha))
+    }
+
+    /// Binds `curves` to the guide `spec` at rest: each node's offset in the guide's rest material frames.
+    fn bind(&mut self, spec: &HairStrand, curves: &[Vec<Vec3>], default: &RodMaterial) -> Result<(), String> {
+        let nodes = spec.nodes.len();
+        if let Some((index, curve)) = curves.iter().enumerate().find(|(_, curve)| curve.len() != nodes) {
+            return Err(format!("follower {index} has {} nodes, its guide {nodes}", curve.len()));
+        }
+        if let Some(index) = curves.iter().position(|curve| !curve.iter().all(|node| node.is_finite())) {
+            return Err(format!("follower {index} has a non-finite node"));
+        }
+        let local: Vec<DVec3> = spec.nodes.iter().map(|node| node.as_dvec3()).collect();
+        let material = spec.material.unwrap_or(*default);
+        let rod = Rod::new(&local, spec.material_direction.as_dvec3(), material).map_err(|error| error.to_string())?;
+        self.nodes_per_follower = nodes;
+        self.offsets.clear();
+        for curve in curves {
+            for (node, point) in curve.iter().enumerate() {
+                let frame = rod.material_frame(node.saturating_sub(1));
+                let offset = point.as_dvec3() - local[node];
+                self.offsets
+                    .push(DVec3::new(offset.dot(frame.tangent), offset.dot(frame.m1), offset.dot(frame.m2)).as_vec3());
+            }
+        }
+        self.positions.clear();
+        self.previous_positions.clear();
+        Ok(())
+    }
+
+    /// Places the followers on the guide's `nodes` and `frames`, out of `colliders` by `thickness` (m);
+    /// `snap` makes the previous positions jump there too.
+    fn place(&mut self, nodes: &StrandNodes, frames: &StrandFrames, colliders: &[MovingCollider], thickness: f32) {
+        let per = self.nodes_per_follower;
+        if per == 0 || nodes.positions.len() != per {
+            return;
+        }
+        let snap = self.positions.len() != self.offsets.len();
+        std::mem::swap(&mut self.previous_positions, &mut self.positions);
+        self.positions.clear();
+        // The material frame of the edge arriving at each node (the root edge's at the root).
+        self.node_frames.clear();
+        self.node_frames.extend((0..per).map(|node| frames.material_frame(node.saturating_sub(1))));
+        for follower in self.offsets.chunks_exact(per) {
+            for (node, offset) in follower.iter().enumerate() {
+                let base = nodes.positions[node];
+                let position = match self.node_frames[node] {
+                    Some(frame) => base + offset.x * frame.tangent + offset.y * frame.m1 + offset.z * frame.m2,
+                    None => base,
+                };
+                let position = if node >= 2 { push_out(position, colliders, thickness) } else { position };
+                self.positions.push(position);
+            }
+        }
+        if snap || self.previous_positions.len() != self.positions.len() {
+            self.previous_positions.clone_from(&self.positions);
+        }
+    }
+}
+
+/// `position` moved out of any of `colliders` it lies in, grown by `thickness` (m); a ball around each
+/// collider skips the exact test for nodes far from it.
+fn push_out(position: Vec3, colliders: &[MovingCollider], thickness: f32) -> Vec3 {
+    let mut position = position;
+    for collider in colliders {
+        let reach = collider.shape.bounding_radius() as f32 + thickness;
+        if position.distance_squared(collider.end.translation.as_vec3()) > reach * reach {
+            continue;
+        }
+        let grown = collider.shape.inflated(f64::from(thickness));
+        let local = collider.end.to_local(position.as_dvec3());
+        if grown.contains(local) {
+            position = collider.end.to_world(grown.closest_surface_point(local).point).as_vec3();
+        }
+    }
+    position
+}
+
+/// Binds the followers of new or rebuilt guides, and of changed [`HairFollowers`].
+pub(crate) fn bind_followers(
+    settings: Res<HairSettings>,
+    mut guides: Query<
+        (Entity, &HairStrand, &HairFollowers, &mut FollowerNodes),
+        Or<(Changed<HairFollowers>, Added<SimulatedStrand>)>,
+    >,
+) {
+    for (entity, spec, followers, mut nodes) in &mut guides {
+        if let Err(reason) = nodes.bind(spec, &followers.curves, &settings.default_material) {
+            error!("hair strand {entity}: its followers were rejected: {reason}");
+            *nodes = FollowerNodes::default();
+        }
+    }
+}
+
+/// Places every guide's followers from its new state, in parallel.
+pub(crate) fn place_followers(
+    settings: Res<HairSettings>,
+    mut statistics: ResMut<HairStatistics>,
+    mut guides: Query<(&SimulatedStrand, &StrandNodes, &StrandFrames, &mut FollowerNodes, Option<&StrandOf>)>,
+    colliders: crate::collision::StrandColliders,
+) {
+    let started = Instant::now();
+    let margin = f64::from(settings.collision_margin);
+    guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of)| {
+        if followers.offsets.is_empty() {
+            return;
+        }
+        let thickness = strand.contact_thickness(margin) as f32;
+        followers.place(nodes, frames, colliders.of(strand_of), thickness);
+    });
+    statistics.followers = guides.iter().map(|(.., followers, _)| followers.count()).sum();
+    statistics.follower_seconds = started.elapsed().as_secs_f64();
+}
