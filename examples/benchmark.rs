@@ -108,6 +108,67 @@ fn main() {
     if wanted("preload") {
         preload_cost();
     }
+    if wanted("followers") {
+        followers_cost(threads, steps);
+    }
+}
+
+/// Guides with followers: a combed groom of `guides` × 24 edges with `followers` each on a skull collider,
+/// the head swaying and turning as in the other tables; median per step of the simulation (the guides'
+/// step), the followers' placement and the whole update.
+fn followers_cost(threads: usize, steps: usize) {
+    use bevy::prelude::{App, ChildOf, Fixed, MinimalPlugins, PluginGroup, TaskPoolPlugin, Time, Transform};
+    use bevy::time::TimeUpdateStrategy;
+    println!();
+    println!("| guides × followers × edges | drawn strands | simulation, ms | followers, ms | whole update, ms |");
+    println!("|---|---:|---:|---:|---:|");
+    for (guides, followers) in [(1000, 0), (1000, 10), (1000, 20), (2000, 10)] {
+        let mut app = App::new();
+        app.add_plugins((
+            MinimalPlugins
+                .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options_with_threads(threads) }),
+            HairPlugin::default(),
+        ))
+        .insert_resource(Time::<Fixed>::from_hz(60.0))
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+        app.finish();
+        app.cleanup();
+        app.update();
+        let groom =
+            HairGroom { strand_count: guides, followers_per_guide: followers, segments: 24, ..HairGroom::default() };
+        let skull = groom.scalp.semi_axes;
+        let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+        app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), ChildOf(head)));
+        let mut samples = [Vec::new(), Vec::new(), Vec::new()];
+        for step in 0..WARM_UP_STEPS + steps {
+            let (translation, rotation) = Scene::head_pose(step);
+            let mut transform = app.world_mut().get_mut::<Transform>(head).expect("the head exists");
+            (transform.translation, transform.rotation) = (translation, rotation);
+            let started = Instant::now();
+            app.update();
+            let whole = started.elapsed().as_secs_f64();
+            if step >= WARM_UP_STEPS {
+                let statistics = app.world().resource::<HairStatistics>();
+                for (sample, value) in
+                    samples.iter_mut().zip([statistics.step_seconds, statistics.follower_seconds, whole])
+                {
+                    sample.push(value);
+                }
+            }
+        }
+        let median = |values: &mut Vec<f64>| {
+            values.sort_by(f64::total_cmp);
+            1e3 * values[values.len() / 2]
+        };
+        let [simulation, placement, whole] = &mut samples;
+        println!(
+            "| {guides} × {followers} × 24 | {} | {:.2} | {:.2} | {:.2} |",
+            guides * (1 + followers),
+            median(simulation),
+            median(placement),
+            median(whole)
+        );
+    }
 }
 
 /// What gravity preloading costs when a groom is grown: 1 000 combed strands (the default groom) on a

@@ -13,8 +13,10 @@
 //! (the groom spreads them evenly between guide roots).
 //!
 //! **Out of the head.** After placement, follower nodes inside one of their head's colliders (grown by
-//! the guide's collision thickness) are moved out to its surface along the shortest way; a bounding
-//! ball per collider keeps this cheap for nodes far from it.
+//! the guide's collision thickness) are moved out to its surface: radially from a sphere's or an
+//! ellipsoid's centre, from a capsule's axis, up from a plane. That is not the nearest surface point of
+//! an elongated ellipsoid, but it is cheap and lands outside; a bounding ball per collider skips the
+//! nodes far from it.
 //!
 //! **Data.** A guide's followers live on the guide's entity, contiguous ([`FollowerNodes`]): one
 //! allocation per guide, written by the thread that steps the guide's neighbours, and read by the
@@ -25,7 +27,7 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
 use crate::head::StrandOf;
-use crate::rod::{MovingCollider, Rod, RodMaterial};
+use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::settings::{HairSettings, HairStatistics};
 use crate::strand::{HairStrand, SimulatedStrand};
 use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes};
@@ -58,6 +60,9 @@ pub struct FollowerNodes {
     /// The guide's material frame at each node this step (scratch, reused).
     #[reflect(ignore)]
     node_frames: Vec<Option<EdgeFrame>>,
+    /// The head's colliders grown by the guide's thickness this step (scratch, reused).
+    #[reflect(ignore)]
+    colliders: Vec<GrownCollider>,
 }
 
 impl FollowerNodes {
@@ -123,6 +128,8 @@ impl FollowerNodes {
         // The material frame of the edge arriving at each node (the root edge's at the root).
         self.node_frames.clear();
         self.node_frames.extend((0..per).map(|node| frames.material_frame(node.saturating_sub(1))));
+        self.colliders.clear();
+        self.colliders.extend(colliders.iter().map(|collider| GrownCollider::new(collider, thickness)));
         for follower in self.offsets.chunks_exact(per) {
             for (node, offset) in follower.iter().enumerate() {
                 let base = nodes.positions[node];
@@ -130,7 +137,7 @@ impl FollowerNodes {
                     Some(frame) => base + offset.x * frame.tangent + offset.y * frame.m1 + offset.z * frame.m2,
                     None => base,
                 };
-                let position = if node >= 2 { push_out(position, colliders, thickness) } else { position };
+                let position = if node >= 2 { push_out(position, &self.colliders) } else { position };
                 self.positions.push(position);
             }
         }
@@ -140,22 +147,59 @@ impl FollowerNodes {
     }
 }
 
-/// `position` moved out of any of `colliders` it lies in, grown by `thickness` (m); a ball around each
-/// collider skips the exact test for nodes far from it.
-fn push_out(position: Vec3, colliders: &[MovingCollider], thickness: f32) -> Vec3 {
-    let mut position = position;
-    for collider in colliders {
+/// A collider grown by a strand's thickness, in single precision: followers are placed, not simulated, so
+/// their push-out is a cheap projection rather than the step's exact contact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct GrownCollider {
+    shape: ColliderShape,
+    centre: Vec3,
+    rotation: Quat,
+    reach_squared: f32,
+}
+
+impl GrownCollider {
+    fn new(collider: &MovingCollider, thickness: f32) -> Self {
         let reach = collider.shape.bounding_radius() as f32 + thickness;
-        if position.distance_squared(collider.end.translation.as_vec3()) > reach * reach {
-            continue;
-        }
-        let grown = collider.shape.inflated(f64::from(thickness));
-        let local = collider.end.to_local(position.as_dvec3());
-        if grown.contains(local) {
-            position = collider.end.to_world(grown.closest_surface_point(local).point).as_vec3();
+        Self {
+            shape: collider.shape.inflated(f64::from(thickness)),
+            centre: collider.end.translation.as_vec3(),
+            rotation: collider.end.rotation.as_quat(),
+            reach_squared: reach * reach,
         }
     }
-    position
+
+    /// `world` moved out to the surface if it lies inside: radially from the centre (a sphere, an
+    /// ellipsoid), from the axis (a capsule), straight up (a plane).
+    fn push_out(&self, world: Vec3) -> Vec3 {
+        let offset = world - self.centre;
+        if offset.length_squared() > self.reach_squared {
+            return world;
+        }
+        let local = self.rotation.inverse() * offset;
+        let outside = match self.shape {
+            ColliderShape::Sphere { radius } => {
+                let radius = radius as f32;
+                (local.length_squared() < radius * radius).then(|| local.normalize_or(Vec3::Y) * radius)
+            }
+            ColliderShape::Capsule { radius, half_length } => {
+                let (radius, half_length) = (radius as f32, half_length as f32);
+                let axis = Vec3::new(0.0, local.y.clamp(-half_length, half_length), 0.0);
+                let away = local - axis;
+                (away.length_squared() < radius * radius).then(|| axis + away.normalize_or(Vec3::X) * radius)
+            }
+            ColliderShape::Ellipsoid { semi_axes } => {
+                let scaled = (local / semi_axes.as_vec3()).length();
+                (scaled < 1.0).then(|| if scaled > 0.0 { local / scaled } else { Vec3::Y * semi_axes.y as f32 })
+            }
+            ColliderShape::Plane => (local.y < 0.0).then(|| Vec3::new(local.x, 0.0, local.z)),
+        };
+        outside.map_or(world, |local| self.centre + self.rotation * local)
+    }
+}
+
+/// `position` moved out of each of `colliders` it lies in.
+fn push_out(position: Vec3, colliders: &[GrownCollider]) -> Vec3 {
+    colliders.iter().fold(position, |position, collider| collider.push_out(position))
 }
 
 /// Binds the followers of new or rebuilt guides, and of changed [`HairFollowers`].
