@@ -86,6 +86,8 @@ struct Options {
     style: HairStyle,
     animation: Animation,
     strands: usize,
+    /// Follower hairs per simulated strand.
+    followers: usize,
     segments: usize,
     /// Camera angle around the head, degrees from straight in front (positive: the head's left).
     yaw_degrees: f32,
@@ -100,7 +102,7 @@ struct Options {
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
-            [--animate still|nod|shake|turn|sway] [--strands N] [--segments N] [--yaw DEGREES]
+            [--animate still|nod|shake|turn|sway] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -111,6 +113,7 @@ impl Options {
             style: groom.style,
             animation: Animation::Still,
             strands: groom.strand_count,
+            followers: 10,
             segments: groom.segments,
             yaw_degrees: 35.0,
             draw_colliders: false,
@@ -124,6 +127,7 @@ impl Options {
                 "--screenshot" => options.screenshot = Some(value.clone()),
                 "--frames" => options.frames = number("a count")? as u32,
                 "--strands" => options.strands = number("a count")? as usize,
+                "--followers" => options.followers = number("a count")? as usize,
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
                 "--colliders" => {
@@ -262,6 +266,7 @@ fn spawn_scene(
         style: options.style,
         seed: 1,
         combing: options.combed.then(Combing::default),
+        followers_per_guide: options.followers,
         ..default()
     };
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
@@ -435,6 +440,7 @@ fn switch_groom(
                 seed: 1,
                 scalp: SCALP,
                 combing: options.combed.then(Combing::default),
+                followers_per_guide: options.followers,
                 ..default()
             };
             commands.entity(head).remove::<(HairGroomFile, PlacedGroomFile)>().insert(groom);
@@ -478,9 +484,10 @@ fn show_statistics(
     }
     *since_update = 0.0;
     let title = format!(
-        "bevy_hair_sim: {} strands, {} nodes ({} in contact), step {:.1} ms, {:.0} fps, strain {:.1e}, {} faults, \
-         head: {} (Space)",
+        "bevy_hair_sim: {} strands + {} followers, {} nodes ({} in contact), step {:.1} ms, {:.0} fps, strain {:.1e}, \
+         {} faults, head: {} (Space)",
         statistics.strands,
+        statistics.followers,
         statistics.nodes,
         statistics.contacts,
         1e3 * statistics.step_seconds,

@@ -70,6 +70,7 @@ struct GroomEdit {
     style: HairStyle,
     combed: bool,
     gravity_preload: f32,
+    followers_per_guide: usize,
 }
 
 impl From<&HairGroom> for GroomEdit {
@@ -80,6 +81,7 @@ impl From<&HairGroom> for GroomEdit {
             style: groom.style,
             combed: groom.combing.is_some(),
             gravity_preload: groom.gravity_preload,
+            followers_per_guide: groom.followers_per_guide,
         }
     }
 }
@@ -89,6 +91,7 @@ impl GroomEdit {
     fn apply(&self, groom: &mut HairGroom) {
         (groom.strand_count, groom.segments, groom.style) = (self.strand_count, self.segments, self.style);
         groom.gravity_preload = self.gravity_preload;
+        groom.followers_per_guide = self.followers_per_guide;
         if self.combed != groom.combing.is_some() {
             groom.combing = self.combed.then(Combing::default);
         }
@@ -173,6 +176,7 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
             ui.end_row();
         };
         row("strands / nodes", format!("{} / {}", statistics.strands, statistics.nodes));
+        row("followers", format!("{} ({:.2} ms)", statistics.followers, 1e3 * statistics.follower_seconds));
         row("step time", format!("{:.2} ms", 1e3 * statistics.step_seconds));
         row("frame rate", format!("{frame_rate:.0} fps"));
         row("largest strain", format!("{:.1e}", statistics.max_strain));
@@ -214,6 +218,8 @@ fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
         held |=
             grid_row(ui, "strands", egui::Slider::new(&mut groom.strand_count, 0..=8000).logarithmic(true)).dragged();
         held |= grid_row(ui, "edges per strand", egui::Slider::new(&mut groom.segments, 2..=64)).dragged();
+        held |=
+            grid_row(ui, "followers per strand", egui::Slider::new(&mut groom.followers_per_guide, 0..=30)).dragged();
         ui.label("style");
         ui.horizontal_wrapped(|ui| {
             for style in HairStyle::ALL {
