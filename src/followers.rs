@@ -42,6 +42,10 @@ use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes};
 pub struct HairFollowers {
     /// Node positions of each follower at rest, m.
     pub curves: Vec<Vec<Vec3>>,
+    /// How much the followers gather onto their guide towards the tip, 0 to 1: each follower node's
+    /// offset from the guide is scaled by `1 − clumping · s`, with `s` from 0 at the root to 1 at the
+    /// tip. 0 (the default) keeps every follower's own rest shape; 1 brings the tips onto the guide's.
+    pub clumping: f32,
 }
 
 /// Where a guide's followers are, world space, single precision: written every step after the guides'
@@ -88,8 +92,13 @@ impl FollowerNodes {
         previous.iter().zip(&self.positions[range]).map(move |(a, b)| a.lerp(*b, alpha))
     }
 
-    /// Binds `curves` to the guide `spec` at rest: each node's offset in the guide's rest material frames.
-    fn bind(&mut self, spec: &HairStrand, curves: &[Vec<Vec3>], default: &RodMaterial) -> Result<(), String> {
+    /// Binds `followers` to the guide `spec` at rest: each node's offset in the guide's rest material
+    /// frames, gathered towards the tip by the clumping.
+    fn bind(&mut self, spec: &HairStrand, followers: &HairFollowers, default: &RodMaterial) -> Result<(), String> {
+        let (curves, clumping) = (&followers.curves, followers.clumping);
+        if !(0.0..=1.0).contains(&clumping) {
+            return Err(format!("the clumping {clumping} is not between 0 and 1"));
+        }
         let nodes = spec.nodes.len();
         if let Some((index, curve)) = curves.iter().enumerate().find(|(_, curve)| curve.len() != nodes) {
             return Err(format!("follower {index} has {} nodes, its guide {nodes}", curve.len()));
@@ -105,7 +114,8 @@ impl FollowerNodes {
         for curve in curves {
             for (node, point) in curve.iter().enumerate() {
                 let frame = rod.material_frame(node.saturating_sub(1));
-                let offset = point.as_dvec3() - local[node];
+                let gathered = 1.0 - f64::from(clumping) * node as f64 / (nodes - 1) as f64;
+                let offset = gathered * (point.as_dvec3() - local[node]);
                 self.offsets
                     .push(DVec3::new(offset.dot(frame.tangent), offset.dot(frame.m1), offset.dot(frame.m2)).as_vec3());
             }
@@ -202,16 +212,16 @@ fn push_out(position: Vec3, colliders: &[GrownCollider]) -> Vec3 {
     colliders.iter().fold(position, |position, collider| collider.push_out(position))
 }
 
+/// What [`bind_followers`] reads and writes of a guide.
+type GuideToBind = (Entity, &'static HairStrand, &'static HairFollowers, &'static mut FollowerNodes);
+
+/// The guides [`bind_followers`] binds: new or rebuilt, or with changed followers.
+type GuidesToBind = Or<(Changed<HairFollowers>, Added<SimulatedStrand>)>;
+
 /// Binds the followers of new or rebuilt guides, and of changed [`HairFollowers`].
-pub(crate) fn bind_followers(
-    settings: Res<HairSettings>,
-    mut guides: Query<
-        (Entity, &HairStrand, &HairFollowers, &mut FollowerNodes),
-        Or<(Changed<HairFollowers>, Added<SimulatedStrand>)>,
-    >,
-) {
+pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind, GuidesToBind>) {
     for (entity, spec, followers, mut nodes) in &mut guides {
-        if let Err(reason) = nodes.bind(spec, &followers.curves, &settings.default_material) {
+        if let Err(reason) = nodes.bind(spec, followers, &settings.default_material) {
             error!("hair strand {entity}: its followers were rejected: {reason}");
             *nodes = FollowerNodes::default();
         }

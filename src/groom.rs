@@ -187,6 +187,9 @@ pub struct HairGroom {
     /// many unsimulated hairs with roots of their own, spread evenly between the guides' roots, placed
     /// from the guide's motion every step. 0 (the default) simulates every hair drawn.
     pub followers_per_guide: usize,
+    /// How much followers gather onto their guide towards the tip, 0 to 1 (see
+    /// [`HairFollowers::clumping`]). Default 0: each follower keeps its own groomed shape.
+    pub follower_clumping: f32,
     /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1 makes the grown
     /// shape the shape at rest under gravity, lying on the skull collider where it was combed onto it; 0
     /// lets it sag. Default 1.
@@ -203,6 +206,7 @@ impl Default for HairGroom {
             seed: 0,
             combing: Some(Combing::default()),
             followers_per_guide: 0,
+            follower_clumping: 0.0,
             gravity_preload: 1.0,
         }
     }
@@ -262,7 +266,8 @@ impl HairGroom {
             roots.into_iter().enumerate().partition(|(index, _)| index % every == 0);
         for (_, root) in guides {
             guide_roots.push(root.position);
-            grown.push((self.grow_strand(root, &mut random), HairFollowers::default()));
+            let followers = HairFollowers { clumping: self.follower_clumping, ..HairFollowers::default() };
+            grown.push((self.grow_strand(root, &mut random), followers));
         }
         for (_, root) in followers {
             let nearest = guide_roots
@@ -284,6 +289,9 @@ impl HairGroom {
         }
         if !(0.0..=1.0).contains(&self.gravity_preload) {
             return Err(GroomError::GravityPreload(self.gravity_preload));
+        }
+        if !(0.0..=1.0).contains(&self.follower_clumping) {
+            return Err(GroomError::FollowerClumping(self.follower_clumping));
         }
         if let Some(combing) = &self.combing {
             combing.validate()?;
@@ -536,6 +544,9 @@ pub enum GroomError {
     /// The gravity preload is outside 0 to 1.
     #[error("the groom's gravity preload must lie between 0 and 1, got {0}")]
     GravityPreload(f32),
+    /// The follower clumping is outside 0 to 1.
+    #[error("the groom's follower clumping must lie between 0 and 1, got {0}")]
+    FollowerClumping(f32),
     /// A combing parameter is negative or not finite.
     #[error("the groom's combing needs finite values, with sweep_back, lift and layer_spread not negative: {0:?}")]
     Combing(Combing),

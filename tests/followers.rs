@@ -77,7 +77,8 @@ fn a_twisted_guide_turns_its_followers_around_it_by_the_same_angle() {
     // A straight 10 cm guide along +x with a follower 5 mm beside it along +y.
     let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
     let follower: Vec<Vec3> = guide.nodes.iter().map(|node| *node + Vec3::Y * 0.005).collect();
-    let entity = app.world_mut().spawn((guide, HairFollowers { curves: vec![follower] }, StrandOf(head))).id();
+    let entity =
+        app.world_mut().spawn((guide, HairFollowers { curves: vec![follower], clumping: 0.0 }, StrandOf(head))).id();
     app.update();
     // A rest twist of 0.1 rad at every vertex turns the tip's edge by 0.9 rad about the strand.
     for twist in &mut app.world_mut().get_mut::<StrandRestShape>(entity).unwrap().twists[1..10] {
@@ -158,4 +159,30 @@ fn followers_stay_out_of_a_head_turning_and_shaking() {
     println!("{deep} of {total} follower nodes more than 1 mm inside the skull; deepest {:.2} mm", 1e3 * deepest);
     assert!(deep * 100 < total, "{deep} of {total}");
     assert!(deepest < 5e-3, "{deepest} m");
+}
+
+#[test]
+fn clumping_gathers_followers_onto_their_guide_towards_the_tip() {
+    let mut app = hair_app();
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    let head = app.world_mut().spawn((HairHead, Transform::default())).id();
+    let mut strands = Vec::new();
+    for clumping in [0.0, 0.5, 1.0] {
+        let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
+        let follower: Vec<Vec3> = guide.nodes.iter().map(|node| *node + Vec3::Y * 0.004).collect();
+        let followers = HairFollowers { curves: vec![follower], clumping };
+        strands.push(app.world_mut().spawn((guide, followers, StrandOf(head))).id());
+    }
+    app.update();
+    app.update();
+    for (entity, clumping) in strands.into_iter().zip([0.0, 0.5, 1.0]) {
+        let guide = &app.world().get::<StrandNodes>(entity).unwrap().positions;
+        let follower = app.world().get::<FollowerNodes>(entity).unwrap().follower(0).to_vec();
+        let (root_gap, tip_gap) = (follower[0].distance(guide[0]), follower[10].distance(guide[10]));
+        println!("clumping {clumping}: root {:.2} mm, tip {:.2} mm from the guide", 1e3 * root_gap, 1e3 * tip_gap);
+        assert!((root_gap - 0.004).abs() < 1e-6);
+        assert!((tip_gap - 0.004 * (1.0 - clumping)).abs() < 1e-6, "{tip_gap} m");
+    }
+    let groom = HairGroom { follower_clumping: 1.5, followers_per_guide: 2, ..default() };
+    assert!(groom.grow_with_followers().unwrap_err().to_string().contains("clumping"));
 }
