@@ -117,23 +117,12 @@ fn main() {
 /// the head swaying and turning as in the other tables; median per step of the simulation (the guides'
 /// step), the followers' placement and the whole update.
 fn followers_cost(threads: usize, steps: usize) {
-    use bevy::prelude::{App, ChildOf, Fixed, MinimalPlugins, PluginGroup, TaskPoolPlugin, Time, Transform};
-    use bevy::time::TimeUpdateStrategy;
+    use bevy::prelude::{ChildOf, Transform};
     println!();
     println!("| guides × followers × edges | drawn strands | simulation, ms | followers, ms | whole update, ms |");
     println!("|---|---:|---:|---:|---:|");
     for (guides, followers) in [(1000, 0), (1000, 10), (1000, 20), (2000, 10)] {
-        let mut app = App::new();
-        app.add_plugins((
-            MinimalPlugins
-                .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options_with_threads(threads) }),
-            HairPlugin::default(),
-        ))
-        .insert_resource(Time::<Fixed>::from_hz(60.0))
-        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
-        app.finish();
-        app.cleanup();
-        app.update();
+        let mut app = Scene::app(Some(threads));
         let groom =
             HairGroom { strand_count: guides, followers_per_guide: followers, segments: 24, ..HairGroom::default() };
         let skull = groom.scalp.semi_axes;

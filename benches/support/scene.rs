@@ -40,6 +40,23 @@ pub struct Scene {
 impl Scene {
     /// The scene with `threads` compute threads (`None`: one per core).
     pub fn new(strands: usize, edges: usize, threads: Option<usize>) -> Self {
+        let mut app = Self::app(threads);
+        let roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
+        let head = app
+            .world_mut()
+            .spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0)))
+            .with_related_entities::<StrandOf>(|head| {
+                for root in roots {
+                    head.spawn(HairStrand::straight(root.position, root.normal, HAIR_LENGTH, edges));
+                }
+            })
+            .id();
+        Self { app, head, step: 0 }
+    }
+
+    /// A headless app with the hair plugin on `threads` compute threads (`None`: one per core), one fixed
+    /// step of 1/60 s per update, its clock started.
+    pub fn app(threads: Option<usize>) -> App {
         let threads = threads.unwrap_or_else(available_parallelism);
         let mut app = App::new();
         app.add_plugins((
@@ -52,17 +69,7 @@ impl Scene {
         app.finish();
         app.cleanup();
         app.update();
-        let roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
-        let head = app
-            .world_mut()
-            .spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0)))
-            .with_related_entities::<StrandOf>(|head| {
-                for root in roots {
-                    head.spawn(HairStrand::straight(root.position, root.normal, HAIR_LENGTH, edges));
-                }
-            })
-            .id();
-        Self { app, head, step: 0 }
+        app
     }
 
     /// Adds the first `count` (at most 5) of the skull, face, neck, shoulders and torso colliders.
