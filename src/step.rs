@@ -8,7 +8,7 @@ use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, HELD_REACH, MovingCollider, Rod, RodWorkspace, StepError};
+use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
@@ -93,20 +93,15 @@ pub(crate) fn preload_rest_shapes(
 
 /// For each node of `rod`, the outward normal of the first of `colliders` it rests on (within `thickness`
 /// plus [`PRELOAD_SUPPORT_DISTANCE`] of it), if any. As in the step, a collider that holds the root inside
-/// it leaves the nodes near the root (within [`HELD_REACH`] times the root's depth, along the strand)
-/// free of it: hair grows out of it.
+/// it leaves the nodes near the root (as far along the strand as [`held_reach`] says) free of it: hair
+/// grows out of it.
 fn preload_supports(rod: &Rod, colliders: &[MovingCollider], thickness: f64) -> Vec<Option<DVec3>> {
     let reach = thickness + f64::from(PRELOAD_SUPPORT_DISTANCE);
     let held: Vec<f64> = colliders
         .iter()
         .map(|collider| {
             let root = collider.end.to_local(rod.positions()[0]);
-            let grown = collider.shape.inflated(thickness);
-            if !grown.contains(root) {
-                return 0.0;
-            }
-            let surface = grown.closest_surface_point(root);
-            HELD_REACH * (surface.point - root).dot(surface.normal).max(0.0)
+            held_reach(&collider.shape.inflated(thickness), root).unwrap_or(0.0)
         })
         .collect();
     let mut arc = 0.0;

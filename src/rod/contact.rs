@@ -58,7 +58,17 @@ const CONTACT_STIFFNESS_RATIO: f64 = 1e4;
 /// it could not be outside without stretching the strand (a root inside a hat, a hand or a ceiling plane),
 /// so the strand is not torn trying. Hair growing out of a scalp collider has its roots a thickness deep,
 /// so only nodes within two thicknesses of the root are let in.
-pub(crate) const HELD_REACH: f64 = 2.0;
+const HELD_REACH: f64 = 2.0;
+
+/// How far along the strand a prescribed node at `local` inside the (grown) collider `shape` holds the
+/// strand inside it, m: [`HELD_REACH`] times its depth; `None` when it is not inside.
+pub(crate) fn held_reach(shape: &ColliderShape, local: DVec3) -> Option<f64> {
+    if !shape.contains(local) {
+        return None;
+    }
+    let surface = shape.closest_surface_point(local);
+    Some(HELD_REACH * (surface.point - local).dot(surface.normal).max(0.0))
+}
 
 /// Speed, m/s, below which friction acts as a stiff spring on the slip rather than as a constant force
 /// (the smoothing of IPC's friction): a node held below its friction limit creeps at most this fast.
@@ -162,11 +172,9 @@ impl NearbyCollider {
             let Some(local) = target.map(|target| self.local_at_end(target)) else {
                 continue;
             };
-            if !self.shape.contains(local) {
+            let Some(reach) = held_reach(&self.shape, local) else {
                 continue;
-            }
-            let surface = self.shape.closest_surface_point(local);
-            let reach = HELD_REACH * (surface.point - local).dot(surface.normal).max(0.0);
+            };
             let (mut first, mut last, mut arc) = (node, node, 0.0);
             while first > 0 && arc + rod.rest.lengths[first - 1] < reach {
                 arc += rod.rest.lengths[first - 1];

@@ -49,7 +49,7 @@ pub(crate) fn copy_into<T: Copy>(destination: &mut Vec<T>, source: &[T]) {
 
 pub use banded::{BandedMatrix, NotPositiveDefinite};
 pub use collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
-pub(crate) use contact::HELD_REACH;
+pub(crate) use contact::held_reach;
 pub use contact::{Contacts, STICKING_SLIP_SPEED};
 pub use curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE, MaterialFrame, Rod};
 pub use energy::ElasticEnergy;
