@@ -30,7 +30,7 @@ use crate::head::StrandOf;
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::settings::{HairSettings, HairStatistics};
 use crate::strand::{HairStrand, SimulatedStrand};
-use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes};
+use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, snap_previous};
 
 /// The followers of a guide strand, as spawned: each a curve of as many nodes as the guide's
 /// [`HairStrand`], in the same space (the head's local space for a strand with a head), root first. Put
@@ -132,7 +132,8 @@ impl FollowerNodes {
         if per == 0 || nodes.positions.len() != per {
             return;
         }
-        let snap = self.positions.len() != self.offsets.len();
+        // Snap with the guide (spawned, reset or teleported: nothing to interpolate from).
+        let snap = nodes.previous_positions == nodes.positions;
         std::mem::swap(&mut self.previous_positions, &mut self.positions);
         self.positions.clear();
         // The material frame of the edge arriving at each node (the root edge's at the root).
@@ -151,9 +152,7 @@ impl FollowerNodes {
                 self.positions.push(position);
             }
         }
-        if snap || self.previous_positions.len() != self.positions.len() {
-            self.previous_positions.clone_from(&self.positions);
-        }
+        snap_previous(&mut self.previous_positions, &self.positions, snap);
     }
 }
 

@@ -42,9 +42,16 @@ impl StrandNodes {
         std::mem::swap(&mut self.previous_positions, &mut self.positions);
         copy_converted(&mut self.positions, &state.positions, |position| position.as_vec3());
         copy_converted(&mut self.velocities, &state.velocities, |velocity| velocity.as_vec3());
-        if snap || self.previous_positions.len() != self.positions.len() {
-            self.previous_positions.clone_from(&self.positions);
-        }
+        snap_previous(&mut self.previous_positions, &self.positions, snap);
+    }
+}
+
+/// Makes the previous positions of a step the current ones when `snap` (nothing to interpolate from:
+/// spawned, reset, teleported) or when they do not match in number.
+pub(crate) fn snap_previous(previous: &mut Vec<Vec3>, current: &[Vec3], snap: bool) {
+    if snap || previous.len() != current.len() {
+        previous.clear();
+        previous.extend_from_slice(current);
     }
 }
 
