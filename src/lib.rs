@@ -15,6 +15,7 @@ pub mod settings;
 mod step;
 pub mod strand;
 pub mod strand_data;
+pub mod wind;
 
 pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
 
@@ -38,5 +39,6 @@ pub mod prelude {
     pub use crate::strand_data::{
         EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, StrandSnapshot, StrandSnapshotData,
     };
+    pub use crate::wind::{HairWind, HairWindPlugin, HairWindSource};
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

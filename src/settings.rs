@@ -2,7 +2,7 @@
 
 use bevy::prelude::*;
 
-use crate::rod::{RodError, RodMaterial, StepParams};
+use crate::rod::{Integrator, RodError, RodMaterial, StepParams};
 
 /// Settings of the hair simulation, read at every fixed step: a change takes effect at the next step.
 /// Invalid values are reported once with an error message and the simulation waits until they are fixed.
@@ -11,8 +11,16 @@ use crate::rod::{RodError, RodMaterial, StepParams};
 pub struct HairSettings {
     /// Gravitational acceleration, m/s². Default `(0, −9.81, 0)`.
     pub gravity: Vec3,
-    /// Air damping, 1/s: velocities relative to still air decay as `e^{−γt}`. Default 3.
+    /// The time integrator: [`Integrator::Bdf2`] (default, second order: hair swings as long as its
+    /// damping says) or [`Integrator::BackwardEuler`] (first order: it damps every motion by itself, see
+    /// the README's table).
+    pub integrator: Integrator,
+    /// Air drag across the strands `γ`, 1/s: a strand moving sideways through the air (relative to the
+    /// wind, [`crate::wind::HairWind`]) slows as `e^{−γt}`. Default 3 (see [`StepParams::air_damping`]).
     pub air_damping: f32,
+    /// Air drag along the strands as a fraction of the drag across them, in [0, 1]. Default 0.5 (a
+    /// slender cylinder; see [`StepParams::axial_drag_ratio`]).
+    pub axial_drag_ratio: f32,
     /// Internal (Rayleigh) damping of the material, s: an elastic mode of angular frequency `ω` decays at
     /// the rate `½ β ω²`. Default 0.001.
     pub internal_damping: f32,
@@ -42,7 +50,9 @@ impl Default for HairSettings {
         let step = StepParams::default();
         Self {
             gravity: step.gravity.as_vec3(),
+            integrator: step.integrator,
             air_damping: step.air_damping as f32,
+            axial_drag_ratio: step.axial_drag_ratio as f32,
             internal_damping: step.internal_damping as f32,
             max_newton_iterations: step.max_newton_iterations,
             max_projection_iterations: step.max_projection_iterations,
@@ -73,7 +83,9 @@ impl HairSettings {
         StepParams {
             dt,
             gravity: self.gravity.as_dvec3(),
+            integrator: self.integrator,
             air_damping: f64::from(self.air_damping),
+            axial_drag_ratio: f64::from(self.axial_drag_ratio),
             internal_damping: f64::from(self.internal_damping),
             max_newton_iterations: self.max_newton_iterations,
             max_projection_iterations: self.max_projection_iterations,

@@ -7,7 +7,7 @@ use thiserror::Error;
 
 use crate::head::{ScaledPose, StrandOf};
 use crate::rod::{
-    Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams, StepReport,
+    Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
 };
 use crate::settings::HairSettings;
 use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
@@ -415,7 +415,7 @@ impl SimulatedStrand {
         };
         let result = match self.pin_error.take() {
             Some(error) => Err(StepError::InvalidInput(error)),
-            None => self.rod.step_with_contacts(params, forces.active(), contacts, workspace),
+            None => self.rod.step_with_loads(params, &forces.loads(), contacts, workspace),
         };
         let health = &mut self.health;
         let error = match result {
@@ -460,52 +460,114 @@ impl SimulatedStrand {
     }
 }
 
-/// External forces on a strand's nodes for the coming step, N (wind, a hand, a custom field). Add them
-/// in [`crate::HairSystems::ExternalForces`]; they are cleared after each step. Gravity is applied by the
-/// plugin from [`HairSettings::gravity`].
+/// What acts on a strand's nodes from outside for the coming step: forces (N; a hand, a custom field)
+/// and the air's velocity (m/s; wind, see [`crate::wind`]), against which the air drag of
+/// [`HairSettings::air_damping`] acts. Add them in [`crate::HairSystems::ExternalForces`]; they are
+/// cleared after each step. Gravity is applied by the plugin from [`HairSettings::gravity`].
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone)]
 pub struct StrandForces {
-    forces: Vec<DVec3>,
-    active: bool,
+    forces: NodeVectors,
+    air_velocities: NodeVectors,
 }
 
 impl StrandForces {
     /// Adds `force` (N) on `node`. Rejects a node index out of range.
     pub fn add(&mut self, node: usize, force: Vec3) -> Result<(), RodError> {
-        let count = self.forces.len();
-        let slot = self.forces.get_mut(node).ok_or(RodError::OutOfRange { what: "node", index: node, count })?;
-        *slot += force.as_dvec3();
-        self.active = true;
-        Ok(())
+        self.forces.add(node, force)
     }
 
     /// Adds `force` (N) on every node.
     pub fn add_to_all(&mut self, force: Vec3) {
-        let force = force.as_dvec3();
-        self.forces.iter_mut().for_each(|slot| *slot += force);
-        self.active = true;
+        self.forces.add_to_all(force);
     }
 
     /// The force on each node for the coming step, N (none before the strand is built).
     pub fn forces(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
-        self.forces.iter().map(|force| force.as_vec3())
+        self.forces.iter()
     }
 
-    fn active(&self) -> Option<&[DVec3]> {
-        self.active.then_some(self.forces.as_slice())
+    /// Adds `velocity` (m/s) to the air's velocity at `node`. Rejects a node index out of range.
+    pub fn add_air_velocity(&mut self, node: usize, velocity: Vec3) -> Result<(), RodError> {
+        self.air_velocities.add(node, velocity)
+    }
+
+    /// Adds `velocity` (m/s) to the air's velocity at every node.
+    pub fn add_air_velocity_to_all(&mut self, velocity: Vec3) {
+        self.air_velocities.add_to_all(velocity);
+    }
+
+    /// The air's velocity at each node for the coming step, m/s (still air: zero).
+    pub fn air_velocities(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
+        self.air_velocities.iter()
+    }
+
+    /// The loads for the mechanics core: only what was added since the last step.
+    pub(crate) fn loads(&self) -> StepLoads<'_> {
+        StepLoads { forces: self.forces.active(), air_velocities: self.air_velocities.active() }
+    }
+
+    /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
+    pub(crate) fn add_air_velocities(&mut self, mut velocity_at: impl FnMut(usize) -> DVec3) {
+        for (node, slot) in self.air_velocities.values.iter_mut().enumerate() {
+            *slot += velocity_at(node);
+        }
+        self.air_velocities.active = !self.air_velocities.values.is_empty();
     }
 
     pub(crate) fn clear(&mut self) {
+        self.forces.clear();
+        self.air_velocities.clear();
+    }
+
+    fn resize(&mut self, nodes: usize) {
+        self.forces.resize(nodes);
+        self.air_velocities.resize(nodes);
+    }
+}
+
+/// One vector per node, with whether any was set since the last clear (so that an untouched strand
+/// costs nothing).
+#[derive(Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Debug, Default, Clone)]
+struct NodeVectors {
+    values: Vec<DVec3>,
+    active: bool,
+}
+
+impl NodeVectors {
+    fn add(&mut self, node: usize, value: Vec3) -> Result<(), RodError> {
+        let count = self.values.len();
+        let slot = self.values.get_mut(node).ok_or(RodError::OutOfRange { what: "node", index: node, count })?;
+        *slot += value.as_dvec3();
+        self.active = true;
+        Ok(())
+    }
+
+    fn add_to_all(&mut self, value: Vec3) {
+        let value = value.as_dvec3();
+        self.values.iter_mut().for_each(|slot| *slot += value);
+        self.active = true;
+    }
+
+    fn iter(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
+        self.values.iter().map(|value| value.as_vec3())
+    }
+
+    fn active(&self) -> Option<&[DVec3]> {
+        self.active.then_some(self.values.as_slice())
+    }
+
+    fn clear(&mut self) {
         if self.active {
-            self.forces.fill(DVec3::ZERO);
+            self.values.fill(DVec3::ZERO);
             self.active = false;
         }
     }
 
     fn resize(&mut self, nodes: usize) {
-        self.forces.clear();
-        self.forces.resize(nodes, DVec3::ZERO);
+        self.values.clear();
+        self.values.resize(nodes, DVec3::ZERO);
         self.active = false;
     }
 }

@@ -331,7 +331,7 @@ pub(crate) struct ContactScratch {
     /// that one workspace serves many rods.
     pub(crate) normal_forces: Vec<f64>,
     /// Per node: listed in `touching` (during the Newton iterations), then in contact (after them).
-    touched: Vec<bool>,
+    pub(crate) touched: Vec<bool>,
     /// Positions before the last length projection of the contact rounds.
     before_projection: Vec<DVec3>,
 }
@@ -388,16 +388,16 @@ impl Rod {
     }
 
     /// The contact spring's stiffness for `node`, N/m: [`CONTACT_STIFFNESS_RATIO`] times its inertia
-    /// `m (1/dt² + γ/dt)` (`inertia_scale` the bracket).
-    fn contact_stiffness(&self, node: usize, inertia_scale: f64) -> f64 {
-        CONTACT_STIFFNESS_RATIO * self.inertia.masses[node] * inertia_scale
+    /// `m (1/h² + γ/h)` (`inertia_scales[node]` the bracket, `h` the node's step in the integrator).
+    fn contact_stiffness(&self, node: usize, inertia_scales: &[f64]) -> f64 {
+        CONTACT_STIFFNESS_RATIO * self.inertia.masses[node] * inertia_scales[node]
     }
 
     /// The normal force, N, that stops `node` found `distance` m from a collider's surface (negative
-    /// inside) within the step: `m (1/dt² + γ/dt) (−d)`, what the contact spring settles to when the
-    /// node's inertia carried it that deep (`inertia_scale` the bracket); zero outside.
-    fn stopping_force(&self, node: usize, inertia_scale: f64, distance: f64) -> f64 {
-        self.inertia.masses[node] * inertia_scale * (-distance).max(0.0)
+    /// inside) within the step: `m (1/h² + γ/h) (−d)`, what the contact spring settles to when the
+    /// node's inertia carried it that deep (`inertia_scales[node]` the bracket); zero outside.
+    fn stopping_force(&self, node: usize, inertia_scales: &[f64], distance: f64) -> f64 {
+        self.inertia.masses[node] * inertia_scales[node] * (-distance).max(0.0)
     }
 
     /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
@@ -410,7 +410,7 @@ impl Rod {
         scratch: &mut ContactScratch,
         start_positions: &[DVec3],
         params: &StepParams,
-        inertia_scale: f64,
+        inertia_scales: &[f64],
         residual: &mut [f64],
         hessian: &mut RodMatrix,
     ) {
@@ -437,7 +437,7 @@ impl Rod {
                     // A node resting since the last step has its normal force from then, one found inside
                     // the force that stops it there.
                     normal_forces[node] =
-                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
+                        normal_forces[node].max(self.stopping_force(node, inertia_scales, contact.distance));
                     contact.first_solve = normal_forces[node] == 0.0;
                     touching.push(contact);
                     touched[node] = true;
@@ -449,7 +449,7 @@ impl Rod {
         // back), with no force.
         for contact in touching.iter().filter(|contact| contact.distance <= CONTACT_GAP) {
             let dof = node_dof(contact.node);
-            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
+            let stiffness = self.contact_stiffness(contact.node, inertia_scales);
             let n = contact.normal;
             let tangent_projector = DMat3::IDENTITY - outer_product(n);
             let mut force = stiffness * contact.distance.min(0.0) * n;
@@ -486,7 +486,7 @@ impl Rod {
         scratch: &mut ContactScratch,
         start_positions: &[DVec3],
         params: &StepParams,
-        inertia_scale: f64,
+        inertia_scales: &[f64],
         node_update: impl Fn(usize) -> DVec3,
     ) -> bool {
         let sticking_slip = STICKING_SLIP_SPEED * params.dt;
@@ -494,7 +494,7 @@ impl Rod {
         normal_forces.fill(0.0);
         let mut changed = false;
         for contact in touching.iter_mut().filter(|contact| contact.distance <= CONTACT_GAP) {
-            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
+            let stiffness = self.contact_stiffness(contact.node, inertia_scales);
             let update = node_update(contact.node);
             let distance = contact.distance + contact.normal.dot(update);
             normal_forces[contact.node] += stiffness * (-distance).max(0.0);
@@ -510,7 +510,7 @@ impl Rod {
                 let position = self.state.positions[node] + node_update(node);
                 if let Some(contact) = collider.new_contact(index, node, position, start_positions[node], 0.0) {
                     normal_forces[node] =
-                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
+                        normal_forces[node].max(self.stopping_force(node, inertia_scales, contact.distance));
                     changed = true;
                 }
             }

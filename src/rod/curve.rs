@@ -8,7 +8,7 @@ use super::copy_into;
 use super::error::RodError;
 use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
 use super::material::{RodMaterial, Stiffness};
-use super::state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState};
+use super::state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState, StepHistory};
 
 /// Edges shorter than this fraction of the rod's mean edge length are rejected as degenerate.
 const MIN_RELATIVE_EDGE_LENGTH: f64 = 1e-6;
@@ -174,6 +174,7 @@ impl Rod {
             twist: vec![0.0; edge_count],
             twist_rates: vec![0.0; edge_count],
             contact_normal_forces: vec![0.0; node_count],
+            history: StepHistory::empty(node_count),
         };
         let frames = RodFrames { reference_directors, tangents, reference_twist: vec![0.0; node_count] };
         let mut rod = Self {
@@ -224,6 +225,8 @@ impl Rod {
     /// kept: that step puts the rod back in its rest pose and reports
     /// [`crate::rod::StepError::UnusableState`].
     pub fn positions_mut(&mut self) -> &mut [DVec3] {
+        // The two-step integrator's memory no longer describes how the rod got here.
+        self.state.history.dt = 0.0;
         &mut self.state.positions
     }
 
@@ -447,10 +450,15 @@ impl Rod {
         for target in self.constraints.node_targets.iter_mut().flatten() {
             *target = rotation * *target + translation;
         }
+        // The step before moves with the rod, so that a two-step integrator carries its momentum along.
+        for position in &mut self.state.history.positions {
+            *position = rotation * *position + translation;
+        }
         let turned = self
             .state
             .velocities
             .iter_mut()
+            .chain(&mut self.state.history.velocities)
             .chain(&mut self.frames.reference_directors)
             .chain(&mut self.frames.tangents);
         for vector in turned.chain(self.constraints.twist_targets.iter_mut().flatten()) {
@@ -678,6 +686,7 @@ impl Rod {
         self.state.velocities.fill(DVec3::ZERO);
         self.state.twist_rates.fill(0.0);
         self.state.contact_normal_forces.fill(0.0);
+        self.state.history.dt = 0.0;
     }
 }
 

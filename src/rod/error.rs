@@ -117,6 +117,14 @@ pub enum RodError {
         /// The force that was given, N.
         force: DVec3,
     },
+    /// An air velocity (wind) is NaN or infinite.
+    #[error("the air velocity {velocity} at node {node} is not finite")]
+    NonFiniteAirVelocity {
+        /// The node the air velocity was given for.
+        node: usize,
+        /// The velocity that was given, m/s.
+        velocity: DVec3,
+    },
     /// A node or edge index past the end of the rod.
     #[error("{what} index {index} is out of range (the rod has {count})")]
     OutOfRange {

@@ -55,8 +55,8 @@ pub use curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE,
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};
 pub use material::{MATERIAL_RANGES, RodMaterial, Stiffness};
-pub use params::{MAX_DT, MAX_GRAVITY, StepParams};
+pub use params::{Integrator, MAX_DT, MAX_GRAVITY, StepParams};
 pub use preload::{MAX_PRELOAD_TURN, PreloadReport};
-pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepReport};
-pub use state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState};
+pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepLoads, StepReport};
+pub use state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState, StepHistory};
 pub use timing::StepTimings;

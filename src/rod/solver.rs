@@ -33,9 +33,10 @@ use super::curve::Rod;
 use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
+use super::params::Integrator;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
-use super::state::RodSnapshot;
+use super::state::{RodSnapshot, RodState};
 use super::timing::{Part, StepTimings, Stopwatch};
 
 /// Projection iterations a step may add, on the whole strand, when its own left an edge beyond
@@ -49,14 +50,91 @@ const FIRST_REGULARISATION: f64 = 1e-8;
 /// The largest Levenberg–Marquardt shift λ tried, dimensionless: the diagonal doubled.
 const MAX_REGULARISATION: f64 = 1.0;
 
-/// The inertia's factor `1/dt² + γ/dt` of a step, 1/s²: a node's block of the Newton matrix is `m` times it.
-fn inertia_scale(params: &StepParams) -> f64 {
-    1.0 / (params.dt * params.dt) + params.air_damping / params.dt
+/// Adding this to a step's length (relative) still counts as the same length for the two-step integrator.
+const SAME_DT: f64 = 1e-9;
+
+/// How the step turns positions into velocities and velocities into accelerations, per unknown:
+/// `v = (x − x̂)/h` and `a = (v − v̂)/h`, with `h` the scheme's step and `x̂`, `v̂` what the known states
+/// give. Backward Euler: `h = dt`, `x̂ = xₙ`, `v̂ = vₙ`. BDF2: `h = ⅔ dt`, `x̂ = (4xₙ − xₙ₋₁)/3`,
+/// `v̂ = (4vₙ − vₙ₋₁)/3`. Either way the step solves `M (x − x̂ − h v̂)/h² = F(x, (x − x̂)/h)`, each
+/// node with its own scheme: nodes that ended the last step on a collider take backward Euler (contact
+/// is not smooth, and a two-step formula would remember a fall into the surface and bounce the node
+/// back out, or kick it sideways), the others BDF2.
+#[derive(Debug, Clone, Default)]
+struct Scheme {
+    /// Each node's `h`, s.
+    node_h: Vec<f64>,
+    /// Each node's inertia factor `1/h² + γ/h`, 1/s² (`γ` the air drag across the strand): its block of
+    /// the Newton matrix is about `m` times it, and contact springs are scaled by it.
+    inertia_scales: Vec<f64>,
+    /// The edges' twists' `h`, s.
+    twist_h: f64,
+    /// `x̂` of every node, m.
+    positions: Vec<DVec3>,
+    /// `v̂` of every node, m/s.
+    velocities: Vec<DVec3>,
+    /// `θ̂` of every edge, rad.
+    twist: Vec<f64>,
+    /// `θ̇̂` of every edge, rad/s.
+    twist_rates: Vec<f64>,
+}
+
+impl Scheme {
+    /// The weights of a step of `params.dt` from `state`: BDF2 when asked for and the state has a history
+    /// of a step of the same length (except at nodes resting on a collider), backward Euler otherwise.
+    fn prepare(&mut self, params: &StepParams, state: &RodState) {
+        let history = &state.history;
+        let dt = params.dt;
+        let two_step =
+            params.integrator == Integrator::Bdf2 && history.dt > 0.0 && (history.dt - dt).abs() <= SAME_DT * dt;
+        self.node_h.clear();
+        self.positions.clear();
+        self.velocities.clear();
+        for node in 0..state.positions.len() {
+            let (x, v) = (state.positions[node], state.velocities[node]);
+            if two_step && !history.touching[node] {
+                self.node_h.push(2.0 / 3.0 * dt);
+                self.positions.push(bdf2_extrapolation(x, history.positions[node]));
+                self.velocities.push(bdf2_extrapolation(v, history.velocities[node]));
+            } else {
+                self.node_h.push(dt);
+                self.positions.push(x);
+                self.velocities.push(v);
+            }
+        }
+        let gamma = params.air_damping;
+        self.inertia_scales.clear();
+        self.inertia_scales.extend(self.node_h.iter().map(|h| 1.0 / (h * h) + gamma / h));
+        // The twists take backward Euler: they follow the centre line quasi-statically (hair's torsional
+        // modes are far above any step's frequency), and the one motion of theirs without stiffness,
+        // a free end's spin about its axis, is not worth a two-step scheme's extrapolation.
+        self.twist_h = dt;
+        copy_into(&mut self.twist, &state.twist);
+        copy_into(&mut self.twist_rates, &state.twist_rates);
+    }
+}
+
+/// `(4 now − before)/3`, BDF2's extrapolation from the last two states.
+fn bdf2_extrapolation<T>(now: T, before: T) -> T
+where
+    T: Copy + std::ops::Mul<f64, Output = T> + std::ops::Sub<Output = T>,
+{
+    (now * 4.0 - before) * (1.0 / 3.0)
 }
 
 /// The elastic Hessian's factor `1 + β/dt` with internal damping.
 fn damped_scale(params: &StepParams) -> f64 {
     1.0 + params.internal_damping / params.dt
+}
+
+/// What acts on a rod from outside during a step, besides gravity ([`StepParams::gravity`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepLoads<'a> {
+    /// Force on each node, N (one per node), or none.
+    pub forces: Option<&'a [DVec3]>,
+    /// The air's velocity at each node, m/s (one per node): the drag of [`StepParams::air_damping`]
+    /// acts on the velocity relative to it (wind). `None` is still air.
+    pub air_velocities: Option<&'a [DVec3]>,
 }
 
 /// What a successful step measured.
@@ -84,6 +162,7 @@ pub struct RodWorkspace {
     prescribed: Vec<f64>,
     edges: Vec<EdgeGeometry>,
     saved: RodSnapshot,
+    scheme: Scheme,
     /// Positions and twists after the first guess (the strand carried with its root): internal
     /// damping acts on the deformation from there.
     carried_positions: Vec<DVec3>,
@@ -121,7 +200,22 @@ impl Rod {
 
     /// Advances the rod by `params.dt` under gravity, optional per-node `external_forces` (N) and its
     /// boundary conditions (prescribed nodes move to their targets over the step), kept outside the
-    /// colliders of `contacts` with friction (see [`Contacts`]).
+    /// colliders of `contacts` with friction (see [`Contacts`]), in still air:
+    /// [`Rod::step_with_loads`] with only forces.
+    pub fn step_with_contacts(
+        &mut self,
+        params: &StepParams,
+        external_forces: Option<&[DVec3]>,
+        contacts: &Contacts,
+        workspace: &mut RodWorkspace,
+    ) -> Result<StepReport, StepError> {
+        let loads = StepLoads { forces: external_forces, air_velocities: None };
+        self.step_with_loads(params, &loads, contacts, workspace)
+    }
+
+    /// Advances the rod by `params.dt` under gravity, the `loads` from outside (per-node forces, the
+    /// air's velocity for the drag) and its boundary conditions (prescribed nodes move to their targets
+    /// over the step), kept outside the colliders of `contacts` with friction (see [`Contacts`]).
     ///
     /// No `Ok` step ends with an edge strained beyond [`StepParams::strain_bound`]: when the projections
     /// of the Newton iterations leave more (they ran out of iterations, or contact pushed the strand),
@@ -137,10 +231,10 @@ impl Rod {
     /// changes nothing. A rod whose state cannot start a step (written from outside: a non-finite or
     /// folded position) is put back in its rest pose, carried onto its clamp, with
     /// [`StepError::UnusableState`].
-    pub fn step_with_contacts(
+    pub fn step_with_loads(
         &mut self,
         params: &StepParams,
-        external_forces: Option<&[DVec3]>,
+        loads: &StepLoads,
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
@@ -151,7 +245,7 @@ impl Rod {
         }
         params.validate()?;
         contacts.validate()?;
-        if let Some(forces) = external_forces {
+        if let Some(forces) = loads.forces {
             if forces.len() != self.node_count() {
                 return Err(RodError::WrongLength { expected: self.node_count(), actual: forces.len() }.into());
             }
@@ -159,11 +253,19 @@ impl Rod {
                 return Err(RodError::NonFiniteForce { node, force }.into());
             }
         }
+        if let Some(air) = loads.air_velocities {
+            if air.len() != self.node_count() {
+                return Err(RodError::WrongLength { expected: self.node_count(), actual: air.len() }.into());
+            }
+            if let Some((node, &velocity)) = air.iter().enumerate().find(|(_, u)| !u.is_finite()) {
+                return Err(RodError::NonFiniteAirVelocity { node, velocity }.into());
+            }
+        }
         workspace.stopwatch.start_step();
         self.save_into(&mut workspace.saved);
         // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
         std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
-        let result = self.integrate(params, external_forces, contacts, workspace);
+        let result = self.integrate(params, loads, contacts, workspace);
         std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
         if result.is_err() {
             self.restore_at_rest(&workspace.saved);
@@ -174,7 +276,7 @@ impl Rod {
     fn integrate(
         &mut self,
         params: &StepParams,
-        external_forces: Option<&[DVec3]>,
+        loads: &StepLoads,
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
@@ -182,15 +284,19 @@ impl Rod {
         workspace.stopwatch.lap(Part::Frames);
         copy_into(&mut workspace.carried_positions, &self.state.positions);
         copy_into(&mut workspace.carried_twist, &self.state.twist);
-        workspace.projection.use_rod_masses(self);
-        workspace.stopwatch.lap(Part::Forces);
-        self.begin_contacts(contacts, params, &workspace.saved.state.positions, &mut workspace.contacts);
-        workspace.stopwatch.lap(Part::Collisions);
+        let RodWorkspace { saved, contacts: contact_scratch, scheme, projection, stopwatch, .. } = &mut *workspace;
+        self.begin_contacts(contacts, params, &saved.state.positions, contact_scratch);
+        stopwatch.lap(Part::Collisions);
+        scheme.prepare(params, &saved.state);
+        projection.time_scales.clear();
+        projection.time_scales.extend(scheme.node_h.iter().map(|h| h / params.dt));
+        projection.use_rod_masses(self);
+        stopwatch.lap(Part::Forces);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
             newton_iterations += 1;
-            let (fraction, contacts_changed) = self.newton_iteration(params, external_forces, workspace)?;
+            let (fraction, contacts_changed) = self.newton_iteration(params, loads, workspace)?;
             let linearisation_error = length_error(self, &workspace.projection.target_lengths);
             let converged =
                 fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance && !contacts_changed;
@@ -228,14 +334,24 @@ impl Rod {
         self.refresh_frames();
         workspace.stopwatch.lap(Part::Frames);
 
-        let saved = &workspace.saved;
-        let inverse_dt = 1.0 / params.dt;
+        let RodWorkspace { saved, scheme, .. } = &*workspace;
+        let touching = &workspace.contacts.touched;
+        // A node that landed on a collider in this step restarts the scheme: a two-step formula would
+        // remember the fall into the surface and throw the strand off it in the next steps.
+        let landed = (0..self.node_count()).any(|node| touching[node] && !saved.state.history.touching[node]);
+        let restart = landed;
         for node in 0..self.node_count() {
-            self.state.velocities[node] = (self.state.positions[node] - saved.state.positions[node]) * inverse_dt;
+            let position = self.state.positions[node];
+            self.state.velocities[node] = if restart || touching[node] {
+                (position - saved.state.positions[node]) / params.dt
+            } else {
+                (position - scheme.positions[node]) / scheme.node_h[node]
+            };
         }
         for edge in 0..self.edge_count() {
-            self.state.twist_rates[edge] = (self.state.twist[edge] - saved.state.twist[edge]) * inverse_dt;
+            self.state.twist_rates[edge] = (self.state.twist[edge] - scheme.twist[edge]) / scheme.twist_h;
         }
+        self.state.history.record(&saved.state, if restart { 0.0 } else { params.dt }, touching);
         let finite = |node: usize| {
             self.state.positions[node].is_finite()
                 && self.state.velocities[node].is_finite()
@@ -355,12 +471,12 @@ impl Rod {
     fn newton_iteration(
         &mut self,
         params: &StepParams,
-        external_forces: Option<&[DVec3]>,
+        loads: &StepLoads,
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
         let mut regularisation = 0.0;
         loop {
-            self.assemble_newton_system(params, external_forces, workspace, regularisation);
+            self.assemble_newton_system(params, loads, workspace, regularisation);
             match workspace.hessian.factorize() {
                 Ok(()) => break,
                 Err(_) if regularisation < MAX_REGULARISATION => {
@@ -379,7 +495,7 @@ impl Rod {
     fn assemble_newton_system(
         &mut self,
         params: &StepParams,
-        external_forces: Option<&[DVec3]>,
+        loads: &StepLoads,
         workspace: &mut RodWorkspace,
         regularisation: f64,
     ) {
@@ -390,10 +506,10 @@ impl Rod {
         workspace.hessian.reset(size);
         self.add_elastic_forces(params, workspace);
         self.add_internal_damping(params, workspace);
-        self.add_inertia_and_external_forces(params, external_forces, workspace);
+        self.add_inertia_and_external_forces(params, loads, workspace);
         workspace.stopwatch.lap(Part::Forces);
-        let RodWorkspace { hessian, residual, saved, contacts, stopwatch, .. } = workspace;
-        self.add_contact_forces(contacts, &saved.state.positions, params, inertia_scale(params), residual, hessian);
+        let RodWorkspace { hessian, residual, saved, contacts, stopwatch, scheme, .. } = workspace;
+        self.add_contact_forces(contacts, &saved.state.positions, params, &scheme.inertia_scales, residual, hessian);
         stopwatch.lap(Part::Collisions);
         if regularisation > 0.0 {
             hessian.scale_diagonal(1.0 + regularisation);
@@ -464,39 +580,51 @@ impl Rod {
         }
     }
 
-    /// Inertia and air drag `M (q − qₙ − dt vₙ)/dt² + γ M (q − qₙ)/dt` of the nodes and of the edges' spin,
-    /// with Hessian `M (1/dt² + γ/dt)`, and the forces: gravity `M g` and `external_forces` (N).
-    fn add_inertia_and_external_forces(
-        &self,
-        params: &StepParams,
-        external_forces: Option<&[DVec3]>,
-        workspace: &mut RodWorkspace,
-    ) {
-        let RodWorkspace { hessian, residual, saved, .. } = workspace;
-        let (dt, gamma) = (params.dt, params.air_damping);
-        let inertia_scale = inertia_scale(params);
+    /// Inertia `M (q − x̂ − h v̂)/h²` of the nodes and of the edges' spin (see [`Scheme`]), the air drag
+    /// `D (v − u)` with `v = (q − x̂)/h` (see [`StepParams::air_damping`]: `D = m γ [I − (1 − r) t tᵀ]` per
+    /// node, `t` its tangent at the start of the step, `u` the air's velocity, still air without
+    /// `air_velocities`), spin drag `γ J θ̇`, with Hessian `M/h² + D/h`, and the forces: gravity `M g`
+    /// and `external_forces` (N).
+    fn add_inertia_and_external_forces(&self, params: &StepParams, loads: &StepLoads, workspace: &mut RodWorkspace) {
+        let RodWorkspace { hessian, residual, saved, scheme, .. } = workspace;
+        let gamma = params.air_damping;
+        let tangents = &saved.frames.tangents;
         for node in 0..self.node_count() {
-            let mass = self.inertia.masses[node];
+            let (mass, h) = (self.inertia.masses[node], scheme.node_h[node]);
             let mut force = mass * params.gravity;
-            if let Some(forces) = external_forces {
+            if let Some(forces) = loads.forces {
                 force += forces[node];
             }
-            let offset = self.state.positions[node] - saved.state.positions[node];
-            let inertial = mass / (dt * dt) * (offset - dt * saved.state.velocities[node]) + gamma * mass / dt * offset;
-            let residual_node = inertial - force;
-            for axis in 0..3 {
-                let dof = node_dof(node) + axis;
-                residual[dof] += residual_node[axis];
-                hessian.add(dof, dof, mass * inertia_scale);
+            let offset = self.state.positions[node] - scheme.positions[node];
+            let mut relative_velocity = offset / h;
+            if let Some(air) = loads.air_velocities {
+                relative_velocity -= air[node];
+            }
+            // The drag tensor m γ [I − (1 − r) t tᵀ] with the node's tangent, the mean of its edges'.
+            let tangent = match node {
+                0 => tangents[0],
+                n if n == self.edge_count() => tangents[n - 1],
+                n => (tangents[n - 1] + tangents[n]).normalize_or(tangents[n]),
+            };
+            let drag = mass * gamma * (DMat3::IDENTITY - (1.0 - params.axial_drag_ratio) * outer(tangent));
+            let residual_node =
+                mass / (h * h) * (offset - h * scheme.velocities[node]) + drag * relative_velocity - force;
+            let block = DMat3::from_diagonal(DVec3::splat(mass / (h * h))) + drag / h;
+            for row in 0..3 {
+                let dof = node_dof(node) + row;
+                residual[dof] += residual_node[row];
+                for column in 0..=row {
+                    hessian.add(dof, node_dof(node) + column, block.col(column)[row]);
+                }
             }
         }
+        let h = scheme.twist_h;
         for edge in 0..self.edge_count() {
             let inertia = self.inertia.twist_inertias[edge];
-            let offset = self.state.twist[edge] - saved.state.twist[edge];
+            let offset = self.state.twist[edge] - scheme.twist[edge];
             let dof = twist_dof(edge);
-            residual[dof] +=
-                inertia / (dt * dt) * (offset - dt * saved.state.twist_rates[edge]) + gamma * inertia / dt * offset;
-            hessian.add(dof, dof, inertia * inertia_scale);
+            residual[dof] += inertia / (h * h) * (offset - h * scheme.twist_rates[edge]) + gamma * inertia / h * offset;
+            hessian.add(dof, dof, inertia * (1.0 / (h * h) + gamma / h));
         }
     }
 
@@ -546,14 +674,14 @@ impl Rod {
         params: &StepParams,
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
-        let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, .. } = workspace;
-        let inertia_scale = inertia_scale(params);
+        let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, scheme, .. } = workspace;
+
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let contacts_changed =
-            self.update_contacts(contacts, &saved.state.positions, params, inertia_scale, node_update);
+            self.update_contacts(contacts, &saved.state.positions, params, &scheme.inertia_scales, node_update);
         stopwatch.lap(Part::Collisions);
         let largest_turn = (0..self.edge_count())
             .filter(|&edge| {
@@ -617,4 +745,9 @@ mod tests {
         ));
         assert_eq!(rod.positions(), &nodes[..]);
     }
+}
+
+/// `a aᵀ`.
+fn outer(a: DVec3) -> DMat3 {
+    DMat3::from_cols(a * a.x, a * a.y, a * a.z)
 }

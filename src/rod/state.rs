@@ -24,6 +24,66 @@ pub struct RodState {
     /// Normal force on each node from its colliders at the end of the last step, N: friction's lagged
     /// normal force, so that a node resting since then has friction from its first Newton iteration.
     pub contact_normal_forces: Vec<f64>,
+    /// The state the last step started from: the two-step integrator's memory ([`StepHistory`]).
+    pub history: StepHistory,
+}
+
+/// The state one step back, `(x, v, θ, θ̇)ₙ₋₁`, which the two-step integrator
+/// ([`crate::rod::Integrator::Bdf2`]) needs besides the current one. Its arrays are sized with the rod
+/// (indexed like [`RodState`]'s) and only valid while [`StepHistory::dt`] is positive.
+#[derive(Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct StepHistory {
+    /// Length of the step that led from this state to the current one, s; 0 when there is none (a new
+    /// rod, a reset, a failed step's roll-back, positions written from outside): the next step is then
+    /// a one-step (backward Euler) start.
+    pub dt: f64,
+    /// Node positions, m.
+    pub positions: Vec<DVec3>,
+    /// Node velocities, m/s.
+    pub velocities: Vec<DVec3>,
+    /// Edge twists, rad.
+    pub twist: Vec<f64>,
+    /// Edge twist rates, rad/s.
+    pub twist_rates: Vec<f64>,
+    /// Whether each node ended the step on a collider (then the next step integrates it by backward Euler).
+    pub touching: Vec<bool>,
+}
+
+impl StepHistory {
+    /// An empty history for a rod of `nodes` nodes, its arrays sized (so that steps never allocate).
+    pub(crate) fn empty(nodes: usize) -> Self {
+        let edges = nodes.saturating_sub(1);
+        Self {
+            dt: 0.0,
+            positions: vec![DVec3::ZERO; nodes],
+            velocities: vec![DVec3::ZERO; nodes],
+            twist: vec![0.0; edges],
+            twist_rates: vec![0.0; edges],
+            touching: vec![false; nodes],
+        }
+    }
+
+    /// Records `state` (positions, velocities, twists and rates) as the state a step of `dt` s started
+    /// from, which ended with the nodes `touching` a collider.
+    pub(crate) fn record(&mut self, state: &RodState, dt: f64, touching: &[bool]) {
+        copy_into(&mut self.touching, touching);
+        copy_into(&mut self.positions, &state.positions);
+        copy_into(&mut self.velocities, &state.velocities);
+        copy_into(&mut self.twist, &state.twist);
+        copy_into(&mut self.twist_rates, &state.twist_rates);
+        self.dt = dt;
+    }
+
+    /// Copies `source` into `self`, reusing its memory.
+    pub fn copy_from(&mut self, source: &Self) {
+        copy_into(&mut self.positions, &source.positions);
+        copy_into(&mut self.velocities, &source.velocities);
+        copy_into(&mut self.twist, &source.twist);
+        copy_into(&mut self.twist_rates, &source.twist_rates);
+        copy_into(&mut self.touching, &source.touching);
+        self.dt = source.dt;
+    }
 }
 
 /// Each edge's reference frame, kept adapted to the edge by time-parallel transport (Bergou et al. 2008,
@@ -96,6 +156,7 @@ impl RodState {
         copy_into(&mut self.twist, &source.twist);
         copy_into(&mut self.twist_rates, &source.twist_rates);
         copy_into(&mut self.contact_normal_forces, &source.contact_normal_forces);
+        self.history.copy_from(&source.history);
     }
 }
 
@@ -118,11 +179,27 @@ impl RodSnapshot {
     pub(crate) fn fits(&self, nodes: usize) -> bool {
         let (state, frames) = (&self.state, &self.frames);
         let edges = nodes.saturating_sub(1);
-        [state.positions.len(), state.velocities.len(), state.contact_normal_forces.len(), frames.reference_twist.len()]
+        let history = &state.history;
+        [
+            state.positions.len(),
+            state.velocities.len(),
+            state.contact_normal_forces.len(),
+            frames.reference_twist.len(),
+            history.positions.len(),
+            history.velocities.len(),
+            history.touching.len(),
+        ]
+        .iter()
+        .all(|&len| len == nodes)
+            && [
+                state.twist.len(),
+                state.twist_rates.len(),
+                frames.tangents.len(),
+                frames.reference_directors.len(),
+                history.twist.len(),
+                history.twist_rates.len(),
+            ]
             .iter()
-            .all(|&len| len == nodes)
-            && [state.twist.len(), state.twist_rates.len(), frames.tangents.len(), frames.reference_directors.len()]
-                .iter()
-                .all(|&len| len == edges)
+            .all(|&len| len == edges)
     }
 }
