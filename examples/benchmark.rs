@@ -19,10 +19,10 @@ use std::process::Command;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use bevy::math::DVec3;
+use bevy::math::{DVec3, Vec3};
 use bevy::tasks::available_parallelism;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Contacts, MovingCollider, RigidPose, StepTimings};
+use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose, StepTimings};
 use counting_allocator::BYTES_IN_USE;
 use scene::{HAIR_LENGTH, Scene, WARM_UP_STEPS};
 
@@ -110,6 +110,58 @@ fn main() {
     }
     if wanted("followers") {
         followers_cost(threads, steps);
+    }
+    if wanted("integrators") {
+        integrators(threads, steps);
+    }
+}
+
+/// The time integrators and the wind on the scene's 2 000 × 32 strands, stepped in turn (one interleaved
+/// run): median ms per step and mean Newton iterations per strand, without colliders and on all five.
+fn integrators(threads: usize, steps: usize) {
+    println!();
+    println!("| 2 000 × 32, colliders | integrator, air | ms per step | Newton iterations per strand |");
+    println!("|---|---|---:|---:|");
+    let rows = [
+        ("backward Euler, still", Integrator::BackwardEuler, HairWind::default()),
+        ("BDF2, still", Integrator::Bdf2, HairWind::default()),
+        (
+            "BDF2, 3 m/s wind with gusts",
+            Integrator::Bdf2,
+            HairWind { velocity: Vec3::new(3.0, 0.0, 0.0), gusts: 1.0, ..HairWind::default() },
+        ),
+        (
+            "BDF2, 3 m/s wind with gusts and turbulence",
+            Integrator::Bdf2,
+            HairWind { velocity: Vec3::new(3.0, 0.0, 0.0), gusts: 1.0, turbulence: 0.5, ..HairWind::default() },
+        ),
+    ];
+    for colliders in [0, 5] {
+        let mut scenes: Vec<Scene> = rows
+            .iter()
+            .map(|(_, integrator, wind)| {
+                let mut scene = Scene::new(2000, 32, Some(threads)).with_colliders(colliders);
+                scene.app.world_mut().resource_mut::<HairSettings>().integrator = *integrator;
+                scene.app.insert_resource(wind.clone());
+                scene
+            })
+            .collect();
+        scenes.iter_mut().for_each(Scene::warm_up);
+        let mut times = vec![Vec::with_capacity(steps); scenes.len()];
+        let mut iterations = vec![0.0; scenes.len()];
+        for _ in 0..steps {
+            for (index, scene) in scenes.iter_mut().enumerate() {
+                let started = Instant::now();
+                scene.step();
+                times[index].push(started.elapsed().as_secs_f64());
+                iterations[index] += scene.app.world().resource::<HairStatistics>().mean_newton_iterations;
+            }
+        }
+        for (index, (name, ..)) in rows.iter().enumerate() {
+            times[index].sort_by(f64::total_cmp);
+            let median = times[index][steps / 2];
+            println!("| {colliders} | {name} | {:.2} | {:.2} |", 1e3 * median, iterations[index] / steps as f64);
+        }
     }
 }
 

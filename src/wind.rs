@@ -43,9 +43,11 @@ use crate::strand_data::StrandNodes;
 /// repetition, few enough to stay cheap.
 pub const TURBULENCE_MODES: usize = 8;
 
-/// The turbulence is evaluated at every this many nodes along a strand and interpolated between
-/// (eddies are tens of centimetres, edges about one): the last node is always evaluated.
-pub const TURBULENCE_NODE_STRIDE: usize = 4;
+/// Along a strand the turbulence is evaluated at nodes this fraction of [`HairWind::turbulence_scale`]
+/// apart (and at the tip), and interpolated linearly between: eddies are tens of centimetres, edges
+/// about one, and a sinusoid sampled four times per wavelength is interpolated within 15 % of its
+/// amplitude (still smooth in time, where it matters for the motion).
+pub const TURBULENCE_SAMPLE_SPACING: f32 = 0.25;
 
 /// The global wind, the same for every head (a resource; insert it, or edit it at run time).
 ///
@@ -312,16 +314,18 @@ pub(crate) fn add_wind(
             return;
         }
         let last = positions.len() - 1;
+        let edge = positions.get(1).map_or(1.0, |next| next.distance(positions[0]));
+        let stride = ((TURBULENCE_SAMPLE_SPACING * wind.turbulence_scale / edge) as usize).clamp(1, last.max(1));
         let turbulence_at = |node: usize| field.turbulence_at(positions[node].as_dvec3(), now);
         let (mut before, mut before_value) = (0, turbulence_at(0));
         let (mut after, mut after_value) = (0, before_value);
         forces.add_air_velocities(|node| {
             let mut velocity = uniform;
             if field.turbulent {
-                // Sampled every TURBULENCE_NODE_STRIDE nodes and at the tip, interpolated between.
+                // Sampled every `stride` nodes and at the tip, interpolated between.
                 if node > after {
                     (before, before_value) = (after, after_value);
-                    after = (after + TURBULENCE_NODE_STRIDE).min(last);
+                    after = (after + stride).min(last);
                     after_value = turbulence_at(after);
                 }
                 velocity += if after == before {

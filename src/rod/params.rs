@@ -99,9 +99,9 @@ impl Default for StepParams {
             axial_drag_ratio: 0.5,
             internal_damping: 1e-3,
             max_newton_iterations: 4,
-            newton_strain_tolerance: 0.01,
+            newton_strain_tolerance: 0.005,
             max_rotation: 0.25,
-            strain_tolerance: 1e-6,
+            strain_tolerance: 1e-8,
             strain_allowance: 5e-4,
             max_projection_iterations: 16,
         }
