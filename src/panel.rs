@@ -1,7 +1,7 @@
 //! A live panel (bevy_egui) to tune the hair and watch it: statistics with a plot of the step time, pause
-//! and single step, the groom of the heads (strand count, edges, style), [`HairSettings`], the default
-//! material in human units, collisions (margin, collider wireframes) and the hair colours. Behind the
-//! `egui` feature.
+//! and single step, the groom of the heads (strand count, edges, style), [`HairSettings`] (integrator,
+//! damping), the wind ([`HairWind`]), the default material in human units, collisions (margin, collider
+//! wireframes) and the hair colours. Behind the `egui` feature.
 
 use std::collections::VecDeque;
 
@@ -11,11 +11,12 @@ use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
-use crate::rod::RodMaterial;
+use crate::rod::{Integrator, RodMaterial};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::SimulatedStrand;
+use crate::wind::HairWind;
 
-/// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], every
+/// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], [`HairWind`], every
 /// head's [`HairGroom`] and the [`HairGizmos`] colours and collider drawing. Adds `EguiPlugin` when the
 /// app has none. Needs a window and a camera (it draws in bevy_egui's primary context).
 #[derive(Debug, Clone, Copy, Default)]
@@ -105,6 +106,7 @@ fn hair_panel(
     real_time: Res<Time<Real>>,
     mut settings: ResMut<HairSettings>,
     mut pause: ResMut<HairPause>,
+    mut wind: ResMut<HairWind>,
     statistics: Res<HairStatistics>,
     gizmo_store: Option<ResMut<GizmoConfigStore>>,
     mut strands: Query<&mut SimulatedStrand>,
@@ -114,6 +116,7 @@ fn hair_panel(
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
     let mut edited_pause = pause.clone();
+    let mut edited_wind = wind.clone();
     let mut reset = false;
     let mut groom = memory.held_groom.or_else(|| grooms.iter().next().map(GroomEdit::from));
     let mut groom_held = false;
@@ -137,6 +140,7 @@ fn hair_panel(
             groom_held = groom_grid(ui, groom);
         }
         ui.collapsing("simulation", |ui| settings_grid(ui, &mut edited));
+        ui.collapsing("wind", |ui| wind_grid(ui, &mut edited_wind));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
         if let Some(drawing) = drawing.as_mut() {
@@ -148,6 +152,9 @@ fn hair_panel(
     }
     if edited_pause != *pause {
         *pause = edited_pause;
+    }
+    if edited_wind != *wind {
+        *wind = edited_wind;
     }
     memory.held_groom = groom.filter(|_| groom_held);
     if let Some(edit) = groom.filter(|_| !groom_held) {
@@ -244,7 +251,14 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
             }
         });
         ui.end_row();
+        ui.label("integrator");
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut settings.integrator, Integrator::Bdf2, "BDF2");
+            ui.radio_value(&mut settings.integrator, Integrator::BackwardEuler, "backward Euler");
+        });
+        ui.end_row();
         grid_row(ui, "air damping (1/s)", egui::Slider::new(&mut settings.air_damping, 0.0..=30.0));
+        grid_row(ui, "drag along / across", egui::Slider::new(&mut settings.axial_drag_ratio, 0.0..=1.0));
         let internal_damping = egui::Slider::new(&mut settings.internal_damping, 0.0..=0.05).logarithmic(true);
         grid_row(ui, "internal damping (s)", internal_damping);
         grid_row(ui, "Newton iterations (max)", egui::Slider::new(&mut settings.max_newton_iterations, 1..=8));
@@ -252,6 +266,27 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
         let teleport_distance = egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true);
         grid_row(ui, "teleport distance (m)", teleport_distance);
     });
+}
+
+/// The wind: speed and direction (from where it blows, as an angle about the vertical), gusts and
+/// turbulence.
+fn wind_grid(ui: &mut egui::Ui, wind: &mut HairWind) {
+    let horizontal = Vec2::new(wind.velocity.x, wind.velocity.z);
+    let mut speed = wind.velocity.length();
+    // The angle the wind blows towards, in degrees from +X towards +Z.
+    let mut heading = if horizontal == Vec2::ZERO { 0.0 } else { horizontal.y.atan2(horizontal.x).to_degrees() };
+    egui::Grid::new("hair wind").num_columns(2).show(ui, |ui| {
+        grid_row(ui, "speed (m/s)", egui::Slider::new(&mut speed, 0.0..=15.0));
+        grid_row(ui, "blowing towards (°)", egui::Slider::new(&mut heading, -180.0..=180.0));
+        grid_row(ui, "gusts (± m/s)", egui::Slider::new(&mut wind.gusts, 0.0..=10.0));
+        grid_row(ui, "gust period (s)", egui::Slider::new(&mut wind.gust_period, 0.2..=10.0).logarithmic(true));
+        grid_row(ui, "turbulence (m/s)", egui::Slider::new(&mut wind.turbulence, 0.0..=5.0));
+        grid_row(ui, "eddy size (m)", egui::Slider::new(&mut wind.turbulence_scale, 0.05..=2.0).logarithmic(true));
+    });
+    let velocity = speed * Vec3::new(heading.to_radians().cos(), 0.0, heading.to_radians().sin());
+    if velocity.distance(wind.velocity) > 1e-4 {
+        wind.velocity = velocity;
+    }
 }
 
 fn material_grid(ui: &mut egui::Ui, material: &mut RodMaterial) {

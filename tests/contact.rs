@@ -5,7 +5,7 @@ mod common;
 
 use bevy::math::{DQuat, DVec3};
 use bevy_hair_sim::rod::{
-    ColliderShape, Contacts, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepParams,
+    ColliderShape, Contacts, Integrator, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepParams,
 };
 use common::{max_speed, straight_nodes};
 
@@ -19,21 +19,36 @@ fn sphere_penetration(rod: &Rod, centre: DVec3, radius: f64) -> f64 {
 #[test]
 fn a_strand_dropped_on_a_sphere_drapes_over_it_and_comes_to_rest() {
     for friction in [0.1, 0.4, 1.0, 2.0] {
-        drape_on_a_sphere(friction);
+        drape_on_a_sphere(friction, 0.02, Integrator::Bdf2);
     }
 }
 
-/// Drops a free 20 cm hair on a 5 cm ball with friction `friction` and checks it drapes and rests.
-fn drape_on_a_sphere(friction: f64) {
+/// Before the friction of a landing node was linearised against reversal (issue 19), a strand dropped
+/// from some heights was thrown off the ball at high friction, by either integrator: from 1.5 cm at
+/// μ = 2 with backward Euler, from 2 cm at μ = 2 with BDF2.
+#[test]
+fn strands_dropped_from_other_heights_drape_with_either_integrator() {
+    for integrator in [Integrator::BackwardEuler, Integrator::Bdf2] {
+        for height in [0.015, 0.025, 0.03] {
+            for friction in [0.4, 2.0] {
+                drape_on_a_sphere(friction, height, integrator);
+            }
+        }
+    }
+}
+
+/// Drops a free 20 cm hair from `height` above a 5 cm ball with friction `friction` and checks it
+/// drapes and rests.
+fn drape_on_a_sphere(friction: f64, height: f64, integrator: Integrator) {
     let (centre, radius) = (DVec3::ZERO, 0.05);
     let sphere = MovingCollider::fixed(ColliderShape::sphere(radius), friction, RigidPose::default());
     let colliders = [sphere];
     let contacts = Contacts { colliders: &colliders, thickness: THICKNESS };
-    // A free 20 cm hair, level, its middle 2 cm above the top of the sphere.
+    // A free 20 cm hair, level, its middle `height` above the top of the sphere.
     let nodes: Vec<DVec3> =
-        straight_nodes(0.2, 32, DVec3::X).iter().map(|node| *node + DVec3::new(-0.1, radius + 0.02, 0.003)).collect();
+        straight_nodes(0.2, 32, DVec3::X).iter().map(|node| *node + DVec3::new(-0.1, radius + height, 0.003)).collect();
     let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
-    let params = StepParams::default();
+    let params = StepParams { integrator, ..Default::default() };
     let mut workspace = RodWorkspace::default();
     let mut deepest: f64 = 0.0;
     let mut touched = 0;
@@ -45,7 +60,7 @@ fn drape_on_a_sphere(friction: f64) {
     let ends = [rod.positions()[0], rod.positions()[32]];
     let middle = rod.positions()[16];
     println!(
-        "μ = {friction}: deepest {:.3e} m, contacts {touched}, speed {:.3e} m/s, middle {middle}, ends {ends:?}",
+        "{integrator:?}, from {height} m, μ = {friction}: deepest {:.3e} m, contacts {touched}, speed {:.3e} m/s, middle {middle}, ends {ends:?}",
         deepest,
         max_speed(&rod)
     );

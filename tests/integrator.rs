@@ -190,7 +190,11 @@ fn shaken_hair_comes_to_rest_with_the_physical_damping() {
         let mut rest = None;
         for step in 0..1200 {
             let t = step as f64 * dt;
-            let shift = if t < 1.0 { DVec3::new(0.03 * (std::f64::consts::TAU * 2.0 * t).sin(), 0.0, 0.0) } else { DVec3::ZERO };
+            let shift = if t < 1.0 {
+                DVec3::new(0.03 * (std::f64::consts::TAU * 2.0 * t).sin(), 0.0, 0.0)
+            } else {
+                DVec3::ZERO
+            };
             rod.clamp_edge(0, root[0] + shift, root[1] + shift, DVec3::X).unwrap();
             rod.step(&params, None, &mut workspace).unwrap();
             if t > 1.0 && rest.is_none() && max_speed(&rod) < 1e-3 {

@@ -124,7 +124,11 @@ fn gusts_and_turbulence_repeat_bit_for_bit_with_their_seed() {
     let other = hair_after(Some(gusty(12)));
     assert_eq!(first, again, "the same seed, the same hair");
     let moved = |a: &[DVec3], b: &[DVec3]| a.iter().zip(b).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
-    println!("largest difference: wind vs still {:.4} m, seed 11 vs 12 {:.4} m", moved(&first, &still), moved(&first, &other));
+    println!(
+        "largest difference: wind vs still {:.4} m, seed 11 vs 12 {:.4} m",
+        moved(&first, &still),
+        moved(&first, &other)
+    );
     assert!(moved(&first, &still) > 0.01, "the wind moves the hair");
     assert!(moved(&first, &other) > 1e-3, "another seed, other gusts and eddies");
     // A calm wind (any gusts need a mean wind) adds nothing: the same as the default, bit for bit.

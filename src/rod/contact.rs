@@ -113,6 +113,9 @@ struct NodeContact {
     /// Whether the contact is new and has not been through a Newton solve yet (its friction had no
     /// normal force).
     first_solve: bool,
+    /// Whether a Newton update of this step reversed its slip: its sliding friction is then linearised
+    /// as a spring towards zero slip for the rest of the step (see [`Rod::add_contact_forces`]).
+    reversed: bool,
 }
 
 /// Where a slip `u`, m, lies on the smoothed friction law: sticking (`|u| < ε`) or sliding.
@@ -261,6 +264,7 @@ impl NearbyCollider {
             slip: moved - moved.dot(normal) * normal,
             friction: self.friction,
             first_solve: true,
+            reversed: false,
         }
     }
 
@@ -331,7 +335,7 @@ pub(crate) struct ContactScratch {
     /// that one workspace serves many rods.
     pub(crate) normal_forces: Vec<f64>,
     /// Per node: listed in `touching` (during the Newton iterations), then in contact (after them).
-    pub(crate) touched: Vec<bool>,
+    touched: Vec<bool>,
     /// Positions before the last length projection of the contact rounds.
     before_projection: Vec<DVec3>,
 }
@@ -388,16 +392,16 @@ impl Rod {
     }
 
     /// The contact spring's stiffness for `node`, N/m: [`CONTACT_STIFFNESS_RATIO`] times its inertia
-    /// `m (1/h² + γ/h)` (`inertia_scales[node]` the bracket, `h` the node's step in the integrator).
-    fn contact_stiffness(&self, node: usize, inertia_scales: &[f64]) -> f64 {
-        CONTACT_STIFFNESS_RATIO * self.inertia.masses[node] * inertia_scales[node]
+    /// `m (1/h² + γ/h)` (`inertia_scale` the bracket, `h` the integrator's step).
+    fn contact_stiffness(&self, node: usize, inertia_scale: f64) -> f64 {
+        CONTACT_STIFFNESS_RATIO * self.inertia.masses[node] * inertia_scale
     }
 
     /// The normal force, N, that stops `node` found `distance` m from a collider's surface (negative
     /// inside) within the step: `m (1/h² + γ/h) (−d)`, what the contact spring settles to when the
-    /// node's inertia carried it that deep (`inertia_scales[node]` the bracket); zero outside.
-    fn stopping_force(&self, node: usize, inertia_scales: &[f64], distance: f64) -> f64 {
-        self.inertia.masses[node] * inertia_scales[node] * (-distance).max(0.0)
+    /// node's inertia carried it that deep (`inertia_scale` the bracket); zero outside.
+    fn stopping_force(&self, node: usize, inertia_scale: f64, distance: f64) -> f64 {
+        self.inertia.masses[node] * inertia_scale * (-distance).max(0.0)
     }
 
     /// Adds contact to the Newton system at the current iterate (see the module documentation): for each
@@ -410,20 +414,20 @@ impl Rod {
         scratch: &mut ContactScratch,
         start_positions: &[DVec3],
         params: &StepParams,
-        inertia_scales: &[f64],
+        inertia_scale: f64,
         residual: &mut [f64],
         hessian: &mut RodMatrix,
     ) {
         let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
         for contact in touching.iter_mut() {
-            let (node, first_solve) = (contact.node, contact.first_solve);
+            let (node, first_solve, reversed) = (contact.node, contact.first_solve, contact.reversed);
             *contact = nearby[contact.collider].contact(
                 contact.collider,
                 node,
                 self.state.positions[node],
                 start_positions[node],
             );
-            contact.first_solve = first_solve;
+            (contact.first_solve, contact.reversed) = (first_solve, reversed);
         }
         for (index, collider) in nearby.iter().enumerate() {
             for node in collider.free_nodes(self) {
@@ -437,7 +441,7 @@ impl Rod {
                     // A node resting since the last step has its normal force from then, one found inside
                     // the force that stops it there.
                     normal_forces[node] =
-                        normal_forces[node].max(self.stopping_force(node, inertia_scales, contact.distance));
+                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
                     contact.first_solve = normal_forces[node] == 0.0;
                     touching.push(contact);
                     touched[node] = true;
@@ -449,7 +453,7 @@ impl Rod {
         // back), with no force.
         for contact in touching.iter().filter(|contact| contact.distance <= CONTACT_GAP) {
             let dof = node_dof(contact.node);
-            let stiffness = self.contact_stiffness(contact.node, inertia_scales);
+            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
             let n = contact.normal;
             let tangent_projector = DMat3::IDENTITY - outer_product(n);
             let mut force = stiffness * contact.distance.min(0.0) * n;
@@ -462,7 +466,13 @@ impl Rod {
                 let slip = contact.slip.length();
                 let direction = contact.slip / slip;
                 force += limit * direction;
-                block += limit / slip * (tangent_projector - outer_product(direction));
+                // Sliding friction is constant along the slip, so its exact Hessian has nothing there.
+                // Where a linear step with it carried the node back past zero slip (friction strong
+                // enough to stop the slip, as on landing), the iterations would swing from side to
+                // side: from then on it is linearised as a spring towards zero slip with the same force
+                // (a Picard step), which does not overshoot.
+                let along = if contact.reversed { DMat3::ZERO } else { outer_product(direction) };
+                block += limit / slip * (tangent_projector - along);
             }
             for row in 0..3 {
                 residual[dof + row] += force[row];
@@ -486,7 +496,7 @@ impl Rod {
         scratch: &mut ContactScratch,
         start_positions: &[DVec3],
         params: &StepParams,
-        inertia_scales: &[f64],
+        inertia_scale: f64,
         node_update: impl Fn(usize) -> DVec3,
     ) -> bool {
         let sticking_slip = STICKING_SLIP_SPEED * params.dt;
@@ -494,15 +504,25 @@ impl Rod {
         normal_forces.fill(0.0);
         let mut changed = false;
         for contact in touching.iter_mut().filter(|contact| contact.distance <= CONTACT_GAP) {
-            let stiffness = self.contact_stiffness(contact.node, inertia_scales);
+            let stiffness = self.contact_stiffness(contact.node, inertia_scale);
             let update = node_update(contact.node);
             let distance = contact.distance + contact.normal.dot(update);
             normal_forces[contact.node] += stiffness * (-distance).max(0.0);
             let slip = contact.slip + update - contact.normal.dot(update) * contact.normal;
             // Sticking past the smoothing width: the friction force would be its limit, not the spring.
             // A new contact's friction had no normal force yet: once more with the one it now has.
+            // A sliding node whose slip the update reverses takes the spring linearisation from now on;
+            // one that has it is checked: the spring's force was right only if the slip kept its
+            // size (within a tenth).
+            let sliding = !is_sticking(contact.slip, sticking_slip) && !is_sticking(slip, sticking_slip);
+            let reverses = sliding && !contact.reversed && slip.dot(contact.slip) < 0.0;
+            let spring_missed =
+                sliding && contact.reversed && (slip - contact.slip).length() > 0.1 * contact.slip.length();
+            contact.reversed |= reverses;
             changed |= is_sticking(contact.slip, sticking_slip) && !is_sticking(slip, sticking_slip)
-                || (contact.first_solve && contact.friction > 0.0);
+                || (contact.first_solve && contact.friction > 0.0)
+                || reverses
+                || spring_missed;
             contact.first_solve = false;
         }
         for (index, collider) in nearby.iter().enumerate() {
@@ -510,7 +530,7 @@ impl Rod {
                 let position = self.state.positions[node] + node_update(node);
                 if let Some(contact) = collider.new_contact(index, node, position, start_positions[node], 0.0) {
                     normal_forces[node] =
-                        normal_forces[node].max(self.stopping_force(node, inertia_scales, contact.distance));
+                        normal_forces[node].max(self.stopping_force(node, inertia_scale, contact.distance));
                     changed = true;
                 }
             }

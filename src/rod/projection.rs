@@ -27,19 +27,13 @@ pub(crate) struct ProjectionScratch {
     /// Outward normal of the collider each node touches, or zero: a touching node moves only along
     /// its collider's tangent plane (which keeps it outside a convex collider).
     pub(crate) contact_normals: Vec<DVec3>,
-    /// Each node's time scale `h / dt` in the step's integrator (1 for backward Euler, ⅔ for BDF2):
-    /// its inverse mass is scaled by it, so that a correction, which changes the node's velocity by
-    /// `Δx / h`, changes the strand's momentum by nothing (`Σ m Δx / h = 0`).
-    pub(crate) time_scales: Vec<f64>,
 }
 
 impl ProjectionScratch {
     /// Takes the rod's own inverse masses (zero where a node is prescribed), with no node touching.
     pub(crate) fn use_rod_masses(&mut self, rod: &Rod) {
         self.inverse_masses.clear();
-        let scale = |node: usize| self.time_scales.get(node).copied().unwrap_or(1.0);
-        let inverse_masses = (0..rod.node_count()).map(|node| rod.inverse_mass(node) * scale(node));
-        self.inverse_masses.extend(inverse_masses);
+        self.inverse_masses.extend((0..rod.node_count()).map(|node| rod.inverse_mass(node)));
         self.contact_normals.clear();
         self.contact_normals.resize(rod.node_count(), DVec3::ZERO);
     }

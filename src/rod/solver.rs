@@ -53,64 +53,51 @@ const MAX_REGULARISATION: f64 = 1.0;
 /// Adding this to a step's length (relative) still counts as the same length for the two-step integrator.
 const SAME_DT: f64 = 1e-9;
 
-/// How the step turns positions into velocities and velocities into accelerations, per unknown:
+/// How the step turns positions into velocities and velocities into accelerations, per node:
 /// `v = (x − x̂)/h` and `a = (v − v̂)/h`, with `h` the scheme's step and `x̂`, `v̂` what the known states
 /// give. Backward Euler: `h = dt`, `x̂ = xₙ`, `v̂ = vₙ`. BDF2: `h = ⅔ dt`, `x̂ = (4xₙ − xₙ₋₁)/3`,
-/// `v̂ = (4vₙ − vₙ₋₁)/3`. Either way the step solves `M (x − x̂ − h v̂)/h² = F(x, (x − x̂)/h)`, each
-/// node with its own scheme: nodes that ended the last step on a collider take backward Euler (contact
-/// is not smooth, and a two-step formula would remember a fall into the surface and bounce the node
-/// back out, or kick it sideways), the others BDF2.
+/// `v̂ = (4vₙ − vₙ₋₁)/3`. Either way the step solves `M (x − x̂ − h v̂)/h² = F(x, (x − x̂)/h)`.
+///
+/// The twists always take backward Euler: they follow the centre line quasi-statically (hair's
+/// torsional modes are far above any step's frequency), and the one motion of theirs without
+/// stiffness, a free end's spin about its axis, gains nothing from a two-step extrapolation.
 #[derive(Debug, Clone, Default)]
 struct Scheme {
-    /// Each node's `h`, s.
-    node_h: Vec<f64>,
-    /// Each node's inertia factor `1/h² + γ/h`, 1/s² (`γ` the air drag across the strand): its block of
-    /// the Newton matrix is about `m` times it, and contact springs are scaled by it.
-    inertia_scales: Vec<f64>,
-    /// The edges' twists' `h`, s.
-    twist_h: f64,
+    /// The scheme's step `h` for the nodes, s.
+    h: f64,
     /// `x̂` of every node, m.
     positions: Vec<DVec3>,
     /// `v̂` of every node, m/s.
     velocities: Vec<DVec3>,
-    /// `θ̂` of every edge, rad.
-    twist: Vec<f64>,
-    /// `θ̇̂` of every edge, rad/s.
-    twist_rates: Vec<f64>,
 }
 
 impl Scheme {
     /// The weights of a step of `params.dt` from `state`: BDF2 when asked for and the state has a history
-    /// of a step of the same length (except at nodes resting on a collider), backward Euler otherwise.
+    /// of a step of the same length, backward Euler otherwise.
     fn prepare(&mut self, params: &StepParams, state: &RodState) {
         let history = &state.history;
         let dt = params.dt;
         let two_step =
             params.integrator == Integrator::Bdf2 && history.dt > 0.0 && (history.dt - dt).abs() <= SAME_DT * dt;
-        self.node_h.clear();
-        self.positions.clear();
-        self.velocities.clear();
-        for node in 0..state.positions.len() {
-            let (x, v) = (state.positions[node], state.velocities[node]);
-            if two_step && !history.touching[node] {
-                self.node_h.push(2.0 / 3.0 * dt);
-                self.positions.push(bdf2_extrapolation(x, history.positions[node]));
-                self.velocities.push(bdf2_extrapolation(v, history.velocities[node]));
-            } else {
-                self.node_h.push(dt);
-                self.positions.push(x);
-                self.velocities.push(v);
-            }
+        if two_step {
+            self.h = 2.0 / 3.0 * dt;
+            let positions = state.positions.iter().zip(&history.positions);
+            self.positions.clear();
+            self.positions.extend(positions.map(|(&now, &before)| bdf2_extrapolation(now, before)));
+            let velocities = state.velocities.iter().zip(&history.velocities);
+            self.velocities.clear();
+            self.velocities.extend(velocities.map(|(&now, &before)| bdf2_extrapolation(now, before)));
+        } else {
+            self.h = dt;
+            copy_into(&mut self.positions, &state.positions);
+            copy_into(&mut self.velocities, &state.velocities);
         }
-        let gamma = params.air_damping;
-        self.inertia_scales.clear();
-        self.inertia_scales.extend(self.node_h.iter().map(|h| 1.0 / (h * h) + gamma / h));
-        // The twists take backward Euler: they follow the centre line quasi-statically (hair's torsional
-        // modes are far above any step's frequency), and the one motion of theirs without stiffness,
-        // a free end's spin about its axis, is not worth a two-step scheme's extrapolation.
-        self.twist_h = dt;
-        copy_into(&mut self.twist, &state.twist);
-        copy_into(&mut self.twist_rates, &state.twist_rates);
+    }
+
+    /// The nodes' inertia factor `1/h² + γ/h`, 1/s² (`γ` the air drag across the strand): a node's
+    /// block of the Newton matrix is about `m` times it, and contact springs are scaled by it.
+    fn inertia_scale(&self, params: &StepParams) -> f64 {
+        1.0 / (self.h * self.h) + params.air_damping / self.h
     }
 }
 
@@ -284,14 +271,11 @@ impl Rod {
         workspace.stopwatch.lap(Part::Frames);
         copy_into(&mut workspace.carried_positions, &self.state.positions);
         copy_into(&mut workspace.carried_twist, &self.state.twist);
-        let RodWorkspace { saved, contacts: contact_scratch, scheme, projection, stopwatch, .. } = &mut *workspace;
-        self.begin_contacts(contacts, params, &saved.state.positions, contact_scratch);
-        stopwatch.lap(Part::Collisions);
-        scheme.prepare(params, &saved.state);
-        projection.time_scales.clear();
-        projection.time_scales.extend(scheme.node_h.iter().map(|h| h / params.dt));
-        projection.use_rod_masses(self);
-        stopwatch.lap(Part::Forces);
+        workspace.scheme.prepare(params, &workspace.saved.state);
+        workspace.projection.use_rod_masses(self);
+        workspace.stopwatch.lap(Part::Forces);
+        self.begin_contacts(contacts, params, &workspace.saved.state.positions, &mut workspace.contacts);
+        workspace.stopwatch.lap(Part::Collisions);
         let mut projection_iterations = 0;
         let mut newton_iterations = 0;
         loop {
@@ -334,24 +318,7 @@ impl Rod {
         self.refresh_frames();
         workspace.stopwatch.lap(Part::Frames);
 
-        let RodWorkspace { saved, scheme, .. } = &*workspace;
-        let touching = &workspace.contacts.touched;
-        // A node that landed on a collider in this step restarts the scheme: a two-step formula would
-        // remember the fall into the surface and throw the strand off it in the next steps.
-        let landed = (0..self.node_count()).any(|node| touching[node] && !saved.state.history.touching[node]);
-        let restart = landed;
-        for node in 0..self.node_count() {
-            let position = self.state.positions[node];
-            self.state.velocities[node] = if restart || touching[node] {
-                (position - saved.state.positions[node]) / params.dt
-            } else {
-                (position - scheme.positions[node]) / scheme.node_h[node]
-            };
-        }
-        for edge in 0..self.edge_count() {
-            self.state.twist_rates[edge] = (self.state.twist[edge] - scheme.twist[edge]) / scheme.twist_h;
-        }
-        self.state.history.record(&saved.state, if restart { 0.0 } else { params.dt }, touching);
+        self.update_velocities(params, workspace);
         let finite = |node: usize| {
             self.state.positions[node].is_finite()
                 && self.state.velocities[node].is_finite()
@@ -366,6 +333,22 @@ impl Rod {
         }
         workspace.stopwatch.lap(Part::Forces);
         Ok(StepReport { max_strain, newton_iterations, projection_iterations, contacts: contact_count })
+    }
+
+    /// The velocities the step ends with, from its positions by the scheme ([`Scheme`]), and the
+    /// history the next step needs.
+    fn update_velocities(&mut self, params: &StepParams, workspace: &RodWorkspace) {
+        let RodWorkspace { saved, scheme, .. } = workspace;
+        for (velocity, (position, predicted)) in
+            self.state.velocities.iter_mut().zip(self.state.positions.iter().zip(&scheme.positions))
+        {
+            *velocity = (*position - *predicted) / scheme.h;
+        }
+        let twists = self.state.twist.iter().zip(&saved.state.twist);
+        for (rate, (twist, start)) in self.state.twist_rates.iter_mut().zip(twists) {
+            *rate = (twist - start) / params.dt;
+        }
+        self.state.history.record(&saved.state, params.dt);
     }
 
     /// The first guess of a step: the rod carried rigidly with the motion of its first clamped edge
@@ -509,7 +492,14 @@ impl Rod {
         self.add_inertia_and_external_forces(params, loads, workspace);
         workspace.stopwatch.lap(Part::Forces);
         let RodWorkspace { hessian, residual, saved, contacts, stopwatch, scheme, .. } = workspace;
-        self.add_contact_forces(contacts, &saved.state.positions, params, &scheme.inertia_scales, residual, hessian);
+        self.add_contact_forces(
+            contacts,
+            &saved.state.positions,
+            params,
+            scheme.inertia_scale(params),
+            residual,
+            hessian,
+        );
         stopwatch.lap(Part::Collisions);
         if regularisation > 0.0 {
             hessian.scale_diagonal(1.0 + regularisation);
@@ -587,10 +577,10 @@ impl Rod {
     /// and `external_forces` (N).
     fn add_inertia_and_external_forces(&self, params: &StepParams, loads: &StepLoads, workspace: &mut RodWorkspace) {
         let RodWorkspace { hessian, residual, saved, scheme, .. } = workspace;
-        let gamma = params.air_damping;
+        let (h, gamma) = (scheme.h, params.air_damping);
         let tangents = &saved.frames.tangents;
         for node in 0..self.node_count() {
-            let (mass, h) = (self.inertia.masses[node], scheme.node_h[node]);
+            let mass = self.inertia.masses[node];
             let mut force = mass * params.gravity;
             if let Some(forces) = loads.forces {
                 force += forces[node];
@@ -618,13 +608,15 @@ impl Rod {
                 }
             }
         }
-        let h = scheme.twist_h;
+        // The twists by backward Euler (see [`Scheme`]).
+        let (dt, twist_scale) = (params.dt, 1.0 / (params.dt * params.dt) + gamma / params.dt);
         for edge in 0..self.edge_count() {
             let inertia = self.inertia.twist_inertias[edge];
-            let offset = self.state.twist[edge] - scheme.twist[edge];
+            let offset = self.state.twist[edge] - saved.state.twist[edge];
             let dof = twist_dof(edge);
-            residual[dof] += inertia / (h * h) * (offset - h * scheme.twist_rates[edge]) + gamma * inertia / h * offset;
-            hessian.add(dof, dof, inertia * (1.0 / (h * h) + gamma / h));
+            residual[dof] +=
+                inertia / (dt * dt) * (offset - dt * saved.state.twist_rates[edge]) + gamma * inertia / dt * offset;
+            hessian.add(dof, dof, inertia * twist_scale);
         }
     }
 
@@ -675,13 +667,14 @@ impl Rod {
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
         let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, scheme, .. } = workspace;
+        let inertia_scale = scheme.inertia_scale(params);
 
         residual.iter_mut().for_each(|r| *r = -*r);
         hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let contacts_changed =
-            self.update_contacts(contacts, &saved.state.positions, params, &scheme.inertia_scales, node_update);
+            self.update_contacts(contacts, &saved.state.positions, params, inertia_scale, node_update);
         stopwatch.lap(Part::Collisions);
         let largest_turn = (0..self.edge_count())
             .filter(|&edge| {

@@ -46,8 +46,6 @@ pub struct StepHistory {
     pub twist: Vec<f64>,
     /// Edge twist rates, rad/s.
     pub twist_rates: Vec<f64>,
-    /// Whether each node ended the step on a collider (then the next step integrates it by backward Euler).
-    pub touching: Vec<bool>,
 }
 
 impl StepHistory {
@@ -60,14 +58,11 @@ impl StepHistory {
             velocities: vec![DVec3::ZERO; nodes],
             twist: vec![0.0; edges],
             twist_rates: vec![0.0; edges],
-            touching: vec![false; nodes],
         }
     }
 
-    /// Records `state` (positions, velocities, twists and rates) as the state a step of `dt` s started
-    /// from, which ended with the nodes `touching` a collider.
-    pub(crate) fn record(&mut self, state: &RodState, dt: f64, touching: &[bool]) {
-        copy_into(&mut self.touching, touching);
+    /// Records `state` (positions, velocities, twists and rates) as the state a step of `dt` s started from.
+    pub(crate) fn record(&mut self, state: &RodState, dt: f64) {
         copy_into(&mut self.positions, &state.positions);
         copy_into(&mut self.velocities, &state.velocities);
         copy_into(&mut self.twist, &state.twist);
@@ -81,7 +76,6 @@ impl StepHistory {
         copy_into(&mut self.velocities, &source.velocities);
         copy_into(&mut self.twist, &source.twist);
         copy_into(&mut self.twist_rates, &source.twist_rates);
-        copy_into(&mut self.touching, &source.touching);
         self.dt = source.dt;
     }
 }
@@ -187,7 +181,6 @@ impl RodSnapshot {
             frames.reference_twist.len(),
             history.positions.len(),
             history.velocities.len(),
-            history.touching.len(),
         ]
         .iter()
         .all(|&len| len == nodes)
