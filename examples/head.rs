@@ -6,9 +6,9 @@
 //! ```
 //!
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
-//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway), 1 to 5 pick the hair style, K
+//! turn it, Space cycles the head's animation (still, nod, shake, turn, sway, flick), 1 to 5 pick the hair style, K
 //! combs it along the scalp or grows it straight out, C shows the colliders the hair rests on (skull,
-//! face, neck, shoulders, torso).
+//! face, neck, shoulders, torso), V turns a gusty, turbulent breeze on and off (tune it in the panel).
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
@@ -51,6 +51,8 @@ fn main() {
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
+        .insert_resource(HairSettings { integrator: options.integrator, ..default() })
+        .insert_resource(breeze(options.wind))
         .add_systems(Startup, spawn_scene)
         .add_systems(Update, (animate_head, walk_body, hair_keys, switch_groom, show_statistics));
     #[cfg(feature = "egui")]
@@ -98,12 +100,16 @@ struct Options {
     file_groom: bool,
     /// Whether the procedural groom is combed along the scalp (K toggles it).
     combed: bool,
+    /// Mean wind speed, m/s, from the head's left (V toggles a breeze).
+    wind: f32,
+    integrator: bevy_hair_sim::rod::Integrator,
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
-            [--animate still|nod|shake|turn|sway] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
-            [--colliders on|off] [--groom procedural|ratboy] [--combing on|off]";
+            [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
+            [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
+            [--integrator bdf2|euler]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -119,6 +125,8 @@ impl Options {
             draw_colliders: false,
             file_groom: false,
             combed: groom.combing.is_some(),
+            wind: 0.0,
+            integrator: HairSettings::default().integrator,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -130,6 +138,14 @@ impl Options {
                 "--followers" => options.followers = number("a count")? as usize,
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
+                "--wind" => options.wind = number("a speed in m/s")?,
+                "--integrator" => {
+                    options.integrator = match value.as_str() {
+                        "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,
+                        "euler" => bevy_hair_sim::rod::Integrator::BackwardEuler,
+                        _ => return Err(format!("--integrator needs bdf2 or euler, got {value:?}")),
+                    }
+                }
                 "--colliders" => {
                     options.draw_colliders = match value.as_str() {
                         "on" => true,
@@ -178,10 +194,12 @@ enum Animation {
     Shake,
     Turn,
     Sway,
+    /// Still for 1 s, a quick turn of 0.8 rad over 0.3 s, then still: the hair swings and settles.
+    Flick,
 }
 
 impl Animation {
-    const ALL: [Animation; 5] = [Self::Still, Self::Nod, Self::Shake, Self::Turn, Self::Sway];
+    const ALL: [Animation; 6] = [Self::Still, Self::Nod, Self::Shake, Self::Turn, Self::Sway, Self::Flick];
 
     fn name(self) -> &'static str {
         match self {
@@ -190,6 +208,7 @@ impl Animation {
             Self::Shake => "shake",
             Self::Turn => "turn",
             Self::Sway => "sway",
+            Self::Flick => "flick",
         }
     }
 
@@ -202,6 +221,10 @@ impl Animation {
             Self::Shake => (Quat::from_rotation_y(0.7 * wave(1.8)), 0.0),
             Self::Turn => (Quat::from_rotation_y(1.2 * wave(0.3)), 0.0),
             Self::Sway => (Quat::from_rotation_z(0.15 * wave(0.7)), 0.12 * wave(0.7)),
+            Self::Flick => {
+                let t = ((seconds - 1.0) / 0.3).clamp(0.0, 1.0);
+                (Quat::from_rotation_y(0.8 * t * t * (3.0 - 2.0 * t)), 0.0)
+            }
         }
     }
 }
@@ -450,8 +473,29 @@ fn switch_groom(
     }
 }
 
-/// Keys 1 to 5 pick the hair style; K combs it or not; C shows or hides the colliders.
-fn hair_keys(keys: Res<ButtonInput<KeyCode>>, mut grooms: Query<&mut HairGroom>, mut gizmos: ResMut<GizmoConfigStore>) {
+/// A breeze from the head's left (+x) at `speed` m/s, gusting by a third of it, with eddies.
+fn breeze(speed: f32) -> HairWind {
+    HairWind {
+        velocity: Vec3::new(speed, 0.0, 0.0),
+        gusts: speed / 3.0,
+        gust_period: 2.0,
+        turbulence: speed / 6.0,
+        turbulence_scale: 0.3,
+        ..default()
+    }
+}
+
+/// Keys 1 to 5 pick the hair style; K combs it or not; C shows or hides the colliders; V turns the
+/// breeze on (3 m/s) and off.
+fn hair_keys(
+    keys: Res<ButtonInput<KeyCode>>,
+    mut grooms: Query<&mut HairGroom>,
+    mut gizmos: ResMut<GizmoConfigStore>,
+    mut wind: ResMut<HairWind>,
+) {
+    if keys.just_pressed(KeyCode::KeyV) {
+        *wind = if wind.is_calm() { breeze(3.0) } else { HairWind::default() };
+    }
     if keys.just_pressed(KeyCode::KeyC) {
         let hair_gizmos = gizmos.config_mut::<HairGizmos>().1;
         hair_gizmos.draw_colliders = !hair_gizmos.draw_colliders;

@@ -8,7 +8,9 @@
 //!   against its slip over the step relative to the collider, smoothed as in IPC (Li et al. 2020):
 //!   `f = −μ f_n u / max(|u|, ε)`, with the normal force `f_n` lagged by one iteration. Below the
 //!   friction limit a node creeps by at most `ε` per step ([`STICKING_SLIP_SPEED`]); above it, it slides
-//!   against `μ f_n`. The iterations go on until the set of touching nodes holds, so the solve knows what
+//!   against `μ f_n`. A sliding node whose slip a Newton update reverses (friction strong enough to stop
+//!   it, as on landing) has its friction linearised as a spring towards zero slip for the rest of the
+//!   step, so that the iterations do not swing it from side to side. The iterations go on until the set of touching nodes holds, so the solve knows what
 //!   supports the strand, and nodes that would be pulled off are let go.
 //! - **What the solve could not see, after it.** A node that ended inside a collider is moved to the
 //!   closest surface point; a node whose path over the step crossed the collider (a fast collider, a thin
@@ -309,7 +311,7 @@ impl NearbyCollider {
 }
 
 /// The matrix `v vᵀ`.
-fn outer_product(v: DVec3) -> DMat3 {
+pub(crate) fn outer_product(v: DVec3) -> DMat3 {
     DMat3::from_cols(v.x * v, v.y * v, v.z * v)
 }
 

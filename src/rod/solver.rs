@@ -27,7 +27,7 @@
 use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
-use super::contact::{ContactScratch, Contacts};
+use super::contact::{ContactScratch, Contacts, outer_product};
 use super::copy_into;
 use super::curve::Rod;
 use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
@@ -596,7 +596,7 @@ impl Rod {
                 n if n == self.edge_count() => tangents[n - 1],
                 n => (tangents[n - 1] + tangents[n]).normalize_or(tangents[n]),
             };
-            let drag = mass * gamma * (DMat3::IDENTITY - (1.0 - params.axial_drag_ratio) * outer(tangent));
+            let drag = mass * gamma * (DMat3::IDENTITY - (1.0 - params.axial_drag_ratio) * outer_product(tangent));
             let residual_node =
                 mass / (h * h) * (offset - h * scheme.velocities[node]) + drag * relative_velocity - force;
             let block = DMat3::from_diagonal(DVec3::splat(mass / (h * h))) + drag / h;
@@ -738,9 +738,4 @@ mod tests {
         ));
         assert_eq!(rod.positions(), &nodes[..]);
     }
-}
-
-/// `a aᵀ`.
-fn outer(a: DVec3) -> DMat3 {
-    DMat3::from_cols(a * a.x, a * a.y, a * a.z)
 }
