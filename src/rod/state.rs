@@ -28,9 +28,10 @@ pub struct RodState {
     pub history: StepHistory,
 }
 
-/// The state one step back, `(x, v, θ, θ̇)ₙ₋₁`, which the two-step integrator
-/// ([`crate::rod::Integrator::Bdf2`]) needs besides the current one. Its arrays are sized with the rod
-/// (indexed like [`RodState`]'s) and only valid while [`StepHistory::dt`] is positive.
+/// The nodes' state one step back, `(x, v)ₙ₋₁`, which the two-step integrator
+/// ([`crate::rod::Integrator::Bdf2`]) needs besides the current one (the twists are stepped by backward
+/// Euler). Its arrays are sized with the rod (indexed by node) and only valid while
+/// [`StepHistory::dt`] is positive.
 #[derive(Debug, Clone, Default, PartialEq, Reflect)]
 #[reflect(Debug, Default, Clone, PartialEq)]
 pub struct StepHistory {
@@ -42,31 +43,18 @@ pub struct StepHistory {
     pub positions: Vec<DVec3>,
     /// Node velocities, m/s.
     pub velocities: Vec<DVec3>,
-    /// Edge twists, rad.
-    pub twist: Vec<f64>,
-    /// Edge twist rates, rad/s.
-    pub twist_rates: Vec<f64>,
 }
 
 impl StepHistory {
     /// An empty history for a rod of `nodes` nodes, its arrays sized (so that steps never allocate).
     pub(crate) fn empty(nodes: usize) -> Self {
-        let edges = nodes.saturating_sub(1);
-        Self {
-            dt: 0.0,
-            positions: vec![DVec3::ZERO; nodes],
-            velocities: vec![DVec3::ZERO; nodes],
-            twist: vec![0.0; edges],
-            twist_rates: vec![0.0; edges],
-        }
+        Self { dt: 0.0, positions: vec![DVec3::ZERO; nodes], velocities: vec![DVec3::ZERO; nodes] }
     }
 
-    /// Records `state` (positions, velocities, twists and rates) as the state a step of `dt` s started from.
+    /// Records `state`'s positions and velocities as those a step of `dt` s started from.
     pub(crate) fn record(&mut self, state: &RodState, dt: f64) {
         copy_into(&mut self.positions, &state.positions);
         copy_into(&mut self.velocities, &state.velocities);
-        copy_into(&mut self.twist, &state.twist);
-        copy_into(&mut self.twist_rates, &state.twist_rates);
         self.dt = dt;
     }
 
@@ -74,8 +62,6 @@ impl StepHistory {
     pub fn copy_from(&mut self, source: &Self) {
         copy_into(&mut self.positions, &source.positions);
         copy_into(&mut self.velocities, &source.velocities);
-        copy_into(&mut self.twist, &source.twist);
-        copy_into(&mut self.twist_rates, &source.twist_rates);
         self.dt = source.dt;
     }
 }
@@ -184,15 +170,8 @@ impl RodSnapshot {
         ]
         .iter()
         .all(|&len| len == nodes)
-            && [
-                state.twist.len(),
-                state.twist_rates.len(),
-                frames.tangents.len(),
-                frames.reference_directors.len(),
-                history.twist.len(),
-                history.twist_rates.len(),
-            ]
-            .iter()
-            .all(|&len| len == edges)
+            && [state.twist.len(), state.twist_rates.len(), frames.tangents.len(), frames.reference_directors.len()]
+                .iter()
+                .all(|&len| len == edges)
     }
 }
