@@ -287,6 +287,7 @@ pub(crate) fn add_wind(
     sources: Query<(&HairWindSource, &GlobalTransform)>,
     mut strands: Query<(&StrandNodes, &mut StrandForces)>,
     mut reported: Local<Option<String>>,
+    mut active_sources: Local<Vec<(HairWindSource, GlobalTransform)>>,
 ) {
     if let Err(error) = wind.validate() {
         if reported.as_ref() != Some(&error) {
@@ -296,11 +297,11 @@ pub(crate) fn add_wind(
         return;
     }
     *reported = None;
-    let sources: Vec<(HairWindSource, GlobalTransform)> = sources
-        .iter()
-        .filter(|(source, _)| source.speed != 0.0)
-        .map(|(source, transform)| (*source, *transform))
-        .collect();
+    // Reused from step to step, so that no step allocates.
+    active_sources.clear();
+    let moving = sources.iter().filter(|(source, _)| source.speed != 0.0);
+    active_sources.extend(moving.map(|(source, transform)| (*source, *transform)));
+    let sources = &*active_sources;
     if wind.is_calm() && sources.is_empty() {
         return;
     }
@@ -334,7 +335,7 @@ pub(crate) fn add_wind(
                     before_value.lerp(after_value, (node - before) as f64 / (after - before) as f64)
                 };
             }
-            for (source, transform) in &sources {
+            for (source, transform) in sources {
                 velocity += source.velocity_at(transform, positions[node]).as_dvec3();
             }
             velocity

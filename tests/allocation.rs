@@ -29,9 +29,14 @@ fn allocations_during(count: fn() -> u64, work: impl FnOnce()) -> u64 {
 }
 
 /// Allocations per update of an app with one head of `strands` strands (32 edges, 4 followers each) that
-/// moves, with colliders, once running.
+/// moves, with colliders, in a gusty, turbulent wind with a fan, once running.
 fn allocations_per_update(strands: usize) -> u64 {
     let mut app = hair_app();
+    app.insert_resource(HairWind { velocity: Vec3::new(2.0, 0.0, 0.0), gusts: 1.0, turbulence: 0.5, ..default() });
+    app.world_mut().spawn((
+        HairWindSource { speed: 4.0, radius: 0.05, range: 1.0 },
+        Transform::from_xyz(0.0, 1.6, 0.5).looking_at(Vec3::new(0.0, 1.6, 0.0), Vec3::Y),
+    ));
     let groom = HairGroom { strand_count: strands, segments: 32, followers_per_guide: 4, ..default() };
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
     // The skull, on the head, and a shared floor that the hair does not reach.
