@@ -10,8 +10,9 @@
 //!   friction limit a node creeps by at most `ε` per step ([`STICKING_SLIP_SPEED`]); above it, it slides
 //!   against `μ f_n`. A sliding node whose slip a Newton update reverses (friction strong enough to stop
 //!   it, as on landing) has its friction linearised as a spring towards zero slip for the rest of the
-//!   step, so that the iterations do not swing it from side to side. The iterations go on until the set of touching nodes holds, so the solve knows what
-//!   supports the strand, and nodes that would be pulled off are let go.
+//!   step, so that the iterations do not swing it from side to side. The iterations go on until the set
+//!   of touching nodes holds, so the solve knows what supports the strand, and nodes that would be
+//!   pulled off are let go.
 //! - **What the solve could not see, after it.** A node that ended inside a collider is moved to the
 //!   closest surface point; a node whose path over the step crossed the collider (a fast collider, a thin
 //!   one) is moved to where the path entered, so nothing tunnels; friction then acts on positions
@@ -489,9 +490,10 @@ impl Rod {
     /// puts it (the spring's force, linearised), for the next iterate's friction; for a free node that
     /// would sink into a collider, the force that stops it there (so its new contact has friction from
     /// its first solve); zero for the other nodes. Returns whether the update leaves the law it was
-    /// linearised with: a touching node that would pass from sticking to sliding, a new contact whose
-    /// friction had no normal force yet, or a free node that would sink into a collider; the Newton
-    /// iterations then go on. (A node that lifts off stays listed for the rest of the step, without
+    /// linearised with: a touching node that would pass from sticking to sliding, a sliding node whose
+    /// slip the update reverses (or, once linearised as a spring, changes by more than a tenth), a new
+    /// contact whose friction had no normal force yet, or a free node that would sink into a collider;
+    /// the Newton iterations then go on. (A node that lifts off stays listed for the rest of the step, without
     /// force, so that the touching set only grows and the iterations end.)
     pub(crate) fn update_contacts(
         &self,
