@@ -672,8 +672,9 @@ impl Rod {
     }
 
     /// Copies the state and frames into `snapshot`, reusing its memory.
+    /// (Not the history: the step reads it from the rod, which keeps it until the step ends.)
     pub(crate) fn save_into(&self, snapshot: &mut RodSnapshot) {
-        snapshot.state.copy_from(&self.state);
+        snapshot.state.copy_motion_from(&self.state);
         snapshot.frames.copy_from(&self.frames);
     }
 

@@ -41,7 +41,7 @@ use super::frames::perpendicular_unit;
 use super::params::Integrator;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
-use super::state::{RodSnapshot, RodState};
+use super::state::{RodSnapshot, RodState, StepHistory};
 use super::timing::{Part, StepTimings, Stopwatch};
 
 /// Projection iterations a step may add, on the whole strand, when its own left an edge beyond
@@ -77,10 +77,10 @@ struct Scheme {
 }
 
 impl Scheme {
-    /// The weights of a step of `params.dt` from `state`: BDF2 when asked for and the state has a history
-    /// of a step of the same length, backward Euler otherwise.
-    fn prepare(&mut self, params: &StepParams, state: &RodState) {
-        let history = &state.history;
+    /// The weights of a step of `params.dt` from `state` (positions and velocities at the step's start)
+    /// and `history` (the step before): BDF2 when asked for and there is a history of a step of the same
+    /// length, backward Euler otherwise.
+    fn prepare(&mut self, params: &StepParams, state: &RodState, history: &StepHistory) {
         let dt = params.dt;
         let two_step =
             params.integrator == Integrator::Bdf2 && history.dt > 0.0 && (history.dt - dt).abs() <= SAME_DT * dt;
@@ -276,7 +276,7 @@ impl Rod {
         workspace.stopwatch.lap(Part::Frames);
         copy_into(&mut workspace.carried_positions, &self.state.positions);
         copy_into(&mut workspace.carried_twist, &self.state.twist);
-        workspace.scheme.prepare(params, &workspace.saved.state);
+        workspace.scheme.prepare(params, &workspace.saved.state, &self.state.history);
         workspace.projection.use_rod_masses(self);
         workspace.stopwatch.lap(Part::Forces);
         self.begin_contacts(contacts, params, &workspace.saved.state.positions, &mut workspace.contacts);

@@ -131,12 +131,17 @@ pub struct RodSnapshot {
 impl RodState {
     /// Copies `source` into `self`, reusing its memory (a derived `clone_from` would allocate).
     pub fn copy_from(&mut self, source: &Self) {
+        self.copy_motion_from(source);
+        self.history.copy_from(&source.history);
+    }
+
+    /// Copies everything but the history (what a step's roll-back needs), reusing the memory.
+    pub(crate) fn copy_motion_from(&mut self, source: &Self) {
         copy_into(&mut self.positions, &source.positions);
         copy_into(&mut self.velocities, &source.velocities);
         copy_into(&mut self.twist, &source.twist);
         copy_into(&mut self.twist_rates, &source.twist_rates);
         copy_into(&mut self.contact_normal_forces, &source.contact_normal_forces);
-        self.history.copy_from(&source.history);
     }
 }
 
