@@ -212,15 +212,29 @@ fn push_out(position: Vec3, colliders: &[GrownCollider]) -> Vec3 {
 }
 
 /// What [`bind_followers`] reads and writes of a guide.
-type GuideToBind = (Entity, &'static HairStrand, &'static HairFollowers, &'static mut FollowerNodes);
+type GuideToBind = (
+    Entity,
+    &'static HairStrand,
+    Ref<'static, HairFollowers>,
+    Ref<'static, SimulatedStrand>,
+    &'static mut FollowerNodes,
+);
 
-/// The guides [`bind_followers`] binds: new or rebuilt, or with changed followers.
-type GuidesToBind = Or<(Changed<HairFollowers>, Added<SimulatedStrand>)>;
-
-/// Binds the followers of new or rebuilt guides, and of changed [`HairFollowers`].
-pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind, GuidesToBind>) {
-    for (entity, spec, followers, mut nodes) in &mut guides {
-        if let Err(reason) = nodes.bind(spec, followers, &settings.default_material) {
+/// Binds the followers of new or rebuilt guides and of changed [`HairFollowers`], and, when the settings
+/// change, of guides whose followers are not bound. A guide that follows the default material while it
+/// is invalid waits, silently: the invalid settings are reported once, by the step.
+pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
+    let default_valid = settings.default_material.validate().is_ok();
+    for (entity, spec, followers, strand, mut nodes) in &mut guides {
+        let unbound = nodes.count() == 0 && !followers.curves.is_empty();
+        if !(followers.is_changed() || strand.is_added() || settings.is_changed() && unbound) {
+            continue;
+        }
+        if spec.material.is_none() && !default_valid {
+            *nodes = FollowerNodes::default();
+            continue;
+        }
+        if let Err(reason) = nodes.bind(spec, &followers, &settings.default_material) {
             error!("hair strand {entity}: its followers were rejected: {reason}");
             *nodes = FollowerNodes::default();
         }

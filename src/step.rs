@@ -69,14 +69,20 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 /// Runs the pending gravity preloads (strands just built with [`HairStrand::gravity_preload`], or asked
 /// with [`SimulatedStrand::preload_gravity`]): from each strand's shape now, the gravity of
 /// [`HairSettings`] and the colliders of its head, the nodes within [`PRELOAD_SUPPORT_DISTANCE`] of one
-/// resting on it. Writes the new rest shape into [`StrandRestShape`].
+/// resting on it. Writes the new rest shape into [`StrandRestShape`]. While the settings are invalid
+/// (reported once by [`step_strands`]) the preloads wait.
 ///
 /// [`HairStrand::gravity_preload`]: crate::strand::HairStrand::gravity_preload
 pub(crate) fn preload_rest_shapes(
+    time: Res<Time>,
     settings: Res<HairSettings>,
     mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape, Option<&StrandOf>)>,
     colliders: StrandColliders,
 ) {
+    // Invalid settings (a non-finite gravity) are reported once, by the step; the preloads wait for them.
+    if settings.validated(time.delta_secs_f64()).is_err() {
+        return;
+    }
     let gravity = settings.gravity.as_dvec3();
     let margin = f64::from(settings.collision_margin);
     strands.par_iter_mut().for_each(|(entity, mut strand, mut rest_shape, strand_of)| {
