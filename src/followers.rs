@@ -226,7 +226,7 @@ type GuideToBind = (
 pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
     let default_valid = settings.default_material.validate().is_ok();
     for (entity, spec, followers, strand, mut nodes) in &mut guides {
-        let unbound = nodes.count() == 0 && !followers.curves.is_empty();
+        let unbound = nodes.offsets.is_empty() && !followers.curves.is_empty();
         if !(followers.is_changed() || strand.is_added() || settings.is_changed() && unbound) {
             continue;
         }
