@@ -3,8 +3,8 @@
 //!
 //! A [`Rod`] is one strand: a discrete framed curve with stretching, bending (two principal
 //! stiffnesses, rest curvature) and twisting energies derived from a [`RodMaterial`]. [`Rod::step`]
-//! advances it by an implicit step (BDF2, see [`Integrator`]) with an inextensibility projection, stable at a game's time step for
-//! real hair; boundary conditions ([`Rod::clamp_edge`], [`Rod::pin_node`]) tie it to a head or to
+//! advances it by an implicit step (BDF2, see [`Integrator`]) with an inextensibility projection,
+//! stable at a game's time step for real hair; boundary conditions ([`Rod::clamp_edge`], [`Rod::pin_node`]) tie it to a head or to
 //! anything else.
 //!
 //! ```
