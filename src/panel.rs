@@ -275,6 +275,7 @@ fn wind_grid(ui: &mut egui::Ui, wind: &mut HairWind) {
     let mut speed = wind.velocity.length();
     // The angle the wind blows towards, in degrees from +X towards +Z.
     let mut heading = if horizontal == Vec2::ZERO { 0.0 } else { horizontal.y.atan2(horizontal.x).to_degrees() };
+    let (shown_speed, shown_heading) = (speed, heading);
     egui::Grid::new("hair wind").num_columns(2).show(ui, |ui| {
         grid_row(ui, "speed (m/s)", egui::Slider::new(&mut speed, 0.0..=15.0));
         grid_row(ui, "blowing towards (°)", egui::Slider::new(&mut heading, -180.0..=180.0));
@@ -283,9 +284,10 @@ fn wind_grid(ui: &mut egui::Ui, wind: &mut HairWind) {
         grid_row(ui, "turbulence (m/s)", egui::Slider::new(&mut wind.turbulence, 0.0..=5.0));
         grid_row(ui, "eddy size (m)", egui::Slider::new(&mut wind.turbulence_scale, 0.05..=2.0).logarithmic(true));
     });
-    let velocity = speed * Vec3::new(heading.to_radians().cos(), 0.0, heading.to_radians().sin());
-    if velocity.distance(wind.velocity) > 1e-4 {
-        wind.velocity = velocity;
+    // Written only when a slider moved, so that a wind with an up or down part (set in code) is kept
+    // until the panel changes it.
+    if speed != shown_speed || heading != shown_heading {
+        wind.velocity = speed * Vec3::new(heading.to_radians().cos(), 0.0, heading.to_radians().sin());
     }
 }
 
