@@ -114,6 +114,53 @@ fn main() {
     if wanted("integrators") {
         integrators(threads, steps);
     }
+    if wanted("volume") {
+        volume_cost(threads, steps);
+    }
+}
+
+/// Hair–hair interaction ([`HairVolume`]) on the scene's 2 000 × 32 strands standing for 100 000 hairs
+/// (50 each), on all five colliders, grid off and on in turn (one interleaved run): median ms per step of
+/// the whole update, and of the grid alone, and its share.
+fn volume_cost(threads: usize, steps: usize) {
+    println!();
+    println!("| 2 000 × 32, 5 colliders, 100 000 hairs | ms per update | grid, ms | grid share |");
+    println!("|---|---:|---:|---:|");
+    let mut scenes: Vec<Scene> = [false, true]
+        .into_iter()
+        .map(|enabled| {
+            let mut scene = Scene::new(2000, 32, Some(threads)).with_colliders(5);
+            scene.app.world_mut().resource_mut::<HairSettings>().volume.enabled = enabled;
+            let strands: Vec<_> = scene.app.world().get::<HeadStrands>(scene.head).expect("hair").strands().to_vec();
+            for strand in strands {
+                scene.app.world_mut().entity_mut(strand).insert(RepresentedHairs(50));
+            }
+            scene
+        })
+        .collect();
+    scenes.iter_mut().for_each(Scene::warm_up);
+    let mut times = [Vec::with_capacity(steps), Vec::with_capacity(steps)];
+    let mut grid = Vec::with_capacity(steps);
+    for _ in 0..steps {
+        for (index, scene) in scenes.iter_mut().enumerate() {
+            let started = Instant::now();
+            scene.step();
+            times[index].push(started.elapsed().as_secs_f64());
+            if index == 1 {
+                grid.push(scene.app.world().resource::<HairStatistics>().volume_seconds);
+            }
+        }
+    }
+    let median = |values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        values[values.len() / 2]
+    };
+    let grid = median(&mut grid);
+    for (name, times) in ["off", "on"].into_iter().zip(&mut times) {
+        let update = median(times);
+        let (grid, share) = if name == "on" { (grid, grid / update) } else { (0.0, 0.0) };
+        println!("| grid {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * share);
+    }
 }
 
 /// The time integrators and the wind on the scene's 2 000 × 32 strands, stepped in turn (one interleaved

@@ -12,6 +12,7 @@ use thiserror::Error;
 use crate::followers::HairFollowers;
 use crate::head::{HeadStrands, StrandOf};
 use crate::strand::HairStrand;
+use crate::volume::RepresentedHairs;
 
 /// The hair-bearing part of a head: an ellipsoid skull in the head's local space (`−Z`, Bevy's forward,
 /// is the face) and a hairline. Roots are spread over it along a golden-angle spiral, so they are evenly
@@ -190,6 +191,10 @@ pub struct HairGroom {
     /// How much followers gather onto their guide towards the tip, 0 to 1 (see
     /// [`HairFollowers::clumping`]). Default 0: each follower keeps its own groomed shape.
     pub follower_clumping: f32,
+    /// Hairs on the head the groom stands for, in the hair's volume ([`crate::volume`]): each strand is
+    /// counted as `hair_count / strand_count` hairs (at least itself and its followers; see
+    /// [`RepresentedHairs`]). A human head has 90 000 to 150 000 hairs. Default 100 000.
+    pub hair_count: usize,
     /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1 makes the grown
     /// shape the shape at rest under gravity, lying on the skull collider where it was combed onto it; 0
     /// lets it sag. Default 1.
@@ -207,6 +212,7 @@ impl Default for HairGroom {
             combing: Some(Combing::default()),
             followers_per_guide: 0,
             follower_clumping: 0.0,
+            hair_count: 100_000,
             gravity_preload: 1.0,
         }
     }
@@ -248,6 +254,13 @@ impl HairGroom {
         let mut random = fastrand::Rng::with_seed(self.seed);
         let strands = self.scalp.roots(self.strand_count)?.into_iter().map(|root| self.grow_strand(root, &mut random));
         Ok(strands.collect())
+    }
+
+    /// How many hairs each strand stands for: its share of [`HairGroom::hair_count`], at least itself
+    /// and its followers.
+    pub fn hairs_per_strand(&self) -> u32 {
+        let share = (self.hair_count as f64 / self.strand_count.max(1) as f64).round();
+        (share as u32).max(1 + self.followers_per_guide as u32)
     }
 
     /// The guide strands of this groom with their followers ([`HairGroom::followers_per_guide`]): the
@@ -586,8 +599,9 @@ pub(crate) fn grow_groomed_hair(
                 commands.entity(strand).despawn();
             }
         }
+        let hairs = RepresentedHairs(groom.hairs_per_strand());
         commands.spawn_batch(
-            grown.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), GroomedStrand)),
+            grown.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), GroomedStrand, hairs)),
         );
     }
 }

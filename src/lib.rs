@@ -15,6 +15,7 @@ pub mod settings;
 mod step;
 pub mod strand;
 pub mod strand_data;
+pub mod volume;
 pub mod wind;
 
 pub use plugin::{HairPlugin, HairSimulationPlugin, HairSystems};
@@ -26,7 +27,7 @@ pub mod prelude {
     };
     pub use crate::followers::{FollowerNodes, HairFollowers};
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
-    pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};
+    pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp, ScalpRoot};
     pub use crate::groom_file::{
         FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, PlacedGroomFile, UpAxis,
     };
@@ -39,6 +40,7 @@ pub mod prelude {
     pub use crate::strand_data::{
         EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, StrandSnapshot, StrandSnapshotData,
     };
+    pub use crate::volume::{HairVolume, HairVolumeGrids, HairVolumePlugin, RepresentedHairs};
     pub use crate::wind::{HairWind, HairWindPlugin, HairWindSource};
     pub use crate::{HairPlugin, HairSimulationPlugin, HairSystems};
 }

@@ -18,10 +18,11 @@ use crate::step::{
 };
 use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandRejected, build_strands};
 use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, apply_rest_shape_edits};
+use crate::volume::HairVolumePlugin;
 use crate::wind::HairWindPlugin;
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
-/// ([`HairCollisionPlugin`]), wind ([`HairWindPlugin`]), drawing ([`HairGizmoPlugin`]) and groom files
+/// ([`HairCollisionPlugin`]), hair–hair interaction ([`HairVolumePlugin`]), wind ([`HairWindPlugin`]), drawing ([`HairGizmoPlugin`]) and groom files
 /// ([`GroomFilePlugin`]). Add
 /// it once, after Bevy's plugins:
 ///
@@ -81,6 +82,7 @@ impl PluginGroup for HairPlugin {
         PluginGroupBuilder::start::<Self>()
             .add(HairSimulationPlugin { schedule: self.schedule })
             .add(HairCollisionPlugin { schedule: self.schedule })
+            .add(HairVolumePlugin { schedule: self.schedule })
             .add(HairWindPlugin { schedule: self.schedule })
             .add(HairGizmoPlugin)
             .add(GroomFilePlugin { schedule: self.schedule })
@@ -100,8 +102,9 @@ pub enum HairSystems {
     /// Moves every strand's root edge to its anchor on its head, and records where every
     /// [`crate::collision::HairCollider`] is.
     PinRoots,
-    /// Where the wind ([`crate::wind::HairWind`]) and users add forces and air velocities to
-    /// [`StrandForces`]; gravity comes from [`HairSettings::gravity`].
+    /// Where the wind ([`crate::wind::HairWind`]), the hair–hair interaction ([`crate::volume`]) and
+    /// users add forces, air velocities and velocity changes to [`StrandForces`]; gravity comes from
+    /// [`HairSettings::gravity`].
     ExternalForces,
     /// Elastic forces (stretching, bending, twisting), contact with colliders and implicit integration of
     /// every strand, in parallel; failed strands are reset and reported. Each strand's [`StrandNodes`] and

@@ -3,6 +3,7 @@
 use bevy::prelude::*;
 
 use crate::rod::{Integrator, RodError, RodMaterial, StepParams};
+use crate::volume::HairVolume;
 
 /// Settings of the hair simulation, read at every fixed step: a change takes effect at the next step.
 /// Invalid values are reported once with an error message and the simulation waits until they are fixed.
@@ -43,6 +44,9 @@ pub struct HairSettings {
     pub collision_margin: f32,
     /// Material of strands that name none ([`crate::strand::HairStrand::material`]): human hair by default.
     pub default_material: RodMaterial,
+    /// Hair–hair interaction: velocity smoothing and volume pressure through a grid (see
+    /// [`crate::volume`]). On by default.
+    pub volume: HairVolume,
 }
 
 impl Default for HairSettings {
@@ -60,6 +64,7 @@ impl Default for HairSettings {
             max_steps_per_frame: 4,
             collision_margin: 0.001,
             default_material: RodMaterial::human_hair(),
+            volume: HairVolume::default(),
         }
     }
 }
@@ -71,6 +76,7 @@ impl HairSettings {
         let params = self.step_params(dt);
         params.validate()?;
         self.default_material.validate()?;
+        self.volume.validate()?;
         let margin = f64::from(self.collision_margin);
         if !(margin.is_finite() && margin >= 0.0) {
             return Err(RodError::InvalidCollider { parameter: "collision_margin", value: margin });
@@ -143,6 +149,11 @@ pub struct HairStatistics {
     pub followers: usize,
     /// Wall-clock time placing them took, s.
     pub follower_seconds: f64,
+    /// Wall-clock time the hair–hair interaction took in the last step, s ([`crate::volume`]).
+    pub volume_seconds: f64,
+    /// Largest hair volume fraction on any head's grid after the last splat (see
+    /// [`crate::volume::HairVolume::target_volume_fraction`]).
+    pub max_volume_fraction: f64,
     /// Why the current settings cannot be used, while they cannot.
     pub settings_error: Option<String>,
 }

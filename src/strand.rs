@@ -460,15 +460,17 @@ impl SimulatedStrand {
     }
 }
 
-/// What acts on a strand's nodes from outside for the coming step: forces (N; a hand, a custom field)
-/// and the air's velocity (m/s; wind, see [`crate::wind`]), against which the air drag of
-/// [`HairSettings::air_damping`] acts. Add them in [`crate::HairSystems::ExternalForces`]; they are
+/// What acts on a strand's nodes from outside for the coming step: forces (N; a hand, a custom field,
+/// the hair's volume pressure), the air's velocity (m/s; wind, see [`crate::wind`]), against which the
+/// air drag of [`HairSettings::air_damping`] acts, and changes of velocity (m/s; the hair–hair velocity
+/// smoothing of [`crate::volume`]). Add them in [`crate::HairSystems::ExternalForces`]; they are
 /// cleared after each step. Gravity is applied by the plugin from [`HairSettings::gravity`].
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone)]
 pub struct StrandForces {
     forces: NodeVectors,
     air_velocities: NodeVectors,
+    velocity_changes: NodeVectors,
 }
 
 impl StrandForces {
@@ -502,9 +504,39 @@ impl StrandForces {
         self.air_velocities.iter()
     }
 
+    /// Adds `change` (m/s) to `node`'s velocity at the start of the coming step: an impulse per mass
+    /// (see [`StepLoads::velocity_changes`]). Rejects a node index out of range.
+    pub fn add_velocity_change(&mut self, node: usize, change: Vec3) -> Result<(), RodError> {
+        self.velocity_changes.add(node, change)
+    }
+
+    /// The change of each node's velocity at the start of the coming step, m/s: yours and the
+    /// hair–hair interaction's ([`crate::volume`]).
+    pub fn velocity_changes(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
+        self.velocity_changes.iter()
+    }
+
     /// The loads for the mechanics core: only what was added since the last step.
     pub(crate) fn loads(&self) -> StepLoads<'_> {
-        StepLoads { forces: self.forces.active(), air_velocities: self.air_velocities.active() }
+        StepLoads {
+            forces: self.forces.active(),
+            air_velocities: self.air_velocities.active(),
+            velocity_changes: self.velocity_changes.active(),
+        }
+    }
+
+    /// Adds `force_at(node)` (N) to every node's force and `velocity_change_at(node)` (m/s) to its
+    /// velocity change, for the hair–hair interaction.
+    pub(crate) fn add_forces_and_velocity_changes(&mut self, mut at: impl FnMut(usize) -> (DVec3, DVec3)) {
+        for (node, (force, change)) in
+            self.forces.values.iter_mut().zip(self.velocity_changes.values.iter_mut()).enumerate()
+        {
+            let (add_force, add_change) = at(node);
+            *force += add_force;
+            *change += add_change;
+        }
+        self.forces.active |= !self.forces.values.is_empty();
+        self.velocity_changes.active |= !self.velocity_changes.values.is_empty();
     }
 
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
@@ -518,11 +550,13 @@ impl StrandForces {
     pub(crate) fn clear(&mut self) {
         self.forces.clear();
         self.air_velocities.clear();
+        self.velocity_changes.clear();
     }
 
     fn resize(&mut self, nodes: usize) {
         self.forces.resize(nodes);
         self.air_velocities.resize(nodes);
+        self.velocity_changes.resize(nodes);
     }
 }
 

@@ -18,7 +18,7 @@ fn settled_direction(wind: DVec3, gamma: f64, ratio: f64) -> DVec3 {
     rod.pin_node(0, DVec3::ZERO).unwrap();
     let params = StepParams { air_damping: gamma, axial_drag_ratio: ratio, ..Default::default() };
     let air = vec![wind; rod.node_count()];
-    let loads = StepLoads { forces: None, air_velocities: Some(&air) };
+    let loads = StepLoads { air_velocities: Some(&air), ..StepLoads::default() };
     let mut workspace = RodWorkspace::default();
     for _ in 0..900 {
         rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
@@ -87,7 +87,7 @@ fn still_air_given_as_zeros_changes_nothing() {
     let mut workspace = RodWorkspace::default();
     for _ in 0..120 {
         still.step(&params, None, &mut workspace).unwrap();
-        let loads = StepLoads { forces: None, air_velocities: Some(&air) };
+        let loads = StepLoads { air_velocities: Some(&air), ..StepLoads::default() };
         zeros.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
         assert_eq!(still.positions(), zeros.positions());
     }

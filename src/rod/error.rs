@@ -125,6 +125,14 @@ pub enum RodError {
         /// The velocity that was given, m/s.
         velocity: DVec3,
     },
+    /// A velocity change (an impulse per mass, e.g. from hair–hair interaction) is NaN or infinite.
+    #[error("the velocity change {change} at node {node} is not finite")]
+    NonFiniteVelocityChange {
+        /// The node the change was given for.
+        node: usize,
+        /// The change that was given, m/s.
+        change: DVec3,
+    },
     /// A node or edge index past the end of the rod.
     #[error("{what} index {index} is out of range (the rod has {count})")]
     OutOfRange {

@@ -127,6 +127,11 @@ pub struct StepLoads<'a> {
     /// The air's velocity at each node, m/s (one per node): the drag of [`StepParams::air_damping`]
     /// acts on the velocity relative to it (wind). `None` is still air.
     pub air_velocities: Option<&'a [DVec3]>,
+    /// A change of each node's velocity at the start of the step, m/s (one per node), or none: an impulse
+    /// per mass, such as the velocity smoothing of hair–hair interaction ([`crate::volume`]). Prescribed
+    /// nodes ignore it. With BDF2 the velocity one step back changes too, so that both integrators'
+    /// predicted velocity `v̂` moves by exactly the change.
+    pub velocity_changes: Option<&'a [DVec3]>,
 }
 
 /// What a successful step measured.
@@ -201,7 +206,7 @@ impl Rod {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
-        let loads = StepLoads { forces: external_forces, air_velocities: None };
+        let loads = StepLoads { forces: external_forces, ..StepLoads::default() };
         self.step_with_loads(params, &loads, contacts, workspace)
     }
 
@@ -253,6 +258,15 @@ impl Rod {
                 return Err(RodError::NonFiniteAirVelocity { node, velocity }.into());
             }
         }
+        if let Some(changes) = loads.velocity_changes {
+            if changes.len() != self.node_count() {
+                return Err(RodError::WrongLength { expected: self.node_count(), actual: changes.len() }.into());
+            }
+            if let Some((node, &change)) = changes.iter().enumerate().find(|(_, dv)| !dv.is_finite()) {
+                return Err(RodError::NonFiniteVelocityChange { node, change }.into());
+            }
+            self.change_velocities(changes);
+        }
         workspace.stopwatch.start_step();
         self.save_into(&mut workspace.saved);
         // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
@@ -263,6 +277,21 @@ impl Rod {
             self.restore_at_rest(&workspace.saved);
         }
         result
+    }
+
+    /// Adds `changes` to the free nodes' velocities, and to the velocities one step back when the
+    /// two-step integrator has them: `v̂ = (4vₙ − vₙ₋₁)/3` then moves by exactly the change.
+    fn change_velocities(&mut self, changes: &[DVec3]) {
+        let history = self.state.history.dt > 0.0;
+        for (node, &change) in changes.iter().enumerate() {
+            if self.is_node_prescribed(node) {
+                continue;
+            }
+            self.state.velocities[node] += change;
+            if history {
+                self.state.history.velocities[node] += change;
+            }
+        }
     }
 
     fn integrate(

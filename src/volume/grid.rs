@@ -1,0 +1,485 @@
+//! The grid of hair–hair interaction, free of Bevy's ECS: hair nodes splatted to points `cell_size`
+//! apart, the fields computed there, and what each node gets back.
+//!
+//! **Transfer.** Each hair node (a [`GridParticle`]) is spread over the 8 grid points around it with
+//! trilinear weights `w_ic` (summing to 1), and every field comes back to a position with the same
+//! weights. So a field's sum over nodes weighted by mass equals its sum over grid points weighted by grid
+//! mass, which is what makes the velocity smoothing conserve momentum exactly (below).
+//!
+//! **Fields at grid point `c`** (cell volume `Δx³`):
+//! - mass `M_c = Σ w_ic m_i`, momentum `P_c = Σ w_ic m_i v_i`, velocity `u_c = P_c / M_c`;
+//! - hair volume fraction `φ_c = Σ w_ic V_i / Δx³` (`V_i`: the volume of keratin the node stands for);
+//! - smoothing fraction `α_c = 1 − exp(−k dt min(φ_c/φ₀, 1))`: the share of a node's velocity difference
+//!   from the hair around it that goes in one step at rate `k` (1/s), full where the hair is packed at
+//!   its target fraction `φ₀` and fading where it is sparse (a lone strand is not smoothed);
+//! - pressure `p_c = K max(φ_c/φ₀ − 1, 0)` (Pa): hair pushes back only when packed more densely than
+//!   `φ₀`; its push per volume of keratin `g_c = ∇p_c / max(φ_c, φ₀)` (central differences).
+//!
+//! **What a node gets back.**
+//! - Velocity smoothing (Petrovic, Henne, Anderson 2005): `Δv_i = Σ_c w_ic α_c (u_c − v_i)`. Its momentum
+//!   `Σ_i m_i Δv_i = Σ_c α_c (u_c M_c − P_c) = 0`: exactly conserved, and a uniform velocity field is left
+//!   as it is. It is a filter on velocities, unconditionally stable (`α_c < 1`), and independent of the
+//!   step's length because `α_c` is the exact decay of `k` over `dt`.
+//! - Volume pressure (after McAdams, Selle, Ward, Sifakis, Teran 2009, without their global solve):
+//!   force `f_i = −V_i Σ_c w_ic g_c`, a node's own keratin volume times the push: hydrostatic
+//!   equilibrium of a hair layer, `dp/dn = −φ ρ g`, holds the hair up where it is piled.
+
+//!
+//! **Storage.** Hair fills a thin shell around a head, a small part of its bounding box, so the grid is
+//! sparse: bricks of 4 × 4 × 4 points, allocated where hair is, found through a dense table over the
+//! bounding box (one `u32` per brick). Bricks are numbered in z-major order, so the bricks of a range of
+//! z layers are contiguous: the splat runs in parallel over such slabs, each thread adding only to its
+//! own bricks (the sums do not depend on the number of threads).
+
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use bevy::math::DVec3;
+use bevy::tasks::ComputeTaskPool;
+
+/// Most bricks in a grid's bounding box: a grid that would need more (hair spread over metres) coarsens
+/// its cells until it fits. 2¹⁸ bricks, a box of 256³ points (1 m at 4 mm); the table is 1 MB.
+pub const MAX_GRID_BRICKS: usize = 1 << 18;
+
+/// Grid points along each edge of a brick.
+const BRICK: usize = 4;
+/// Grid points in a brick.
+const BRICK_POINTS: usize = BRICK * BRICK * BRICK;
+/// A table entry with no brick.
+const NO_BRICK: u32 = u32::MAX;
+
+/// A hair node as the grid sees it: where it is, how it moves, and how much hair it stands for.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct GridParticle {
+    /// Position, m.
+    pub position: DVec3,
+    /// Velocity, m/s.
+    pub velocity: DVec3,
+    /// Mass of the hair it stands for that the smoothing acts on, kg (0 for a node whose motion is
+    /// prescribed: it takes part in the volume, not in the smoothing).
+    pub mass: f64,
+    /// Volume of keratin of the hair it stands for, m³.
+    pub volume: f64,
+}
+
+/// The physical parameters of the grid's response.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VolumeParams {
+    /// Spacing of the grid points `Δx`, m.
+    pub cell_size: f64,
+    /// Velocity smoothing rate `k`, 1/s.
+    pub smoothing_rate: f64,
+    /// Target hair volume fraction `φ₀`, in (0, 1].
+    pub target_fraction: f64,
+    /// Pressure stiffness `K`, Pa: the pressure of hair packed at twice `φ₀`.
+    pub stiffness: f64,
+    /// The step's length, s.
+    pub dt: f64,
+}
+
+/// One grid point. While splatting, `velocity` holds the momentum `P_c` (kg·m/s), `smoothing` the
+/// mass `M_c` (kg) and `fraction` the keratin volume (m³); [`VolumeGrid::compute_fields`] turns them
+/// into what their names say.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct GridPoint {
+    /// `α_c u_c`, m/s.
+    velocity: DVec3,
+    /// `α_c`.
+    smoothing: f64,
+    /// `g_c = ∇p_c / max(φ_c, φ₀)`, Pa/m.
+    push: DVec3,
+    /// `φ_c`.
+    fraction: f64,
+}
+
+type Brick = [GridPoint; BRICK_POINTS];
+
+/// Where a grid lies: its first point, its spacing, and its size in bricks.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Placement {
+    origin: DVec3,
+    cell_size: f64,
+    bricks: [usize; 3],
+}
+
+/// The 8 grid points around a position, x fastest: where each is (its brick's table index, its index
+/// within the brick) and its trilinear weight.
+#[derive(Debug, Clone, Copy)]
+struct Stencil {
+    table_indices: [usize; 8],
+    local_indices: [usize; 8],
+    weights: [f64; 8],
+    /// The z layer of bricks of the lower and upper points.
+    brick_layers: [usize; 2],
+}
+
+/// A hair grid (one head's), rebuilt every step around its hair, axis-aligned, its points on multiples
+/// of the cell size (hair at rest sees the same grid from step to step). All memory is reused from step
+/// to step.
+#[derive(Debug, Default)]
+pub struct VolumeGrid {
+    placement: Placement,
+    /// Index into `bricks` of each brick of the bounding box, z-major, or [`NO_BRICK`] (atomic so that
+    /// threads can mark bricks in use side by side).
+    table: Vec<AtomicU32>,
+    /// The bricks in use (the first `used`) and spare ones.
+    bricks: Vec<Brick>,
+    used: usize,
+    /// Coordinates of each brick in use, in bricks.
+    brick_coordinates: Vec<[usize; 3]>,
+    /// Index of the first brick of each z layer of bricks, and one past the last.
+    layer_starts: Vec<usize>,
+    /// Brick layers per slab of the parallel splat.
+    slab_layers: usize,
+    /// The particles each chunk of particles sends to each slab: `bins[chunk × slabs + slab]`.
+    bins: Vec<Vec<u32>>,
+    max_fraction: f64,
+}
+
+impl VolumeGrid {
+    /// Rebuilds the grid around `particles` and computes its fields with `params`. Particles with a
+    /// non-finite position or velocity are left out (the mechanics never produce them).
+    pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
+        let t = std::time::Instant::now();
+        self.place(particles, params.cell_size);
+        let a = t.elapsed().as_secs_f64();
+        self.allocate_bricks(particles);
+        let b = t.elapsed().as_secs_f64();
+        self.splat(particles);
+        let c = t.elapsed().as_secs_f64();
+        self.compute_fields(params);
+        let d = t.elapsed().as_secs_f64();
+        if std::env::var("VOLUME_TIMING").is_ok() {
+            eprintln!("place {:.3} allocate {:.3} splat {:.3} fields {:.3}", a * 1e3, (b - a) * 1e3, (c - b) * 1e3, (d - c) * 1e3);
+        }
+    }
+
+    /// Spacing of the grid points, m: [`VolumeParams::cell_size`], or coarser where the hair spreads
+    /// over a box of more than [`MAX_GRID_BRICKS`] bricks.
+    pub fn cell_size(&self) -> f64 {
+        self.placement.cell_size
+    }
+
+    /// Grid points in use (in bricks where there is hair).
+    pub fn points(&self) -> usize {
+        self.used * BRICK_POINTS
+    }
+
+    /// Largest hair volume fraction at a grid point.
+    pub fn max_volume_fraction(&self) -> f64 {
+        self.max_fraction
+    }
+
+    /// The hair volume fraction at `position`, interpolated (0 where there is no hair).
+    pub fn volume_fraction_at(&self, position: DVec3) -> f64 {
+        let Some(stencil) = self.placement.stencil(position) else { return 0.0 };
+        let mut sum = 0.0;
+        self.for_each_corner(&stencil, |point, weight| sum += weight * point.fraction);
+        sum
+    }
+
+    /// The velocity change `Δv = Σ w α (u − v)` of a node at `position` moving at `velocity` (m/s),
+    /// and the pressure's force on a node of keratin volume `volume` (m³), N.
+    pub fn response(&self, position: DVec3, velocity: DVec3, volume: f64) -> (DVec3, DVec3) {
+        let Some(stencil) = self.placement.stencil(position) else {
+            return (DVec3::ZERO, DVec3::ZERO);
+        };
+        let (mut smoothed, mut smoothing, mut push) = (DVec3::ZERO, 0.0, DVec3::ZERO);
+        self.for_each_corner(&stencil, |point, weight| {
+            smoothed += weight * point.velocity;
+            smoothing += weight * point.smoothing;
+            push += weight * point.push;
+        });
+        (smoothed - smoothing * velocity, -volume * push)
+    }
+
+    /// Places the grid around the finite particles, coarsening the cells if its box would be too large.
+    fn place(&mut self, particles: &[GridParticle], cell_size: f64) {
+        let (mut low, mut high) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for particle in particles.iter().filter(|particle| usable(particle)) {
+            low = low.min(particle.position);
+            high = high.max(particle.position);
+        }
+        if low.x > high.x {
+            (low, high) = (DVec3::ZERO, DVec3::ZERO);
+        }
+        let mut cell = cell_size;
+        loop {
+            // One empty point below the lowest particle's and two above the highest's, so that every
+            // stencil and its neighbours are in the box.
+            let first = (low / cell).floor() - DVec3::ONE;
+            let points = (high / cell).floor() - first + DVec3::splat(3.0);
+            let bricks = (points / BRICK as f64).ceil();
+            if bricks.x * bricks.y * bricks.z <= MAX_GRID_BRICKS as f64 {
+                let bricks = [bricks.x as usize, bricks.y as usize, bricks.z as usize];
+                self.placement = Placement { origin: first * cell, cell_size: cell, bricks };
+                break;
+            }
+            cell *= (bricks.x * bricks.y * bricks.z / MAX_GRID_BRICKS as f64).cbrt() * 1.01;
+        }
+        self.table.clear();
+        self.table.resize_with(self.placement.bricks.iter().product(), || AtomicU32::new(NO_BRICK));
+    }
+
+    /// Gives every brick that a particle's stencil touches a place in `bricks`, numbered z-major, zeroed,
+    /// and sorts the particles into the slabs they splat to (in parallel over chunks of particles).
+    fn allocate_bricks(&mut self, particles: &[GridParticle]) {
+        let placement = self.placement;
+        let layers = placement.bricks[2];
+        let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).clamp(1, layers);
+        self.slab_layers = layers.div_ceil(threads);
+        let slab_layers = self.slab_layers;
+        self.bins.resize_with(threads * threads, Vec::new);
+        self.bins.iter_mut().for_each(Vec::clear);
+        let table = &self.table;
+        let chunk_length = particles.len().div_ceil(threads).max(1);
+        let mark = |(chunk_index, (chunk, bins)): (usize, (&[GridParticle], &mut [Vec<u32>]))| {
+            for (offset, particle) in chunk.iter().enumerate() {
+                if !usable(particle) {
+                    continue;
+                }
+                let Some(stencil) = placement.stencil(particle.position) else { continue };
+                for index in stencil.table_indices {
+                    // Read first: most bricks are marked already, and a store would take the cache
+                    // line from the other threads.
+                    if table[index].load(Ordering::Relaxed) == NO_BRICK {
+                        table[index].store(0, Ordering::Relaxed);
+                    }
+                }
+                let index = (chunk_index * chunk_length + offset) as u32;
+                let [low, high] = stencil.brick_layers.map(|layer| layer / slab_layers);
+                bins[low].push(index);
+                if high != low {
+                    bins[high].push(index);
+                }
+            }
+        };
+        let work = particles.chunks(chunk_length).zip(self.bins.chunks_mut(threads)).enumerate();
+        run_in_parallel(threads, work, mark);
+
+        let [bx, by, _] = placement.bricks;
+        self.used = 0;
+        self.brick_coordinates.clear();
+        self.layer_starts.clear();
+        for (index, slot) in self.table.iter_mut().enumerate() {
+            if index % (bx * by) == 0 {
+                self.layer_starts.push(self.used);
+            }
+            let slot = slot.get_mut();
+            if *slot != NO_BRICK {
+                *slot = self.used as u32;
+                self.used += 1;
+                self.brick_coordinates.push([index % bx, index / bx % by, index / (bx * by)]);
+            }
+        }
+        self.layer_starts.push(self.used);
+        if self.bricks.len() < self.used {
+            self.bricks.resize(self.used, [GridPoint::default(); BRICK_POINTS]);
+        }
+        self.bricks[..self.used].fill([GridPoint::default(); BRICK_POINTS]);
+    }
+
+    /// Spreads the particles' momentum, mass and volume over the grid, in parallel over slabs of brick
+    /// layers: each slab takes the particles binned to it and adds only to its own bricks.
+    fn splat(&mut self, particles: &[GridParticle]) {
+        let placement = self.placement;
+        let layers = placement.bricks[2];
+        let threads = self.bins.len().isqrt();
+        let table = &self.table;
+        let bins = &self.bins;
+        // Split the bricks in use at the slabs' first layers.
+        let mut slabs = Vec::with_capacity(threads);
+        let mut rest = &mut self.bricks[..self.used];
+        let mut taken = 0;
+        for slab in 0..threads {
+            let first_layer = (slab * self.slab_layers).min(layers);
+            let end_layer = ((slab + 1) * self.slab_layers).min(layers);
+            let end = self.layer_starts[end_layer];
+            let (bricks, after) = rest.split_at_mut(end - taken);
+            rest = after;
+            slabs.push((slab, first_layer..end_layer, taken, bricks));
+            taken = end;
+        }
+        let splat_slab = |(slab, layers, first_brick, bricks): (usize, std::ops::Range<usize>, usize, &mut [Brick])| {
+            let binned = (0..threads).flat_map(|chunk| bins[chunk * threads + slab].iter());
+            for &index in binned {
+                let particle = &particles[index as usize];
+                let Some(stencil) = placement.stencil(particle.position) else { continue };
+                let [low, high] = stencil.brick_layers.map(|layer| layers.contains(&layer));
+                let momentum = particle.mass * particle.velocity;
+                for k in 0..8 {
+                    if !(if k < 4 { low } else { high }) {
+                        continue;
+                    }
+                    let brick = table[stencil.table_indices[k]].load(Ordering::Relaxed) as usize - first_brick;
+                    let point = &mut bricks[brick][stencil.local_indices[k]];
+                    let weight = stencil.weights[k];
+                    point.velocity += weight * momentum;
+                    point.smoothing += weight * particle.mass;
+                    point.fraction += weight * particle.volume;
+                }
+            }
+        };
+        run_in_parallel(threads, slabs.into_iter(), splat_slab);
+    }
+    /// Turns the splatted sums into velocity, smoothing and volume fraction at every grid point, then
+    /// computes the pressure's push.
+    fn compute_fields(&mut self, params: &VolumeParams) {
+        let cell_volume = self.placement.cell_size.powi(3);
+        let target = params.target_fraction;
+        let rate = params.smoothing_rate * params.dt;
+        let mut max_fraction = 0.0_f64;
+        for point in self.bricks[..self.used].iter_mut().flatten() {
+            let (momentum, mass) = (point.velocity, point.smoothing);
+            if point.fraction == 0.0 {
+                continue;
+            }
+            point.fraction /= cell_volume;
+            max_fraction = max_fraction.max(point.fraction);
+            (point.velocity, point.smoothing) = if mass > 0.0 && rate > 0.0 {
+                let smoothing = 1.0 - (-rate * (point.fraction / target).min(1.0)).exp();
+                (smoothing * momentum / mass, smoothing)
+            } else {
+                (DVec3::ZERO, 0.0)
+            };
+        }
+        self.max_fraction = max_fraction;
+        if params.stiffness == 0.0 || max_fraction <= target {
+            return;
+        }
+        let half_over_cell = 0.5 / self.placement.cell_size;
+        let pressure = |fraction: f64| params.stiffness * (fraction / target - 1.0).max(0.0);
+        // Each brick's pressures with a layer of its face neighbours' around them.
+        const PADDED: usize = BRICK + 2;
+        let mut padded = [[[0.0_f64; PADDED]; PADDED]; PADDED];
+        let mut pushes = [DVec3::ZERO; BRICK_POINTS];
+        for brick in 0..self.used {
+            let coordinates = self.brick_coordinates[brick];
+            for (local, point) in self.bricks[brick].iter().enumerate() {
+                let [x, y, z] = local_coordinates(local);
+                padded[x + 1][y + 1][z + 1] = pressure(point.fraction);
+            }
+            for axis in 0..3 {
+                for (side, padded_layer, neighbour_layer) in [(-1, 0, BRICK - 1), (1, BRICK + 1, 0)] {
+                    let neighbour = self.neighbour_brick(coordinates, axis, side);
+                    for a in 0..BRICK {
+                        for b in 0..BRICK {
+                            // The face's two other axes, in order.
+                            let mut local = [0; 3];
+                            let mut padded_at = [0; 3];
+                            let others = [(axis + 1) % 3, (axis + 2) % 3];
+                            (local[others[0]], local[others[1]]) = (a, b);
+                            (padded_at[others[0]], padded_at[others[1]]) = (a + 1, b + 1);
+                            local[axis] = neighbour_layer;
+                            padded_at[axis] = padded_layer;
+                            let value = neighbour.map_or(0.0, |neighbour| {
+                                pressure(self.bricks[neighbour][local_index(local)].fraction)
+                            });
+                            padded[padded_at[0]][padded_at[1]][padded_at[2]] = value;
+                        }
+                    }
+                }
+            }
+            for (local, push) in pushes.iter_mut().enumerate() {
+                let fraction = self.bricks[brick][local].fraction;
+                if fraction == 0.0 {
+                    continue;
+                }
+                let [x, y, z] = local_coordinates(local).map(|coordinate| coordinate + 1);
+                let gradient = DVec3::new(
+                    padded[x + 1][y][z] - padded[x - 1][y][z],
+                    padded[x][y + 1][z] - padded[x][y - 1][z],
+                    padded[x][y][z + 1] - padded[x][y][z - 1],
+                ) * half_over_cell;
+                *push = gradient / fraction.max(target);
+            }
+            for (point, push) in self.bricks[brick].iter_mut().zip(&mut pushes) {
+                point.push = std::mem::take(push);
+            }
+        }
+    }
+
+    /// The brick in use beside the brick at `coordinates` on `side` (±1) along `axis`, if any.
+    fn neighbour_brick(&self, coordinates: [usize; 3], axis: usize, side: isize) -> Option<usize> {
+        let mut neighbour = coordinates;
+        neighbour[axis] = neighbour[axis].checked_add_signed(side)?;
+        if neighbour[axis] >= self.placement.bricks[axis] {
+            return None;
+        }
+        let [bx, by, _] = self.placement.bricks;
+        match self.table[neighbour[0] + bx * (neighbour[1] + by * neighbour[2])].load(Ordering::Relaxed) {
+            NO_BRICK => None,
+            brick => Some(brick as usize),
+        }
+    }
+
+    /// Calls `visit(point, weight)` for the 8 grid points of `stencil` (all in bricks: every stencil
+    /// of a particle allocated its bricks, and a position with no hair near meets empty points).
+    fn for_each_corner(&self, stencil: &Stencil, mut visit: impl FnMut(&GridPoint, f64)) {
+        for k in 0..8 {
+            let brick = self.table[stencil.table_indices[k]].load(Ordering::Relaxed);
+            if brick != NO_BRICK {
+                visit(&self.bricks[brick as usize][stencil.local_indices[k]], stencil.weights[k]);
+            }
+        }
+    }
+}
+
+impl Placement {
+    /// The 8 grid points around `position`, if they are in the box.
+    fn stencil(&self, position: DVec3) -> Option<Stencil> {
+        let local = (position - self.origin) / self.cell_size;
+        // Truncation is the floor here: the box starts below every particle.
+        let corner = [local.x as usize, local.y as usize, local.z as usize];
+        let inside = local.cmpge(DVec3::ZERO).all() && (0..3).all(|axis| corner[axis] + 1 < self.bricks[axis] * BRICK);
+        if !inside {
+            return None;
+        }
+        // Along each axis: the lower and upper point's brick, index within it, and weight.
+        let along = |axis: usize| {
+            let (low, high) = (corner[axis], corner[axis] + 1);
+            let fraction = local[axis] - low as f64;
+            ([low / BRICK, high / BRICK], [low % BRICK, high % BRICK], [1.0 - fraction, fraction])
+        };
+        let ((bx, lx, wx), (by, ly, wy), (bz, lz, wz)) = (along(0), along(1), along(2));
+        let [stride_x, stride_y, _] = self.bricks;
+        let mut stencil =
+            Stencil { table_indices: [0; 8], local_indices: [0; 8], weights: [0.0; 8], brick_layers: bz };
+        for k in 0..8 {
+            let (i, j, l) = (k & 1, (k >> 1) & 1, k >> 2);
+            stencil.table_indices[k] = bx[i] + stride_x * (by[j] + stride_y * bz[l]);
+            stencil.local_indices[k] = lx[i] + BRICK * (ly[j] + BRICK * lz[l]);
+            stencil.weights[k] = wx[i] * wy[j] * wz[l];
+        }
+        Some(stencil)
+    }
+}
+
+/// Runs `task` on every item of `work`, on Bevy's compute pool when it has `threads` > 1 threads.
+fn run_in_parallel<W: Send>(threads: usize, work: impl Iterator<Item = W>, task: impl Fn(W) + Sync) {
+    match ComputeTaskPool::try_get() {
+        Some(pool) if threads > 1 => {
+            let task = &task;
+            pool.scope(|scope| {
+                for item in work {
+                    scope.spawn(async move { task(item) });
+                }
+            });
+        }
+        _ => work.for_each(task),
+    }
+}
+
+/// Coordinates within its brick of the point `local` of a brick.
+fn local_coordinates(local: usize) -> [usize; 3] {
+    [local % BRICK, local / BRICK % BRICK, local / (BRICK * BRICK)]
+}
+
+/// Index of grid point `point` within its brick.
+fn local_index(point: [usize; 3]) -> usize {
+    point[0] % BRICK + BRICK * (point[1] % BRICK + BRICK * (point[2] % BRICK))
+}
+
+/// Whether the grid takes `particle`: finite position and velocity.
+fn usable(particle: &GridParticle) -> bool {
+    particle.position.is_finite() && particle.velocity.is_finite()
+}
