@@ -51,7 +51,7 @@ fn main() {
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
-        .insert_resource(HairSettings { integrator: options.integrator, ..default() })
+        .insert_resource(HairSettings { integrator: options.integrator, volume: options.volume, ..default() })
         .insert_resource(breeze(options.wind))
         .add_systems(Startup, spawn_scene)
         .add_systems(Update, (animate_head, walk_body, hair_keys, switch_groom, show_statistics));
@@ -103,13 +103,15 @@ struct Options {
     /// Mean wind speed, m/s, from the head's left (V toggles a breeze).
     wind: f32,
     integrator: bevy_hair_sim::rod::Integrator,
+    /// Hair–hair interaction: on with its velocity smoothing, plus a volume pressure if given.
+    volume: HairVolume,
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
             [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
-            [--integrator bdf2|euler]";
+            [--integrator bdf2|euler] [--grid on|off] [--pressure PA]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -127,6 +129,7 @@ impl Options {
             combed: groom.combing.is_some(),
             wind: 0.0,
             integrator: HairSettings::default().integrator,
+            volume: HairVolume::default(),
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -139,6 +142,14 @@ impl Options {
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
                 "--wind" => options.wind = number("a speed in m/s")?,
+                "--pressure" => options.volume.stiffness = number("a pressure in Pa")?,
+                "--grid" => {
+                    options.volume.enabled = match value.as_str() {
+                        "on" => true,
+                        "off" => false,
+                        _ => return Err(format!("--grid needs on or off, got {value:?}")),
+                    }
+                }
                 "--integrator" => {
                     options.integrator = match value.as_str() {
                         "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,

@@ -27,7 +27,7 @@ pub mod prelude {
     };
     pub use crate::followers::{FollowerNodes, HairFollowers};
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
-    pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp, ScalpRoot};
+    pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};
     pub use crate::groom_file::{
         FileStrand, GroomFile, GroomFileError, GroomFilePlugin, GroomPlacement, HairGroomFile, PlacedGroomFile, UpAxis,
     };

@@ -140,6 +140,7 @@ fn hair_panel(
             groom_held = groom_grid(ui, groom);
         }
         ui.collapsing("simulation", |ui| settings_grid(ui, &mut edited));
+        ui.collapsing("hair–hair (volume)", |ui| volume_grid(ui, &mut edited.volume));
         ui.collapsing("wind", |ui| wind_grid(ui, &mut edited_wind));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
@@ -184,6 +185,10 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
         };
         row("strands / nodes", format!("{} / {}", statistics.strands, statistics.nodes));
         row("followers", format!("{} ({:.2} ms)", statistics.followers, 1e3 * statistics.follower_seconds));
+        row(
+            "hair–hair grid",
+            format!("{:.2} ms, densest {:.2}", 1e3 * statistics.volume_seconds, statistics.max_volume_fraction),
+        );
         row("step time", format!("{:.2} ms", 1e3 * statistics.step_seconds));
         row("frame rate", format!("{frame_rate:.0} fps"));
         row("largest strain", format!("{:.1e}", statistics.max_strain));
@@ -265,6 +270,20 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
         grid_row(ui, "steps per frame (max)", egui::Slider::new(&mut settings.max_steps_per_frame, 0..=8));
         let teleport_distance = egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true);
         grid_row(ui, "teleport distance (m)", teleport_distance);
+    });
+}
+
+/// Hair–hair interaction through the grid ([`crate::volume::HairVolume`]).
+fn volume_grid(ui: &mut egui::Ui, volume: &mut crate::volume::HairVolume) {
+    egui::Grid::new("hair volume").num_columns(2).show(ui, |ui| {
+        ui.label("grid");
+        ui.checkbox(&mut volume.enabled, "hair meets hair");
+        ui.end_row();
+        grid_row(ui, "cell size (m)", egui::Slider::new(&mut volume.cell_size, 0.002..=0.05).logarithmic(true));
+        grid_row(ui, "velocity smoothing (1/s)", egui::Slider::new(&mut volume.velocity_smoothing, 0.0..=50.0));
+        let target = egui::Slider::new(&mut volume.target_volume_fraction, 0.01..=0.5).logarithmic(true);
+        grid_row(ui, "target volume fraction", target);
+        grid_row(ui, "pressure stiffness (Pa)", egui::Slider::new(&mut volume.stiffness, 0.0..=200.0));
     });
 }
 

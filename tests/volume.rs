@@ -1,73 +1,221 @@
-//! Hair with volume (issue 20): the grid's velocity smoothing and volume pressure in the plugin.
+//! Hair with volume: the grid's velocity smoothing conserves momentum and leaves uniform motion alone
+//! ([`VolumeGrid`] directly), a full head of hair rests in a layer of several millimetres instead of one
+//! at the collision margin, and long hair swinging past itself keeps its layers (the plugin).
 
 mod common;
 
+use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::volume::{GridParticle, VolumeGrid, VolumeParams};
 use common::headless::hair_app;
 
-/// A head at 1.6 m with `groom` on a skull sphere collider of the scalp's size, the grid on or off.
-fn groomed_head(groom: HairGroom, grid: bool) -> (App, Entity) {
-    let mut app = hair_app();
-    app.world_mut().resource_mut::<HairSettings>().volume.enabled = grid;
-    if let Ok(cell) = std::env::var("CELL") {
-        app.world_mut().resource_mut::<HairSettings>().volume.cell_size = cell.parse().unwrap();
-    }
-    if let Ok(k) = std::env::var("STIFF") {
-        app.world_mut().resource_mut::<HairSettings>().volume.stiffness = k.parse().unwrap();
-    }
-    let skull = groom.scalp.semi_axes;
-    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
-    app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), Transform::from_xyz(0.0, 1.6, 0.0)));
-    app.update();
-    (app, head)
+/// The grid's parameters of the tests: 5 mm cells, smoothing at 5/s, target 0.1, 50 Pa, 60 Hz.
+fn params() -> VolumeParams {
+    VolumeParams { cell_size: 0.005, smoothing_rate: 5.0, target_fraction: 0.1, stiffness: 50.0, dt: 1.0 / 60.0 }
 }
 
-fn strands_of(app: &App, head: Entity) -> Vec<Entity> {
-    app.world().get::<HeadStrands>(head).map(|strands| strands.strands().to_vec()).unwrap_or_default()
+/// `count` particles in a 3 cm ball, each moving at `drift` plus a random velocity of up to `spread`
+/// m/s, hair-like masses and volumes (packed above the target near the centre), every tenth prescribed.
+fn cloud(count: usize, drift: DVec3, spread: f64) -> Vec<GridParticle> {
+    let mut random = fastrand::Rng::with_seed(7);
+    let mut unit = || DVec3::new(random.f64() - 0.5, random.f64() - 0.5, random.f64() - 0.5) * 2.0;
+    (0..count)
+        .map(|index| {
+            let position = unit() * 0.015 + DVec3::new(0.3, 1.2, -0.1);
+            let velocity = drift + unit() * spread;
+            let mass = if index % 10 == 0 { 0.0 } else { 2e-7 * (1.0 + unit().x.abs()) };
+            GridParticle { position, velocity, mass, volume: 1e-9 }
+        })
+        .collect()
 }
 
-/// 90th percentile of the distance from the skull (radius 0.1 m at 1.6 m) of the nodes over its top half, m.
-fn layer_thickness(app: &App, strands: &[Entity]) -> (f32, f32) {
-    let centre = Vec3::new(0.0, 1.6, 0.0);
-    let mut distances: Vec<f32> = strands
-        .iter()
-        .flat_map(|&entity| app.world().get::<StrandNodes>(entity).unwrap().positions.clone())
-        .filter(|node| node.y > centre.y)
-        .map(|node| node.distance(centre) - 0.1)
-        .collect();
-    distances.sort_by(f32::total_cmp);
-    (distances[distances.len() / 2], distances[distances.len() * 9 / 10])
+/// Velocity changes of `particles` from a grid built on them.
+fn smoothing_changes(particles: &[GridParticle]) -> Vec<DVec3> {
+    let mut grid = VolumeGrid::default();
+    grid.build(particles, &params());
+    particles.iter().map(|particle| grid.response(particle.position, particle.velocity, 0.0).0).collect()
 }
 
 #[test]
-fn experiment() {
-    for (style, grid) in [(HairStyle::Straight, true), (HairStyle::Long, true)] {
-        let groom = HairGroom { strand_count: 1000, segments: 16, style, hair_count: 100_000, ..default() };
-        let (mut app, head) = groomed_head(groom, grid);
-        app.update();
-        let strands = strands_of(&app, head);
-        for second in 0..3 {
-            for _ in 0..60 {
-                app.update();
-            }
-            let stats = app.world().resource::<HairStatistics>();
-            let (median, p90) = layer_thickness(&app, &strands);
-            let grids = app.world().resource::<HairVolumeGrids>();
-            let mut all: Vec<(f32, usize, Vec3)> = strands
-                .iter()
-                .flat_map(|&entity| app.world().get::<StrandNodes>(entity).unwrap().positions.clone().into_iter().enumerate())
-                .map(|(i, node)| (grids.volume_fraction_at(Some(head), node), i, node))
-                .collect();
-            all.sort_by(|a, b| b.0.total_cmp(&a.0));
-            let max_at_nodes = all[0].0;
-            for (phi, i, node) in all.iter().step_by(all.len() / 200).take(8) {
-                println!("   φ {phi:.3} node {i} at {:.3?} r {:.1} mm", node - Vec3::new(0.0, 1.6, 0.0), (node.distance(Vec3::new(0.0, 1.6, 0.0)) - 0.1) * 1e3);
-            }
-            println!(
-                "{style:?} grid {grid} t={}s median {:.2} mm p90 {:.2} mm max φ grid {:.3} at nodes {:.3} step {:.1} ms volume {:.2} ms faults {} strain {:.1e}",
-                second + 1, median * 1e3, p90 * 1e3, stats.max_volume_fraction, max_at_nodes, stats.step_seconds * 1e3, stats.volume_seconds * 1e3, stats.faults, stats.max_strain
-            );
+fn velocity_smoothing_conserves_momentum_and_narrows_the_velocities_within_cells() {
+    let particles = cloud(5000, DVec3::new(0.4, -0.2, 0.1), 0.5);
+    let changes = smoothing_changes(&particles);
+    let momentum: DVec3 = particles.iter().map(|p| p.mass * p.velocity).sum();
+    let change: DVec3 = particles.iter().zip(&changes).map(|(p, dv)| p.mass * *dv).sum();
+    let moved: f64 = particles.iter().zip(&changes).map(|(p, dv)| p.mass * dv.length()).sum();
+    let scale: f64 = particles.iter().map(|p| p.mass * p.velocity.length()).sum();
+    println!("momentum {momentum}, its change {change}; mean |Δv| share {:.3}", moved / scale);
+    assert!(change.length() <= 1e-9 * momentum.length(), "momentum changed by {change}");
+    assert!(moved > 0.01 * scale, "the smoothing did something: {moved} of {scale}");
+    // Spread within each cell (mass-weighted variance about the cell's mean velocity) shrinks.
+    let cell = |p: &GridParticle| (p.position / params().cell_size).floor().as_ivec3();
+    let spread = |velocity: &dyn Fn(usize) -> DVec3| {
+        let mut cells = std::collections::HashMap::<IVec3, (f64, DVec3, f64)>::new();
+        for (index, p) in particles.iter().enumerate() {
+            let entry = cells.entry(cell(p)).or_default();
+            entry.0 += p.mass;
+            entry.1 += p.mass * velocity(index);
+            entry.2 += p.mass * velocity(index).length_squared();
+        }
+        cells.values().map(|(m, mv, mvv)| if *m > 0.0 { mvv - mv.length_squared() / m } else { 0.0 }).sum::<f64>()
+    };
+    let before = spread(&|index| particles[index].velocity);
+    let after = spread(&|index| particles[index].velocity + changes[index]);
+    println!("spread within cells: {before:.3e} → {after:.3e}");
+    assert!(after < 0.97 * before, "the spread within cells narrowed: {before} → {after}");
+}
+
+#[test]
+fn velocity_smoothing_leaves_uniform_motion_and_free_fall_alone() {
+    for velocity in [DVec3::new(1.5, -0.3, 0.7), DVec3::new(0.0, -3.0, 0.0)] {
+        let particles = cloud(3000, velocity, 0.0);
+        let worst = smoothing_changes(&particles).iter().map(|dv| dv.length()).fold(0.0, f64::max);
+        assert!(worst <= 1e-12 * velocity.length(), "{velocity}: a node's velocity changed by {worst}");
+    }
+}
+
+#[test]
+fn pressure_pushes_out_of_hair_packed_beyond_its_target_and_not_below_it() {
+    let mut grid = VolumeGrid::default();
+    let centre = DVec3::new(0.3, 1.2, -0.1);
+    for (volume, packed) in [(1e-9, true), (1e-12, false)] {
+        let particles: Vec<GridParticle> =
+            cloud(5000, DVec3::ZERO, 0.0).into_iter().map(|p| GridParticle { volume, ..p }).collect();
+        grid.build(&particles, &params());
+        let outward: f64 = particles
+            .iter()
+            .map(|p| grid.response(p.position, p.velocity, 1e-10).1.dot((p.position - centre).normalize()))
+            .sum();
+        println!("max volume fraction {:.3}, outward force {outward:.3e} N", grid.max_volume_fraction());
+        if packed {
+            assert!(grid.max_volume_fraction() > 2.0 * params().target_fraction);
+            assert!(outward > 0.0, "packed hair is pushed outwards: {outward}");
+        } else {
+            assert!(grid.max_volume_fraction() < params().target_fraction);
+            assert_eq!(outward, 0.0, "loose hair feels no pressure");
         }
     }
+}
+
+/// A head at 1.6 m with `groom` on a skull sphere collider of the scalp's size; the grid off or on (its
+/// default velocity smoothing), with the volume pressure of [`params`] or none.
+fn groomed_head(groom: HairGroom, grid: bool, pressure: bool) -> (App, Entity, Vec<Entity>) {
+    let mut app = hair_app();
+    let volume = &mut app.world_mut().resource_mut::<HairSettings>().volume;
+    volume.enabled = grid;
+    volume.stiffness = if pressure { params().stiffness as f32 } else { 0.0 };
+    let skull = groom.scalp.semi_axes;
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), ChildOf(head)));
+    app.update();
+    app.update();
+    let strands = app.world().get::<HeadStrands>(head).expect("hair grew").strands().to_vec();
+    (app, head, strands)
+}
+
+/// Every node of every strand, world space, strand after strand.
+fn nodes(app: &App, strands: &[Entity]) -> Vec<Vec<Vec3>> {
+    strands.iter().map(|&entity| app.world().get::<StrandNodes>(entity).unwrap().positions.clone()).collect()
+}
+
+/// The `share` quantile of `values`.
+fn quantile(mut values: Vec<f32>, share: f32) -> f32 {
+    values.sort_by(f32::total_cmp);
+    values[((values.len() - 1) as f32 * share) as usize]
+}
+
+#[test]
+fn a_full_head_of_hair_rests_in_a_layer_with_volume_instead_of_at_the_collision_margin() {
+    // 1 000 simulated strands standing for 100 000 hairs, combed onto a 10 cm skull, settled for 2 s.
+    let groom = HairGroom { strand_count: 1000, segments: 16, hair_count: 100_000, ..default() };
+    let centre = Vec3::new(0.0, 1.6, 0.0);
+    let mut thickness = Vec::new();
+    for grid in [false, true] {
+        let (mut app, head, strands) = groomed_head(groom.clone(), grid, true);
+        for _ in 0..120 {
+            app.update();
+        }
+        let shape = nodes(&app, &strands);
+        let over_the_top = shape.iter().flatten().filter(|node| node.y > centre.y);
+        let distances: Vec<f32> = over_the_top.map(|node| node.distance(centre) - 0.1).collect();
+        let (median, p90) = (quantile(distances.clone(), 0.5), quantile(distances, 0.9));
+        let grids = app.world().resource::<HairVolumeGrids>();
+        // The volume fraction where the hair rests: at every free node (the root edge is held).
+        let fractions: Vec<f32> = shape
+            .iter()
+            .flat_map(|strand| &strand[2..])
+            .map(|&node| grids.volume_fraction_at(Some(head), node))
+            .collect();
+        let target = params().target_fraction as f32;
+        let (p99, max) = if grid {
+            (quantile(fractions.clone(), 0.99) / target, quantile(fractions, 1.0) / target)
+        } else {
+            (0.0, 0.0)
+        };
+        println!(
+            "grid {grid}: over the top half, nodes {:.2} mm (median) and {:.2} mm (90th percentile) from the skull; \
+             volume fraction / target at free nodes: 99th percentile {p99:.2}, max {max:.2}; faults {}",
+            1e3 * median,
+            1e3 * p90,
+            app.world().resource::<HairStatistics>().faults
+        );
+        assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+        if grid {
+            // Measured 1.53 and 1.96: the densest places are next to the roots, which cannot move.
+            assert!(p99 < 1.6, "the hair rests packed within 1.6 × its target almost everywhere: {p99}");
+            assert!(max < 2.2, "and nowhere above 2.2 ×: {max}");
+        }
+        thickness.push(p90);
+    }
+    assert!(thickness[0] < 0.002, "without the grid the hair lies in one layer: {} m", thickness[0]);
+    assert!(thickness[1] >= 0.003, "with it, a layer at least 3 mm thick: {} m", thickness[1]);
+}
+
+/// Pairs of each strand with its 3 nearest strands (by root), and how many of their nodes (past the root
+/// edge) changed sides of each other between `before` and `after`.
+fn crossings(before: &[Vec<Vec3>], after: &[Vec<Vec3>]) -> (usize, usize) {
+    let (mut crossed, mut pairs) = (0, 0);
+    for a in 0..before.len() {
+        let mut nearest: Vec<usize> = (0..before.len()).filter(|&b| b != a).collect();
+        nearest.sort_by(|&b, &c| before[a][0].distance(before[b][0]).total_cmp(&before[a][0].distance(before[c][0])));
+        for &b in &nearest[..3] {
+            for node in 2..before[a].len() {
+                pairs += 1;
+                let was = before[a][node] - before[b][node];
+                let is = after[a][node] - after[b][node];
+                crossed += usize::from(was.dot(is) < 0.0);
+            }
+        }
+    }
+    (crossed, pairs)
+}
+
+#[test]
+fn long_hair_swinging_past_itself_keeps_its_layers() {
+    // 400 long strands (100 000 hairs) settle for 1 s; the head turns 90° in 0.5 s and back, then rests 1 s.
+    let groom = HairGroom { strand_count: 400, segments: 16, style: HairStyle::Long, hair_count: 100_000, ..default() };
+    let mut counts = Vec::new();
+    for (grid, pressure) in [(false, false), (true, false), (true, true)] {
+        let (mut app, head, strands) = groomed_head(groom.clone(), grid, pressure);
+        for _ in 0..60 {
+            app.update();
+        }
+        let before = nodes(&app, &strands);
+        for step in 0..60 {
+            let turn = std::f32::consts::FRAC_PI_2 * (std::f32::consts::PI * (step + 1) as f32 / 60.0).sin();
+            app.world_mut().get_mut::<Transform>(head).unwrap().rotation = Quat::from_rotation_y(turn);
+            app.update();
+        }
+        for _ in 0..60 {
+            app.update();
+        }
+        let (crossed, pairs) = crossings(&before, &nodes(&app, &strands));
+        println!("grid {grid}, pressure {pressure}: {crossed} of {pairs} neighbouring node pairs changed sides");
+        assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+        counts.push(crossed);
+    }
+    // Measured 452, 420 and 1 690: the smoothing keeps a few more layers; the pressure, rearranging the
+    // groom's single layer into volume, moves strands past their neighbours.
+    assert!(counts[1] < counts[0], "the velocity smoothing keeps more of the layers: {counts:?}");
 }

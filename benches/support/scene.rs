@@ -41,13 +41,7 @@ impl Scene {
     /// The scene with `threads` compute threads (`None`: one per core).
     pub fn new(strands: usize, edges: usize, threads: Option<usize>) -> Self {
         let mut app = Self::app(threads);
-        let mut roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
-        if std::env::var("SORT_ROOTS").is_ok() {
-            roots.sort_by(|a, b| {
-                let key = |r: &ScalpRoot| ((r.position.y * 20.0).floor() as i32, (r.position.z.atan2(r.position.x) * 10.0) as i32);
-                key(a).cmp(&key(b))
-            });
-        }
+        let roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
         let head = app
             .world_mut()
             .spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0)))

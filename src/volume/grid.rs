@@ -85,8 +85,6 @@ struct GridPoint {
     velocity: DVec3,
     /// `α_c`.
     smoothing: f64,
-    /// `g_c = ∇p_c / max(φ_c, φ₀)`, Pa/m.
-    push: DVec3,
     /// `φ_c`.
     fraction: f64,
 }
@@ -123,6 +121,10 @@ pub struct VolumeGrid {
     table: Vec<AtomicU32>,
     /// The bricks in use (the first `used`) and spare ones.
     bricks: Vec<Brick>,
+    /// The pressure's push `g_c = ∇p_c / max(φ_c, φ₀)` (Pa/m) at each point of each brick in use, while
+    /// `pressed` (only hair packed beyond its target is pushed).
+    pushes: Vec<[DVec3; BRICK_POINTS]>,
+    pressed: bool,
     used: usize,
     /// Coordinates of each brick in use, in bricks.
     brick_coordinates: Vec<[usize; 3]>,
@@ -139,18 +141,10 @@ impl VolumeGrid {
     /// Rebuilds the grid around `particles` and computes its fields with `params`. Particles with a
     /// non-finite position or velocity are left out (the mechanics never produce them).
     pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
-        let t = std::time::Instant::now();
         self.place(particles, params.cell_size);
-        let a = t.elapsed().as_secs_f64();
         self.allocate_bricks(particles);
-        let b = t.elapsed().as_secs_f64();
         self.splat(particles);
-        let c = t.elapsed().as_secs_f64();
         self.compute_fields(params);
-        let d = t.elapsed().as_secs_f64();
-        if std::env::var("VOLUME_TIMING").is_ok() {
-            eprintln!("place {:.3} allocate {:.3} splat {:.3} fields {:.3}", a * 1e3, (b - a) * 1e3, (c - b) * 1e3, (d - c) * 1e3);
-        }
     }
 
     /// Spacing of the grid points, m: [`VolumeParams::cell_size`], or coarser where the hair spreads
@@ -184,11 +178,19 @@ impl VolumeGrid {
             return (DVec3::ZERO, DVec3::ZERO);
         };
         let (mut smoothed, mut smoothing, mut push) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-        self.for_each_corner(&stencil, |point, weight| {
+        for k in 0..8 {
+            let brick = self.table[stencil.table_indices[k]].load(Ordering::Relaxed);
+            if brick == NO_BRICK {
+                continue;
+            }
+            let (brick, local, weight) = (brick as usize, stencil.local_indices[k], stencil.weights[k]);
+            let point = &self.bricks[brick][local];
             smoothed += weight * point.velocity;
             smoothing += weight * point.smoothing;
-            push += weight * point.push;
-        });
+            if self.pressed {
+                push += weight * self.pushes[brick][local];
+            }
+        }
         (smoothed - smoothing * velocity, -volume * push)
     }
 
@@ -343,15 +345,18 @@ impl VolumeGrid {
             };
         }
         self.max_fraction = max_fraction;
-        if params.stiffness == 0.0 || max_fraction <= target {
+        self.pressed = params.stiffness > 0.0 && max_fraction > target;
+        if !self.pressed {
             return;
+        }
+        if self.pushes.len() < self.used {
+            self.pushes.resize(self.used, [DVec3::ZERO; BRICK_POINTS]);
         }
         let half_over_cell = 0.5 / self.placement.cell_size;
         let pressure = |fraction: f64| params.stiffness * (fraction / target - 1.0).max(0.0);
         // Each brick's pressures with a layer of its face neighbours' around them.
         const PADDED: usize = BRICK + 2;
         let mut padded = [[[0.0_f64; PADDED]; PADDED]; PADDED];
-        let mut pushes = [DVec3::ZERO; BRICK_POINTS];
         for brick in 0..self.used {
             let coordinates = self.brick_coordinates[brick];
             for (local, point) in self.bricks[brick].iter().enumerate() {
@@ -371,17 +376,17 @@ impl VolumeGrid {
                             (padded_at[others[0]], padded_at[others[1]]) = (a + 1, b + 1);
                             local[axis] = neighbour_layer;
                             padded_at[axis] = padded_layer;
-                            let value = neighbour.map_or(0.0, |neighbour| {
-                                pressure(self.bricks[neighbour][local_index(local)].fraction)
-                            });
+                            let value = neighbour
+                                .map_or(0.0, |neighbour| pressure(self.bricks[neighbour][local_index(local)].fraction));
                             padded[padded_at[0]][padded_at[1]][padded_at[2]] = value;
                         }
                     }
                 }
             }
-            for (local, push) in pushes.iter_mut().enumerate() {
+            for (local, push) in self.pushes[brick].iter_mut().enumerate() {
                 let fraction = self.bricks[brick][local].fraction;
                 if fraction == 0.0 {
+                    *push = DVec3::ZERO;
                     continue;
                 }
                 let [x, y, z] = local_coordinates(local).map(|coordinate| coordinate + 1);
@@ -391,9 +396,6 @@ impl VolumeGrid {
                     padded[x][y][z + 1] - padded[x][y][z - 1],
                 ) * half_over_cell;
                 *push = gradient / fraction.max(target);
-            }
-            for (point, push) in self.bricks[brick].iter_mut().zip(&mut pushes) {
-                point.push = std::mem::take(push);
             }
         }
     }
@@ -442,8 +444,7 @@ impl Placement {
         };
         let ((bx, lx, wx), (by, ly, wy), (bz, lz, wz)) = (along(0), along(1), along(2));
         let [stride_x, stride_y, _] = self.bricks;
-        let mut stencil =
-            Stencil { table_indices: [0; 8], local_indices: [0; 8], weights: [0.0; 8], brick_layers: bz };
+        let mut stencil = Stencil { table_indices: [0; 8], local_indices: [0; 8], weights: [0.0; 8], brick_layers: bz };
         for k in 0..8 {
             let (i, j, l) = (k & 1, (k >> 1) & 1, k >> 2);
             stencil.table_indices[k] = bx[i] + stride_x * (by[j] + stride_y * bz[l]);
@@ -455,7 +456,7 @@ impl Placement {
 }
 
 /// Runs `task` on every item of `work`, on Bevy's compute pool when it has `threads` > 1 threads.
-fn run_in_parallel<W: Send>(threads: usize, work: impl Iterator<Item = W>, task: impl Fn(W) + Sync) {
+pub(crate) fn run_in_parallel<W: Send>(threads: usize, work: impl Iterator<Item = W>, task: impl Fn(W) + Sync) {
     match ComputeTaskPool::try_get() {
         Some(pool) if threads > 1 => {
             let task = &task;

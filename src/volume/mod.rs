@@ -37,10 +37,11 @@
 pub mod grid;
 
 use bevy::ecs::schedule::InternedScheduleLabel;
-use bevy::platform::collections::HashMap;
 use bevy::math::DVec3;
+use bevy::platform::collections::HashMap;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
+use bevy::tasks::ComputeTaskPool;
 
 use crate::HairSystems;
 use crate::followers::HairFollowers;
@@ -48,6 +49,7 @@ use crate::head::StrandOf;
 use crate::rod::RodError;
 use crate::settings::{HairSettings, HairStatistics};
 use crate::strand::{SimulatedStrand, StrandForces};
+use grid::run_in_parallel;
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
 /// The hair–hair interaction's parameters, in [`HairSettings::volume`].
@@ -74,7 +76,7 @@ pub struct HairVolume {
 
 impl Default for HairVolume {
     fn default() -> Self {
-        Self { enabled: true, cell_size: 0.01, velocity_smoothing: 5.0, target_volume_fraction: 0.1, stiffness: 50.0 }
+        Self { enabled: true, cell_size: 0.01, velocity_smoothing: 5.0, target_volume_fraction: 0.1, stiffness: 0.0 }
     }
 }
 
@@ -131,6 +133,8 @@ struct HeadGrid {
     particles: Vec<GridParticle>,
     grid: VolumeGrid,
     used: bool,
+    /// Each strand of the head this step and where its nodes start in `particles`.
+    strands: Vec<(Entity, usize)>,
 }
 
 impl HairVolumeGrids {
@@ -148,6 +152,7 @@ impl HairVolumeGrids {
     fn begin(&mut self) {
         for group in &mut self.groups {
             group.particles.clear();
+            group.strands.clear();
             group.used = false;
         }
     }
@@ -203,6 +208,7 @@ type GridItem = (
     Option<&'static StrandOf>,
     Option<&'static RepresentedHairs>,
     Option<&'static HairFollowers>,
+    Entity,
 );
 
 /// Splats every head's hair to its grid, then gives each strand's free nodes the grid's velocity change
@@ -225,31 +231,58 @@ pub(crate) fn interact_through_grid(
     let started = Instant::now();
     let params = settings.volume.params(dt);
     grids.begin();
-    for (strand, _, strand_of, represented, followers) in &strands {
-        let hairs = represented_hairs(represented, followers);
+    // Where each strand's nodes go in its head's particles, in query order (so the sums are the same
+    // from run to run), then the nodes copied there in parallel.
+    for (strand, _, strand_of, _, _, entity) in &strands {
         let group = grids.group(strand_of.map(|of| of.0));
-        let rod = strand.rod();
-        let moving = if strand.is_quarantined() { 0.0 } else { hairs };
-        let density = rod.material().density;
-        let nodes = rod.positions().iter().zip(rod.velocities()).zip(rod.masses()).enumerate();
-        group.particles.extend(nodes.map(|(node, ((&position, &velocity), &mass))| GridParticle {
-            position,
-            velocity,
-            mass: if rod.is_node_prescribed(node) { 0.0 } else { moving * mass },
-            volume: hairs * mass / density,
-        }));
+        group.strands.push((entity, group.particles.len()));
+        let nodes = strand.rod().node_count();
+        group.particles.resize(group.particles.len() + nodes, GridParticle::default());
+    }
+    let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).max(1);
+    let readonly = strands.as_readonly();
+    for group in &mut grids.groups {
+        // Pieces of about equal numbers of strands, each with the particles they fill.
+        let chunk = group.strands.len().div_ceil(threads).max(1);
+        let mut pieces = Vec::with_capacity(threads);
+        let total = group.particles.len();
+        let mut rest = group.particles.as_mut_slice();
+        for (index, strands_of_piece) in group.strands.chunks(chunk).enumerate() {
+            let end = group.strands.get((index + 1) * chunk).map_or(total, |next| next.1);
+            let (piece, after) = rest.split_at_mut(end - strands_of_piece[0].1);
+            rest = after;
+            pieces.push((strands_of_piece, piece));
+        }
+        run_in_parallel(threads, pieces.into_iter(), |(strands_of_piece, piece)| {
+            let first = strands_of_piece[0].1;
+            for &(entity, offset) in strands_of_piece {
+                let Ok((strand, _, _, represented, followers, _)) = readonly.get(entity) else { continue };
+                let hairs = represented_hairs(represented, followers);
+                let rod = strand.rod();
+                let moving = if strand.is_quarantined() { 0.0 } else { hairs };
+                let density = rod.material().density;
+                let nodes = rod.positions().iter().zip(rod.velocities()).zip(rod.masses()).enumerate();
+                let slots = &mut piece[offset - first..offset - first + rod.node_count()];
+                for (slot, (node, ((&position, &velocity), &mass))) in slots.iter_mut().zip(nodes) {
+                    *slot = GridParticle {
+                        position,
+                        velocity,
+                        mass: if rod.is_node_prescribed(node) { 0.0 } else { moving * mass },
+                        volume: hairs * mass / density,
+                    };
+                }
+            }
+        });
     }
     grids.drop_unused();
-    let collected = started.elapsed().as_secs_f64();
     let mut max_fraction = 0.0_f64;
     for group in &mut grids.groups {
         group.grid.build(&group.particles, &params);
         max_fraction = max_fraction.max(group.grid.max_volume_fraction());
     }
 
-    let built = started.elapsed().as_secs_f64();
     let grids = &*grids;
-    strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, _, _)| {
+    strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, ..)| {
         let Some(grid) = grids.grid(strand_of.map(|of| of.0)) else { return };
         if strand.is_quarantined() {
             return;
@@ -266,9 +299,6 @@ pub(crate) fn interact_through_grid(
         });
     });
     statistics.volume_seconds = started.elapsed().as_secs_f64();
-    if std::env::var("VOLUME_TIMING").is_ok() {
-        eprintln!("collect {:.3} build {:.3} gather {:.3} ms dims {:?}", collected * 1e3, (built - collected) * 1e3, (statistics.volume_seconds - built) * 1e3, grids.groups.first().map(|g| g.grid.points()));
-    }
     statistics.max_volume_fraction = max_fraction;
 }
 
