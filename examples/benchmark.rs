@@ -5,7 +5,8 @@
 //! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
 //! started to swing.
 //!
-//! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`; all by
+//! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
+//! `followers`, `integrators`, `volume`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -120,17 +121,26 @@ fn main() {
 }
 
 /// Hair–hair interaction ([`HairVolume`]) on the scene's 2 000 × 32 strands standing for 100 000 hairs
-/// (50 each), on all five colliders, grid off and on in turn (one interleaved run): median ms per step of
-/// the whole update, and of the grid alone, and its share.
+/// (50 each), on all five colliders: the grid off, on with its defaults (velocity smoothing, 1 cm cells),
+/// and on with the volume pressure (50 Pa, 5 mm cells), in turn (one interleaved run): median ms per
+/// update, of the grid alone, and its share of the update.
 fn volume_cost(threads: usize, steps: usize) {
     println!();
     println!("| 2 000 × 32, 5 colliders, 100 000 hairs | ms per update | grid, ms | grid share |");
     println!("|---|---:|---:|---:|");
-    let mut scenes: Vec<Scene> = [false, true]
-        .into_iter()
-        .map(|enabled| {
+    let rows = [
+        ("grid off", HairVolume { enabled: false, ..HairVolume::default() }),
+        ("grid on (defaults: smoothing, 1 cm)", HairVolume::default()),
+        (
+            "grid on with pressure (50 Pa, 5 mm)",
+            HairVolume { stiffness: 50.0, cell_size: 0.005, ..HairVolume::default() },
+        ),
+    ];
+    let mut scenes: Vec<Scene> = rows
+        .iter()
+        .map(|(_, volume)| {
             let mut scene = Scene::new(2000, 32, Some(threads)).with_colliders(5);
-            scene.app.world_mut().resource_mut::<HairSettings>().volume.enabled = enabled;
+            scene.app.world_mut().resource_mut::<HairSettings>().volume = *volume;
             let strands: Vec<_> = scene.app.world().get::<HeadStrands>(scene.head).expect("hair").strands().to_vec();
             for strand in strands {
                 scene.app.world_mut().entity_mut(strand).insert(RepresentedHairs(50));
@@ -139,27 +149,23 @@ fn volume_cost(threads: usize, steps: usize) {
         })
         .collect();
     scenes.iter_mut().for_each(Scene::warm_up);
-    let mut times = [Vec::with_capacity(steps), Vec::with_capacity(steps)];
-    let mut grid = Vec::with_capacity(steps);
+    let mut times = vec![Vec::with_capacity(steps); rows.len()];
+    let mut grid = vec![Vec::with_capacity(steps); rows.len()];
     for _ in 0..steps {
         for (index, scene) in scenes.iter_mut().enumerate() {
             let started = Instant::now();
             scene.step();
             times[index].push(started.elapsed().as_secs_f64());
-            if index == 1 {
-                grid.push(scene.app.world().resource::<HairStatistics>().volume_seconds);
-            }
+            grid[index].push(scene.app.world().resource::<HairStatistics>().volume_seconds);
         }
     }
     let median = |values: &mut Vec<f64>| {
         values.sort_by(f64::total_cmp);
         values[values.len() / 2]
     };
-    let grid = median(&mut grid);
-    for (name, times) in ["off", "on"].into_iter().zip(&mut times) {
-        let update = median(times);
-        let (grid, share) = if name == "on" { (grid, grid / update) } else { (0.0, 0.0) };
-        println!("| grid {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * share);
+    for ((name, _), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
+        let (update, grid) = (median(times), median(grid));
+        println!("| {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * grid / update);
     }
 }
 

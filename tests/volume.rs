@@ -99,12 +99,13 @@ fn pressure_pushes_out_of_hair_packed_beyond_its_target_and_not_below_it() {
 }
 
 /// A head at 1.6 m with `groom` on a skull sphere collider of the scalp's size; the grid off or on (its
-/// default velocity smoothing), with the volume pressure of [`params`] or none.
+/// default velocity smoothing, the cells of [`params`]), with the volume pressure of [`params`] or none.
 fn groomed_head(groom: HairGroom, grid: bool, pressure: bool) -> (App, Entity, Vec<Entity>) {
     let mut app = hair_app();
     let volume = &mut app.world_mut().resource_mut::<HairSettings>().volume;
     volume.enabled = grid;
     volume.stiffness = if pressure { params().stiffness as f32 } else { 0.0 };
+    volume.cell_size = params().cell_size as f32;
     let skull = groom.scalp.semi_axes;
     let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
     app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), ChildOf(head)));
