@@ -525,18 +525,22 @@ impl StrandForces {
         }
     }
 
-    /// Adds `force_at(node)` (N) to every node's force and `velocity_change_at(node)` (m/s) to its
-    /// velocity change, for the hair–hair interaction.
-    pub(crate) fn add_forces_and_velocity_changes(&mut self, mut at: impl FnMut(usize) -> (DVec3, DVec3)) {
-        for (node, (force, change)) in
-            self.forces.values.iter_mut().zip(self.velocity_changes.values.iter_mut()).enumerate()
-        {
-            let (add_force, add_change) = at(node);
-            *force += add_force;
+    /// Adds `at(node)`'s velocity change (m/s) to every node's, and its force (N) when `with_forces`,
+    /// for the hair–hair interaction.
+    pub(crate) fn add_velocity_changes_and_forces(
+        &mut self,
+        with_forces: bool,
+        mut at: impl FnMut(usize) -> (DVec3, DVec3),
+    ) {
+        for (node, change) in self.velocity_changes.values.iter_mut().enumerate() {
+            let (add_change, add_force) = at(node);
             *change += add_change;
+            if with_forces {
+                self.forces.values[node] += add_force;
+            }
         }
-        self.forces.active |= !self.forces.values.is_empty();
         self.velocity_changes.active |= !self.velocity_changes.values.is_empty();
+        self.forces.active |= with_forces && !self.forces.values.is_empty();
     }
 
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.

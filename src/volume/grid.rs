@@ -158,6 +158,12 @@ impl VolumeGrid {
         self.used * BRICK_POINTS
     }
 
+    /// Whether the pressure pushes anywhere (some hair is packed beyond its target, and the stiffness is
+    /// not zero).
+    pub fn pressed(&self) -> bool {
+        self.pressed
+    }
+
     /// Largest hair volume fraction at a grid point.
     pub fn max_volume_fraction(&self) -> f64 {
         self.max_fraction
@@ -239,16 +245,16 @@ impl VolumeGrid {
                 if !usable(particle) {
                     continue;
                 }
-                let Some(stencil) = placement.stencil(particle.position) else { continue };
-                for index in stencil.table_indices {
+                let marked = placement.for_each_brick(particle.position, |index| {
                     // Read first: most bricks are marked already, and a store would take the cache
                     // line from the other threads.
                     if table[index].load(Ordering::Relaxed) == NO_BRICK {
                         table[index].store(0, Ordering::Relaxed);
                     }
-                }
+                });
+                let Some(layers) = marked else { continue };
                 let index = (chunk_index * chunk_length + offset) as u32;
-                let [low, high] = stencil.brick_layers.map(|layer| layer / slab_layers);
+                let [low, high] = layers.map(|layer| layer / slab_layers);
                 bins[low].push(index);
                 if high != low {
                     bins[high].push(index);
@@ -429,13 +435,7 @@ impl VolumeGrid {
 impl Placement {
     /// The 8 grid points around `position`, if they are in the box.
     fn stencil(&self, position: DVec3) -> Option<Stencil> {
-        let local = (position - self.origin) / self.cell_size;
-        // Truncation is the floor here: the box starts below every particle.
-        let corner = [local.x as usize, local.y as usize, local.z as usize];
-        let inside = local.cmpge(DVec3::ZERO).all() && (0..3).all(|axis| corner[axis] + 1 < self.bricks[axis] * BRICK);
-        if !inside {
-            return None;
-        }
+        let (corner, local) = self.corner(position)?;
         // Along each axis: the lower and upper point's brick, index within it, and weight.
         let along = |axis: usize| {
             let (low, high) = (corner[axis], corner[axis] + 1);
@@ -444,14 +444,42 @@ impl Placement {
         };
         let ((bx, lx, wx), (by, ly, wy), (bz, lz, wz)) = (along(0), along(1), along(2));
         let [stride_x, stride_y, _] = self.bricks;
+        let (ty, tz) = (by.map(|b| stride_x * b), bz.map(|b| stride_x * stride_y * b));
+        let (ly, lz) = (ly.map(|l| BRICK * l), lz.map(|l| BRICK * BRICK * l));
         let mut stencil = Stencil { table_indices: [0; 8], local_indices: [0; 8], weights: [0.0; 8], brick_layers: bz };
         for k in 0..8 {
             let (i, j, l) = (k & 1, (k >> 1) & 1, k >> 2);
-            stencil.table_indices[k] = bx[i] + stride_x * (by[j] + stride_y * bz[l]);
-            stencil.local_indices[k] = lx[i] + BRICK * (ly[j] + BRICK * lz[l]);
+            stencil.table_indices[k] = bx[i] + ty[j] + tz[l];
+            stencil.local_indices[k] = lx[i] + ly[j] + lz[l];
             stencil.weights[k] = wx[i] * wy[j] * wz[l];
         }
         Some(stencil)
+    }
+
+    /// The lowest of the 8 grid points around `position` and the position in grid units, if the 8 are
+    /// in the box.
+    fn corner(&self, position: DVec3) -> Option<([usize; 3], DVec3)> {
+        let local = (position - self.origin) * (1.0 / self.cell_size);
+        // Truncation is the floor here: the box starts below every particle.
+        let corner = [local.x as usize, local.y as usize, local.z as usize];
+        let inside = local.cmpge(DVec3::ZERO).all() && (0..3).all(|axis| corner[axis] + 1 < self.bricks[axis] * BRICK);
+        inside.then_some((corner, local))
+    }
+
+    /// Calls `visit(table index)` for the bricks holding the 8 grid points around `position` (1 to 8 of
+    /// them); returns the z layers of bricks of the lower and upper points, or `None` outside the box.
+    fn for_each_brick(&self, position: DVec3, mut visit: impl FnMut(usize)) -> Option<[usize; 2]> {
+        let (corner, _) = self.corner(position)?;
+        let [bx, by, bz] = corner.map(|low| [low / BRICK, (low + 1) / BRICK]);
+        let [stride_x, stride_y, _] = self.bricks;
+        for z in if bz[0] == bz[1] { &bz[..1] } else { &bz[..] } {
+            for y in if by[0] == by[1] { &by[..1] } else { &by[..] } {
+                for x in if bx[0] == bx[1] { &bx[..1] } else { &bx[..] } {
+                    visit(x + stride_x * (y + stride_y * z));
+                }
+            }
+        }
+        Some(bz)
     }
 }
 

@@ -290,12 +290,11 @@ pub(crate) fn interact_through_grid(
         let rod = strand.rod();
         let (positions, velocities, masses) = (rod.positions(), rod.velocities(), rod.masses());
         let density = rod.material().density;
-        forces.add_forces_and_velocity_changes(|node| {
+        forces.add_velocity_changes_and_forces(grid.pressed(), |node| {
             if rod.is_node_prescribed(node) {
                 return (DVec3::ZERO, DVec3::ZERO);
             }
-            let (change, force) = grid.response(positions[node], velocities[node], masses[node] / density);
-            (force, change)
+            grid.response(positions[node], velocities[node], masses[node] / density)
         });
     });
     statistics.volume_seconds = started.elapsed().as_secs_f64();
