@@ -129,7 +129,8 @@ impl Options {
             combed: groom.combing.is_some(),
             wind: 0.0,
             integrator: HairSettings::default().integrator,
-            volume: HairVolume::default(),
+            // The example shows the hair–hair grid: its velocity smoothing (the pressure with --pressure).
+            volume: HairVolume { enabled: true, ..default() },
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;

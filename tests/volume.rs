@@ -220,3 +220,21 @@ fn long_hair_swinging_past_itself_keeps_its_layers() {
     // groom's single layer into volume, moves strands past their neighbours.
     assert!(counts[1] < counts[0], "the velocity smoothing keeps more of the layers: {counts:?}");
 }
+
+#[test]
+fn invalid_volume_settings_are_reported_and_hold_the_hair() {
+    let groom = HairGroom { strand_count: 50, segments: 8, ..default() };
+    let (mut app, _, strands) = groomed_head(groom, true, true);
+    app.world_mut().resource_mut::<HairSettings>().volume.cell_size = f32::NAN;
+    let before = nodes(&app, &strands);
+    for _ in 0..5 {
+        app.update();
+    }
+    let error = app.world().resource::<HairStatistics>().settings_error.clone();
+    assert!(error.as_deref().is_some_and(|error| error.contains("volume.cell_size")), "{error:?}");
+    assert_eq!(nodes(&app, &strands), before, "the hair waits for valid settings");
+    app.world_mut().resource_mut::<HairSettings>().volume.cell_size = 0.005;
+    app.update();
+    assert_eq!(app.world().resource::<HairStatistics>().settings_error, None);
+    assert!(nodes(&app, &strands).iter().flatten().all(|node| node.is_finite()));
+}
