@@ -7,6 +7,7 @@ mod common;
 use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::rod::{Contacts, Integrator, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams};
 use bevy_hair_sim::volume::{GridParticle, VolumeGrid, VolumeParams};
 use common::headless::hair_app;
 
@@ -73,6 +74,47 @@ fn velocity_smoothing_leaves_uniform_motion_and_free_fall_alone() {
         let worst = smoothing_changes(&particles).iter().map(|dv| dv.length()).fold(0.0, f64::max);
         assert!(worst <= 1e-12 * velocity.length(), "{velocity}: a node's velocity changed by {worst}");
     }
+}
+
+#[test]
+fn a_velocity_change_moves_the_predicted_velocity_by_exactly_itself_in_both_integrators() {
+    // A free, straight 10 cm hair at rest in weightless still air: a uniform velocity change is a rigid
+    // translation, which the step carries out exactly.
+    let nodes: Vec<DVec3> = (0..=10).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect();
+    let change = DVec3::new(0.02, -0.05, 0.01);
+    let changes = vec![change; nodes.len()];
+    for integrator in [Integrator::BackwardEuler, Integrator::Bdf2] {
+        let params = StepParams { gravity: DVec3::ZERO, air_damping: 0.0, integrator, ..StepParams::default() };
+        let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
+        let mut workspace = RodWorkspace::default();
+        // A step at rest first, so that BDF2 has a step to look back on.
+        rod.step(&params, None, &mut workspace).unwrap();
+        let before = rod.positions().to_vec();
+        let loads = StepLoads { velocity_changes: Some(&changes), ..StepLoads::default() };
+        rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
+        // Backward Euler moves by dt Δv; BDF2 by h Δv = ⅔ dt Δv in its first step after the change.
+        let h = if integrator == Integrator::Bdf2 { 2.0 / 3.0 * params.dt } else { params.dt };
+        for (node, (&after, &start)) in rod.positions().iter().zip(&before).enumerate() {
+            let moved = after - start;
+            assert!((moved - h * change).length() < 1e-12, "{integrator:?} node {node} moved {moved}");
+            assert!((rod.velocities()[node] - change).length() < 1e-9, "{integrator:?}: {}", rod.velocities()[node]);
+        }
+    }
+    // Prescribed nodes ignore it; a non-finite change is rejected and changes nothing.
+    let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    let mut workspace = RodWorkspace::default();
+    let params = StepParams { gravity: DVec3::ZERO, ..StepParams::default() };
+    let loads = StepLoads { velocity_changes: Some(&changes), ..StepLoads::default() };
+    rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
+    assert_eq!(rod.positions()[0], nodes[0]);
+    let mut bad = changes.clone();
+    bad[4] = DVec3::new(f64::NAN, 0.0, 0.0);
+    let snapshot = rod.snapshot();
+    let loads = StepLoads { velocity_changes: Some(&bad), ..StepLoads::default() };
+    let error = rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap_err();
+    assert!(error.to_string().contains("velocity change"), "{error}");
+    assert_eq!(rod.snapshot(), snapshot);
 }
 
 #[test]

@@ -211,7 +211,7 @@ impl Rod {
     }
 
     /// Advances the rod by `params.dt` under gravity, the `loads` from outside (per-node forces, the
-    /// air's velocity for the drag) and its boundary conditions (prescribed nodes move to their targets
+    /// air's velocity for the drag, velocity changes at the start) and its boundary conditions (prescribed nodes move to their targets
     /// over the step), kept outside the colliders of `contacts` with friction (see [`Contacts`]).
     ///
     /// No `Ok` step ends with an edge strained beyond [`StepParams::strain_bound`]: when the projections
