@@ -145,6 +145,8 @@ struct HeadGrid {
     used: bool,
     /// Each strand of the head this step and where its nodes start in `particles`.
     strands: Vec<(Entity, usize)>,
+    /// Nodes of the head's strands this step.
+    nodes: usize,
 }
 
 impl HairVolumeGrids {
@@ -161,8 +163,8 @@ impl HairVolumeGrids {
     /// Starts a step: every group empty and unused, their memory kept.
     fn begin(&mut self) {
         for group in &mut self.groups {
-            group.particles.clear();
             group.strands.clear();
+            group.nodes = 0;
             group.used = false;
         }
     }
@@ -245,9 +247,12 @@ pub(crate) fn interact_through_grid(
     // from run to run), then the nodes copied there in parallel.
     for (strand, _, strand_of, _, _, entity) in &strands {
         let group = grids.group(strand_of.map(|of| of.0));
-        group.strands.push((entity, group.particles.len()));
-        let nodes = strand.rod().node_count();
-        group.particles.resize(group.particles.len() + nodes, GridParticle::default());
+        group.strands.push((entity, group.nodes));
+        group.nodes += strand.rod().node_count();
+    }
+    for group in &mut grids.groups {
+        // Every slot is written below: this only sizes the list (nothing to do when it is unchanged).
+        group.particles.resize(group.nodes, GridParticle::default());
     }
     let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).max(1);
     let readonly = strands.as_readonly();
