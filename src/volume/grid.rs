@@ -23,7 +23,6 @@
 //! - Volume pressure (after McAdams, Selle, Ward, Sifakis, Teran 2009, without their global solve):
 //!   force `f_i = −V_i Σ_c w_ic g_c`, a node's own keratin volume times the push: hydrostatic
 //!   equilibrium of a hair layer, `dp/dn = −φ ρ g`, holds the hair up where it is piled.
-
 //!
 //! **Storage.** Hair fills a thin shell around a head, a small part of its bounding box, so the grid is
 //! sparse: bricks of 4 × 4 × 4 points, allocated where hair is, found through a dense table over the
