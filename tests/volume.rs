@@ -205,9 +205,11 @@ fn a_full_head_of_hair_rests_in_a_layer_with_volume_instead_of_at_the_collision_
         );
         assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
         if grid {
-            // Measured 1.53 and 1.96: the densest places are next to the roots, which cannot move.
-            assert!(p99 < 1.6, "the hair rests packed within 1.6 × its target almost everywhere: {p99}");
-            assert!(max < 2.2, "and nowhere above 2.2 ×: {max}");
+            // Measured 1.56 and 2.19 (1.53 and 1.96 with other rounding in the grid's weights: the settled
+            // shape is chaotic in the last bits). The densest places are next to the roots, which cannot
+            // move.
+            assert!(p99 < 1.7, "the hair rests packed within 1.7 × its target almost everywhere: {p99}");
+            assert!(max < 2.5, "and nowhere above 2.5 ×: {max}");
         }
         thickness.push(p90);
     }
@@ -258,7 +260,7 @@ fn long_hair_swinging_past_itself_keeps_its_layers() {
         assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
         counts.push(crossed);
     }
-    // Measured 452, 420 and 1 690: the smoothing keeps a few more layers; the pressure, rearranging the
+    // Measured 452, 427 and 1 572: the smoothing keeps a few more layers; the pressure, rearranging the
     // groom's single layer into volume, moves strands past their neighbours.
     assert!(counts[1] < counts[0], "the velocity smoothing keeps more of the layers: {counts:?}");
 }

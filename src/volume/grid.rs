@@ -26,11 +26,12 @@
 //!
 //! **Storage.** Hair fills a thin shell around a head, a small part of its bounding box, so the grid is
 //! sparse: bricks of 4 × 4 × 4 points, allocated where hair is, found through a dense table over the
-//! bounding box (one `u32` per brick). Bricks are numbered in z-major order, so the bricks of a range of
-//! z layers are contiguous: the splat runs in parallel over such slabs, each thread adding only to its
-//! own bricks (the sums do not depend on the number of threads).
+//! bounding box (one `u32` per brick). The box is cut into slabs of z layers of bricks, one per thread;
+//! each slab owns its part of the table and its own bricks, and splats every node's share that lands in
+//! it, allocating bricks as it meets them. No two threads write the same memory, and each grid point
+//! receives its sums in the nodes' order, whatever the number of threads.
 
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::ops::Range;
 
 use bevy::math::DVec3;
 use bevy::tasks::ComputeTaskPool;
@@ -90,12 +91,13 @@ struct GridPoint {
 
 type Brick = [GridPoint; BRICK_POINTS];
 
-/// Where a grid lies: its first point, its spacing, and its size in bricks.
+/// Where a grid lies: its first point, its spacing, its size in bricks, and the brick layers per slab.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Placement {
     origin: DVec3,
     cell_size: f64,
     bricks: [usize; 3],
+    slab_layers: usize,
 }
 
 /// The 8 grid points around a position, x fastest: where each is (its brick's table index, its index
@@ -109,30 +111,30 @@ struct Stencil {
     brick_layers: [usize; 2],
 }
 
+/// The bricks of one slab of brick layers, in the order the splat met them.
+#[derive(Debug, Default)]
+struct Slab {
+    /// The bricks in use (the first `used`) and spare ones.
+    bricks: Vec<Brick>,
+    /// The pressure's push `g_c = ∇p_c / max(φ_c, φ₀)` (Pa/m) at each point of each brick in use,
+    /// while the grid is `pressed`.
+    pushes: Vec<[DVec3; BRICK_POINTS]>,
+    /// Coordinates of each brick in use, in bricks.
+    coordinates: Vec<[usize; 3]>,
+    used: usize,
+}
+
 /// A hair grid (one head's), rebuilt every step around its hair, axis-aligned, its points on multiples
 /// of the cell size (hair at rest sees the same grid from step to step). All memory is reused from step
 /// to step.
 #[derive(Debug, Default)]
 pub struct VolumeGrid {
     placement: Placement,
-    /// Index into `bricks` of each brick of the bounding box, z-major, or [`NO_BRICK`] (atomic so that
-    /// threads can mark bricks in use side by side).
-    table: Vec<AtomicU32>,
-    /// The bricks in use (the first `used`) and spare ones.
-    bricks: Vec<Brick>,
-    /// The pressure's push `g_c = ∇p_c / max(φ_c, φ₀)` (Pa/m) at each point of each brick in use, while
-    /// `pressed` (only hair packed beyond its target is pushed).
-    pushes: Vec<[DVec3; BRICK_POINTS]>,
+    /// Index of each brick of the bounding box (z-major) among its slab's bricks, or [`NO_BRICK`].
+    table: Vec<u32>,
+    slabs: Vec<Slab>,
+    /// Whether the pressure pushes anywhere (a stiffness, and hair packed beyond its target).
     pressed: bool,
-    used: usize,
-    /// Coordinates of each brick in use, in bricks.
-    brick_coordinates: Vec<[usize; 3]>,
-    /// Index of the first brick of each z layer of bricks, and one past the last.
-    layer_starts: Vec<usize>,
-    /// Brick layers per slab of the parallel splat.
-    slab_layers: usize,
-    /// The particles each chunk of particles sends to each slab: `bins[chunk × slabs + slab]`.
-    bins: Vec<Vec<u32>>,
     max_fraction: f64,
 }
 
@@ -141,7 +143,6 @@ impl VolumeGrid {
     /// non-finite position or velocity are left out (the mechanics never produce them).
     pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
         self.place(particles, params.cell_size);
-        self.allocate_bricks(particles);
         self.splat(particles);
         self.compute_fields(params);
     }
@@ -154,7 +155,7 @@ impl VolumeGrid {
 
     /// Grid points in use (in bricks where there is hair).
     pub fn points(&self) -> usize {
-        self.used * BRICK_POINTS
+        self.slabs.iter().map(|slab| slab.used).sum::<usize>() * BRICK_POINTS
     }
 
     /// Whether the pressure pushes anywhere (some hair is packed beyond its target, and the stiffness is
@@ -172,7 +173,9 @@ impl VolumeGrid {
     pub fn volume_fraction_at(&self, position: DVec3) -> f64 {
         let Some(stencil) = self.placement.stencil(position) else { return 0.0 };
         let mut sum = 0.0;
-        self.for_each_corner(&stencil, |point, weight| sum += weight * point.fraction);
+        self.for_each_corner(&stencil, |slab, brick, local, weight| {
+            sum += weight * self.slabs[slab].bricks[brick][local].fraction;
+        });
         sum
     }
 
@@ -183,23 +186,20 @@ impl VolumeGrid {
             return (DVec3::ZERO, DVec3::ZERO);
         };
         let (mut smoothed, mut smoothing, mut push) = (DVec3::ZERO, 0.0, DVec3::ZERO);
-        for k in 0..8 {
-            let brick = self.table[stencil.table_indices[k]].load(Ordering::Relaxed);
-            if brick == NO_BRICK {
-                continue;
-            }
-            let (brick, local, weight) = (brick as usize, stencil.local_indices[k], stencil.weights[k]);
-            let point = &self.bricks[brick][local];
+        self.for_each_corner(&stencil, |slab, brick, local, weight| {
+            let slab = &self.slabs[slab];
+            let point = &slab.bricks[brick][local];
             smoothed += weight * point.velocity;
             smoothing += weight * point.smoothing;
             if self.pressed {
-                push += weight * self.pushes[brick][local];
+                push += weight * slab.pushes[brick][local];
             }
-        }
+        });
         (smoothed - smoothing * velocity, -volume * push)
     }
 
-    /// Places the grid around the finite particles, coarsening the cells if its box would be too large.
+    /// Places the grid around the finite particles, coarsening the cells if its box would be too large,
+    /// and cuts it into one slab per thread.
     fn place(&mut self, particles: &[GridParticle], cell_size: f64) {
         let (mut low, mut high) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for particle in particles.iter().filter(|particle| usable(particle)) {
@@ -210,115 +210,53 @@ impl VolumeGrid {
             (low, high) = (DVec3::ZERO, DVec3::ZERO);
         }
         let mut cell = cell_size;
-        loop {
+        let (origin, bricks) = loop {
             // One empty point below the lowest particle's and two above the highest's, so that every
             // stencil and its neighbours are in the box.
             let first = (low / cell).floor() - DVec3::ONE;
             let points = (high / cell).floor() - first + DVec3::splat(3.0);
             let bricks = (points / BRICK as f64).ceil();
             if bricks.x * bricks.y * bricks.z <= MAX_GRID_BRICKS as f64 {
-                let bricks = [bricks.x as usize, bricks.y as usize, bricks.z as usize];
-                self.placement = Placement { origin: first * cell, cell_size: cell, bricks };
-                break;
+                break (first * cell, [bricks.x as usize, bricks.y as usize, bricks.z as usize]);
             }
             cell *= (bricks.x * bricks.y * bricks.z / MAX_GRID_BRICKS as f64).cbrt() * 1.01;
-        }
-        self.table.clear();
-        self.table.resize_with(self.placement.bricks.iter().product(), || AtomicU32::new(NO_BRICK));
-    }
-
-    /// Gives every brick that a particle's stencil touches a place in `bricks`, numbered z-major, zeroed,
-    /// and sorts the particles into the slabs they splat to (in parallel over chunks of particles).
-    fn allocate_bricks(&mut self, particles: &[GridParticle]) {
-        let placement = self.placement;
-        let layers = placement.bricks[2];
-        let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).clamp(1, layers);
-        self.slab_layers = layers.div_ceil(threads);
-        let slab_layers = self.slab_layers;
-        self.bins.resize_with(threads * threads, Vec::new);
-        self.bins.iter_mut().for_each(Vec::clear);
-        let table = &self.table;
-        let chunk_length = particles.len().div_ceil(threads).max(1);
-        let mark = |(chunk_index, (chunk, bins)): (usize, (&[GridParticle], &mut [Vec<u32>]))| {
-            for (offset, particle) in chunk.iter().enumerate() {
-                if !usable(particle) {
-                    continue;
-                }
-                let marked = placement.for_each_brick(particle.position, |index| {
-                    // Read first: most bricks are marked already, and a store would take the cache
-                    // line from the other threads.
-                    if table[index].load(Ordering::Relaxed) == NO_BRICK {
-                        table[index].store(0, Ordering::Relaxed);
-                    }
-                });
-                let Some(layers) = marked else { continue };
-                let index = (chunk_index * chunk_length + offset) as u32;
-                let [low, high] = layers.map(|layer| layer / slab_layers);
-                bins[low].push(index);
-                if high != low {
-                    bins[high].push(index);
-                }
-            }
         };
-        let work = particles.chunks(chunk_length).zip(self.bins.chunks_mut(threads)).enumerate();
-        run_in_parallel(threads, work, mark);
-
-        let [bx, by, _] = placement.bricks;
-        self.used = 0;
-        self.brick_coordinates.clear();
-        self.layer_starts.clear();
-        for (index, slot) in self.table.iter_mut().enumerate() {
-            if index % (bx * by) == 0 {
-                self.layer_starts.push(self.used);
-            }
-            let slot = slot.get_mut();
-            if *slot != NO_BRICK {
-                *slot = self.used as u32;
-                self.used += 1;
-                self.brick_coordinates.push([index % bx, index / bx % by, index / (bx * by)]);
-            }
+        let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).clamp(1, bricks[2]);
+        let slab_layers = bricks[2].div_ceil(threads);
+        self.placement = Placement { origin, cell_size: cell, bricks, slab_layers };
+        self.table.clear();
+        self.table.resize(bricks.iter().product(), NO_BRICK);
+        self.slabs.resize_with(bricks[2].div_ceil(slab_layers), Slab::default);
+        for slab in &mut self.slabs {
+            slab.used = 0;
+            slab.coordinates.clear();
         }
-        self.layer_starts.push(self.used);
-        if self.bricks.len() < self.used {
-            self.bricks.resize(self.used, [GridPoint::default(); BRICK_POINTS]);
-        }
-        self.bricks[..self.used].fill([GridPoint::default(); BRICK_POINTS]);
     }
 
-    /// Spreads the particles' momentum, mass and volume over the grid, in parallel over slabs of brick
-    /// layers: each slab takes the particles binned to it and adds only to its own bricks.
+    /// Spreads the particles' momentum, mass and volume over the grid, in parallel over the slabs: each
+    /// takes every particle's share that lands in its layers, in the particles' order, allocating its
+    /// bricks as it meets them.
     fn splat(&mut self, particles: &[GridParticle]) {
         let placement = self.placement;
-        let layers = placement.bricks[2];
-        let threads = self.bins.len().isqrt();
-        let table = &self.table;
-        let bins = &self.bins;
-        // Split the bricks in use at the slabs' first layers.
-        let mut slabs = Vec::with_capacity(threads);
-        let mut rest = &mut self.bricks[..self.used];
-        let mut taken = 0;
-        for slab in 0..threads {
-            let first_layer = (slab * self.slab_layers).min(layers);
-            let end_layer = ((slab + 1) * self.slab_layers).min(layers);
-            let end = self.layer_starts[end_layer];
-            let (bricks, after) = rest.split_at_mut(end - taken);
-            rest = after;
-            slabs.push((slab, first_layer..end_layer, taken, bricks));
-            taken = end;
-        }
-        let splat_slab = |(slab, layers, first_brick, bricks): (usize, std::ops::Range<usize>, usize, &mut [Brick])| {
-            let binned = (0..threads).flat_map(|chunk| bins[chunk * threads + slab].iter());
-            for &index in binned {
-                let particle = &particles[index as usize];
-                let Some(stencil) = placement.stencil(particle.position) else { continue };
-                let [low, high] = stencil.brick_layers.map(|layer| layers.contains(&layer));
+        let layer = placement.bricks[0] * placement.bricks[1];
+        let slabs = self.slabs.len();
+        let tables = self.table.chunks_mut(placement.slab_layers * layer);
+        let work = self.slabs.iter_mut().zip(tables).enumerate();
+        let splat_slab = |(index, (slab, table)): (usize, (&mut Slab, &mut [u32]))| {
+            let layers = index * placement.slab_layers..(index + 1) * placement.slab_layers;
+            let first_entry = layers.start * layer;
+            for particle in particles.iter().filter(|particle| usable(particle)) {
+                let Some(stencil) = placement.stencil_in(particle.position, &layers) else { continue };
                 let momentum = particle.mass * particle.velocity;
                 for k in 0..8 {
-                    if !(if k < 4 { low } else { high }) {
+                    if !layers.contains(&stencil.brick_layers[k >> 2]) {
                         continue;
                     }
-                    let brick = table[stencil.table_indices[k]].load(Ordering::Relaxed) as usize - first_brick;
-                    let point = &mut bricks[brick][stencil.local_indices[k]];
+                    let entry = &mut table[stencil.table_indices[k] - first_entry];
+                    if *entry == NO_BRICK {
+                        *entry = slab.allocate(placement.brick_coordinates(stencil.table_indices[k]));
+                    }
+                    let point = &mut slab.bricks[*entry as usize][stencil.local_indices[k]];
                     let weight = stencil.weights[k];
                     point.velocity += weight * momentum;
                     point.smoothing += weight * particle.mass;
@@ -326,8 +264,9 @@ impl VolumeGrid {
                 }
             }
         };
-        run_in_parallel(threads, slabs.into_iter(), splat_slab);
+        run_in_parallel(slabs, work, splat_slab);
     }
+
     /// Turns the splatted sums into velocity, smoothing and volume fraction at every grid point, then
     /// computes the pressure's push.
     fn compute_fields(&mut self, params: &VolumeParams) {
@@ -335,36 +274,47 @@ impl VolumeGrid {
         let target = params.target_fraction;
         let rate = params.smoothing_rate * params.dt;
         let mut max_fraction = 0.0_f64;
-        for point in self.bricks[..self.used].iter_mut().flatten() {
-            let (momentum, mass) = (point.velocity, point.smoothing);
-            if point.fraction == 0.0 {
-                continue;
+        for slab in &mut self.slabs {
+            for point in slab.bricks[..slab.used].iter_mut().flatten() {
+                let (momentum, mass) = (point.velocity, point.smoothing);
+                if point.fraction == 0.0 {
+                    continue;
+                }
+                point.fraction /= cell_volume;
+                max_fraction = max_fraction.max(point.fraction);
+                (point.velocity, point.smoothing) = if mass > 0.0 && rate > 0.0 {
+                    let smoothing = 1.0 - (-rate * (point.fraction / target).min(1.0)).exp();
+                    (smoothing * momentum / mass, smoothing)
+                } else {
+                    (DVec3::ZERO, 0.0)
+                };
             }
-            point.fraction /= cell_volume;
-            max_fraction = max_fraction.max(point.fraction);
-            (point.velocity, point.smoothing) = if mass > 0.0 && rate > 0.0 {
-                let smoothing = 1.0 - (-rate * (point.fraction / target).min(1.0)).exp();
-                (smoothing * momentum / mass, smoothing)
-            } else {
-                (DVec3::ZERO, 0.0)
-            };
         }
         self.max_fraction = max_fraction;
         self.pressed = params.stiffness > 0.0 && max_fraction > target;
         if !self.pressed {
             return;
         }
-        if self.pushes.len() < self.used {
-            self.pushes.resize(self.used, [DVec3::ZERO; BRICK_POINTS]);
+        for index in 0..self.slabs.len() {
+            let mut pushes = std::mem::take(&mut self.slabs[index].pushes);
+            pushes.resize(self.slabs[index].used.max(pushes.len()), [DVec3::ZERO; BRICK_POINTS]);
+            self.compute_pushes(index, &mut pushes, params);
+            self.slabs[index].pushes = pushes;
         }
+    }
+
+    /// The pressure's push at every point of slab `index`'s bricks, from each brick's pressures with a
+    /// layer of its face neighbours' around them.
+    fn compute_pushes(&self, index: usize, pushes: &mut [[DVec3; BRICK_POINTS]], params: &VolumeParams) {
+        let target = params.target_fraction;
         let half_over_cell = 0.5 / self.placement.cell_size;
         let pressure = |fraction: f64| params.stiffness * (fraction / target - 1.0).max(0.0);
-        // Each brick's pressures with a layer of its face neighbours' around them.
         const PADDED: usize = BRICK + 2;
         let mut padded = [[[0.0_f64; PADDED]; PADDED]; PADDED];
-        for brick in 0..self.used {
-            let coordinates = self.brick_coordinates[brick];
-            for (local, point) in self.bricks[brick].iter().enumerate() {
+        let slab = &self.slabs[index];
+        let bricks = slab.bricks[..slab.used].iter().zip(&slab.coordinates);
+        for ((brick, &coordinates), pushes) in bricks.zip(pushes.iter_mut()) {
+            for (local, point) in brick.iter().enumerate() {
                 let [x, y, z] = local_coordinates(local);
                 padded[x + 1][y + 1][z + 1] = pressure(point.fraction);
             }
@@ -381,15 +331,15 @@ impl VolumeGrid {
                             (padded_at[others[0]], padded_at[others[1]]) = (a + 1, b + 1);
                             local[axis] = neighbour_layer;
                             padded_at[axis] = padded_layer;
-                            let value = neighbour
-                                .map_or(0.0, |neighbour| pressure(self.bricks[neighbour][local_index(local)].fraction));
+                            let value =
+                                neighbour.map_or(0.0, |neighbour| pressure(neighbour[local_index(local)].fraction));
                             padded[padded_at[0]][padded_at[1]][padded_at[2]] = value;
                         }
                     }
                 }
             }
-            for (local, push) in self.pushes[brick].iter_mut().enumerate() {
-                let fraction = self.bricks[brick][local].fraction;
+            for (local, push) in pushes.iter_mut().enumerate() {
+                let fraction = brick[local].fraction;
                 if fraction == 0.0 {
                     *push = DVec3::ZERO;
                     continue;
@@ -406,28 +356,45 @@ impl VolumeGrid {
     }
 
     /// The brick in use beside the brick at `coordinates` on `side` (±1) along `axis`, if any.
-    fn neighbour_brick(&self, coordinates: [usize; 3], axis: usize, side: isize) -> Option<usize> {
+    fn neighbour_brick(&self, coordinates: [usize; 3], axis: usize, side: isize) -> Option<&Brick> {
         let mut neighbour = coordinates;
         neighbour[axis] = neighbour[axis].checked_add_signed(side)?;
         if neighbour[axis] >= self.placement.bricks[axis] {
             return None;
         }
         let [bx, by, _] = self.placement.bricks;
-        match self.table[neighbour[0] + bx * (neighbour[1] + by * neighbour[2])].load(Ordering::Relaxed) {
+        let entry = neighbour[0] + bx * (neighbour[1] + by * neighbour[2]);
+        match self.table[entry] {
             NO_BRICK => None,
-            brick => Some(brick as usize),
+            brick => Some(&self.slabs[neighbour[2] / self.placement.slab_layers].bricks[brick as usize]),
         }
     }
 
-    /// Calls `visit(point, weight)` for the 8 grid points of `stencil` (all in bricks: every stencil
-    /// of a particle allocated its bricks, and a position with no hair near meets empty points).
-    fn for_each_corner(&self, stencil: &Stencil, mut visit: impl FnMut(&GridPoint, f64)) {
+    /// Calls `visit(slab, brick, index within it, weight)` for those of the 8 grid points of `stencil`
+    /// that are in bricks (all of them for a particle's stencil; a position with no hair near meets
+    /// fewer).
+    fn for_each_corner(&self, stencil: &Stencil, mut visit: impl FnMut(usize, usize, usize, f64)) {
         for k in 0..8 {
-            let brick = self.table[stencil.table_indices[k]].load(Ordering::Relaxed);
+            let brick = self.table[stencil.table_indices[k]];
             if brick != NO_BRICK {
-                visit(&self.bricks[brick as usize][stencil.local_indices[k]], stencil.weights[k]);
+                let slab = stencil.brick_layers[k >> 2] / self.placement.slab_layers;
+                visit(slab, brick as usize, stencil.local_indices[k], stencil.weights[k]);
             }
         }
+    }
+}
+
+impl Slab {
+    /// A zeroed brick for the brick at `coordinates`, reusing memory: its index.
+    fn allocate(&mut self, coordinates: [usize; 3]) -> u32 {
+        if self.used == self.bricks.len() {
+            self.bricks.push([GridPoint::default(); BRICK_POINTS]);
+        } else {
+            self.bricks[self.used] = [GridPoint::default(); BRICK_POINTS];
+        }
+        self.coordinates.push(coordinates);
+        self.used += 1;
+        (self.used - 1) as u32
     }
 }
 
@@ -435,6 +402,11 @@ impl Placement {
     /// The 8 grid points around `position`, if they are in the box.
     fn stencil(&self, position: DVec3) -> Option<Stencil> {
         let (corner, local) = self.corner(position)?;
+        Some(self.stencil_at(corner, local))
+    }
+
+    /// The stencil of the position `local` (in grid units) whose lowest grid point is `corner`.
+    fn stencil_at(&self, corner: [usize; 3], local: DVec3) -> Stencil {
         // Along each axis: the lower and upper point's brick, index within it, and weight.
         let along = |axis: usize| {
             let (low, high) = (corner[axis], corner[axis] + 1);
@@ -452,7 +424,7 @@ impl Placement {
             stencil.local_indices[k] = lx[i] + ly[j] + lz[l];
             stencil.weights[k] = wx[i] * wy[j] * wz[l];
         }
-        Some(stencil)
+        stencil
     }
 
     /// The lowest of the 8 grid points around `position` and the position in grid units, if the 8 are
@@ -465,20 +437,21 @@ impl Placement {
         inside.then_some((corner, local))
     }
 
-    /// Calls `visit(table index)` for the bricks holding the 8 grid points around `position` (1 to 8 of
-    /// them); returns the z layers of bricks of the lower and upper points, or `None` outside the box.
-    fn for_each_brick(&self, position: DVec3, mut visit: impl FnMut(usize)) -> Option<[usize; 2]> {
-        let (corner, _) = self.corner(position)?;
-        let [bx, by, bz] = corner.map(|low| [low / BRICK, (low + 1) / BRICK]);
-        let [stride_x, stride_y, _] = self.bricks;
-        for z in if bz[0] == bz[1] { &bz[..1] } else { &bz[..] } {
-            for y in if by[0] == by[1] { &by[..1] } else { &by[..] } {
-                for x in if bx[0] == bx[1] { &bx[..1] } else { &bx[..] } {
-                    visit(x + stride_x * (y + stride_y * z));
-                }
-            }
+    /// [`Placement::stencil`], for a position with grid points in the brick `layers` (`None` for the
+    /// others, cheaply).
+    fn stencil_in(&self, position: DVec3, layers: &Range<usize>) -> Option<Stencil> {
+        let (corner, local) = self.corner(position)?;
+        let z = corner[2];
+        if !(layers.contains(&(z / BRICK)) || layers.contains(&((z + 1) / BRICK))) {
+            return None;
         }
-        Some(bz)
+        Some(self.stencil_at(corner, local))
+    }
+
+    /// Coordinates, in bricks, of the brick at `entry` in the table.
+    fn brick_coordinates(&self, entry: usize) -> [usize; 3] {
+        let [bx, by, _] = self.bricks;
+        [entry % bx, entry / bx % by, entry / (bx * by)]
     }
 }
 
