@@ -140,8 +140,10 @@ pub struct HairVolumeGrids {
 #[derive(Debug, Default)]
 struct HeadGrid {
     head: Option<Entity>,
+    /// The head's nodes as the grid sees them, strand after strand.
     particles: Vec<GridParticle>,
     grid: VolumeGrid,
+    /// Whether the head had hair this step.
     used: bool,
     /// Each strand of the head this step and where its nodes start in `particles`.
     strands: Vec<(Entity, usize)>,
