@@ -8,7 +8,8 @@
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
 //! turn it, Space cycles the head's animation (still, nod, shake, turn, sway, flick), 1 to 5 pick the hair style, K
 //! combs it along the scalp or grows it straight out, C shows the colliders the hair rests on (skull,
-//! face, neck, shoulders, torso), V turns a gusty, turbulent breeze on and off (tune it in the panel).
+//! face, neck, shoulders, torso), V turns a gusty, turbulent breeze on and off (tune it in the panel), L
+//! switches between rendered hair, gizmo lines and both.
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
@@ -24,6 +25,7 @@ use std::f32::consts::{PI, TAU};
 use std::time::Duration;
 
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
+use bevy::light::{CascadeShadowConfigBuilder, DirectionalLightShadowMap};
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
 use bevy::time::TimeUpdateStrategy;
@@ -54,7 +56,8 @@ fn main() {
         .insert_resource(HairSettings { integrator: options.integrator, volume: options.volume, ..default() })
         .insert_resource(breeze(options.wind))
         .add_systems(Startup, spawn_scene)
-        .add_systems(Update, (animate_head, walk_body, hair_keys, switch_groom, show_statistics));
+        .insert_resource(DirectionalLightShadowMap { size: 4096 })
+        .add_systems(Update, (animate_head, walk_body, hair_keys, switch_groom, show_statistics, switch_drawing));
     #[cfg(feature = "egui")]
     {
         use bevy_egui::input::egui_wants_any_pointer_input;
@@ -105,13 +108,38 @@ struct Options {
     integrator: bevy_hair_sim::rod::Integrator,
     /// Hair–hair interaction: on with its velocity smoothing, plus a volume pressure if given.
     volume: HairVolume,
+    /// How hair is drawn at the start (L cycles it).
+    drawing: Drawing,
+    /// The rendered hair's look (a preset of [`HairAppearance::presets`]).
+    appearance: HairAppearance,
+}
+
+/// How the example draws hair: rendered strands, gizmo lines, or both over each other.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Drawing {
+    Rendered,
+    Lines,
+    Both,
+}
+
+impl Drawing {
+    const ALL: [Drawing; 3] = [Self::Rendered, Self::Lines, Self::Both];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Rendered => "hair",
+            Self::Lines => "lines",
+            Self::Both => "both",
+        }
+    }
 }
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
             [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
-            [--integrator bdf2|euler] [--grid on|off] [--pressure PA]";
+            [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--draw hair|lines|both]
+            [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
@@ -131,6 +159,8 @@ impl Options {
             integrator: HairSettings::default().integrator,
             // The example shows the hair–hair grid: its velocity smoothing (the pressure with --pressure).
             volume: HairVolume { enabled: true, ..default() },
+            drawing: Drawing::Rendered,
+            appearance: HairAppearance::default(),
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -184,6 +214,19 @@ impl Options {
                         .into_iter()
                         .find(|style| style.name() == value)
                         .ok_or_else(|| format!("unknown style {value:?}"))?
+                }
+                "--draw" => {
+                    options.drawing = Drawing::ALL
+                        .into_iter()
+                        .find(|drawing| drawing.name() == value)
+                        .ok_or_else(|| format!("--draw needs hair, lines or both, got {value:?}"))?
+                }
+                "--color" => {
+                    options.appearance = HairAppearance::presets()
+                        .into_iter()
+                        .find(|(name, _)| *name == value)
+                        .map(|(_, appearance)| appearance)
+                        .ok_or_else(|| format!("unknown hair colour {value:?}"))?
                 }
                 "--animate" => {
                     options.animation = Animation::ALL
@@ -274,13 +317,19 @@ fn spawn_scene(
 ) {
     let (config, hair_gizmos) = gizmos.config_mut::<HairGizmos>();
     config.line.width = 1.5;
+    config.enabled = options.drawing != Drawing::Rendered;
     hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
     commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: 0.12, distance: 0.85 }));
+    // The key light casts the hair's shadows, on the head and on the hair itself: one cascade over the
+    // 3 m around the camera, so that a shadow texel (4096² map) is under a millimetre.
     commands.spawn((
         DirectionalLight { illuminance: 9000.0, shadow_maps_enabled: true, ..default() },
         Transform::from_xyz(-1.0, 3.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y),
+        CascadeShadowConfigBuilder { num_cascades: 1, maximum_distance: 3.0, ..default() }.build(),
     ));
+    // A dim fill light from the other side, so that the shadowed side of the hair keeps its highlights.
+    commands.spawn((PointLight { intensity: 40_000.0, range: 10.0, ..default() }, Transform::from_xyz(1.2, 2.0, 1.0)));
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(8.0, 8.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.25, 0.26, 0.28))),
@@ -306,7 +355,13 @@ fn spawn_scene(
     };
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
     let head = commands
-        .spawn((HairHead, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0), Visibility::default(), ChildOf(body)))
+        .spawn((
+            HairHead,
+            options.appearance.clone(),
+            Transform::from_xyz(0.0, NECK_HEIGHT, 0.0),
+            Visibility::default(),
+            ChildOf(body),
+        ))
         .id();
     if options.file_groom {
         commands.entity(head).insert(ratboy_groom(&assets, options.segments));
@@ -570,9 +625,37 @@ fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<Animatio
                 }
             }
         });
-        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · K: combed · G: Ratboy groom · C: colliders");
+        ui.label("drag: orbit · scroll: zoom · WASD/arrows: walk · Q/E: turn · Space: next animation · 1–5: style · K: combed · G: Ratboy groom · C: colliders · L: hair / lines / both");
     });
     Ok(())
+}
+
+/// L cycles how hair is drawn: rendered, gizmo lines, both. The start comes from `--draw`; in between, the
+/// panel's switches are left alone.
+fn switch_drawing(
+    keys: Res<ButtonInput<KeyCode>>,
+    options: Res<Options>,
+    mut drawing: Local<Option<Drawing>>,
+    mut gizmos: ResMut<GizmoConfigStore>,
+    mut hair_meshes: Query<(&mut Visibility, Ref<HairMesh>)>,
+) {
+    let new_meshes = hair_meshes.iter().any(|(_, mesh)| mesh.is_added());
+    let current = drawing.unwrap_or(options.drawing);
+    let next = if keys.just_pressed(KeyCode::KeyL) {
+        let index = Drawing::ALL.iter().position(|&d| d == current).map_or(0, |i| i + 1);
+        Drawing::ALL[index % Drawing::ALL.len()]
+    } else {
+        current
+    };
+    if drawing.is_some() && next == current && !new_meshes {
+        return;
+    }
+    *drawing = Some(next);
+    gizmos.config_mut::<HairGizmos>().0.enabled = next != Drawing::Rendered;
+    let shown = if next == Drawing::Lines { Visibility::Hidden } else { Visibility::Inherited };
+    for (mut visibility, _) in &mut hair_meshes {
+        visibility.set_if_neq(shown);
+    }
 }
 
 /// Picture mode: after the asked number of frames, saves a screenshot and exits once it is written.

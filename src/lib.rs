@@ -10,6 +10,7 @@ pub mod head;
 #[cfg(feature = "egui")]
 pub mod panel;
 mod plugin;
+pub mod render;
 pub mod rod;
 pub mod settings;
 mod step;
@@ -34,6 +35,9 @@ pub mod prelude {
     pub use crate::head::{HairHead, HeadStrands, StrandOf};
     #[cfg(feature = "egui")]
     pub use crate::panel::HairPanelPlugin;
+    pub use crate::render::HairAppearance;
+    #[cfg(feature = "render")]
+    pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
     pub use crate::settings::{HairPause, HairSettings, HairStatistics};
     pub use crate::strand::{HairStrand, SimulatedStrand, StrandFault, StrandForces, StrandHealth, StrandRejected};

@@ -1,7 +1,8 @@
 //! A live panel (bevy_egui) to tune the hair and watch it: statistics with a plot of the step time, pause
 //! and single step, the groom of the heads (strand count, edges, style), [`HairSettings`] (integrator,
 //! damping), the wind ([`HairWind`]), the default material in human units, collisions (margin, collider
-//! wireframes) and the hair colours. Behind the `egui` feature.
+//! wireframes), and how hair is drawn: rendered ([`HairAppearance`]) or as gizmo lines. Behind the `egui`
+//! feature.
 
 use std::collections::VecDeque;
 
@@ -11,6 +12,8 @@ use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
+use crate::head::HairHead;
+use crate::render::{HairAppearance, HairMesh};
 use crate::rod::{Integrator, RodMaterial};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::SimulatedStrand;
@@ -112,6 +115,9 @@ fn hair_panel(
     mut strands: Query<&mut SimulatedStrand>,
     mut grooms: Query<&mut HairGroom>,
     mut memory: Local<PanelMemory>,
+    mut commands: Commands,
+    heads: Query<(Entity, Option<&HairAppearance>), With<HairHead>>,
+    mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
 ) -> Result {
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
@@ -122,6 +128,12 @@ fn hair_panel(
     let mut groom_held = false;
     let mut drawing = gizmo_store.as_ref().map(|store| store.config::<HairGizmos>().1.clone());
     let shown_drawing = drawing.clone();
+    let lines_shown = gizmo_store.as_ref().is_some_and(|store| store.config::<HairGizmos>().0.enabled);
+    let mut lines = lines_shown;
+    let rendered_shown = hair_meshes.iter().any(|visibility| *visibility != Visibility::Hidden);
+    let mut rendered = rendered_shown;
+    let shown_appearance = heads.iter().next().map(|(_, appearance)| appearance.cloned().unwrap_or_default());
+    let mut appearance = shown_appearance.clone();
     egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics, memory.frame_rate);
         step_time_plot(ui, &memory.step_milliseconds);
@@ -144,10 +156,29 @@ fn hair_panel(
         ui.collapsing("wind", |ui| wind_grid(ui, &mut edited_wind));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
-        if let Some(drawing) = drawing.as_mut() {
-            ui.collapsing("colour", |ui| color_grid(ui, drawing));
-        }
+        ui.collapsing("drawing", |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut rendered, "rendered hair");
+                ui.checkbox(&mut lines, "gizmo lines");
+            });
+            if let Some(appearance) = appearance.as_mut() {
+                appearance_grid(ui, appearance);
+            }
+            if let Some(drawing) = drawing.as_mut() {
+                ui.label("gizmo line colours");
+                color_grid(ui, drawing);
+            }
+        });
     });
+    if rendered != rendered_shown {
+        let shown = if rendered { Visibility::Inherited } else { Visibility::Hidden };
+        hair_meshes.iter_mut().for_each(|mut visibility| *visibility = shown);
+    }
+    if let Some(appearance) = appearance.filter(|appearance| Some(appearance) != shown_appearance.as_ref()) {
+        for (head, _) in &heads {
+            commands.entity(head).insert(appearance.clone());
+        }
+    }
     if edited != *settings {
         *settings = edited;
     }
@@ -165,10 +196,13 @@ fn hair_panel(
             }
         }
     }
-    if let (Some(mut store), Some(drawing)) =
-        (gizmo_store, drawing.filter(|drawing| Some(drawing) != shown_drawing.as_ref()))
-    {
-        *store.config_mut::<HairGizmos>().1 = drawing;
+    if let Some(mut store) = gizmo_store {
+        if let Some(drawing) = drawing.filter(|drawing| Some(drawing) != shown_drawing.as_ref()) {
+            *store.config_mut::<HairGizmos>().1 = drawing;
+        }
+        if lines != lines_shown {
+            store.config_mut::<HairGizmos>().0.enabled = lines;
+        }
     }
     if reset {
         strands.iter_mut().for_each(|mut strand| strand.reset_to_rest());
@@ -352,6 +386,44 @@ fn grid_row(ui: &mut egui::Ui, label: &str, widget: impl egui::Widget) -> egui::
     let response = ui.add(widget);
     ui.end_row();
     response
+}
+
+/// The rendered hair's look: colour presets by melanin, root and tip colours, highlights and thickness.
+fn appearance_grid(ui: &mut egui::Ui, appearance: &mut HairAppearance) {
+    ui.horizontal_wrapped(|ui| {
+        for (name, preset) in HairAppearance::presets() {
+            if ui.button(name).clicked() {
+                (appearance.root_color, appearance.tip_color) = (preset.root_color, preset.tip_color);
+            }
+        }
+    });
+    ui.horizontal(|ui| {
+        for (name, color) in [("root", &mut appearance.root_color), ("tip", &mut appearance.tip_color)] {
+            ui.label(name);
+            let mut rgb = color.to_srgba().to_f32_array_no_alpha();
+            if ui.color_edit_button_rgb(&mut rgb).changed() {
+                *color = Color::srgb_from_array(rgb);
+            }
+        }
+    });
+    let mut tilt_degrees = appearance.cuticle_tilt.to_degrees();
+    let mut width_degrees = appearance.highlight_width.to_degrees();
+    egui::Grid::new("hair appearance").num_columns(2).show(ui, |ui| {
+        grid_row(ui, "brightness variation", egui::Slider::new(&mut appearance.color_variation, 0.0..=1.0));
+        grid_row(ui, "highlight strength", egui::Slider::new(&mut appearance.specular, 0.0..=1.0));
+        grid_row(ui, "cuticle tilt (°)", egui::Slider::new(&mut tilt_degrees, 0.0..=10.0));
+        grid_row(ui, "highlight width (°)", egui::Slider::new(&mut width_degrees, 1.0..=30.0));
+        grid_row(ui, "thickness (× real)", egui::Slider::new(&mut appearance.thickness_scale, 0.25..=8.0));
+        grid_row(ui, "tip taper", egui::Slider::new(&mut appearance.tip_taper, 0.0..=1.0));
+        grid_row(ui, "min width (px)", egui::Slider::new(&mut appearance.min_pixel_width, 0.0..=3.0));
+        grid_row(ui, "root occlusion", egui::Slider::new(&mut appearance.root_occlusion, 0.0..=1.0));
+    });
+    if (tilt_degrees - appearance.cuticle_tilt.to_degrees()).abs() > 1e-4 {
+        appearance.cuticle_tilt = tilt_degrees.to_radians();
+    }
+    if (width_degrees - appearance.highlight_width.to_degrees()).abs() > 1e-4 {
+        appearance.highlight_width = width_degrees.to_radians();
+    }
 }
 
 /// Colour pickers for root and tip, and the presets of [`HairGizmos::presets`].

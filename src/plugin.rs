@@ -22,9 +22,9 @@ use crate::volume::HairVolumePlugin;
 use crate::wind::HairWindPlugin;
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
-/// ([`HairCollisionPlugin`]), hair–hair interaction ([`HairVolumePlugin`]), wind ([`HairWindPlugin`]), drawing ([`HairGizmoPlugin`]) and groom files
-/// ([`GroomFilePlugin`]). Add
-/// it once, after Bevy's plugins:
+/// ([`HairCollisionPlugin`]), hair–hair interaction ([`HairVolumePlugin`]), wind ([`HairWindPlugin`]),
+/// debug lines ([`HairGizmoPlugin`]), groom files ([`GroomFilePlugin`]) and, with the crate's `render`
+/// feature, hair drawn with Bevy's PBR (`HairRenderPlugin`). Add it once, after Bevy's plugins:
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -79,13 +79,16 @@ impl Default for HairPlugin {
 
 impl PluginGroup for HairPlugin {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>()
+        let group = PluginGroupBuilder::start::<Self>()
             .add(HairSimulationPlugin { schedule: self.schedule })
             .add(HairCollisionPlugin { schedule: self.schedule })
             .add(HairVolumePlugin { schedule: self.schedule })
             .add(HairWindPlugin { schedule: self.schedule })
             .add(HairGizmoPlugin)
-            .add(GroomFilePlugin { schedule: self.schedule })
+            .add(GroomFilePlugin { schedule: self.schedule });
+        #[cfg(feature = "render")]
+        let group = group.add(crate::render::HairRenderPlugin);
+        group
     }
 }
 

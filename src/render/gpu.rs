@@ -1,0 +1,334 @@
+//! The render plugin: one mesh and one material per head, the node buffer handed to the GPU each frame.
+
+use bevy::asset::{RenderAssetUsages, embedded_asset};
+use bevy::camera::primitives::Aabb;
+use bevy::camera::visibility::NoAutoAabb;
+use bevy::ecs::query::QueryState;
+use bevy::mesh::{Indices, MeshVertexAttribute, MeshVertexBufferLayoutRef, PrimitiveTopology};
+use bevy::pbr::{MaterialPipeline, MaterialPipelineKey};
+use bevy::prelude::*;
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::{
+    AsBindGroup, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError, VertexFormat,
+};
+use bevy::render::renderer::RenderQueue;
+use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
+use bevy::shader::ShaderRef;
+use bevy::tasks::ComputeTaskPool;
+
+use super::{GuideLayout, HairAppearance, HairStrips};
+use crate::followers::FollowerNodes;
+use crate::gizmos::HairDrawSystems;
+use crate::head::{HairHead, HeadStrands};
+use crate::strand::SimulatedStrand;
+use crate::strand_data::StrandNodes;
+use crate::volume::RepresentedHairs;
+
+/// The shader: vertex expansion, hair shading, and the shadow (prepass) vertex stage.
+const SHADER: &str = "embedded://bevy_hair_sim/render/hair.wgsl";
+
+/// The template mesh's one vertex attribute (see [`HairStrips::vertices`]).
+const ATTRIBUTE_HAIR_VERTEX: MeshVertexAttribute =
+    MeshVertexAttribute::new("HairVertex", 0x4841_4952, VertexFormat::Uint32x4);
+
+/// Draws the hair of every [`HairHead`] as lit, shadowed strands (see the [module documentation](super)).
+/// Needs Bevy's renderer and PBR (`DefaultPlugins`); part of [`crate::HairPlugin`] with the crate's
+/// `render` feature.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HairRenderPlugin;
+
+impl Plugin for HairRenderPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairAppearance>();
+        if !app.is_plugin_added::<bevy::pbr::PbrPlugin>() {
+            warn!("HairRenderPlugin: Bevy's PbrPlugin is missing (add DefaultPlugins first), so hair is not rendered");
+            return;
+        }
+        embedded_asset!(app, "hair.wgsl");
+        app.add_plugins(MaterialPlugin::<HairMaterial>::default()).add_systems(
+            PostUpdate,
+            (spawn_hair_meshes, prepare_hair_meshes).chain().in_set(HairDrawSystems).after(TransformSystems::Propagate),
+        );
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
+            render_app
+                .init_resource::<HairUploads>()
+                .add_systems(ExtractSchedule, extract_hair_positions)
+                .add_systems(Render, upload_hair_positions.in_set(RenderSystems::PrepareResources));
+        }
+    }
+}
+
+/// The material hair is drawn with: the head's node buffer and its [`HairShading`]. Made and updated by
+/// the [`HairRenderPlugin`] from the head's [`HairAppearance`].
+#[derive(Asset, TypePath, AsBindGroup, Debug, Clone)]
+pub struct HairMaterial {
+    /// Node positions, `x y z` per node (world space, m), written every frame.
+    #[storage(0, read_only)]
+    pub positions: Handle<ShaderBuffer>,
+    /// Colours and highlights.
+    #[uniform(1)]
+    pub shading: HairShading,
+}
+
+/// [`HairAppearance`] as the shader reads it (linear colours, highlight shifts and exponents).
+#[derive(ShaderType, Debug, Clone, Copy, PartialEq)]
+pub struct HairShading {
+    /// Linear colour at the root.
+    pub root_color: Vec4,
+    /// Linear colour at the tip.
+    pub tip_color: Vec4,
+    /// Primary highlight shift, secondary highlight shift (rad), primary and secondary exponents.
+    pub highlights: Vec4,
+    /// Specular strength, colour variation, minimum width in pixels, root occlusion.
+    pub parameters: Vec4,
+}
+
+impl From<&HairAppearance> for HairShading {
+    fn from(appearance: &HairAppearance) -> Self {
+        let tilt = appearance.cuticle_tilt;
+        // A lobe of angular width β is sin(t, h)^p with p = 1/β² (cos^p Δ ≈ exp(−p Δ²/2)).
+        let width = appearance.highlight_width.max(1e-3);
+        Self {
+            root_color: appearance.root_color.to_linear().to_vec4(),
+            tip_color: appearance.tip_color.to_linear().to_vec4(),
+            highlights: Vec4::new(-2.0 * tilt, 3.0 * tilt, 1.0 / (width * width), 1.0 / (4.0 * width * width)),
+            parameters: Vec4::new(
+                appearance.specular,
+                appearance.color_variation,
+                appearance.min_pixel_width,
+                appearance.root_occlusion,
+            ),
+        }
+    }
+}
+
+impl Material for HairMaterial {
+    fn vertex_shader() -> ShaderRef {
+        SHADER.into()
+    }
+
+    fn fragment_shader() -> ShaderRef {
+        SHADER.into()
+    }
+
+    fn prepass_vertex_shader() -> ShaderRef {
+        SHADER.into()
+    }
+
+    fn alpha_mode(&self) -> AlphaMode {
+        AlphaMode::AlphaToCoverage
+    }
+
+    fn specialize(
+        _pipeline: &MaterialPipeline,
+        descriptor: &mut RenderPipelineDescriptor,
+        layout: &MeshVertexBufferLayoutRef,
+        _key: MaterialPipelineKey<Self>,
+    ) -> Result<(), SpecializedMeshPipelineError> {
+        descriptor.vertex.buffers = vec![layout.0.get_layout(&[ATTRIBUTE_HAIR_VERTEX.at_shader_location(0)])?];
+        // A ribbon faces the eye in the main pass and the light in a shadow pass: never cull it.
+        descriptor.primitive.cull_mode = None::<Face>;
+        Ok(())
+    }
+}
+
+/// The entity that draws one head's hair: a child of the head, with the mesh and material the plugin
+/// keeps. Hide it (its `Visibility`) to show the gizmo lines alone.
+#[derive(Component, Debug, Default)]
+#[require(NoAutoAabb)]
+pub struct HairMesh {
+    strips: HairStrips,
+    appearance: Option<HairAppearance>,
+    buffer: Handle<ShaderBuffer>,
+}
+
+impl HairMesh {
+    /// The head's hair as laid out for drawing, with this frame's node positions.
+    pub fn strips(&self) -> &HairStrips {
+        &self.strips
+    }
+}
+
+/// Marks a head whose [`HairMesh`] child exists.
+#[derive(Component)]
+struct HasHairMesh;
+
+/// Gives every head with strands a [`HairMesh`] child.
+fn spawn_hair_meshes(
+    mut commands: Commands,
+    heads: Query<Entity, (With<HairHead>, With<HeadStrands>, Without<HasHairMesh>)>,
+    mut materials: ResMut<Assets<HairMaterial>>,
+) {
+    for head in &heads {
+        let material = materials
+            .add(HairMaterial { positions: Handle::default(), shading: HairShading::from(&HairAppearance::default()) });
+        commands.entity(head).insert(HasHairMesh);
+        commands.spawn((
+            Name::new("Hair mesh"),
+            HairMesh::default(),
+            ChildOf(head),
+            // The mesh comes with the first layout.
+            Mesh3d::default(),
+            MeshMaterial3d(material),
+            Aabb::default(),
+            Transform::default(),
+            Visibility::default(),
+        ));
+    }
+}
+
+/// What [`prepare_hair_meshes`] reads of a strand.
+type DrawnStrand =
+    (&'static SimulatedStrand, &'static StrandNodes, Option<&'static FollowerNodes>, Option<&'static RepresentedHairs>);
+
+/// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
+/// frame's node positions; keeps the bounds and the material up to date.
+#[allow(clippy::too_many_arguments)]
+fn prepare_hair_meshes(
+    fixed_time: Res<Time<Fixed>>,
+    mut hair_meshes: Query<(
+        &mut HairMesh,
+        &ChildOf,
+        &mut Mesh3d,
+        &MeshMaterial3d<HairMaterial>,
+        &mut Aabb,
+        &InheritedVisibility,
+    )>,
+    heads: Query<(&HeadStrands, &GlobalTransform, Option<&HairAppearance>)>,
+    strands: Query<DrawnStrand>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<HairMaterial>>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
+) {
+    let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
+    let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num());
+    for (mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility) in &mut hair_meshes {
+        let Ok((head_strands, head_transform, appearance)) = heads.get(child_of.parent()) else { continue };
+        if !visibility.get() {
+            continue;
+        }
+        let appearance = appearance.cloned().unwrap_or_default();
+        let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
+        if appearance_changed && let Err(reason) = appearance.validate() {
+            error!("hair of head {}: its HairAppearance cannot be drawn: {reason}", child_of.parent());
+            hair_mesh.appearance = Some(appearance);
+            continue;
+        }
+        let layout = head_strands.strands().iter().filter_map(|&entity| {
+            let (strand, nodes, followers, represented) = strands.get(entity).ok()?;
+            let material = strand.rod().material();
+            let followers = followers.map_or(0, |followers| followers.count() as u32);
+            let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
+            Some(GuideLayout {
+                entity,
+                nodes: nodes.positions.len() as u32,
+                followers,
+                radius: radius * coverage_factor(represented.map(|hairs| hairs.0), followers),
+            })
+        });
+        let relaid = hair_mesh.strips.set_layout(layout);
+        let thickness_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {
+            (old.thickness_scale, old.tip_taper) != (appearance.thickness_scale, appearance.tip_taper)
+        });
+        if relaid || thickness_changed {
+            let strips = &hair_mesh.strips;
+            let mut template = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
+            template.insert_attribute(
+                ATTRIBUTE_HAIR_VERTEX,
+                strips.vertices(appearance.thickness_scale, appearance.tip_taper),
+            );
+            template.insert_indices(Indices::U32(strips.indices()));
+            mesh.0 = meshes.add(template);
+        }
+        if relaid {
+            // The buffer lives as long as the layout; each frame's positions go to it directly
+            // (`upload_hair_positions`), not through the asset.
+            let size = (4 * hair_mesh.strips.positions().len()).max(16);
+            hair_mesh.buffer = buffers.add(ShaderBuffer::with_size(size, RenderAssetUsages::RENDER_WORLD));
+        }
+        if (relaid || appearance_changed)
+            && let Some(mut material) = materials.get_mut(&material.0)
+        {
+            material.positions = hair_mesh.buffer.clone();
+            material.shading = HairShading::from(&appearance);
+        }
+        if appearance_changed {
+            hair_mesh.appearance = Some(appearance);
+        }
+        let bounds = hair_mesh
+            .strips
+            .fill(alpha, threads, |entity| strands.get(entity).ok().map(|(_, nodes, followers, _)| (nodes, followers)));
+        if let Some((low, high)) = bounds {
+            // The ribbons reach a hair's radius (or a pixel) beyond the nodes: a centimetre covers both.
+            *aabb = local_bounds(head_transform, low - Vec3::splat(0.01), high + Vec3::splat(0.01));
+        }
+    }
+}
+
+/// How much wider than a real hair each drawn hair of a guide is drawn, so that the hair drawn covers what
+/// the real hair would: a guide standing for `represented` hairs ([`RepresentedHairs`]) draws itself and
+/// its `followers`, each `represented / (1 + followers)` times as wide as one hair (at least 1).
+fn coverage_factor(represented: Option<u32>, followers: u32) -> f32 {
+    represented.map_or(1.0, |hairs| (hairs as f32 / (1 + followers) as f32).max(1.0))
+}
+
+/// The bounds, in the head's local space, of the world box `low … high`.
+fn local_bounds(head: &GlobalTransform, low: Vec3, high: Vec3) -> Aabb {
+    let to_local = head.affine().inverse();
+    let corners = (0..8).map(|corner| {
+        let pick = |bit: usize, a: f32, b: f32| if corner & bit == 0 { a } else { b };
+        to_local.transform_point3(Vec3::new(pick(1, low.x, high.x), pick(2, low.y, high.y), pick(4, low.z, high.z)))
+    });
+    let (min, max) = corners.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)));
+    Aabb::from_min_max(min, max)
+}
+
+/// This frame's node positions of each head, moved from the main world, with the buffer they go to.
+#[derive(Resource, Default)]
+struct HairUploads {
+    uploads: Vec<(AssetId<ShaderBuffer>, Vec<f32>)>,
+    query: Option<QueryState<&'static mut HairMesh>>,
+}
+
+/// Swaps each head's freshly written positions with the render world's (equally long) buffer from the
+/// frame before, so that no bytes are copied or allocated here.
+fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut<HairUploads>) {
+    let uploads = &mut *uploads;
+    let query = uploads.query.get_or_insert_with(|| main_world.query::<&mut HairMesh>());
+    let mut count = 0;
+    for mut hair_mesh in query.iter_mut(&mut main_world) {
+        if hair_mesh.strips.positions().is_empty() {
+            continue;
+        }
+        let id = hair_mesh.buffer.id();
+        if uploads.uploads.len() == count {
+            uploads.uploads.push((id, Vec::new()));
+        }
+        let slot = &mut uploads.uploads[count];
+        slot.0 = id;
+        let positions = hair_mesh.strips.positions_mut();
+        if slot.1.len() != positions.len() {
+            slot.1 = positions.clone();
+        } else {
+            std::mem::swap(&mut slot.1, positions);
+        }
+        count += 1;
+    }
+    uploads.uploads.truncate(count);
+}
+
+/// Writes each head's positions into its storage buffer.
+fn upload_hair_positions(
+    uploads: Res<HairUploads>,
+    buffers: Res<RenderAssets<GpuShaderBuffer>>,
+    queue: Res<RenderQueue>,
+) {
+    for (id, positions) in &uploads.uploads {
+        let Some(buffer) = buffers.get(*id) else { continue };
+        let bytes: &[u8] = bytemuck::cast_slice(positions);
+        if buffer.buffer.size() >= bytes.len() as u64 && !bytes.is_empty() {
+            queue.write_buffer(&buffer.buffer, 0, bytes);
+        }
+    }
+}

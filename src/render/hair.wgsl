@@ -1,0 +1,277 @@
+// Hair strands as camera-facing ribbons (bevy_hair_sim::render): the vertex stage expands each node of a
+// hair into the two sides of a ribbon; the fragment stage shades it with Kajiya–Kay's hair model and
+// Scheuermann's two shifted highlights under Bevy's lights and shadows. The same vertex stage, compiled
+// with PREPASS_PIPELINE, draws the hair into shadow maps (ribbons then face the light).
+
+#import bevy_pbr::mesh_view_bindings::view
+
+#ifdef PREPASS_PIPELINE
+#import bevy_pbr::prepass_io::VertexOutput
+#else
+#import bevy_pbr::{
+    mesh_view_bindings as view_bindings,
+    mesh_view_types,
+    clustered_forward as clustering,
+    shadows,
+    lighting,
+}
+#ifdef TONEMAP_IN_SHADER
+#import bevy_core_pipeline::tonemapping::tone_mapping
+#endif
+#endif
+
+struct HairShading {
+    root_color: vec4<f32>,
+    tip_color: vec4<f32>,
+    // primary shift, secondary shift (rad), primary exponent, secondary exponent
+    highlights: vec4<f32>,
+    // specular strength, colour variation, minimum width (pixels), root occlusion
+    parameters: vec4<f32>,
+}
+
+@group(#{MATERIAL_BIND_GROUP}) @binding(0) var<storage, read> positions: array<f32>;
+@group(#{MATERIAL_BIND_GROUP}) @binding(1) var<uniform> shading: HairShading;
+
+struct Vertex {
+    // node, hair, side | along << 1 | (nodes − 1) << 16, radius (f32 bits)
+    @location(0) hair: vec4<u32>,
+}
+
+fn node_position(node: u32) -> vec3<f32> {
+    return vec3(positions[3u * node], positions[3u * node + 1u], positions[3u * node + 2u]);
+}
+
+fn is_orthographic() -> bool {
+    return view.clip_from_view[3][3] == 1.0;
+}
+
+// Unit direction from `position` towards the eye (for an orthographic view, the view's backward axis).
+fn towards_eye(position: vec3<f32>) -> vec3<f32> {
+    if is_orthographic() {
+        return normalize(view.world_from_view[2].xyz);
+    }
+    return normalize(view.world_position - position);
+}
+
+struct Ribbon {
+    world_position: vec3<f32>,
+    tangent: vec3<f32>,
+    across: vec3<f32>,
+    side: f32,
+    along: f32,
+    coverage: f32,
+}
+
+// The ribbon vertex of a hair vertex: the node moved sideways, along tangent × (direction to the eye), by
+// half the drawn width; the drawn width is the hair's diameter, or `min_pixel_width` pixels where that is
+// wider, with the coverage lowered in proportion (`bevy_hair_sim::render::ribbon_width`).
+fn ribbon(vertex: Vertex) -> Ribbon {
+    let node = vertex.hair.x;
+    let packed = vertex.hair.z;
+    let side = f32(packed & 1u) * 2.0 - 1.0;
+    let along = (packed >> 1u) & 0x7fffu;
+    let last = packed >> 16u;
+    let position = node_position(node);
+    let previous = node_position(select(node - 1u, node, along == 0u));
+    let next = node_position(select(node + 1u, node, along >= last));
+    var tangent = next - previous;
+    tangent = select(vec3(0.0, 1.0, 0.0), normalize(tangent), dot(tangent, tangent) > 1e-20);
+    let eye = towards_eye(position);
+    var across = cross(tangent, eye);
+    if dot(across, across) < 1e-12 {
+        // Seen end-on: any direction across the hair.
+        across = cross(tangent, select(vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), abs(tangent.x) > 0.9));
+    }
+    across = normalize(across);
+    // World size of one pixel at the node: 2 w / (viewport height · clip_from_view[1][1]).
+    let clip_w = (view.clip_from_world * vec4(position, 1.0)).w;
+    let pixel = 2.0 * clip_w / (view.viewport.w * view.clip_from_view[1][1]);
+    let diameter = 2.0 * bitcast<f32>(vertex.hair.w);
+    let width = max(diameter, shading.parameters.z * pixel);
+    var out: Ribbon;
+    out.world_position = position + across * (0.5 * side * width);
+    out.tangent = tangent;
+    out.across = across;
+    out.side = side;
+    out.along = select(0.0, f32(along) / f32(max(last, 1u)), last > 0u);
+    out.coverage = select(0.0, diameter / width, width > 0.0);
+    return out;
+}
+
+#ifdef PREPASS_PIPELINE
+
+@vertex
+fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> VertexOutput {
+    let ribbon = ribbon(vertex);
+    var out: VertexOutput;
+    out.world_position = vec4(ribbon.world_position, 1.0);
+    out.position = view.clip_from_world * out.world_position;
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    out.unclipped_depth = out.position.z;
+    out.position.z = min(out.position.z, 1.0);
+#endif
+#ifdef NORMAL_PREPASS_OR_DEFERRED_PREPASS
+    out.world_normal = towards_eye(ribbon.world_position);
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    out.previous_world_position = out.world_position;
+#endif
+#ifdef VERTEX_OUTPUT_INSTANCE_INDEX
+    out.instance_index = instance_index;
+#endif
+    return out;
+}
+
+#else // PREPASS_PIPELINE
+
+struct HairVertexOutput {
+    @builtin(position) position: vec4<f32>,
+    @location(0) world_position: vec3<f32>,
+    @location(1) tangent: vec3<f32>,
+    @location(2) across: vec3<f32>,
+    // −1 … 1 across the ribbon
+    @location(3) side: f32,
+    // 0 at the root … 1 at the tip
+    @location(4) along: f32,
+    @location(5) coverage: f32,
+    @location(6) @interpolate(flat) hair: u32,
+}
+
+@vertex
+fn vertex(vertex: Vertex) -> HairVertexOutput {
+    let ribbon = ribbon(vertex);
+    var out: HairVertexOutput;
+    out.position = view.clip_from_world * vec4(ribbon.world_position, 1.0);
+    out.world_position = ribbon.world_position;
+    out.tangent = ribbon.tangent;
+    out.across = ribbon.across;
+    out.side = ribbon.side;
+    out.along = ribbon.along;
+    out.coverage = ribbon.coverage;
+    out.hair = vertex.hair.y;
+    return out;
+}
+
+// A well-mixed hash of a hair's index to 0 … 1 (PCG, Jarzynski and Olano 2020).
+fn hash01(value: u32) -> f32 {
+    let state = value * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return f32((word >> 22u) ^ word) / 4294967295.0;
+}
+
+struct HairSurface {
+    color: vec3<f32>,
+    tangent: vec3<f32>,
+    normal: vec3<f32>,
+    eye: vec3<f32>,
+    // Tangents tilted towards the root (primary highlight) and the tip (secondary).
+    primary_tangent: vec3<f32>,
+    secondary_tangent: vec3<f32>,
+    sparkle: f32,
+}
+
+// Light reflected towards the eye from light arriving along `light` (unit, towards the light) with
+// irradiance `radiance` (before the cosine): Kajiya–Kay diffuse sin(t, l) / π, wrapped around the fibre,
+// plus the two shifted highlights sin(t', h)^p.
+fn shade(surface: HairSurface, light: vec3<f32>, radiance: vec3<f32>) -> vec3<f32> {
+    let sin_tl = sqrt(max(1.0 - pow(dot(surface.tangent, light), 2.0), 0.0));
+    // The side of the fibre away from the light gets less: a soft cosine around the cylinder.
+    let wrap = saturate((dot(surface.normal, light) + 0.5) / 1.5);
+    let diffuse = surface.color * sin_tl * wrap / 3.14159265;
+    let half_vector = normalize(light + surface.eye);
+    let primary = pow(sqrt(max(1.0 - pow(dot(surface.primary_tangent, half_vector), 2.0), 0.0)), shading.highlights.z);
+    let secondary = pow(sqrt(max(1.0 - pow(dot(surface.secondary_tangent, half_vector), 2.0), 0.0)), shading.highlights.w);
+    // Scheuermann's fade of highlights seen from behind the light.
+    let facing = smoothstep(-1.0, 0.0, dot(surface.tangent, light)) * 0.5 + 0.5;
+    let specular = shading.parameters.x * wrap * facing
+        * (vec3(primary) + secondary * surface.sparkle * surface.color * 4.0);
+    return (diffuse + specular) * radiance;
+}
+
+@fragment
+fn fragment(in: HairVertexOutput) -> @location(0) vec4<f32> {
+    let tangent = normalize(in.tangent);
+    let eye = towards_eye(in.world_position);
+    // The fibre is a cylinder seen across: its normal turns from −across to +across over the ribbon.
+    let facing = normalize(eye - tangent * dot(eye, tangent));
+    let across = normalize(in.across);
+    let side = clamp(in.side, -1.0, 1.0);
+    let normal = normalize(side * across + sqrt(max(1.0 - side * side, 0.0)) * facing);
+
+    let variation = shading.parameters.y;
+    let brightness = 1.0 + variation * (hash01(in.hair) - 0.5);
+    var surface: HairSurface;
+    surface.color = mix(shading.root_color.rgb, shading.tip_color.rgb, in.along) * brightness;
+    surface.tangent = tangent;
+    surface.normal = normal;
+    surface.eye = eye;
+    // Tilting the tangent by an angle shifts the highlight along the hair by the same angle.
+    surface.primary_tangent = normalize(tangent * cos(shading.highlights.x) + normal * sin(shading.highlights.x));
+    surface.secondary_tangent = normalize(tangent * cos(shading.highlights.y) + normal * sin(shading.highlights.y));
+    surface.sparkle = 0.5 + hash01(in.hair ^ 0x9e3779b9u);
+
+    let world_position = vec4(in.world_position, 1.0);
+    let view_z = dot(vec4(view.view_from_world[0].z, view.view_from_world[1].z, view.view_from_world[2].z,
+        view.view_from_world[3].z), world_position);
+    var light_sum = vec3(0.0);
+
+    // Directional lights, with their cascaded shadow maps.
+    for (var i = 0u; i < view_bindings::lights.n_directional_lights; i = i + 1u) {
+        let light = &view_bindings::lights.directional_lights[i];
+        let direction = (*light).direction_to_light.xyz;
+        var shadow = 1.0;
+        if ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
+            shadow = shadows::fetch_directional_shadow(i, world_position, normal, view_z, in.position.xy);
+        }
+        light_sum += shadow * shade(surface, direction, (*light).color.rgb);
+    }
+
+    // Point and spot lights of this fragment's cluster, with their shadows.
+    let cluster = clustering::view_fragment_cluster_index(in.position.xy, view_z, is_orthographic());
+    let ranges = clustering::unpack_clusterable_object_index_ranges(cluster);
+    for (var i = ranges.first_point_light_index_offset; i < ranges.first_reflection_probe_index_offset; i = i + 1u) {
+        let id = clustering::get_clusterable_object_id(i);
+        let light = &view_bindings::clustered_lights.data[id];
+        let to_light = (*light).position_radius.xyz - in.world_position;
+        let distance_squared = dot(to_light, to_light);
+        let direction = to_light * inverseSqrt(max(distance_squared, 1e-12));
+        var attenuation = lighting::getDistanceAttenuation(distance_squared, (*light).color_inverse_square_range.w);
+        let is_spot = i >= ranges.first_spot_light_index_offset;
+        var shadow = 1.0;
+        if is_spot {
+            var spot_direction = vec3((*light).light_custom_data.x, 0.0, (*light).light_custom_data.y);
+            spot_direction.y = sqrt(max(0.0, 1.0 - spot_direction.x * spot_direction.x - spot_direction.z * spot_direction.z));
+            if ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SPOT_LIGHT_Y_NEGATIVE) != 0u {
+                spot_direction.y = -spot_direction.y;
+            }
+            let cone = saturate(dot(-spot_direction, direction) * (*light).light_custom_data.z + (*light).light_custom_data.w);
+            attenuation *= cone * cone;
+            if ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
+                shadow = shadows::fetch_spot_shadow(id, world_position, normal, (*light).shadow_map_near_z, in.position.xy);
+            }
+        } else if ((*light).flags & mesh_view_types::POINT_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
+            shadow = shadows::fetch_point_shadow(id, world_position, normal, in.position.xy);
+        }
+        light_sum += shadow * shade(surface, direction, (*light).color_inverse_square_range.rgb * attenuation);
+    }
+
+    // Ambient light, dimmer towards the roots where the hair above takes it.
+    let occlusion = 1.0 - shading.parameters.w * (1.0 - in.along);
+    light_sum += view_bindings::lights.ambient_color.rgb * surface.color * occlusion;
+
+    var color = vec4(light_sum * view.exposure, in.coverage);
+#ifdef TONEMAP_IN_SHADER
+    color = tone_mapping(color, view.color_grading);
+#endif
+#ifndef ALPHA_TO_COVERAGE
+    // Without multisampling, coverage becomes a stable per-pixel dither.
+    let threshold = hash01(u32(in.position.x) * 1973u + u32(in.position.y) * 9277u);
+    if in.coverage < threshold {
+        discard;
+    }
+    color.a = 1.0;
+#endif
+    return color;
+}
+
+#endif // PREPASS_PIPELINE

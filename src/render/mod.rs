@@ -1,0 +1,399 @@
+//! Hair drawn as hair: every strand of a head, guides and followers, as a strip of thin camera-facing
+//! ribbons in Bevy's PBR pipeline, lit by Bevy's lights with an anisotropic hair shading model, casting and
+//! receiving Bevy's shadows. The gizmo lines ([`crate::gizmos`]) stay as a debug view.
+//!
+//! **How a frame is drawn.** For each head, [`HairStrips`] lays its hairs out once (the guides in
+//! [`crate::head::HeadStrands`] order, each followed by its followers) and, every frame, writes their node
+//! positions, interpolated between the last two fixed steps like the gizmos, into one buffer of `f32`
+//! triples, in parallel over the guides. The GPU receives that buffer (one `write_buffer` into a storage
+//! buffer that lives as long as the layout) and a static mesh of two vertices per node that says which node
+//! each vertex stands for, which side of the ribbon it is on and how thick the hair is there. The vertex
+//! shader reads the node and its neighbours, and expands the ribbon across the strand, along
+//! `tangent × (direction to the eye)`, by the hair's diameter; sub-pixel hairs are widened to
+//! [`HairAppearance::min_pixel_width`] and their coverage lowered by the same factor
+//! ([`ribbon_width`]), so thin hair fades instead of shimmering. Coverage goes to the GPU's multisampling
+//! as alpha to coverage: it needs no sorting (thousands of hairs cross each other in every pixel), keeps
+//! depth for shadows, and is what the example's 4× MSAA gives for free. Order-independent transparency
+//! would blend more smoothly but costs a buffer of fragments per pixel.
+//!
+//! **Shading** (`hair.wgsl`): Kajiya and Kay's hair model (SIGGRAPH 1989), diffuse `∝ sin(t, l)` and
+//! specular `∝ sin(t, h)^p`, with Scheuermann's two shifted highlights ("Hair Rendering and Shading",
+//! GDC 2004): the primary, white, reflected at the cuticle and shifted towards the root; the secondary,
+//! tinted by the hair's colour, through the fibre and back, shifted towards the tip and broader. Shifts and
+//! widths follow Marschner et al. (SIGGRAPH 2003): the cuticle scales tilt by `α` ≈ 2–4°, the reflection
+//! `R` shifts by `−2α`, the `TRT` lobe by `+3α`, and `TRT` is twice as wide as `R`. Colours can come from
+//! melanin ([`HairAppearance::from_melanin`]).
+//!
+//! The CPU side ([`HairStrips`], [`ribbon_width`], [`HairAppearance`]) needs no renderer; the plugin that
+//! draws ([`HairRenderPlugin`]) needs the crate's `render` feature.
+
+use bevy::math::Vec3;
+use bevy::prelude::*;
+
+use crate::followers::FollowerNodes;
+use crate::strand_data::StrandNodes;
+
+#[cfg(feature = "render")]
+mod gpu;
+#[cfg(feature = "render")]
+pub use gpu::{HairMaterial, HairMesh, HairRenderPlugin, HairShading};
+
+/// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::head::HairHead`]
+/// entity; without one, hair is drawn with [`HairAppearance::default`]. Changes apply the next frame.
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct HairAppearance {
+    /// Colour of the hair at the root (the fibre's own colour, as lit diffusely).
+    pub root_color: Color,
+    /// Colour at the tip; the colour blends from root to tip along each hair.
+    pub tip_color: Color,
+    /// How much each hair's brightness varies from its neighbours', 0 to 1: a hair's colour is scaled by a
+    /// factor drawn uniformly from `1 ± color_variation / 2`. Hair is never one flat colour.
+    pub color_variation: f32,
+    /// Strength of the highlights, 0 to 1: the fraction of light the cuticle reflects in the primary
+    /// highlight at its peak (about 0.05–0.1 for real hair, higher reads as oiled or wet).
+    pub specular: f32,
+    /// Tilt `α` of the cuticle scales, rad (Marschner et al. 2003: 2–4° in real hair). The primary
+    /// highlight shifts by `2α` towards the root, the secondary by `3α` towards the tip.
+    pub cuticle_tilt: f32,
+    /// Angular width `β` of the primary highlight, rad (Marschner et al.: 5–10°); the secondary is twice
+    /// as wide.
+    pub highlight_width: f32,
+    /// Drawn thickness of each hair as a multiple of the thickness that covers what the real hair covers:
+    /// the strand material's diameter `2 √(a₁ a₂)` (0.08 mm for real hair) times the hairs each drawn hair
+    /// stands for (a guide's [`crate::volume::RepresentedHairs`] shared by it and its followers: a groom of
+    /// 2 000 guides with 10 followers each standing for 100 000 hairs draws each 4.5 hairs wide). 1 by
+    /// default.
+    pub thickness_scale: f32,
+    /// How much hairs thin towards the tip, 0 to 1: the tip is `1 − tip_taper` of the root's thickness.
+    pub tip_taper: f32,
+    /// Narrowest a hair is drawn, in pixels (of the view, or of a shadow map's texels). A hair thinner than
+    /// this on screen is drawn this wide with its coverage lowered in proportion ([`ribbon_width`]).
+    pub min_pixel_width: f32,
+    /// Darkening of the ambient light at the roots, 0 to 1: ambient light on a hair is scaled from
+    /// `1 − root_occlusion` at the root to 1 at the tip, a cheap stand-in for the light the hair above
+    /// takes (the shadow maps handle direct light).
+    pub root_occlusion: f32,
+}
+
+impl Default for HairAppearance {
+    /// Brown hair ([`HairAppearance::from_melanin`] with 1.3 eumelanin and 0.2 pheomelanin), 20 % brightness
+    /// variation, real thickness tapered by half, 1-pixel minimum width.
+    fn default() -> Self {
+        Self::from_melanin(1.3, 0.2)
+    }
+}
+
+impl HairAppearance {
+    /// Hair coloured by its pigments, with the other fields at their defaults: concentrations of eumelanin
+    /// (dark brown to black, 0 to about 8) and pheomelanin (red, 0 to about 2) in the units of d'Eon et al.
+    /// (EGSR 2011), whose absorption coefficients per unit fibre radius are `(0.419, 0.697, 1.37)` and
+    /// `(0.187, 0.4, 1.05)` (linear red, green, blue). The absorption `σ` is turned into the colour the hair
+    /// shows by inverting Chiang et al.'s fit (EGSR 2016, eq. 9) at a roughness `β = 0.3`:
+    /// `c = exp(−5.89 √σ)`. The tips are a little lighter (sun-bleached), `c^0.8`.
+    pub fn from_melanin(eumelanin: f32, pheomelanin: f32) -> Self {
+        let absorption =
+            eumelanin.max(0.0) * Vec3::new(0.419, 0.697, 1.37) + pheomelanin.max(0.0) * Vec3::new(0.187, 0.4, 1.05);
+        let color = Vec3::new(
+            (-5.89 * absorption.x.sqrt()).exp(),
+            (-5.89 * absorption.y.sqrt()).exp(),
+            (-5.89 * absorption.z.sqrt()).exp(),
+        );
+        let tip = color.powf(0.8);
+        Self {
+            root_color: Color::linear_rgb(color.x, color.y, color.z),
+            tip_color: Color::linear_rgb(tip.x, tip.y, tip.z),
+            ..Self::DEFAULT_SHADING
+        }
+    }
+
+    /// The default shading parameters, colours aside (for [`HairAppearance::from_melanin`]).
+    const DEFAULT_SHADING: Self = Self {
+        root_color: Color::BLACK,
+        tip_color: Color::BLACK,
+        color_variation: 0.2,
+        specular: 0.12,
+        cuticle_tilt: 3.0 * std::f32::consts::PI / 180.0,
+        highlight_width: 7.0 * std::f32::consts::PI / 180.0,
+        thickness_scale: 1.0,
+        tip_taper: 0.5,
+        min_pixel_width: 1.0,
+        root_occlusion: 0.6,
+    };
+
+    /// Natural hair colours by melanin, for menus: black, dark brown, brown, auburn, red, blonde, light
+    /// blonde, white (no pigment).
+    pub fn presets() -> [(&'static str, Self); 8] {
+        [
+            ("black", Self::from_melanin(8.0, 0.0)),
+            ("dark brown", Self::from_melanin(3.0, 0.2)),
+            ("brown", Self::from_melanin(1.3, 0.2)),
+            ("auburn", Self::from_melanin(0.9, 1.0)),
+            ("red", Self::from_melanin(0.25, 1.2)),
+            ("blonde", Self::from_melanin(0.3, 0.1)),
+            ("light blonde", Self::from_melanin(0.12, 0.05)),
+            ("white", Self::from_melanin(0.0, 0.0)),
+        ]
+    }
+
+    /// Why the appearance cannot be drawn, naming the field, if it cannot.
+    pub fn validate(&self) -> Result<(), String> {
+        let fields = [
+            ("color_variation", self.color_variation, 0.0, 1.0),
+            ("specular", self.specular, 0.0, 1.0),
+            ("cuticle_tilt", self.cuticle_tilt, -0.5, 0.5),
+            ("highlight_width", self.highlight_width, 1e-3, 1.5),
+            ("thickness_scale", self.thickness_scale, 1e-3, 1e3),
+            ("tip_taper", self.tip_taper, 0.0, 1.0),
+            ("min_pixel_width", self.min_pixel_width, 0.0, 16.0),
+            ("root_occlusion", self.root_occlusion, 0.0, 1.0),
+        ];
+        for (name, value, low, high) in fields {
+            if !(low..=high).contains(&value) {
+                return Err(format!("{name} = {value} is not within {low} … {high}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How wide a ribbon is drawn and how much of it is covered: a hair of `diameter` (m) where one pixel
+/// spans `pixel` (m) is drawn `max(diameter, min_pixels · pixel)` wide with coverage
+/// `diameter / width`, so that its drawn area (width × coverage) is its true one. The vertex shader
+/// computes the same.
+pub fn ribbon_width(diameter: f32, pixel: f32, min_pixels: f32) -> (f32, f32) {
+    let width = diameter.max(min_pixels * pixel);
+    if width > 0.0 { (width, diameter / width) } else { (0.0, 0.0) }
+}
+
+/// One drawn hair's nodes in its head's node buffer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DrawnHair {
+    /// Index of its root node in the buffer.
+    pub first_node: u32,
+    /// Number of nodes, root first.
+    pub nodes: u32,
+    /// Radius of the hair at its root, m (drawn times [`HairAppearance::thickness_scale`]).
+    pub radius: f32,
+}
+
+/// One guide as the layout saw it: its entity, nodes, followers and radius (m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuideLayout {
+    /// The guide strand's entity.
+    pub entity: Entity,
+    /// Nodes of the guide (and of each of its followers).
+    pub nodes: u32,
+    /// Followers the guide carries.
+    pub followers: u32,
+    /// The guide's radius, m.
+    pub radius: f32,
+}
+
+/// One head's hair laid out for drawing, and its node positions for this frame (see the
+/// [module documentation](self)): each guide, then its followers, each hair's nodes root first.
+#[derive(Debug, Clone, Default)]
+pub struct HairStrips {
+    guides: Vec<GuideLayout>,
+    /// First node of each guide's block (guide and followers), and one past the last node.
+    guide_offsets: Vec<usize>,
+    hairs: Vec<DrawnHair>,
+    /// Node positions this frame, world space, m: `x y z` per node, flat.
+    positions: Vec<f32>,
+    /// Bounds of each piece's positions from the last fill (reused).
+    piece_bounds: Vec<(Vec3, Vec3)>,
+}
+
+/// How many pieces [`HairStrips::fill`] cuts its guides into per thread, to even out the load.
+const PIECES_PER_THREAD: usize = 4;
+
+impl HairStrips {
+    /// Lays out `guides` (in drawing order) if they differ from the current layout; says whether they did,
+    /// in which case the GPU's mesh and buffer must be rebuilt.
+    pub fn set_layout(&mut self, guides: impl IntoIterator<Item = GuideLayout>) -> bool {
+        let mut same = true;
+        let mut count = 0;
+        for guide in guides {
+            if self.guides.get(count) != Some(&guide) {
+                if same {
+                    self.guides.truncate(count);
+                    same = false;
+                }
+                self.guides.push(guide);
+            }
+            count += 1;
+        }
+        if count != self.guides.len() {
+            self.guides.truncate(count);
+            same = false;
+        }
+        if same {
+            return false;
+        }
+        self.guide_offsets.clear();
+        self.hairs.clear();
+        let mut node = 0;
+        for guide in &self.guides {
+            self.guide_offsets.push(node);
+            for _ in 0..=guide.followers {
+                self.hairs.push(DrawnHair { first_node: node as u32, nodes: guide.nodes, radius: guide.radius });
+                node += guide.nodes as usize;
+            }
+        }
+        self.guide_offsets.push(node);
+        self.positions.clear();
+        self.positions.resize(3 * node, 0.0);
+        true
+    }
+
+    /// The guides as laid out.
+    pub fn guides(&self) -> &[GuideLayout] {
+        &self.guides
+    }
+
+    /// Every drawn hair, guides and followers, in buffer order.
+    pub fn hairs(&self) -> &[DrawnHair] {
+        &self.hairs
+    }
+
+    /// Number of nodes in the buffer.
+    pub fn node_count(&self) -> usize {
+        self.positions.len() / 3
+    }
+
+    /// The node positions of the last [`HairStrips::fill`], `x y z` per node, m.
+    pub fn positions(&self) -> &[f32] {
+        &self.positions
+    }
+
+    /// The positions buffer itself, to hand over to the GPU without copying (swap it with one of the same
+    /// length).
+    pub fn positions_mut(&mut self) -> &mut Vec<f32> {
+        &mut self.positions
+    }
+
+    /// The template mesh's vertices: two per node (the ribbon's two sides), each `[node, hair, packed,
+    /// radius bits]`, with `packed = side | index along the hair << 1 | (nodes − 1) << 16` and the radius
+    /// (m, tapered linearly to `1 − tip_taper` of the root's at the tip, times `thickness_scale`) as `f32`
+    /// bits. Hairs longer than 32 767 nodes are cut there.
+    pub fn vertices(&self, thickness_scale: f32, tip_taper: f32) -> Vec<[u32; 4]> {
+        let mut vertices = Vec::with_capacity(2 * self.node_count());
+        for (index, hair) in self.hairs.iter().enumerate() {
+            let last = hair.nodes.saturating_sub(1).min(0x7fff);
+            for along in 0..hair.nodes {
+                let k = along.min(last);
+                let s = if last > 0 { k as f32 / last as f32 } else { 0.0 };
+                let radius = hair.radius * thickness_scale * (1.0 - tip_taper * s);
+                for side in 0..2 {
+                    vertices.push([
+                        hair.first_node + along,
+                        index as u32,
+                        side | k << 1 | last << 16,
+                        radius.to_bits(),
+                    ]);
+                }
+            }
+        }
+        vertices
+    }
+
+    /// The template mesh's triangles: two per segment, `(2k, 2k+1, 2k+2)` and `(2k+1, 2k+3, 2k+2)` for the
+    /// segment from node `k` to `k + 1` of a hair.
+    pub fn indices(&self) -> Vec<u32> {
+        let mut indices = Vec::with_capacity(6 * self.node_count());
+        for hair in &self.hairs {
+            for segment in 0..hair.nodes.saturating_sub(1) {
+                let base = 2 * (hair.first_node + segment);
+                indices.extend_from_slice(&[base, base + 1, base + 2, base + 1, base + 3, base + 2]);
+            }
+        }
+        indices
+    }
+
+    /// Writes every hair's node positions a fraction `alpha` (0 to 1) of the way from the step before to the
+    /// last, in parallel over pieces of the guides on up to `threads` threads, and returns their bounds
+    /// (`None` when there is nothing to draw). `lookup` gives a guide's nodes and followers; a guide it does
+    /// not find, or whose counts no longer match the layout, keeps its last positions (call
+    /// [`HairStrips::set_layout`] first to follow changes).
+    pub fn fill<'a>(
+        &mut self,
+        alpha: f32,
+        threads: usize,
+        lookup: impl Fn(Entity) -> Option<(&'a StrandNodes, Option<&'a FollowerNodes>)> + Sync,
+    ) -> Option<(Vec3, Vec3)> {
+        let pieces = (threads.max(1) * PIECES_PER_THREAD).min(self.guides.len()).max(1);
+        let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        self.piece_bounds.clear();
+        self.piece_bounds.resize(pieces, empty);
+        let (guides, offsets) = (&self.guides, &self.guide_offsets);
+        let per_piece = guides.len().div_ceil(pieces).max(1);
+        let mut rest: &mut [f32] = &mut self.positions;
+        let mut bounds_left: &mut [(Vec3, Vec3)] = &mut self.piece_bounds;
+        let mut first = 0;
+        let work = std::iter::from_fn(|| {
+            if first >= guides.len() {
+                return None;
+            }
+            let end = (first + per_piece).min(guides.len());
+            let nodes = offsets[end] - offsets[first];
+            let (positions, tail) = std::mem::take(&mut rest).split_at_mut(3 * nodes);
+            rest = tail;
+            let (bounds, more) = std::mem::take(&mut bounds_left).split_first_mut()?;
+            bounds_left = more;
+            let piece = (first..end, positions, bounds);
+            first = end;
+            Some(piece)
+        });
+        let lookup = &lookup;
+        crate::volume::grid::run_in_parallel(threads, work, |(range, positions, bounds)| {
+            let base = offsets[range.start];
+            for guide_index in range {
+                let guide = guides[guide_index];
+                let start = 3 * (offsets[guide_index] - base);
+                let block = &mut positions[start..3 * (offsets[guide_index + 1] - base)];
+                let Some((nodes, followers)) = lookup(guide.entity) else { continue };
+                let per = guide.nodes as usize;
+                if nodes.positions.len() != per {
+                    continue;
+                }
+                write_interpolated(&mut block[..3 * per], &nodes.previous_positions, &nodes.positions, alpha);
+                let followers =
+                    followers.filter(|f| f.count() == guide.followers as usize && f.nodes_per_follower() == per);
+                if let Some(followers) = followers {
+                    let previous = if followers.previous_positions.len() == followers.positions.len() {
+                        &followers.previous_positions
+                    } else {
+                        &followers.positions
+                    };
+                    write_interpolated(&mut block[3 * per..], previous, &followers.positions, alpha);
+                }
+            }
+            *bounds = bounds_of(positions);
+        });
+        let (low, high) = self.piece_bounds.iter().fold(empty, |(low, high), (a, b)| (low.min(*a), high.max(*b)));
+        (low.cmple(high).all()).then_some((low, high))
+    }
+}
+
+/// Writes `previous + alpha (current − previous)` as `x y z` triples into `out` (as many as fit).
+fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alpha: f32) {
+    let previous = if previous.len() == current.len() { previous } else { current };
+    for ((out, a), b) in out.chunks_exact_mut(3).zip(previous).zip(current) {
+        let p = a.lerp(*b, alpha);
+        out.copy_from_slice(&[p.x, p.y, p.z]);
+    }
+}
+
+/// Bounds of `x y z` triples, skipping non-finite ones.
+fn bounds_of(positions: &[f32]) -> (Vec3, Vec3) {
+    let mut low = Vec3::splat(f32::INFINITY);
+    let mut high = Vec3::splat(f32::NEG_INFINITY);
+    for p in positions.chunks_exact(3) {
+        let p = Vec3::new(p[0], p[1], p[2]);
+        if p.is_finite() {
+            low = low.min(p);
+            high = high.max(p);
+        }
+    }
+    (low, high)
+}

@@ -1,0 +1,189 @@
+//! The hair shader (`src/render/hair.wgsl`) composed with Bevy's own shader modules by naga_oil, the
+//! composer Bevy's pipeline cache uses, and validated by naga, for each way Bevy compiles it: the main
+//! pass with and without multisampling and in-shader tonemapping, and the shadow (prepass) pass with and
+//! without depth-clamp emulation. Needs no GPU: a broken shader, or one that no longer fits Bevy's
+//! bindings, fails here instead of at run time.
+//!
+//! Bevy's modules are read from the sources of the Bevy crates this build uses (found with
+//! `cargo metadata`), so the check follows the Bevy version in `Cargo.lock`.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use naga_oil::compose::{
+    ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue, ShaderLanguage, ShaderType,
+};
+
+const HAIR_SHADER: &str = include_str!("../src/render/hair.wgsl");
+
+/// Source directories of the Bevy crates in this build.
+fn bevy_source_directories() -> Vec<PathBuf> {
+    let output = Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1", "--offline"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo metadata runs");
+    assert!(output.status.success(), "cargo metadata: {}", String::from_utf8_lossy(&output.stderr));
+    let json = String::from_utf8(output.stdout).unwrap();
+    // Every `"manifest_path":"…/bevy_xyz-0.19.1/Cargo.toml"`; no JSON parser needed for that.
+    let key = "\"manifest_path\":\"";
+    json.match_indices(key)
+        .filter_map(|(at, _)| {
+            let rest = &json[at + key.len()..];
+            let path = Path::new(&rest[..rest.find('"')?]);
+            let directory = path.parent()?;
+            let name = directory.file_name()?.to_str()?;
+            (name.starts_with("bevy_") && name.contains("0.19")).then(|| directory.join("src"))
+        })
+        .collect()
+}
+
+fn wgsl_files(directory: &Path, found: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(directory).into_iter().flatten().flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            wgsl_files(&path, found);
+        } else if path.extension().is_some_and(|extension| extension == "wgsl") {
+            found.push(path);
+        }
+    }
+}
+
+/// Shader definitions Bevy gives a module when it loads it (`load_shader_library!` settings).
+fn module_defaults(source: &str) -> HashMap<String, ShaderDefValue> {
+    let mut defaults = HashMap::new();
+    if source.contains("#define_import_path bevy_pbr::mesh_view_types") {
+        defaults.insert("MAX_DIRECTIONAL_LIGHTS".into(), ShaderDefValue::UInt(10));
+        defaults.insert("MAX_CASCADES_PER_LIGHT".into(), ShaderDefValue::UInt(4));
+        defaults.insert("MAX_RECT_LIGHTS".into(), ShaderDefValue::UInt(8));
+    }
+    defaults
+}
+
+/// A composer holding every importable module of Bevy's crates, added in dependency order.
+fn bevy_composer() -> Composer {
+    let mut files = Vec::new();
+    for directory in bevy_source_directories() {
+        wgsl_files(&directory, &mut files);
+    }
+    let mut pending: Vec<(PathBuf, String)> = files
+        .into_iter()
+        .filter_map(|path| Some((path.clone(), std::fs::read_to_string(&path).ok()?)))
+        .filter(|(_, source)| source.contains("#define_import_path"))
+        .collect();
+    assert!(pending.len() > 50, "Bevy's shader modules were not found ({} files)", pending.len());
+    let mut composer = Composer::default();
+    // A module can only be added after the modules it imports: retry until nothing more can be added.
+    loop {
+        let before = pending.len();
+        pending.retain(|(path, source)| {
+            composer
+                .add_composable_module(ComposableModuleDescriptor {
+                    source,
+                    file_path: &path.to_string_lossy(),
+                    language: ShaderLanguage::Wgsl,
+                    shader_defs: module_defaults(source),
+                    ..Default::default()
+                })
+                .is_err()
+        });
+        if pending.len() == before {
+            break;
+        }
+    }
+    composer
+}
+
+/// The definitions Bevy's mesh pipeline gives every material shader.
+fn common_definitions() -> HashMap<String, ShaderDefValue> {
+    let mut definitions: HashMap<String, ShaderDefValue> = HashMap::new();
+    definitions.insert("MATERIAL_BIND_GROUP".into(), ShaderDefValue::UInt(3));
+    definitions.insert("AVAILABLE_STORAGE_BUFFER_BINDINGS".into(), ShaderDefValue::UInt(16));
+    definitions.insert("PER_OBJECT_BUFFER_BATCH_SIZE".into(), ShaderDefValue::UInt(0));
+    definitions.insert("VERTEX_OUTPUT_INSTANCE_INDEX".into(), ShaderDefValue::Bool(true));
+    definitions.insert("VIEW_PROJECTION_PERSPECTIVE".into(), ShaderDefValue::Bool(true));
+    definitions
+}
+
+fn compose(composer: &mut Composer, stage: ShaderType, definitions: &[(&str, ShaderDefValue)]) -> naga::Module {
+    let mut shader_defs = common_definitions();
+    shader_defs.extend(definitions.iter().map(|(name, value)| (name.to_string(), *value)));
+    composer
+        .make_naga_module(NagaModuleDescriptor {
+            source: HAIR_SHADER,
+            file_path: "src/render/hair.wgsl",
+            shader_type: stage,
+            shader_defs,
+            ..Default::default()
+        })
+        .unwrap_or_else(|error| panic!("hair.wgsl with {definitions:?}:\n{}", error.emit_to_string(composer)))
+}
+
+/// Names of the module's entry points.
+fn entry_points(module: &naga::Module) -> Vec<(naga::ShaderStage, String)> {
+    module.entry_points.iter().map(|entry| (entry.stage, entry.name.clone())).collect()
+}
+
+#[test]
+fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
+    let mut composer = bevy_composer();
+    let on = ShaderDefValue::Bool(true);
+    let main_passes: [&[(&str, ShaderDefValue)]; 3] = [
+        // 4× MSAA with alpha to coverage, tonemapped in the shader (an LDR camera).
+        &[
+            ("MULTISAMPLED", on),
+            ("ALPHA_TO_COVERAGE", on),
+            ("TONEMAP_IN_SHADER", on),
+            ("TONEMAP_METHOD_TONY_MC_MAPFACE", on),
+            ("TONEMAPPING_LUT_TEXTURE_BINDING_INDEX", ShaderDefValue::UInt(22)),
+            ("TONEMAPPING_LUT_SAMPLER_BINDING_INDEX", ShaderDefValue::UInt(23)),
+            ("SHADOW_FILTER_METHOD_GAUSSIAN", on),
+        ],
+        // No multisampling (coverage dithered), HDR (tonemapped later).
+        &[("MAY_DISCARD", on), ("SHADOW_FILTER_METHOD_HARDWARE_2X2", on)],
+        // Orthographic view.
+        &[("ALPHA_TO_COVERAGE", on), ("VIEW_PROJECTION_ORTHOGRAPHIC", on), ("SHADOW_FILTER_METHOD_TEMPORAL", on)],
+    ];
+    for definitions in main_passes {
+        let module = compose(&mut composer, ShaderType::Wgsl, definitions);
+        let entries = entry_points(&module);
+        assert!(entries.contains(&(naga::ShaderStage::Vertex, "vertex".into())), "{entries:?}");
+        assert!(entries.contains(&(naga::ShaderStage::Fragment, "fragment".into())), "{entries:?}");
+    }
+    let prepasses: [&[(&str, ShaderDefValue)]; 3] = [
+        // A shadow map: depth only.
+        &[("PREPASS_PIPELINE", on), ("DEPTH_PREPASS", on), ("MAY_DISCARD", on)],
+        // A directional light's shadow map where depth clamping is emulated.
+        &[("PREPASS_PIPELINE", on), ("DEPTH_PREPASS", on), ("UNCLIPPED_DEPTH_ORTHO_EMULATION", on)],
+        // A camera's normal and motion-vector prepass.
+        &[
+            ("PREPASS_PIPELINE", on),
+            ("DEPTH_PREPASS", on),
+            ("NORMAL_PREPASS", on),
+            ("NORMAL_PREPASS_OR_DEFERRED_PREPASS", on),
+            ("MOTION_VECTOR_PREPASS", on),
+        ],
+    ];
+    for definitions in prepasses {
+        let module = compose(&mut composer, ShaderType::Wgsl, definitions);
+        assert_eq!(entry_points(&module), [(naga::ShaderStage::Vertex, "vertex".to_string())]);
+    }
+}
+
+#[test]
+fn a_broken_hair_shader_is_caught() {
+    // The check itself can fail: an undefined name in the shader is an error, not a pass.
+    let mut composer = bevy_composer();
+    let broken = HAIR_SHADER.replace("let clip_w =", "let clip_w = undefined_name +");
+    let mut shader_defs = common_definitions();
+    shader_defs.insert("ALPHA_TO_COVERAGE".into(), ShaderDefValue::Bool(true));
+    let result = composer.make_naga_module(NagaModuleDescriptor {
+        source: &broken,
+        file_path: "broken.wgsl",
+        shader_type: ShaderType::Wgsl,
+        shader_defs,
+        ..Default::default()
+    });
+    assert!(result.is_err(), "a shader with an undefined name composed");
+}
