@@ -17,10 +17,18 @@ use naga_oil::compose::{
 
 const HAIR_SHADER: &str = include_str!("../src/render/hair.wgsl");
 
-/// Source directories of the Bevy crates in this build.
+/// The host's target triple, as `rustc -vV` names it.
+fn host_triple() -> String {
+    let output = Command::new("rustc").arg("-vV").output().expect("rustc runs");
+    let text = String::from_utf8(output.stdout).unwrap();
+    text.lines().find_map(|line| line.strip_prefix("host: ")).expect("rustc -vV names the host").to_string()
+}
+
+/// Source directories of the Bevy crates of this build with every feature (the renderer included; the host's dependencies only: those of other
+/// platforms may not have been downloaded).
 fn bevy_source_directories() -> Vec<PathBuf> {
     let output = Command::new(env!("CARGO"))
-        .args(["metadata", "--format-version", "1", "--offline"])
+        .args(["metadata", "--format-version", "1", "--offline", "--all-features", "--filter-platform", &host_triple()])
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("cargo metadata runs");
