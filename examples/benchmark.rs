@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `followers`, `integrators`, `volume`; all by
+//! `followers`, `integrators`, `volume`, `render`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -117,6 +117,81 @@ fn main() {
     }
     if wanted("volume") {
         volume_cost(threads, steps);
+    }
+    if wanted("render") {
+        render_preparation(threads, if quick { 50 } else { 400 });
+    }
+}
+
+/// What the hair renderer does on the CPU each frame ([`bevy_hair_sim::render`]) for 20 000 drawn strands
+/// × 24 edges (2 000 guides with 9 followers each, moving): checking the layout, writing the node positions
+/// interpolated between steps (with their bounds), and the copy `write_buffer` makes into the GPU's staging
+/// memory (timed here as a copy of the same bytes into a buffer of that size). Median of `frames` frames, on
+/// `threads` threads and on one.
+fn render_preparation(threads: usize, frames: usize) {
+    use bevy::prelude::{Entity, Transform};
+    use bevy_hair_sim::render::{GuideLayout, HairStrips};
+    let (guides, followers, edges) = (2000, 9, 24);
+    let mut app = Scene::app(Some(threads));
+    let groom = HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    for step in 0..WARM_UP_STEPS {
+        let (translation, rotation) = Scene::head_pose(step);
+        let mut transform = app.world_mut().get_mut::<Transform>(head).expect("the head exists");
+        (transform.translation, transform.rotation) = (translation, rotation);
+        app.update();
+    }
+    let world = app.world();
+    let strands: Vec<Entity> = world.get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
+    let layout = || {
+        strands.iter().map(|&entity| GuideLayout {
+            entity,
+            nodes: world.get::<StrandNodes>(entity).map_or(0, |nodes| nodes.positions.len() as u32),
+            followers: world.get::<FollowerNodes>(entity).map_or(0, |followers| followers.count() as u32),
+            radius: 4e-5,
+        })
+    };
+    let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+    let mut strips = HairStrips::default();
+    strips.set_layout(layout());
+    let drawn = strips.hairs().len();
+    let mut staging = vec![0.0_f32; strips.positions().len()];
+    println!();
+    println!(
+        "| {drawn} drawn strands × {edges} edges, {} nodes ({:.1} MB) | threads | layout check, ms | positions, ms | staging copy, ms | total, ms |",
+        strips.node_count(),
+        4.0 * staging.len() as f64 / 1e6
+    );
+    println!("|---|---:|---:|---:|---:|---:|");
+    let median = |values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        1e3 * values[values.len() / 2]
+    };
+    for threads in [threads, 1] {
+        let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+        for frame in 0..frames {
+            let alpha = (frame % 7) as f32 / 7.0;
+            let started = Instant::now();
+            assert!(!strips.set_layout(layout()), "the layout holds");
+            let checked = started.elapsed().as_secs_f64();
+            let bounds = strips.fill(alpha, threads, lookup);
+            assert!(bounds.is_some());
+            let filled = started.elapsed().as_secs_f64();
+            staging.copy_from_slice(strips.positions());
+            std::hint::black_box(&staging);
+            let copied = started.elapsed().as_secs_f64();
+            for (sample, value) in samples.iter_mut().zip([checked, filled - checked, copied - filled, copied]) {
+                sample.push(value);
+            }
+        }
+        let [check, fill, copy, total] = &mut samples;
+        println!(
+            "| | {threads} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            median(check),
+            median(fill),
+            median(copy),
+            median(total)
+        );
     }
 }
 

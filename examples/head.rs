@@ -69,7 +69,7 @@ fn main() {
     app.add_systems(Update, orbit_camera);
     if options.screenshot.is_some() {
         app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
-            .add_systems(Update, take_picture);
+            .add_systems(Update, take_picture.after(switch_drawing));
     }
     app.insert_resource(options).run();
 }
@@ -96,6 +96,10 @@ struct Options {
     segments: usize,
     /// Camera angle around the head, degrees from straight in front (positive: the head's left).
     yaw_degrees: f32,
+    /// Camera distance from the head, m.
+    distance: f32,
+    /// Camera elevation, degrees above the head.
+    pitch_degrees: f32,
     /// Whether the colliders are drawn as wireframes from the start (C toggles it).
     draw_colliders: bool,
     /// Whether the head starts with the groom from `assets/grooms/Ratboy_mohawk.tfx` instead of the
@@ -137,6 +141,7 @@ impl Drawing {
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
             [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
+            [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--draw hair|lines|both]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
@@ -152,6 +157,8 @@ impl Options {
             followers: 10,
             segments: groom.segments,
             yaw_degrees: 35.0,
+            distance: 0.85,
+            pitch_degrees: 7.0,
             draw_colliders: false,
             file_groom: false,
             combed: groom.combing.is_some(),
@@ -172,6 +179,8 @@ impl Options {
                 "--followers" => options.followers = number("a count")? as usize,
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
+                "--pitch" => options.pitch_degrees = number("an angle in degrees")?,
+                "--distance" => options.distance = number("a distance in m")?.clamp(0.3, 5.0),
                 "--wind" => options.wind = number("a speed in m/s")?,
                 "--pressure" => options.volume.stiffness = number("a pressure in Pa")?,
                 "--grid" => {
@@ -320,7 +329,7 @@ fn spawn_scene(
     config.enabled = options.drawing != Drawing::Rendered;
     hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
-    commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: 0.12, distance: 0.85 }));
+    commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: options.pitch_degrees.to_radians(), distance: options.distance }));
     // The key light casts the hair's shadows, on the head and on the hair itself: one cascade over the
     // 3 m around the camera, so that a shadow texel (4096² map) is under a millimetre.
     commands.spawn((
@@ -658,9 +667,25 @@ fn switch_drawing(
     }
 }
 
+/// Frames at the start (while the renderer compiles its pipelines) and before the picture in which the
+/// rendered hair is drawn; in between it is hidden, so that a software renderer spends its time on the
+/// frames that count. The simulation runs all along.
+const DRAWN_PICTURE_FRAMES: u32 = 8;
+
 /// Picture mode: after the asked number of frames, saves a screenshot and exits once it is written.
-fn take_picture(mut commands: Commands, options: Res<Options>, mut frames: Local<u32>) {
+fn take_picture(
+    mut commands: Commands,
+    options: Res<Options>,
+    mut frames: Local<u32>,
+    mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
+) {
     *frames += 1;
+    let drawn = options.drawing != Drawing::Lines
+        && (*frames <= DRAWN_PICTURE_FRAMES || *frames + DRAWN_PICTURE_FRAMES >= options.frames);
+    let shown = if drawn { Visibility::Inherited } else { Visibility::Hidden };
+    hair_meshes.iter_mut().for_each(|mut visibility| {
+        visibility.set_if_neq(shown);
+    });
     if *frames != options.frames {
         return;
     }

@@ -58,6 +58,40 @@ fn allocations_per_update(strands: usize) -> u64 {
     allocations_during(all_threads, || run(&mut app, updates)) / updates as u64
 }
 
+/// Allocations per frame of preparing a head of `strands` strands (4 followers each) for the renderer
+/// (checking the layout, writing the interpolated positions) on `threads` threads, once laid out; counted
+/// on all threads, or on this one with `count`.
+fn allocations_per_drawn_frame(strands: usize, threads: usize, count: fn() -> u64) -> u64 {
+    use bevy_hair_sim::render::{GuideLayout, HairStrips};
+    let mut app = hair_app();
+    let groom = HairGroom { strand_count: strands, segments: 16, followers_per_guide: 4, ..default() };
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
+    for _ in 0..3 {
+        app.update();
+    }
+    let world = app.world();
+    let guides = world.get::<HeadStrands>(head).unwrap().strands();
+    let layout = || {
+        guides.iter().map(|&entity| GuideLayout {
+            entity,
+            nodes: world.get::<StrandNodes>(entity).map_or(0, |nodes| nodes.positions.len() as u32),
+            followers: world.get::<FollowerNodes>(entity).map_or(0, |followers| followers.count() as u32),
+            radius: 4e-5,
+        })
+    };
+    let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+    let mut strips = HairStrips::default();
+    strips.set_layout(layout());
+    strips.fill(0.5, threads, lookup);
+    let frames = 50;
+    allocations_during(count, || {
+        for frame in 0..frames {
+            assert!(!strips.set_layout(layout()));
+            assert!(strips.fill(frame as f32 / frames as f32, threads, lookup).is_some());
+        }
+    }) / frames
+}
+
 // One test, so that no other test allocates while it counts.
 #[test]
 fn stepping_allocates_nothing_once_running() {
@@ -86,4 +120,13 @@ fn stepping_allocates_nothing_once_running() {
     let many = allocations_per_update(400);
     println!("allocations per update: {few} with 50 strands, {many} with 400");
     assert_eq!(few, many, "allocations per update grow with the strands: {few} with 50, {many} with 400");
+
+    // Preparing hair for the renderer: nothing on one thread; on two, only the task scope's, the same
+    // however many strands.
+    let single = allocations_per_drawn_frame(400, 1, thread_allocations);
+    assert_eq!(single, 0, "preparing hair for drawing allocated {single} times per frame");
+    let few = allocations_per_drawn_frame(50, 2, all_threads);
+    let many = allocations_per_drawn_frame(400, 2, all_threads);
+    println!("allocations per drawn frame on two threads: {few} with 50 strands, {many} with 400");
+    assert_eq!(few, many, "allocations per drawn frame grow with the strands: {few} with 50, {many} with 400");
 }

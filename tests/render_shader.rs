@@ -141,6 +141,7 @@ fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
         // 4× MSAA with alpha to coverage, tonemapped in the shader (an LDR camera).
         &[
             ("MULTISAMPLED", on),
+            ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(4)),
             ("ALPHA_TO_COVERAGE", on),
             ("TONEMAP_IN_SHADER", on),
             ("TONEMAP_METHOD_TONY_MC_MAPFACE", on),
@@ -150,8 +151,14 @@ fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
         ],
         // No multisampling (coverage dithered), HDR (tonemapped later).
         &[("MAY_DISCARD", on), ("SHADOW_FILTER_METHOD_HARDWARE_2X2", on)],
-        // Orthographic view.
-        &[("ALPHA_TO_COVERAGE", on), ("VIEW_PROJECTION_ORTHOGRAPHIC", on), ("SHADOW_FILTER_METHOD_TEMPORAL", on)],
+        // 8× MSAA, orthographic view.
+        &[
+            ("MULTISAMPLED", on),
+            ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(8)),
+            ("ALPHA_TO_COVERAGE", on),
+            ("VIEW_PROJECTION_ORTHOGRAPHIC", on),
+            ("SHADOW_FILTER_METHOD_TEMPORAL", on),
+        ],
     ];
     for definitions in main_passes {
         let module = compose(&mut composer, ShaderType::Wgsl, definitions);

@@ -14,7 +14,7 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::RenderQueue;
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
-use bevy::shader::ShaderRef;
+use bevy::shader::{ShaderDefVal, ShaderRef};
 use bevy::tasks::ComputeTaskPool;
 
 use super::{GuideLayout, HairAppearance, HairStrips};
@@ -124,9 +124,16 @@ impl Material for HairMaterial {
         _pipeline: &MaterialPipeline,
         descriptor: &mut RenderPipelineDescriptor,
         layout: &MeshVertexBufferLayoutRef,
-        _key: MaterialPipelineKey<Self>,
+        key: MaterialPipelineKey<Self>,
     ) -> Result<(), SpecializedMeshPipelineError> {
         descriptor.vertex.buffers = vec![layout.0.get_layout(&[ATTRIBUTE_HAIR_VERTEX.at_shader_location(0)])?];
+        // The fragment stage writes its coverage as a sample mask: it needs the sample count (and both
+        // stages compile the whole file).
+        let samples = ShaderDefVal::UInt("HAIR_MSAA_SAMPLES".into(), key.mesh_key.msaa_samples());
+        descriptor.vertex.shader_defs.push(samples.clone());
+        if let Some(fragment) = descriptor.fragment.as_mut() {
+            fragment.shader_defs.push(samples);
+        }
         // A ribbon faces the eye in the main pass and the light in a shadow pass: never cull it.
         descriptor.primitive.cull_mode = None::<Face>;
         Ok(())
@@ -139,6 +146,8 @@ impl Material for HairMaterial {
 #[require(NoAutoAabb)]
 pub struct HairMesh {
     strips: HairStrips,
+    /// Whether the positions were written this frame (and not yet handed to the GPU).
+    fresh: bool,
     appearance: Option<HairAppearance>,
     buffer: Handle<ShaderBuffer>,
 }
@@ -259,6 +268,7 @@ fn prepare_hair_meshes(
         let bounds = hair_mesh
             .strips
             .fill(alpha, threads, |entity| strands.get(entity).ok().map(|(_, nodes, followers, _)| (nodes, followers)));
+        hair_mesh.fresh = bounds.is_some();
         if let Some((low, high)) = bounds {
             // The ribbons reach a hair's radius (or a pixel) beyond the nodes: a centimetre covers both.
             *aabb = local_bounds(head_transform, low - Vec3::splat(0.01), high + Vec3::splat(0.01));
@@ -298,7 +308,7 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
     let query = uploads.query.get_or_insert_with(|| main_world.query::<&mut HairMesh>());
     let mut count = 0;
     for mut hair_mesh in query.iter_mut(&mut main_world) {
-        if hair_mesh.strips.positions().is_empty() {
+        if !std::mem::take(&mut hair_mesh.fresh) || hair_mesh.strips.positions().is_empty() {
             continue;
         }
         let id = hair_mesh.buffer.id();

@@ -188,8 +188,15 @@ fn shade(surface: HairSurface, light: vec3<f32>, radiance: vec3<f32>) -> vec3<f3
     return (diffuse + specular) * radiance;
 }
 
+struct HairFragmentOutput {
+    @location(0) color: vec4<f32>,
+#ifdef MULTISAMPLED
+    @builtin(sample_mask) sample_mask: u32,
+#endif
+}
+
 @fragment
-fn fragment(in: HairVertexOutput) -> @location(0) vec4<f32> {
+fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
     let tangent = normalize(in.tangent);
     let eye = towards_eye(in.world_position);
     // The fibre is a cylinder seen across: its normal turns from −across to +across over the ribbon.
@@ -259,19 +266,32 @@ fn fragment(in: HairVertexOutput) -> @location(0) vec4<f32> {
     let occlusion = 1.0 - shading.parameters.w * (1.0 - in.along);
     light_sum += view_bindings::lights.ambient_color.rgb * surface.color * occlusion;
 
-    var color = vec4(light_sum * view.exposure, in.coverage);
+    var out: HairFragmentOutput;
+    out.color = vec4(light_sum * view.exposure, 1.0);
 #ifdef TONEMAP_IN_SHADER
-    color = tone_mapping(color, view.color_grading);
+    out.color = tone_mapping(out.color, view.color_grading);
 #endif
-#ifndef ALPHA_TO_COVERAGE
-    // Without multisampling, coverage becomes a stable per-pixel dither.
-    let threshold = hash01(u32(in.position.x) * 1973u + u32(in.position.y) * 9277u);
-    if in.coverage < threshold {
+    // Coverage as a random subset of the pixel's samples, drawn per hair and pixel, so that hairs over
+    // each other cover independent samples and add up as layers of real hair do (alpha to coverage's
+    // fixed pattern per alpha would stack every hair on the same samples).
+    let pixel_hash = u32(in.position.x) * 1973u + u32(in.position.y) * 9277u + in.hair * 26699u;
+#ifdef MULTISAMPLED
+    let samples = #{HAIR_MSAA_SAMPLES}u;
+    let covered = min(u32(in.coverage * f32(samples) + hash01(pixel_hash)), samples);
+    if covered == 0u {
         discard;
     }
-    color.a = 1.0;
+    let rotation = u32(hash01(pixel_hash ^ 0x5bd1e995u) * f32(samples)) % samples;
+    let all = (1u << samples) - 1u;
+    let first = (1u << covered) - 1u;
+    out.sample_mask = ((first << rotation) | (first >> (samples - rotation))) & all;
+#else
+    // Without multisampling: the same, per pixel.
+    if in.coverage < hash01(pixel_hash) {
+        discard;
+    }
 #endif
-    return color;
+    return out;
 }
 
 #endif // PREPASS_PIPELINE

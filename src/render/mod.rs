@@ -12,9 +12,13 @@
 //! `tangent × (direction to the eye)`, by the hair's diameter; sub-pixel hairs are widened to
 //! [`HairAppearance::min_pixel_width`] and their coverage lowered by the same factor
 //! ([`ribbon_width`]), so thin hair fades instead of shimmering. Coverage goes to the GPU's multisampling
-//! as alpha to coverage: it needs no sorting (thousands of hairs cross each other in every pixel), keeps
-//! depth for shadows, and is what the example's 4× MSAA gives for free. Order-independent transparency
-//! would blend more smoothly but costs a buffer of fragments per pixel.
+//! as a sample mask: each hair covers a random subset of a pixel's samples (as many as its coverage is
+//! worth), drawn afresh per hair and pixel, so that hairs over one another cover independent samples and
+//! add up as layers of real hair do. That needs no sorting (thousands of hairs cross in every pixel),
+//! keeps depth for shadows, and comes with the 4× MSAA Bevy's cameras have by default; alpha to
+//! coverage's fixed pattern per alpha level would stack every hair on the same samples, and
+//! order-independent transparency would cost a list of fragments per pixel. Without multisampling, the
+//! same draw keeps or drops whole pixels.
 //!
 //! **Shading** (`hair.wgsl`): Kajiya and Kay's hair model (SIGGRAPH 1989), diffuse `∝ sin(t, l)` and
 //! specular `∝ sin(t, h)^p`, with Scheuermann's two shifted highlights ("Hair Rendering and Shading",
@@ -112,7 +116,7 @@ impl HairAppearance {
         root_color: Color::BLACK,
         tip_color: Color::BLACK,
         color_variation: 0.2,
-        specular: 0.12,
+        specular: 0.05,
         cuticle_tilt: 3.0 * std::f32::consts::PI / 180.0,
         highlight_width: 7.0 * std::f32::consts::PI / 180.0,
         thickness_scale: 1.0,
