@@ -133,7 +133,8 @@ fn render_preparation(threads: usize, frames: usize) {
     use bevy_hair_sim::render::{GuideLayout, HairStrips};
     let (guides, followers, edges) = (2000, 9, 24);
     let mut app = Scene::app(Some(threads));
-    let groom = HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
+    let groom =
+        HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
     let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
     for step in 0..WARM_UP_STEPS {
         let (translation, rotation) = Scene::head_pose(step);

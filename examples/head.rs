@@ -114,6 +114,9 @@ struct Options {
     volume: HairVolume,
     /// How hair is drawn at the start (L cycles it).
     drawing: Drawing,
+    /// Picture mode: whether the rendered hair is drawn in every frame, not only in the first and last
+    /// [`DRAWN_PICTURE_FRAMES`] (for timing the renderer).
+    draw_every_frame: bool,
     /// The rendered hair's look (a preset of [`HairAppearance::presets`]).
     appearance: HairAppearance,
 }
@@ -144,6 +147,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--draw hair|lines|both]
+            [--draw-every-frame on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -167,6 +171,7 @@ impl Options {
             // The example shows the hair–hair grid: its velocity smoothing (the pressure with --pressure).
             volume: HairVolume { enabled: true, ..default() },
             drawing: Drawing::Rendered,
+            draw_every_frame: false,
             appearance: HairAppearance::default(),
         };
         while let Some(flag) = args.next() {
@@ -223,6 +228,13 @@ impl Options {
                         .into_iter()
                         .find(|style| style.name() == value)
                         .ok_or_else(|| format!("unknown style {value:?}"))?
+                }
+                "--draw-every-frame" => {
+                    options.draw_every_frame = match value.as_str() {
+                        "on" => true,
+                        "off" => false,
+                        _ => return Err(format!("--draw-every-frame needs on or off, got {value:?}")),
+                    }
                 }
                 "--draw" => {
                     options.drawing = Drawing::ALL
@@ -329,7 +341,11 @@ fn spawn_scene(
     config.enabled = options.drawing != Drawing::Rendered;
     hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
-    commands.spawn((Camera3d::default(), Transform::default(), Orbit { yaw, pitch: options.pitch_degrees.to_radians(), distance: options.distance }));
+    commands.spawn((
+        Camera3d::default(),
+        Transform::default(),
+        Orbit { yaw, pitch: options.pitch_degrees.to_radians(), distance: options.distance },
+    ));
     // The key light casts the hair's shadows, on the head and on the hair itself: one cascade over the
     // 3 m around the camera, so that a shadow texel (4096² map) is under a millimetre.
     commands.spawn((
@@ -681,7 +697,9 @@ fn take_picture(
 ) {
     *frames += 1;
     let drawn = options.drawing != Drawing::Lines
-        && (*frames <= DRAWN_PICTURE_FRAMES || *frames + DRAWN_PICTURE_FRAMES >= options.frames);
+        && (options.draw_every_frame
+            || *frames <= DRAWN_PICTURE_FRAMES
+            || *frames + DRAWN_PICTURE_FRAMES >= options.frames);
     let shown = if drawn { Visibility::Inherited } else { Visibility::Hidden };
     hair_meshes.iter_mut().for_each(|mut visibility| {
         visibility.set_if_neq(shown);

@@ -163,10 +163,13 @@ impl HairMesh {
 #[derive(Component)]
 struct HasHairMesh;
 
+/// A head with strands and no [`HairMesh`] yet.
+type HeadWithoutHairMesh = (With<HairHead>, With<HeadStrands>, Without<HasHairMesh>);
+
 /// Gives every head with strands a [`HairMesh`] child.
 fn spawn_hair_meshes(
     mut commands: Commands,
-    heads: Query<Entity, (With<HairHead>, With<HeadStrands>, Without<HasHairMesh>)>,
+    heads: Query<Entity, HeadWithoutHairMesh>,
     mut materials: ResMut<Assets<HairMaterial>>,
 ) {
     for head in &heads {
@@ -187,6 +190,16 @@ fn spawn_hair_meshes(
     }
 }
 
+/// What [`prepare_hair_meshes`] keeps up to date of a head's [`HairMesh`] entity.
+type HairMeshParts = (
+    &'static mut HairMesh,
+    &'static ChildOf,
+    &'static mut Mesh3d,
+    &'static MeshMaterial3d<HairMaterial>,
+    &'static mut Aabb,
+    &'static InheritedVisibility,
+);
+
 /// What [`prepare_hair_meshes`] reads of a strand.
 type DrawnStrand =
     (&'static SimulatedStrand, &'static StrandNodes, Option<&'static FollowerNodes>, Option<&'static RepresentedHairs>);
@@ -196,14 +209,7 @@ type DrawnStrand =
 #[allow(clippy::too_many_arguments)]
 fn prepare_hair_meshes(
     fixed_time: Res<Time<Fixed>>,
-    mut hair_meshes: Query<(
-        &mut HairMesh,
-        &ChildOf,
-        &mut Mesh3d,
-        &MeshMaterial3d<HairMaterial>,
-        &mut Aabb,
-        &InheritedVisibility,
-    )>,
+    mut hair_meshes: Query<HairMeshParts>,
     heads: Query<(&HeadStrands, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
     mut meshes: ResMut<Assets<Mesh>>,
