@@ -14,7 +14,9 @@
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
 //! of exactly 1/60 s each (one simulation step per frame, however slow the renderer; the panel's frame
-//! rate then reads this clock's 60), save a PNG with Bevy's screenshot API and exit.
+//! rate then reads this clock's 60), save a PNG with Bevy's screenshot API and exit. The rendered hair
+//! takes seconds per frame in software, so it is drawn only in the first and last 8 frames
+//! (`--draw-every-frame on` draws it throughout, to time it).
 //!
 //! ```sh
 //! cargo run --release --features egui --example head -- --screenshot shot.png --frames 240 \

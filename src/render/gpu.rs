@@ -148,7 +148,10 @@ pub struct HairMesh {
     strips: HairStrips,
     /// Whether the positions were written this frame (and not yet handed to the GPU).
     fresh: bool,
+    /// The appearance drawn (the last valid one asked for).
     appearance: Option<HairAppearance>,
+    /// The appearance last asked for, valid or not.
+    requested: Option<HairAppearance>,
     buffer: Handle<ShaderBuffer>,
 }
 
@@ -223,13 +226,20 @@ fn prepare_hair_meshes(
         if !visibility.get() {
             continue;
         }
-        let appearance = appearance.cloned().unwrap_or_default();
-        let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
-        if appearance_changed && let Err(reason) = appearance.validate() {
-            error!("hair of head {}: its HairAppearance cannot be drawn: {reason}", child_of.parent());
-            hair_mesh.appearance = Some(appearance);
-            continue;
+        // A new appearance is checked once; an invalid one is reported and the last valid one kept.
+        let requested = appearance.cloned().unwrap_or_default();
+        let mut appearance = hair_mesh.appearance.clone().unwrap_or_default();
+        if hair_mesh.requested.as_ref() != Some(&requested) {
+            match requested.validate() {
+                Ok(()) => appearance = requested.clone(),
+                Err(reason) => error!(
+                    "hair of head {}: its HairAppearance cannot be drawn ({reason}); it keeps its last look",
+                    child_of.parent()
+                ),
+            }
+            hair_mesh.requested = Some(requested);
         }
+        let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
         let layout = head_strands.strands().iter().filter_map(|&entity| {
             let (strand, nodes, followers, represented) = strands.get(entity).ok()?;
             let material = strand.rod().material();

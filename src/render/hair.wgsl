@@ -208,7 +208,9 @@ fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
     let variation = shading.parameters.y;
     let brightness = 1.0 + variation * (hash01(in.hair) - 0.5);
     var surface: HairSurface;
-    surface.color = mix(shading.root_color.rgb, shading.tip_color.rgb, in.along) * brightness;
+    // Each hair's own shade: its brightness, and where along it the colour turns from root to tip.
+    let blend = saturate(in.along + variation * (hash01(in.hair ^ 0x68e31da4u) - 0.5));
+    surface.color = mix(shading.root_color.rgb, shading.tip_color.rgb, blend) * brightness;
     surface.tangent = tangent;
     surface.normal = normal;
     surface.eye = eye;

@@ -51,8 +51,9 @@ pub struct HairAppearance {
     pub root_color: Color,
     /// Colour at the tip; the colour blends from root to tip along each hair.
     pub tip_color: Color,
-    /// How much each hair's brightness varies from its neighbours', 0 to 1: a hair's colour is scaled by a
-    /// factor drawn uniformly from `1 ± color_variation / 2`. Hair is never one flat colour.
+    /// How much each hair's shade varies from its neighbours', 0 to 1: a hair's colour is scaled by a
+    /// factor drawn uniformly from `1 ± color_variation / 2`, and its turn from root to tip colour moves
+    /// by as much of its length. Hair is never one flat colour.
     pub color_variation: f32,
     /// Strength of the highlights, 0 to 1: the fraction of light the cuticle reflects in the primary
     /// highlight at its peak (about 0.05–0.1 for real hair, higher reads as oiled or wet).
@@ -360,44 +361,32 @@ impl HairStrips {
                 if nodes.positions.len() != per {
                     continue;
                 }
-                write_interpolated(&mut block[..3 * per], &nodes.previous_positions, &nodes.positions, alpha);
+                let (guide_block, follower_block) = block.split_at_mut(3 * per);
+                write_interpolated(guide_block, &nodes.previous_positions, &nodes.positions, alpha, bounds);
                 let followers =
                     followers.filter(|f| f.count() == guide.followers as usize && f.nodes_per_follower() == per);
                 if let Some(followers) = followers {
-                    let previous = if followers.previous_positions.len() == followers.positions.len() {
-                        &followers.previous_positions
-                    } else {
-                        &followers.positions
-                    };
-                    write_interpolated(&mut block[3 * per..], previous, &followers.positions, alpha);
+                    let (previous, current) = (&followers.previous_positions, &followers.positions);
+                    write_interpolated(follower_block, previous, current, alpha, bounds);
                 }
             }
-            *bounds = bounds_of(positions);
         });
         let (low, high) = self.piece_bounds.iter().fold(empty, |(low, high), (a, b)| (low.min(*a), high.max(*b)));
         (low.cmple(high).all()).then_some((low, high))
     }
 }
 
-/// Writes `previous + alpha (current − previous)` as `x y z` triples into `out` (as many as fit).
-fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alpha: f32) {
+/// Writes `previous + alpha (current − previous)` as `x y z` triples into `out` (as many as fit; the
+/// current positions alone when the previous ones do not match), growing `bounds` to hold them.
+fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alpha: f32, bounds: &mut (Vec3, Vec3)) {
     let previous = if previous.len() == current.len() { previous } else { current };
+    let (mut low, mut high) = *bounds;
     for ((out, a), b) in out.chunks_exact_mut(3).zip(previous).zip(current) {
-        let p = a.lerp(*b, alpha);
+        let p = *a + alpha * (*b - *a);
         out.copy_from_slice(&[p.x, p.y, p.z]);
+        // `f32::min` and `max` skip a NaN, so a NaN node leaves the bounds alone.
+        low = low.min(p);
+        high = high.max(p);
     }
-}
-
-/// Bounds of `x y z` triples, skipping non-finite ones.
-fn bounds_of(positions: &[f32]) -> (Vec3, Vec3) {
-    let mut low = Vec3::splat(f32::INFINITY);
-    let mut high = Vec3::splat(f32::NEG_INFINITY);
-    for p in positions.chunks_exact(3) {
-        let p = Vec3::new(p[0], p[1], p[2]);
-        if p.is_finite() {
-            low = low.min(p);
-            high = high.max(p);
-        }
-    }
-    (low, high)
+    *bounds = (low, high);
 }
