@@ -145,11 +145,9 @@ fn render_preparation(threads: usize, frames: usize) {
     let world = app.world();
     let strands: Vec<Entity> = world.get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
     let layout = || {
-        strands.iter().map(|&entity| GuideLayout {
-            entity,
-            nodes: world.get::<StrandNodes>(entity).map_or(0, |nodes| nodes.positions.len() as u32),
-            followers: world.get::<FollowerNodes>(entity).map_or(0, |followers| followers.count() as u32),
-            radius: 4e-5,
+        strands.iter().filter_map(|&entity| {
+            let nodes = world.get::<StrandNodes>(entity)?;
+            Some(GuideLayout::new(entity, nodes, world.get::<FollowerNodes>(entity), 4e-5))
         })
     };
     let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));

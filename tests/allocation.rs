@@ -72,11 +72,9 @@ fn allocations_per_drawn_frame(strands: usize, threads: usize, count: fn() -> u6
     let world = app.world();
     let guides = world.get::<HeadStrands>(head).unwrap().strands();
     let layout = || {
-        guides.iter().map(|&entity| GuideLayout {
-            entity,
-            nodes: world.get::<StrandNodes>(entity).map_or(0, |nodes| nodes.positions.len() as u32),
-            followers: world.get::<FollowerNodes>(entity).map_or(0, |followers| followers.count() as u32),
-            radius: 4e-5,
+        guides.iter().filter_map(|&entity| {
+            let nodes = world.get::<StrandNodes>(entity)?;
+            Some(GuideLayout::new(entity, nodes, world.get::<FollowerNodes>(entity), 4e-5))
         })
     };
     let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));

@@ -31,11 +31,13 @@ fn layout(app: &App, head: Entity) -> Vec<GuideLayout> {
         .unwrap()
         .strands()
         .iter()
-        .map(|&entity| GuideLayout {
-            entity,
-            nodes: world.get::<StrandNodes>(entity).unwrap().positions.len() as u32,
-            followers: world.get::<FollowerNodes>(entity).map_or(0, |f| f.count() as u32),
-            radius: 4e-5,
+        .map(|&entity| {
+            GuideLayout::new(
+                entity,
+                world.get::<StrandNodes>(entity).unwrap(),
+                world.get::<FollowerNodes>(entity),
+                4e-5,
+            )
         })
         .collect()
 }

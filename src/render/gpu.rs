@@ -243,14 +243,10 @@ fn prepare_hair_meshes(
         let layout = head_strands.strands().iter().filter_map(|&entity| {
             let (strand, nodes, followers, represented) = strands.get(entity).ok()?;
             let material = strand.rod().material();
-            let followers = followers.map_or(0, |followers| followers.count() as u32);
             let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
-            Some(GuideLayout {
-                entity,
-                nodes: nodes.positions.len() as u32,
-                followers,
-                radius: radius * coverage_factor(represented.map(|hairs| hairs.0), followers),
-            })
+            let mut guide = GuideLayout::new(entity, nodes, followers, radius);
+            guide.radius *= coverage_factor(represented.map(|hairs| hairs.0), guide.followers);
+            Some(guide)
         });
         let relaid = hair_mesh.strips.set_layout(layout);
         let thickness_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {

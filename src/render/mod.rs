@@ -171,6 +171,18 @@ pub fn ribbon_width(diameter: f32, pixel: f32, min_pixels: f32) -> (f32, f32) {
     if width > 0.0 { (width, diameter / width) } else { (0.0, 0.0) }
 }
 
+impl GuideLayout {
+    /// The layout of the guide `entity` with these `nodes` and `followers`, drawn with `radius` (m).
+    pub fn new(entity: Entity, nodes: &StrandNodes, followers: Option<&FollowerNodes>, radius: f32) -> Self {
+        Self {
+            entity,
+            nodes: nodes.positions.len() as u32,
+            followers: followers.map_or(0, |followers| followers.count() as u32),
+            radius,
+        }
+    }
+}
+
 /// One drawn hair's nodes in its head's node buffer.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DrawnHair {
@@ -382,7 +394,7 @@ fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alph
     let previous = if previous.len() == current.len() { previous } else { current };
     let (mut low, mut high) = *bounds;
     for ((out, a), b) in out.chunks_exact_mut(3).zip(previous).zip(current) {
-        let p = *a + alpha * (*b - *a);
+        let p = a.lerp(*b, alpha);
         out.copy_from_slice(&[p.x, p.y, p.z]);
         // `f32::min` and `max` skip a NaN, so a NaN node leaves the bounds alone.
         low = low.min(p);
