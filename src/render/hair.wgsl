@@ -181,7 +181,7 @@ fn shade(surface: HairSurface, light: vec3<f32>, radiance: vec3<f32>) -> vec3<f3
     let half_vector = normalize(light + surface.eye);
     let primary = pow(sqrt(max(1.0 - pow(dot(surface.primary_tangent, half_vector), 2.0), 0.0)), shading.highlights.z);
     let secondary = pow(sqrt(max(1.0 - pow(dot(surface.secondary_tangent, half_vector), 2.0), 0.0)), shading.highlights.w);
-    // Scheuermann's fade of highlights seen from behind the light.
+    // A directional fade after Scheuermann's: highlights weaken where the tangent points away from the light.
     let facing = smoothstep(-1.0, 0.0, dot(surface.tangent, light)) * 0.5 + 0.5;
     let specular = shading.parameters.x * wrap * facing
         * (vec3(primary) + secondary * surface.sparkle * surface.color * 4.0);
