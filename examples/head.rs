@@ -340,7 +340,6 @@ fn spawn_scene(
 ) {
     let (config, hair_gizmos) = gizmos.config_mut::<HairGizmos>();
     config.line.width = 1.5;
-    config.enabled = options.drawing != Drawing::Rendered;
     hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
     commands.spawn((
@@ -678,7 +677,7 @@ fn switch_drawing(
         return;
     }
     *drawing = Some(next);
-    gizmos.config_mut::<HairGizmos>().0.enabled = next != Drawing::Rendered;
+    gizmos.config_mut::<HairGizmos>().1.draw_strands = next != Drawing::Rendered;
     let shown = if next == Drawing::Lines { Visibility::Hidden } else { Visibility::Inherited };
     for (mut visibility, _) in &mut hair_meshes {
         visibility.set_if_neq(shown);

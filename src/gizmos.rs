@@ -28,6 +28,10 @@ pub struct HairGizmos {
     /// Whether follower hairs ([`crate::followers`]) are drawn, besides the simulated strands; off shows
     /// the guides alone. Default on.
     pub draw_followers: bool,
+    /// Whether strands are drawn as lines at all. On by default; the hair renderer
+    /// (`HairRenderPlugin`, `render` feature) turns it off when it starts, making the lines a debug view
+    /// over the rendered hair (the colliders are still drawn when asked).
+    pub draw_strands: bool,
 }
 
 impl Default for HairGizmos {
@@ -39,6 +43,7 @@ impl Default for HairGizmos {
             draw_colliders: false,
             collider_color: Color::srgb(0.2, 0.9, 0.4),
             draw_followers: true,
+            draw_strands: true,
         }
     }
 }
@@ -95,6 +100,9 @@ pub fn draw_strands(
     fixed_time: Res<Time<Fixed>>,
     strands: Query<(&StrandNodes, Option<&FollowerNodes>), With<SimulatedStrand>>,
 ) {
+    if !gizmos.config_ext.draw_strands {
+        return;
+    }
     let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
     let root = gizmos.config_ext.root_color.to_linear();
     let tip = gizmos.config_ext.tip_color.to_linear();

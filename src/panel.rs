@@ -128,8 +128,6 @@ fn hair_panel(
     let mut groom_held = false;
     let mut drawing = gizmo_store.as_ref().map(|store| store.config::<HairGizmos>().1.clone());
     let shown_drawing = drawing.clone();
-    let lines_shown = gizmo_store.as_ref().is_some_and(|store| store.config::<HairGizmos>().0.enabled);
-    let mut lines = lines_shown;
     let rendered_shown = hair_meshes.iter().any(|visibility| *visibility != Visibility::Hidden);
     let mut rendered = rendered_shown;
     let shown_appearance = heads.iter().next().map(|(_, appearance)| appearance.cloned().unwrap_or_default());
@@ -159,7 +157,9 @@ fn hair_panel(
         ui.collapsing("drawing", |ui| {
             ui.horizontal(|ui| {
                 ui.checkbox(&mut rendered, "rendered hair");
-                ui.checkbox(&mut lines, "gizmo lines");
+                if let Some(drawing) = drawing.as_mut() {
+                    ui.checkbox(&mut drawing.draw_strands, "gizmo lines");
+                }
             });
             if let Some(appearance) = appearance.as_mut() {
                 appearance_grid(ui, appearance);
@@ -196,13 +196,10 @@ fn hair_panel(
             }
         }
     }
-    if let Some(mut store) = gizmo_store {
-        if let Some(drawing) = drawing.filter(|drawing| Some(drawing) != shown_drawing.as_ref()) {
-            *store.config_mut::<HairGizmos>().1 = drawing;
-        }
-        if lines != lines_shown {
-            store.config_mut::<HairGizmos>().0.enabled = lines;
-        }
+    if let (Some(mut store), Some(drawing)) =
+        (gizmo_store, drawing.filter(|drawing| Some(drawing) != shown_drawing.as_ref()))
+    {
+        *store.config_mut::<HairGizmos>().1 = drawing;
     }
     if reset {
         strands.iter_mut().for_each(|mut strand| strand.reset_to_rest());

@@ -19,7 +19,9 @@ use bevy::tasks::ComputeTaskPool;
 
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::FollowerNodes;
-use crate::gizmos::HairDrawSystems;
+use bevy::gizmos::config::GizmoConfigStore;
+
+use crate::gizmos::{HairDrawSystems, HairGizmos};
 use crate::head::{HairHead, HeadStrands};
 use crate::strand::SimulatedStrand;
 use crate::strand_data::StrandNodes;
@@ -39,6 +41,16 @@ const ATTRIBUTE_HAIR_VERTEX: MeshVertexAttribute =
 pub struct HairRenderPlugin;
 
 impl Plugin for HairRenderPlugin {
+    fn finish(&self, app: &mut App) {
+        // The rendered hair is the view; the gizmo lines become a debug view, off until asked for.
+        if app.is_plugin_added::<bevy::pbr::PbrPlugin>()
+            && let Some(mut store) = app.world_mut().get_resource_mut::<GizmoConfigStore>()
+            && let Some((_, lines)) = store.get_config_mut::<HairGizmos>()
+        {
+            lines.draw_strands = false;
+        }
+    }
+
     fn build(&self, app: &mut App) {
         app.register_type::<HairAppearance>();
         if !app.is_plugin_added::<bevy::pbr::PbrPlugin>() {
