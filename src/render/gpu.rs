@@ -128,6 +128,8 @@ impl Material for HairMaterial {
         SHADER.into()
     }
 
+    /// Bevy's multisampled pipeline without blending (or a discarding one without MSAA). The shader's
+    /// alpha stays 1: coverage goes out as a sample mask of its own (see the module docs).
     fn alpha_mode(&self) -> AlphaMode {
         AlphaMode::AlphaToCoverage
     }
