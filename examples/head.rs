@@ -179,6 +179,11 @@ impl Options {
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             let number = |what: &str| value.parse::<f32>().map_err(|_| format!("{flag} needs {what}, got {value:?}"));
+            let switch = || match value.as_str() {
+                "on" => Ok(true),
+                "off" => Ok(false),
+                _ => Err(format!("{flag} needs on or off, got {value:?}")),
+            };
             match flag.as_str() {
                 "--screenshot" => options.screenshot = Some(value.clone()),
                 "--frames" => options.frames = number("a count")? as u32,
@@ -190,13 +195,7 @@ impl Options {
                 "--distance" => options.distance = number("a distance in m")?.clamp(0.3, 5.0),
                 "--wind" => options.wind = number("a speed in m/s")?,
                 "--pressure" => options.volume.stiffness = number("a pressure in Pa")?,
-                "--grid" => {
-                    options.volume.enabled = match value.as_str() {
-                        "on" => true,
-                        "off" => false,
-                        _ => return Err(format!("--grid needs on or off, got {value:?}")),
-                    }
-                }
+                "--grid" => options.volume.enabled = switch()?,
                 "--integrator" => {
                     options.integrator = match value.as_str() {
                         "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,
@@ -204,20 +203,8 @@ impl Options {
                         _ => return Err(format!("--integrator needs bdf2 or euler, got {value:?}")),
                     }
                 }
-                "--colliders" => {
-                    options.draw_colliders = match value.as_str() {
-                        "on" => true,
-                        "off" => false,
-                        _ => return Err(format!("--colliders needs on or off, got {value:?}")),
-                    }
-                }
-                "--combing" => {
-                    options.combed = match value.as_str() {
-                        "on" => true,
-                        "off" => false,
-                        _ => return Err(format!("--combing needs on or off, got {value:?}")),
-                    }
-                }
+                "--colliders" => options.draw_colliders = switch()?,
+                "--combing" => options.combed = switch()?,
                 "--groom" => {
                     options.file_groom = match value.as_str() {
                         "ratboy" => true,
@@ -231,13 +218,7 @@ impl Options {
                         .find(|style| style.name() == value)
                         .ok_or_else(|| format!("unknown style {value:?}"))?
                 }
-                "--draw-every-frame" => {
-                    options.draw_every_frame = match value.as_str() {
-                        "on" => true,
-                        "off" => false,
-                        _ => return Err(format!("--draw-every-frame needs on or off, got {value:?}")),
-                    }
-                }
+                "--draw-every-frame" => options.draw_every_frame = switch()?,
                 "--draw" => {
                     options.drawing = Drawing::ALL
                         .into_iter()
