@@ -9,6 +9,7 @@ pub mod groom_file;
 pub mod head;
 #[cfg(feature = "egui")]
 pub mod panel;
+mod parallel;
 mod plugin;
 pub mod render;
 pub mod rod;

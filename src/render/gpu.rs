@@ -155,7 +155,8 @@ impl Material for HairMaterial {
 }
 
 /// The entity that draws one head's hair: a child of the head, with the mesh and material the plugin
-/// keeps. Hide it (its `Visibility`) to show the gizmo lines alone.
+/// keeps. Hide it (its `Visibility`) to hide the rendered hair; the gizmo lines, off with the renderer,
+/// come back with [`HairGizmos::draw_strands`].
 #[derive(Component, Debug, Default)]
 #[require(NoAutoAabb)]
 pub struct HairMesh {

@@ -362,7 +362,7 @@ impl HairStrips {
             Some(piece)
         });
         let lookup = &lookup;
-        crate::volume::grid::run_in_parallel(threads, work, |(range, positions, bounds)| {
+        crate::parallel::run_in_parallel(threads, work, |(range, positions, bounds)| {
             let base = offsets[range.start];
             for guide_index in range {
                 let guide = guides[guide_index];

@@ -36,6 +36,8 @@ use std::ops::Range;
 use bevy::math::DVec3;
 use bevy::tasks::ComputeTaskPool;
 
+use crate::parallel::run_in_parallel;
+
 /// Most bricks in a grid's bounding box: a grid that would need more (hair spread over metres) coarsens
 /// its cells until it fits. 2¹⁸ bricks, a box of 256³ points (1 m at 4 mm); the table is 1 MB.
 pub const MAX_GRID_BRICKS: usize = 1 << 18;
@@ -452,21 +454,6 @@ impl Placement {
     fn brick_coordinates(&self, entry: usize) -> [usize; 3] {
         let [bx, by, _] = self.bricks;
         [entry % bx, entry / bx % by, entry / (bx * by)]
-    }
-}
-
-/// Runs `task` on every item of `work`, on Bevy's compute pool when it has `threads` > 1 threads.
-pub(crate) fn run_in_parallel<W: Send>(threads: usize, work: impl Iterator<Item = W>, task: impl Fn(W) + Sync) {
-    match ComputeTaskPool::try_get() {
-        Some(pool) if threads > 1 => {
-            let task = &task;
-            pool.scope(|scope| {
-                for item in work {
-                    scope.spawn(async move { task(item) });
-                }
-            });
-        }
-        _ => work.for_each(task),
     }
 }
 

@@ -50,10 +50,10 @@ use bevy::tasks::ComputeTaskPool;
 use crate::HairSystems;
 use crate::followers::HairFollowers;
 use crate::head::StrandOf;
+use crate::parallel::run_in_parallel;
 use crate::rod::RodError;
 use crate::settings::{HairSettings, HairStatistics};
 use crate::strand::{SimulatedStrand, StrandForces};
-use grid::run_in_parallel;
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
 /// The hair–hair interaction's parameters, in [`HairSettings::volume`].
