@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `followers`, `integrators`, `volume`, `render`; all by
+//! `followers`, `integrators`, `volume`, `render`, `crowd`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -25,7 +25,7 @@ use bevy::tasks::available_parallelism;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose, StepTimings};
 use counting_allocator::BYTES_IN_USE;
-use scene::{HAIR_LENGTH, Scene, WARM_UP_STEPS};
+use scene::{Crowd, HAIR_LENGTH, Scene, WARM_UP_STEPS};
 
 /// Median wall time of `steps` steps, s, after the warm-up, with `colliders` colliders.
 fn median_step_seconds(strands: usize, edges: usize, colliders: usize, threads: usize, steps: usize) -> f64 {
@@ -120,6 +120,44 @@ fn main() {
     }
     if wanted("render") {
         render_preparation(threads, if quick { 50 } else { 400 });
+    }
+    if wanted("crowd") {
+        crowd(threads, steps);
+    }
+}
+
+/// A crowd of 10 heads × 200 strands × 32 edges around one camera that sees two of them up close (see
+/// `benches/support/scene.rs`), every head at full detail and with levels of detail chosen from the
+/// camera, stepped in turn: median ms per step, and the heads at each level.
+fn crowd(threads: usize, steps: usize) {
+    println!();
+    println!("Crowd, 10 heads × 200 strands × 32 edges, the camera 1.2 m from two of them:");
+    println!("| levels of detail | ms / step | strands stepped per step | heads full / ½ / ¼ / carried |");
+    println!("|---|---:|---:|---|");
+    let mut crowds = [false, true].map(|detail| Crowd::new(10, 200, 32, Some(threads), detail));
+    for crowd in &mut crowds {
+        for _ in 0..WARM_UP_STEPS {
+            crowd.step();
+        }
+    }
+    let mut times = [Vec::with_capacity(steps), Vec::with_capacity(steps)];
+    let mut stepped = [0; 2];
+    for _ in 0..steps {
+        for (index, crowd) in crowds.iter_mut().enumerate() {
+            let started = Instant::now();
+            crowd.step();
+            times[index].push(started.elapsed().as_secs_f64());
+            stepped[index] += crowd.app.world().resource::<HairStatistics>().strands;
+        }
+    }
+    for (index, name) in ["off (every head at full detail)", "on"].into_iter().enumerate() {
+        times[index].sort_by(f64::total_cmp);
+        let [full, half, quarter, carried] = crowds[index].levels();
+        println!(
+            "| {name} | {:.2} | {:.0} | {full} / {half} / {quarter} / {carried} |",
+            1e3 * times[index][steps / 2],
+            stepped[index] as f64 / steps as f64
+        );
     }
 }
 

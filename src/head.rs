@@ -4,6 +4,7 @@ use bevy::math::{DQuat, DVec3};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
+use crate::detail::HairDetail;
 use crate::settings::HairSettings;
 
 /// A head, or any body hair grows from. Its [`Transform`] (through any parents) moves the roots of its
@@ -13,7 +14,7 @@ use crate::settings::HairSettings;
 /// stretch its strands.
 #[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone)]
-#[require(Transform, HeadMotion)]
+#[require(Transform, HeadMotion, HairDetail)]
 pub struct HairHead;
 
 /// Roots a strand on a head: the strand's [`crate::strand::HairStrand`] nodes are given in the head's

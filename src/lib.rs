@@ -2,6 +2,7 @@
 #![warn(missing_docs)]
 
 pub mod collision;
+pub mod detail;
 pub mod followers;
 pub mod gizmos;
 pub mod groom;
@@ -27,6 +28,7 @@ pub mod prelude {
     pub use crate::collision::{
         HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };
+    pub use crate::detail::{DetailLevel, HairDetail, HairDetailPlugin, HairDetailSettings};
     pub use crate::followers::{FollowerNodes, HairFollowers};
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};

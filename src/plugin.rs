@@ -6,6 +6,7 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
 use crate::collision::HairCollisionPlugin;
+use crate::detail::HairDetailPlugin;
 use crate::followers::{FollowerNodes, HairFollowers, bind_followers, place_followers};
 use crate::gizmos::HairGizmoPlugin;
 use crate::groom::{GroomedStrand, HairGroom, grow_groomed_hair};
@@ -22,7 +23,7 @@ use crate::volume::HairVolumePlugin;
 use crate::wind::HairWindPlugin;
 
 /// Everything a game needs for hair: simulation ([`HairSimulationPlugin`]), collisions
-/// ([`HairCollisionPlugin`]), hair–hair interaction ([`HairVolumePlugin`]), wind ([`HairWindPlugin`]),
+/// ([`HairCollisionPlugin`]), levels of detail for crowds ([`HairDetailPlugin`]), hair–hair interaction ([`HairVolumePlugin`]), wind ([`HairWindPlugin`]),
 /// debug lines ([`HairGizmoPlugin`]), groom files ([`GroomFilePlugin`]) and, with the crate's `render`
 /// feature, hair drawn with Bevy's PBR (`HairRenderPlugin`). Add it once, after Bevy's plugins:
 ///
@@ -82,6 +83,7 @@ impl PluginGroup for HairPlugin {
         let group = PluginGroupBuilder::start::<Self>()
             .add(HairSimulationPlugin { schedule: self.schedule })
             .add(HairCollisionPlugin { schedule: self.schedule })
+            .add(HairDetailPlugin { schedule: self.schedule })
             .add(HairVolumePlugin { schedule: self.schedule })
             .add(HairWindPlugin { schedule: self.schedule })
             .add(HairGizmoPlugin)

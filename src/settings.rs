@@ -126,6 +126,9 @@ impl HairPause {
 pub struct HairStatistics {
     /// Strands simulated in the last step.
     pub strands: usize,
+    /// Strands not simulated in the last step because their head is at a coarser level of detail (stepped
+    /// on other fixed steps, or carried; see [`crate::detail`]).
+    pub unstepped_strands: usize,
     /// Nodes of those strands.
     pub nodes: usize,
     /// Steps simulated since start.

@@ -8,11 +8,11 @@ use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
+use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
-use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape, write_strand_data};
+use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]
@@ -152,6 +152,8 @@ struct StepTally {
     contacts: usize,
     max_strain: f64,
     quarantined: usize,
+    /// Strands not stepped at this fixed step (a coarser level of detail).
+    unstepped: usize,
     faults: Vec<Fault>,
 }
 
@@ -259,10 +261,19 @@ pub(crate) fn step_strands(
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
         threads.scope(|StepThread { workspace, tally }| {
-            let outcome = strand.advance(now, &params, &forces, &contacts, workspace);
+            if !strand.detail.due {
+                // A coarser level of detail: not stepped now, drawn carried with its head.
+                forces.clear();
+                strand.write_components(None, &mut nodes, &mut frames);
+                tally.unstepped += 1;
+                return;
+            }
+            let steps = strand.detail.take_elapsed();
+            let longer = StepParams { dt: params.dt * f64::from(steps), ..params };
+            let outcome = strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
             forces.clear();
             // Written here, while the strand is in this core's cache.
-            write_strand_data(&mut strand, &mut nodes, &mut frames);
+            strand.write_components(Some(steps), &mut nodes, &mut frames);
             tally.strands += 1;
             tally.nodes += strand.rod().node_count();
             tally.quarantined += usize::from(strand.is_quarantined());
@@ -284,8 +295,9 @@ pub(crate) fn step_strands(
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);
-    let mut quarantined = 0;
+    let (mut quarantined, mut unstepped) = (0, 0);
     for StepThread { tally, .. } in threads.iter_mut() {
+        unstepped += tally.unstepped;
         strands_stepped += tally.strands;
         nodes_stepped += tally.nodes;
         newton_iterations += tally.newton_iterations;
@@ -302,6 +314,7 @@ pub(crate) fn step_strands(
     }
     fault_log.summarise(now);
     statistics.quarantined = quarantined;
+    statistics.unstepped_strands = unstepped;
     statistics.step_seconds = started.elapsed().as_secs_f64();
     statistics.steps += 1;
     statistics.strands = strands_stepped;

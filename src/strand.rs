@@ -5,6 +5,7 @@ use bevy::math::{DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
+use crate::detail::{DetailLevel, StrandDetail};
 use crate::head::{ScaledPose, StrandOf};
 use crate::rod::{
     Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
@@ -230,6 +231,9 @@ pub struct SimulatedStrand {
     /// What the last gravity preload did.
     #[reflect(ignore)]
     preload_report: Option<PreloadReport>,
+    /// The level of detail this step, and the drawn shape while it is kept apart from the simulation.
+    #[reflect(ignore)]
+    pub(crate) detail: StrandDetail,
 }
 
 impl SimulatedStrand {
@@ -275,6 +279,7 @@ impl SimulatedStrand {
             pin_error: None,
             pending_preload: (head.is_some() && spec.gravity_preload > 0.0).then_some(spec.gravity_preload),
             preload_report: None,
+            detail: StrandDetail::default(),
         })
     }
 
@@ -375,11 +380,23 @@ impl SimulatedStrand {
 
     /// Follows the head to `pose`: clamps the root edge to its anchor there. A teleported head carries the
     /// whole strand along rigidly first. A pose the root cannot follow is reported by the next step.
+    ///
+    /// A strand not stepped at this fixed step (a coarser level of detail, see [`crate::detail`]) leaves
+    /// its rod where it is, and follows the head (and any teleport in between) at its next step.
     pub(crate) fn follow_head(&mut self, pose: ScaledPose, teleported: bool) {
         let Some(anchor) = self.anchor else {
             return;
         };
+        let detail = &mut self.detail;
+        detail.head = pose;
+        detail.elapsed += 1;
+        if !detail.due {
+            detail.teleported |= teleported;
+            return;
+        }
+        let teleported = teleported || std::mem::take(&mut detail.teleported);
         if teleported {
+            detail.elapsed = 1;
             let (rotation, translation) = self.head.rigid_motion_to(&pose);
             if let Err(error) = self.rod.transform_rigidly(rotation, translation) {
                 self.pin_error = Some(error);
@@ -451,6 +468,39 @@ impl SimulatedStrand {
             self.rod.set_material(*material)?;
         }
         Ok(())
+    }
+
+    /// The level of detail the strand was simulated at in the last fixed step (see [`crate::detail`]).
+    pub fn detail_level(&self) -> DetailLevel {
+        self.detail.level
+    }
+
+    /// Whether the strand is stepped in this fixed step (decided before [`crate::HairSystems::PinRoots`]
+    /// ends): at full detail always, at a coarser level on its turns.
+    pub fn steps_now(&self) -> bool {
+        self.detail.due
+    }
+
+    /// Sets the strand's level of detail at this fixed step, and whether it is stepped in it.
+    pub(crate) fn set_detail(&mut self, level: DetailLevel, due: bool) {
+        if self.detail.level == DetailLevel::Carried && level != DetailLevel::Carried {
+            // Back from being carried: carried rigidly to its head first, then simulated from there.
+            self.detail.teleported = true;
+        }
+        (self.detail.level, self.detail.due) = (level, due);
+    }
+
+    /// Writes the strand's [`StrandNodes`] and [`StrandFrames`] after this fixed step: the rod as it is, or
+    /// at a coarser level of detail the drawn shape carried with the head (see [`crate::detail`]).
+    /// `stepped` is the length in fixed steps of the step just taken, `None` if none was.
+    pub(crate) fn write_components(&mut self, stepped: Option<u32>, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
+        if self.detail.draws_simulation() {
+            crate::strand_data::write_strand_data(self, nodes, frames);
+            return;
+        }
+        let snap = self.take_snap();
+        let Self { detail, rod, head, .. } = self;
+        detail.write_drawn(rod, head, stepped, snap, nodes, frames);
     }
 
     /// Whether the drawn pose must jump to the strand (spawned, reset or teleported) rather than

@@ -184,7 +184,7 @@ pub(crate) struct RestShapeScratch {
 }
 
 /// `destination` made the converted copy of `source`, reusing its memory.
-fn copy_converted<S: Copy, T>(destination: &mut Vec<T>, source: &[S], convert: impl Fn(S) -> T) {
+pub(crate) fn copy_converted<S: Copy, T>(destination: &mut Vec<T>, source: &[S], convert: impl Fn(S) -> T) {
     destination.clear();
     destination.extend(source.iter().map(|&value| convert(value)));
 }

@@ -36,7 +36,7 @@ use bevy::math::DVec3;
 use bevy::prelude::*;
 
 use crate::HairSystems;
-use crate::strand::StrandForces;
+use crate::strand::{SimulatedStrand, StrandForces};
 use crate::strand_data::StrandNodes;
 
 /// Sinusoidal modes summed for the turbulence (Kraichnan 1970): enough for a field without visible
@@ -285,7 +285,7 @@ pub(crate) fn add_wind(
     time: Res<Time>,
     wind: Res<HairWind>,
     sources: Query<(&HairWindSource, &GlobalTransform)>,
-    mut strands: Query<(&StrandNodes, &mut StrandForces)>,
+    mut strands: Query<(&SimulatedStrand, &StrandNodes, &mut StrandForces)>,
     mut reported: Local<Option<String>>,
     mut active_sources: Local<Vec<(HairWindSource, GlobalTransform)>>,
 ) {
@@ -309,9 +309,10 @@ pub(crate) fn add_wind(
     // The air moves over the step: take it at the step's middle.
     let now = time.elapsed_secs_f64() - 0.5 * time.delta_secs_f64();
     let uniform = field.uniform_at(now);
-    strands.par_iter_mut().for_each(|(nodes, mut forces)| {
+    strands.par_iter_mut().for_each(|(strand, nodes, mut forces)| {
         let positions = &nodes.positions;
-        if positions.is_empty() {
+        // A strand not stepped now (a coarser level of detail) would have its forces cleared unused.
+        if positions.is_empty() || !strand.steps_now() {
             return;
         }
         let last = positions.len() - 1;

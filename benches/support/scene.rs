@@ -115,3 +115,83 @@ impl Scene {
         }
     }
 }
+
+/// A crowd: `heads` heads of the scene's hair, each swaying and turning as [`Scene::head_pose`] with its own
+/// phase, around one camera. The camera looks at the first two heads from 1.2 m; the others stand on a
+/// spiral around it, 4 to 11 m away, some in its view and some behind it.
+#[allow(dead_code)]
+pub struct Crowd {
+    pub app: App,
+    pub heads: Vec<(Entity, Vec3)>,
+    step: usize,
+}
+
+#[allow(dead_code)]
+impl Crowd {
+    /// The crowd with levels of detail chosen from the camera (`detail`), or every head at full detail.
+    pub fn new(heads: usize, strands: usize, edges: usize, threads: Option<usize>, detail: bool) -> Self {
+        use bevy::camera::primitives::Frustum;
+        use bevy::camera::{CameraProjection, PerspectiveProjection};
+        use bevy::math::primitives::ViewFrustum;
+
+        let mut app = Scene::app(threads);
+        app.world_mut().resource_mut::<HairDetailSettings>().enabled = detail;
+        let camera = Transform::from_xyz(0.0, 1.6, 1.2).looking_at(Vec3::new(0.0, 1.55, 0.0), Vec3::Y);
+        let projection = PerspectiveProjection { aspect_ratio: 16.0 / 9.0, ..default() };
+        let clip_from_world = projection.get_clip_from_view() * camera.to_matrix().inverse();
+        let frustum = Frustum(ViewFrustum::from_clip_from_world(&clip_from_world));
+        app.world_mut().spawn((Camera::default(), camera, GlobalTransform::from(camera), frustum));
+        let roots = Scalp::default().roots(strands).expect("the default scalp holds any count");
+        let heads = (0..heads)
+            .map(|index| {
+                let base = match index {
+                    0 => Vec3::new(-0.2, 1.6, 0.0),
+                    1 => Vec3::new(0.2, 1.6, 0.0),
+                    _ => {
+                        let angle = (index - 2) as f32 * std::f32::consts::FRAC_PI_4;
+                        let distance = 2.0 + index as f32;
+                        Vec3::new(distance * angle.sin(), 1.6, 1.2 - distance * angle.cos())
+                    }
+                };
+                let head = app
+                    .world_mut()
+                    .spawn((HairHead, Transform::from_translation(base)))
+                    .with_related_entities::<StrandOf>(|head| {
+                        for root in &roots {
+                            head.spawn(HairStrand::straight(root.position, root.normal, HAIR_LENGTH, edges));
+                        }
+                    })
+                    .id();
+                (head, base)
+            })
+            .collect();
+        Self { app, heads, step: 0 }
+    }
+
+    /// Moves every head (each 7 steps of the motion apart) and runs one step.
+    pub fn step(&mut self) {
+        self.step += 1;
+        for (index, &(head, base)) in self.heads.iter().enumerate() {
+            let (translation, rotation) = Scene::head_pose(self.step + 7 * index);
+            let mut transform = self.app.world_mut().get_mut::<Transform>(head).expect("the head exists");
+            (transform.translation, transform.rotation) = (base + translation - Vec3::new(0.0, 1.6, 0.0), rotation);
+        }
+        self.app.update();
+    }
+
+    /// How many heads are at each level of detail: full, every second step, every fourth, carried.
+    pub fn levels(&self) -> [usize; 4] {
+        let mut counts = [0; 4];
+        for &(head, _) in &self.heads {
+            let level = self.app.world().get::<HairDetail>(head).expect("heads have a level").level();
+            let slot = match level {
+                DetailLevel::Stepped(1) => 0,
+                DetailLevel::Stepped(2) => 1,
+                DetailLevel::Stepped(_) => 2,
+                DetailLevel::Carried => 3,
+            };
+            counts[slot] += 1;
+        }
+        counts
+    }
+}

@@ -47,6 +47,7 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
+use crate::detail::DetailLevel;
 use crate::HairSystems;
 use crate::followers::HairFollowers;
 use crate::head::StrandOf;
@@ -248,6 +249,10 @@ pub(crate) fn interact_through_grid(
     // Where each strand's nodes go in its head's particles, in query order (so the sums are the same
     // from run to run), then the nodes copied there in parallel.
     for (strand, _, strand_of, _, _, entity) in &strands {
+        // Only hair at full detail meets other hair (see `crate::detail`).
+        if !at_full_detail(strand) {
+            continue;
+        }
         let group = grids.group(strand_of.map(|of| of.0));
         group.strands.push((entity, group.nodes));
         group.nodes += strand.rod().node_count();
@@ -301,7 +306,7 @@ pub(crate) fn interact_through_grid(
     let grids = &*grids;
     strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, ..)| {
         let Some(grid) = grids.grid(strand_of.map(|of| of.0)) else { return };
-        if strand.is_quarantined() {
+        if strand.is_quarantined() || !at_full_detail(strand) {
             return;
         }
         let rod = strand.rod();
@@ -316,6 +321,11 @@ pub(crate) fn interact_through_grid(
     });
     statistics.volume_seconds = started.elapsed().as_secs_f64();
     statistics.max_volume_fraction = max_fraction;
+}
+
+/// Whether `strand` is stepped at this fixed step at full detail (see [`crate::detail`]).
+fn at_full_detail(strand: &SimulatedStrand) -> bool {
+    strand.steps_now() && strand.detail_level() == DetailLevel::FULL
 }
 
 /// How many hairs a strand stands for: its [`RepresentedHairs`], or itself and its followers.

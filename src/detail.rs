@@ -1,0 +1,412 @@
+//! Levels of detail: crowds of heads at a game's budget. Each head's hair is stepped at a rate chosen from
+//! its distance to the nearest camera and whether any camera sees it; hair far away is stepped every
+//! second or fourth step, hair out of sight or very far is carried with its head without being simulated.
+//!
+//! **Scheme.**
+//! - A head at level [`DetailLevel::Stepped`]`(n)` has its strands stepped on every `n`-th fixed step,
+//!   with a step of `n · dt`: the same implicit scheme, stable at any step, at `1/n` of the cost. Heads at
+//!   the same level take their turns on different fixed steps (by entity), so the cost is spread evenly.
+//! - Between two of its steps the hair is **drawn from its head's frame**: the nodes are kept in the
+//!   head's (rigid) local space and carried with the head every fixed step, so the roots stay on the
+//!   head however fast it moves. The drawn shape moves in equal parts towards the shape of the last step,
+//!   reaching it as the next step comes: the motion of the hair relative to the head is smooth and lags
+//!   it by at most `n − 1` fixed steps.
+//! - At [`DetailLevel::Carried`] a head's hair is not simulated at all: it keeps its shape in its head's
+//!   frame and follows the head rigidly. When the head comes back, its strands are carried rigidly to
+//!   where the head is and simulated from there.
+//! - **No pops.** A change of level never moves the drawn hair by more than one fixed step's motion: the
+//!   drawn shape always moves towards the simulated one over as many fixed steps as the longest step
+//!   involved (coming back to full detail from every fourth step, over four steps), and the simulation
+//!   itself never jumps (a longer or shorter step starts from where the hair is).
+//! - **What is lost at a coarser level:** motion faster than the longer step resolves (the implicit step
+//!   damps it, as at a lower frame rate), the hair–hair interaction of [`crate::volume`] (only heads at
+//!   full detail take part in their grid), and up to `n − 1` fixed steps of delay in the hair's motion
+//!   relative to its head.
+//!
+//! **Choice.** [`HairDetailSettings`] say at which distances the levels change (with a margin against
+//! flickering between two levels); a head's [`HairDetail`] shows the level in use and can fix one.
+//! Distances are to the nearest active [`Camera`]; a head is out of sight when no active camera's
+//! [`Frustum`] reaches a ball around it as large as its hair. Without any camera (a server, a test),
+//! every head is at full detail.
+
+use bevy::camera::primitives::{Frustum, Sphere};
+use bevy::math::DVec3;
+use bevy::prelude::*;
+
+use crate::head::{HeadMotion, HeadStrands, ScaledPose, StrandOf};
+use crate::rod::{Rod, RodError};
+use crate::strand::SimulatedStrand;
+use crate::strand_data::{StrandFrames, StrandNodes, copy_converted, snap_previous};
+
+/// How a head's hair is simulated.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+#[reflect(Debug, Clone, PartialEq)]
+pub enum DetailLevel {
+    /// Stepped on every `n`-th fixed step, with a step `n` times as long (1: every step, full detail).
+    Stepped(u32),
+    /// Not simulated: carried rigidly with its head, in the shape it last had.
+    Carried,
+}
+
+impl DetailLevel {
+    /// Every fixed step: full detail.
+    pub const FULL: Self = Self::Stepped(1);
+
+    /// Fixed steps per simulation step (`None` when carried).
+    pub fn step_interval(self) -> Option<u32> {
+        match self {
+            Self::Stepped(interval) => Some(interval.max(1)),
+            Self::Carried => None,
+        }
+    }
+
+    /// How coarse the level is, for comparing levels: the step interval, carried coarsest.
+    fn coarseness(self) -> u32 {
+        self.step_interval().unwrap_or(u32::MAX)
+    }
+}
+
+impl Default for DetailLevel {
+    fn default() -> Self {
+        Self::FULL
+    }
+}
+
+/// Put on heads by the plugin ([`crate::head::HairHead`] requires it): the level of detail its hair is
+/// simulated at, and what it was chosen from. Set [`HairDetail::fixed`] to choose the level yourself.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct HairDetail {
+    /// A level to keep whatever the distance (`None`, the default: chosen from [`HairDetailSettings`]).
+    pub fixed: Option<DetailLevel>,
+    level: DetailLevel,
+    distance: f32,
+    on_screen: bool,
+    reach: f32,
+}
+
+impl HairDetail {
+    /// A head whose hair is always simulated at `level`.
+    pub fn fixed(level: DetailLevel) -> Self {
+        Self { fixed: Some(level), ..default() }
+    }
+
+    /// The level in use at the last fixed step.
+    pub fn level(&self) -> DetailLevel {
+        self.level
+    }
+
+    /// Distance from the head's origin to the nearest active camera at the last fixed step, m (infinite
+    /// without one).
+    pub fn distance(&self) -> f32 {
+        self.distance
+    }
+
+    /// Whether an active camera's frustum reached the head's hair at the last fixed step (true without
+    /// cameras, or with cameras that have no [`Frustum`]).
+    pub fn on_screen(&self) -> bool {
+        self.on_screen
+    }
+
+    /// Radius of a ball around the head's origin that holds its hair, m: what the sight test uses.
+    pub fn reach(&self) -> f32 {
+        self.reach
+    }
+}
+
+/// When hair is simulated at a coarser level of detail (see the [module documentation](self)). Read at
+/// every fixed step; invalid values are reported once and every head is simulated at full detail until
+/// they are fixed.
+#[derive(Resource, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairDetailSettings {
+    /// Whether levels are chosen from distance and sight. Off: every head at full detail, except those
+    /// with a [`HairDetail::fixed`] level. Default on.
+    pub enabled: bool,
+    /// Heads within this distance of a camera are stepped every fixed step, m. Beyond, the step interval
+    /// doubles with each doubling of the distance (every second step up to twice this distance, every
+    /// fourth up to four times, …), up to [`HairDetailSettings::max_step_interval`]. Default 3.
+    pub full_detail_distance: f32,
+    /// The longest step interval, fixed steps (1 to 16). Default 4 (at 60 Hz, hair stepped at 15 Hz).
+    pub max_step_interval: u32,
+    /// Heads farther than this from every camera are carried, not simulated, m (infinite: never).
+    /// Default 30.
+    pub carried_distance: f32,
+    /// The level of heads no camera sees. Default [`DetailLevel::Carried`]: hair out of sight costs
+    /// nothing; a shadow cast by it keeps its last shape.
+    pub off_screen: DetailLevel,
+    /// Relative margin against flickering between two levels, 0 to 0.5: a head moves to a coarser level
+    /// only once it is this much farther than the level's distance, and back only once it is this much
+    /// nearer. Default 0.1.
+    pub hysteresis: f32,
+}
+
+impl Default for HairDetailSettings {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            full_detail_distance: 3.0,
+            max_step_interval: 4,
+            carried_distance: 30.0,
+            off_screen: DetailLevel::Carried,
+            hysteresis: 0.1,
+        }
+    }
+}
+
+/// The longest step interval [`HairDetailSettings::max_step_interval`] may ask for.
+pub const MAX_STEP_INTERVAL: u32 = 16;
+
+impl HairDetailSettings {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<(), RodError> {
+        let invalid = |parameter: &'static str, value: f64, requirement: &'static str| {
+            Err(RodError::InvalidStepParameter { parameter, value, requirement })
+        };
+        let interval_ok = |interval: u32| (1..=MAX_STEP_INTERVAL).contains(&interval);
+        if !(self.full_detail_distance.is_finite() && self.full_detail_distance > 0.0) {
+            return invalid("full_detail_distance", self.full_detail_distance.into(), "positive and finite");
+        }
+        if !interval_ok(self.max_step_interval) {
+            return invalid("max_step_interval", self.max_step_interval.into(), "from 1 to 16");
+        }
+        if !(self.carried_distance > 0.0) {
+            return invalid("carried_distance", self.carried_distance.into(), "positive (infinite: never)");
+        }
+        if let DetailLevel::Stepped(interval) = self.off_screen
+            && !interval_ok(interval)
+        {
+            return invalid("off_screen", interval.into(), "a step interval from 1 to 16");
+        }
+        if !(0.0..=0.5).contains(&self.hysteresis) {
+            return invalid("hysteresis", self.hysteresis.into(), "from 0 to 0.5");
+        }
+        Ok(())
+    }
+
+    /// The level for a head `distance` m from the nearest camera, seen or not, with no hysteresis.
+    pub fn level_at(&self, distance: f32, on_screen: bool) -> DetailLevel {
+        if !on_screen {
+            return self.off_screen;
+        }
+        if distance > self.carried_distance {
+            return DetailLevel::Carried;
+        }
+        let mut interval = 1;
+        while interval < self.max_step_interval && distance > self.full_detail_distance * interval as f32 {
+            interval *= 2;
+        }
+        DetailLevel::Stepped(interval.min(self.max_step_interval))
+    }
+
+    /// The level for a head at `distance`, seen or not, that is at `current`: the level of the distance,
+    /// unless the head is within [`HairDetailSettings::hysteresis`] of the distance where it would change.
+    pub fn next_level(&self, current: DetailLevel, distance: f32, on_screen: bool) -> DetailLevel {
+        let coarser = self.level_at(distance * (1.0 - self.hysteresis), on_screen);
+        if coarser.coarseness() > current.coarseness() {
+            return coarser;
+        }
+        let finer = self.level_at(distance * (1.0 + self.hysteresis), on_screen);
+        if finer.coarseness() < current.coarseness() {
+            return finer;
+        }
+        current
+    }
+}
+
+/// Levels of detail for crowds (see the [module documentation](self)); part of [`crate::HairPlugin`].
+/// Without it every head is simulated at full detail.
+#[derive(Debug, Clone)]
+pub struct HairDetailPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: bevy::ecs::schedule::InternedScheduleLabel,
+}
+
+impl Plugin for HairDetailPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairDetail>()
+            .register_type::<HairDetailSettings>()
+            .init_resource::<HairDetailSettings>()
+            .add_systems(
+                self.schedule,
+                choose_hair_detail
+                    .in_set(crate::HairSystems::PinRoots)
+                    .after(crate::head::track_heads)
+                    .before(crate::step::pin_roots),
+            );
+    }
+}
+
+/// What one camera says about distance and sight.
+pub(crate) struct Viewer {
+    position: Vec3,
+    frustum: Option<Frustum>,
+}
+
+/// Chooses every head's level for this fixed step, and tells each of its strands whether it is stepped
+/// in this one.
+pub(crate) fn choose_hair_detail(
+    settings: Res<HairDetailSettings>,
+    cameras: Query<(&Camera, &GlobalTransform, Option<&Frustum>)>,
+    mut heads: Query<(Entity, &HeadMotion, &HeadStrands, &mut HairDetail)>,
+    mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
+    mut fixed_step: Local<u64>,
+    mut reported: Local<Option<String>>,
+    mut viewers: Local<Vec<Viewer>>,
+) {
+    *fixed_step += 1;
+    let valid = match settings.validate() {
+        Ok(()) => {
+            *reported = None;
+            true
+        }
+        Err(error) => {
+            let message = error.to_string();
+            if reported.as_ref() != Some(&message) {
+                error!("HairDetailSettings rejected, every head is at full detail until they are fixed: {message}");
+                *reported = Some(message);
+            }
+            false
+        }
+    };
+    viewers.clear();
+    let active = cameras.iter().filter(|(camera, ..)| camera.is_active);
+    viewers.extend(active.map(|(_, transform, frustum)| Viewer { position: transform.translation(), frustum: frustum.copied() }));
+    for (_, motion, head_strands, mut detail) in &mut heads {
+        let centre = motion.translation();
+        // A ball around the head that holds its hair: the farthest root plus that strand's length.
+        let reach = head_strands
+            .strands()
+            .iter()
+            .filter_map(|&entity| strands.get(entity).ok())
+            .map(|(strand, _)| {
+                let rod = strand.rod();
+                rod.positions()[0].as_vec3().distance(centre) + rod.rest_lengths().iter().sum::<f64>() as f32
+            })
+            .fold(0.0, f32::max);
+        let distance = viewers.iter().map(|viewer| viewer.position.distance(centre)).fold(f32::INFINITY, f32::min);
+        let ball = Sphere { center: centre.into(), radius: reach };
+        let on_screen = viewers.is_empty()
+            || viewers.iter().any(|viewer| viewer.frustum.is_none_or(|frustum| frustum.intersects_sphere(&ball, true)));
+        let level = match detail.fixed {
+            Some(level) => level,
+            None if !valid || !settings.enabled || viewers.is_empty() => DetailLevel::FULL,
+            None => settings.next_level(detail.level, distance, on_screen),
+        };
+        let new = HairDetail { level, distance, on_screen, reach, ..*detail };
+        detail.set_if_neq(new);
+    }
+    let heads = heads.as_readonly();
+    let step = *fixed_step;
+    strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
+        let (level, phase) = match heads.get(head) {
+            Ok((entity, _, _, detail)) => (detail.level, entity.to_bits()),
+            Err(_) => (DetailLevel::FULL, 0),
+        };
+        // Heads at the same level take turns: each its own phase, from its entity.
+        let due = level.step_interval().is_some_and(|interval| (step + phase) % u64::from(interval) == 0);
+        strand.set_detail(level, due);
+    });
+}
+
+/// A strand's part in the levels of detail: its level at this fixed step, whether it is stepped in it, and
+/// its drawn shape while that is kept apart from the simulated one.
+#[derive(Debug, Clone)]
+pub(crate) struct StrandDetail {
+    /// The level at this fixed step.
+    pub(crate) level: DetailLevel,
+    /// Whether the strand is stepped at this fixed step.
+    pub(crate) due: bool,
+    /// Fixed steps since the rod's state: the length of its next step, in fixed steps.
+    pub(crate) elapsed: u32,
+    /// Whether the head teleported (or the strand comes back from being carried) since the rod last
+    /// followed it: the rod is carried rigidly to its head before its next step.
+    pub(crate) teleported: bool,
+    /// The head's pose at this fixed step.
+    pub(crate) head: ScaledPose,
+    /// The drawn shape, head-local, while it is kept apart from the simulated one (below full detail, and
+    /// until the drawn shape has caught up after coming back to it).
+    drawn: Option<DrawnShape>,
+}
+
+impl Default for StrandDetail {
+    fn default() -> Self {
+        Self { level: DetailLevel::FULL, due: true, elapsed: 0, teleported: false, head: default(), drawn: None }
+    }
+}
+
+/// A strand's drawn shape in its head's rigid local space (`R⁻¹ (x − t)`: strands do not scale with
+/// their heads), moving towards the shape of its last step.
+#[derive(Debug, Clone, Default)]
+struct DrawnShape {
+    nodes: Vec<Vec3>,
+    /// The nodes after the last step.
+    target: Vec<Vec3>,
+    /// The edges' tangents and reference directors after the last step.
+    tangents: Vec<Vec3>,
+    directors: Vec<Vec3>,
+    /// Fixed steps left until the drawn nodes reach the target.
+    steps_left: u32,
+}
+
+impl StrandDetail {
+    /// Takes the length of the step about to be taken, in fixed steps (at least one).
+    pub(crate) fn take_elapsed(&mut self) -> u32 {
+        std::mem::take(&mut self.elapsed).max(1)
+    }
+
+    /// Whether the drawn shape is the simulated one (full detail, caught up): the components are then
+    /// written straight from the rod.
+    pub(crate) fn draws_simulation(&self) -> bool {
+        self.drawn.is_none() && self.level == DetailLevel::FULL && self.due
+    }
+
+    /// Writes the drawn shape into `nodes` and `frames`, world space at this step's head pose, after
+    /// moving it one fixed step's share towards `rod` as it was left by its last step (at `rod_head`).
+    /// `stepped` is the length in fixed steps of the step just taken (`None`: not stepped now); `snap` puts
+    /// the drawn shape on the simulated one at once.
+    pub(crate) fn write_drawn(
+        &mut self,
+        rod: &Rod,
+        rod_head: &ScaledPose,
+        stepped: Option<u32>,
+        snap: bool,
+        nodes: &mut StrandNodes,
+        frames: &mut StrandFrames,
+    ) {
+        let fresh = self.drawn.is_none();
+        let drawn = self.drawn.get_or_insert_with(DrawnShape::default);
+        if fresh || stepped.is_some() {
+            let to_local = rod_head.rotation.inverse();
+            let local = |point: DVec3| (to_local * (point - rod_head.translation)).as_vec3();
+            copy_converted(&mut drawn.target, &rod.state().positions, local);
+            copy_converted(&mut drawn.tangents, &rod.frames().tangents, |t| (to_local * t).as_vec3());
+            copy_converted(&mut drawn.directors, &rod.frames().reference_directors, |u| (to_local * u).as_vec3());
+            copy_converted(&mut nodes.velocities, &rod.state().velocities, DVec3::as_vec3);
+            copy_converted(&mut frames.twist, rod.twist_angles(), |angle| angle as f32);
+            copy_converted(&mut frames.reference_twist, &rod.frames().reference_twist, |angle| angle as f32);
+            drawn.steps_left = drawn.steps_left.max(stepped.unwrap_or(0));
+        }
+        if fresh || snap || drawn.nodes.len() != drawn.target.len() {
+            drawn.nodes.clone_from(&drawn.target);
+            drawn.steps_left = 0;
+        }
+        // Equal parts of what is left, reaching the target as the next step comes.
+        let share = 1.0 / drawn.steps_left.max(1) as f32;
+        for (node, target) in drawn.nodes.iter_mut().zip(&drawn.target) {
+            *node += (*target - *node) * share;
+        }
+        drawn.steps_left = drawn.steps_left.saturating_sub(1);
+
+        let (rotation, translation) = (self.head.rotation.as_quat(), self.head.translation.as_vec3());
+        std::mem::swap(&mut nodes.previous_positions, &mut nodes.positions);
+        copy_converted(&mut nodes.positions, &drawn.nodes, |node| rotation * node + translation);
+        snap_previous(&mut nodes.previous_positions, &nodes.positions, snap);
+        copy_converted(&mut frames.tangents, &drawn.tangents, |t| rotation * t);
+        copy_converted(&mut frames.reference_directors, &drawn.directors, |u| rotation * u);
+        if self.level == DetailLevel::FULL && drawn.steps_left == 0 && stepped.is_some() {
+            // Caught up: from the next step on, the rod is drawn as it is.
+            self.drawn = None;
+        }
+    }
+}
