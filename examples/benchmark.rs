@@ -132,8 +132,8 @@ fn main() {
 fn crowd(threads: usize, steps: usize) {
     println!();
     println!("Crowd, 10 heads × 200 strands × 32 edges, the camera 1.2 m from two of them:");
-    println!("| levels of detail | ms / step | strands stepped per step | heads full / ½ / ¼ / carried |");
-    println!("|---|---:|---:|---|");
+    println!("| levels of detail | ms / step | strands stepped per step | Newton iterations per strand | heads full / ½ / ¼ / carried |");
+    println!("|---|---:|---:|---:|---|");
     let mut crowds = [false, true].map(|detail| Crowd::new(10, 200, 32, Some(threads), detail));
     for crowd in &mut crowds {
         for _ in 0..WARM_UP_STEPS {
@@ -141,22 +141,25 @@ fn crowd(threads: usize, steps: usize) {
         }
     }
     let mut times = [Vec::with_capacity(steps), Vec::with_capacity(steps)];
-    let mut stepped = [0; 2];
+    let (mut stepped, mut iterations) = ([0; 2], [0.0; 2]);
     for _ in 0..steps {
         for (index, crowd) in crowds.iter_mut().enumerate() {
             let started = Instant::now();
             crowd.step();
             times[index].push(started.elapsed().as_secs_f64());
-            stepped[index] += crowd.app.world().resource::<HairStatistics>().strands;
+            let statistics = crowd.app.world().resource::<HairStatistics>();
+            stepped[index] += statistics.strands;
+            iterations[index] += statistics.mean_newton_iterations * statistics.strands as f64;
         }
     }
     for (index, name) in ["off (every head at full detail)", "on"].into_iter().enumerate() {
         times[index].sort_by(f64::total_cmp);
         let [full, half, quarter, carried] = crowds[index].levels();
         println!(
-            "| {name} | {:.2} | {:.0} | {full} / {half} / {quarter} / {carried} |",
+            "| {name} | {:.2} | {:.0} | {:.2} | {full} / {half} / {quarter} / {carried} |",
             1e3 * times[index][steps / 2],
-            stepped[index] as f64 / steps as f64
+            stepped[index] as f64 / steps as f64,
+            iterations[index] / stepped[index] as f64
         );
     }
 }

@@ -309,6 +309,11 @@ pub(crate) fn choose_hair_detail(
     });
 }
 
+/// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
+/// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three
+/// fixed steps is made up in twelve, the hair meanwhile moving at most 25 % faster than it does.
+pub const DRAWN_CLOCK_RATE_CHANGE: f32 = 0.25;
+
 /// A strand's part in the levels of detail: its level at this fixed step, whether it is stepped in it, and
 /// its drawn shape while that is kept apart from the simulated one.
 #[derive(Debug, Clone)]
@@ -324,9 +329,9 @@ pub(crate) struct StrandDetail {
     pub(crate) teleported: bool,
     /// The head's pose at this fixed step.
     pub(crate) head: ScaledPose,
-    /// The drawn shape, head-local, while it is kept apart from the simulated one (below full detail, and
-    /// until the drawn shape has caught up after coming back to it).
-    drawn: Option<DrawnShape>,
+    /// The drawn shape while it is kept apart from the simulated one (below full detail, and until the
+    /// drawn shape has caught up after coming back to it).
+    drawn: Option<Box<DrawnShape>>,
 }
 
 impl Default for StrandDetail {
@@ -335,18 +340,90 @@ impl Default for StrandDetail {
     }
 }
 
-/// A strand's drawn shape in its head's rigid local space (`R⁻¹ (x − t)`: strands do not scale with
-/// their heads), moving towards the shape of its last step.
+/// A strand's shape after one of its steps, in its head's rigid local space (`R⁻¹ (x − t)`: strands do
+/// not scale with their heads).
+#[derive(Debug, Clone, Default)]
+struct Keyframe {
+    /// The fixed step it was taken at (the strand's own count).
+    time: f32,
+    nodes: Vec<Vec3>,
+}
+
+/// The drawn hair of a strand below full detail: the shapes of its last steps (keyframes, head-local) and
+/// a drawn clock that runs behind the fixed steps by one step interval less one, so that the drawn shape
+/// is always between two keyframes, never extrapolated. When the level changes, the clock runs up to
+/// [`DRAWN_CLOCK_RATE_CHANGE`] faster or slower until it has the new lag: the hair's motion relative to its
+/// head never jumps.
 #[derive(Debug, Clone, Default)]
 struct DrawnShape {
+    /// Fixed steps counted since the drawn shape was set apart.
+    clock: f32,
+    /// The drawn clock, in the same fixed steps.
+    drawn_time: f32,
+    /// Keyframes, oldest first; the first is at or before the drawn clock.
+    keyframes: std::collections::VecDeque<Keyframe>,
+    /// Keyframes no longer needed, kept for their memory.
+    spare: Vec<Keyframe>,
+    /// The drawn nodes, head-local.
     nodes: Vec<Vec3>,
-    /// The nodes after the last step.
-    target: Vec<Vec3>,
-    /// The edges' tangents and reference directors after the last step.
+    /// The edges' tangents and reference directors after the last step, head-local.
     tangents: Vec<Vec3>,
     directors: Vec<Vec3>,
-    /// Fixed steps left until the drawn nodes reach the target.
-    steps_left: u32,
+}
+
+impl DrawnShape {
+    /// Adds the keyframe of `rod` (at the head pose `rod_head`) at the current clock; after a snap, the
+    /// only one, with the drawn clock on it.
+    fn add_keyframe(&mut self, rod: &Rod, rod_head: &ScaledPose, snap: bool) {
+        if snap {
+            self.spare.extend(self.keyframes.drain(..));
+            self.drawn_time = self.clock;
+        }
+        let to_local = rod_head.rotation.inverse();
+        let mut keyframe = self.spare.pop().unwrap_or_default();
+        keyframe.time = self.clock;
+        let local = |point: DVec3| (to_local * (point - rod_head.translation)).as_vec3();
+        copy_converted(&mut keyframe.nodes, &rod.state().positions, local);
+        copy_converted(&mut self.tangents, &rod.frames().tangents, |t| (to_local * t).as_vec3());
+        copy_converted(&mut self.directors, &rod.frames().reference_directors, |u| (to_local * u).as_vec3());
+        if self.keyframes.back().is_some_and(|last| last.nodes.len() != keyframe.nodes.len()) {
+            // A new node count: nothing to interpolate from.
+            self.spare.extend(self.keyframes.drain(..));
+            self.drawn_time = self.clock;
+        }
+        self.keyframes.push_back(keyframe);
+    }
+
+    /// Moves the drawn clock towards `lag` fixed steps behind the clock, by one step give or take
+    /// [`DRAWN_CLOCK_RATE_CHANGE`], never past the last keyframe nor before the first; writes the drawn
+    /// nodes there; lets go of keyframes the drawn clock has passed.
+    fn advance(&mut self, lag: f32) {
+        let wanted = self.clock - lag;
+        let step = (wanted - self.drawn_time).clamp(1.0 - DRAWN_CLOCK_RATE_CHANGE, 1.0 + DRAWN_CLOCK_RATE_CHANGE);
+        let (first, last) = match (self.keyframes.front(), self.keyframes.back()) {
+            (Some(first), Some(last)) => (first.time, last.time),
+            _ => return,
+        };
+        self.drawn_time = (self.drawn_time + step).clamp(first, last);
+        while self.keyframes.len() > 1 && self.keyframes[1].time <= self.drawn_time {
+            let passed = self.keyframes.pop_front().expect("more than one keyframe");
+            self.spare.push(passed);
+        }
+        let before = &self.keyframes[0];
+        match self.keyframes.get(1) {
+            Some(after) => {
+                let fraction = (self.drawn_time - before.time) / (after.time - before.time);
+                self.nodes.clear();
+                self.nodes.extend(before.nodes.iter().zip(&after.nodes).map(|(a, b)| a.lerp(*b, fraction)));
+            }
+            None => self.nodes.clone_from(&before.nodes),
+        }
+    }
+
+    /// Whether the drawn shape is the last keyframe, taken now.
+    fn caught_up(&self) -> bool {
+        self.keyframes.len() == 1 && self.drawn_time == self.clock
+    }
 }
 
 impl StrandDetail {
@@ -361,51 +438,41 @@ impl StrandDetail {
         self.drawn.is_none() && self.level == DetailLevel::FULL && self.due
     }
 
-    /// Writes the drawn shape into `nodes` and `frames`, world space at this step's head pose, after
-    /// moving it one fixed step's share towards `rod` as it was left by its last step (at `rod_head`).
-    /// `stepped` is the length in fixed steps of the step just taken (`None`: not stepped now); `snap` puts
-    /// the drawn shape on the simulated one at once.
+    /// Writes the drawn shape into `nodes` and `frames`, world space at this step's head pose (see
+    /// [`DrawnShape`]); `rod` (at the head pose `rod_head`) is a new keyframe when `stepped` (or when the
+    /// drawn shape is set apart now). `snap` starts the drawn shape afresh on the rod.
     pub(crate) fn write_drawn(
         &mut self,
         rod: &Rod,
         rod_head: &ScaledPose,
-        stepped: Option<u32>,
+        stepped: bool,
         snap: bool,
         nodes: &mut StrandNodes,
         frames: &mut StrandFrames,
     ) {
         let fresh = self.drawn.is_none();
-        let drawn = self.drawn.get_or_insert_with(DrawnShape::default);
-        if fresh || stepped.is_some() {
-            let to_local = rod_head.rotation.inverse();
-            let local = |point: DVec3| (to_local * (point - rod_head.translation)).as_vec3();
-            copy_converted(&mut drawn.target, &rod.state().positions, local);
-            copy_converted(&mut drawn.tangents, &rod.frames().tangents, |t| (to_local * t).as_vec3());
-            copy_converted(&mut drawn.directors, &rod.frames().reference_directors, |u| (to_local * u).as_vec3());
+        let drawn = self.drawn.get_or_insert_with(Box::default);
+        if !fresh {
+            drawn.clock += 1.0;
+        }
+        if fresh || stepped {
+            drawn.add_keyframe(rod, rod_head, fresh || snap);
             copy_converted(&mut nodes.velocities, &rod.state().velocities, DVec3::as_vec3);
             copy_converted(&mut frames.twist, rod.twist_angles(), |angle| angle as f32);
             copy_converted(&mut frames.reference_twist, &rod.frames().reference_twist, |angle| angle as f32);
-            drawn.steps_left = drawn.steps_left.max(stepped.unwrap_or(0));
         }
-        if fresh || snap || drawn.nodes.len() != drawn.target.len() {
-            drawn.nodes.clone_from(&drawn.target);
-            drawn.steps_left = 0;
-        }
-        // Equal parts of what is left, reaching the target as the next step comes.
-        let share = 1.0 / drawn.steps_left.max(1) as f32;
-        for (node, target) in drawn.nodes.iter_mut().zip(&drawn.target) {
-            *node += (*target - *node) * share;
-        }
-        drawn.steps_left = drawn.steps_left.saturating_sub(1);
+        // One step interval less one behind: at a step, the drawn shape sets out from the keyframe before.
+        let lag = self.level.step_interval().map_or(0, |interval| interval - 1) as f32;
+        drawn.advance(lag);
 
-        let (rotation, translation) = (self.head.rotation.as_quat(), self.head.translation.as_vec3());
+        let (rotation, translation) = (Mat3::from_quat(self.head.rotation.as_quat()), self.head.translation.as_vec3());
         std::mem::swap(&mut nodes.previous_positions, &mut nodes.positions);
         copy_converted(&mut nodes.positions, &drawn.nodes, |node| rotation * node + translation);
         snap_previous(&mut nodes.previous_positions, &nodes.positions, snap);
         copy_converted(&mut frames.tangents, &drawn.tangents, |t| rotation * t);
         copy_converted(&mut frames.reference_directors, &drawn.directors, |u| rotation * u);
-        if self.level == DetailLevel::FULL && drawn.steps_left == 0 && stepped.is_some() {
-            // Caught up: from the next step on, the rod is drawn as it is.
+        if self.level == DetailLevel::FULL && drawn.caught_up() {
+            // From the next step on, the rod is drawn as it is.
             self.drawn = None;
         }
     }

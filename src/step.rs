@@ -3,6 +3,7 @@
 
 use bevy::math::DVec3;
 use bevy::platform::time::Instant;
+use bevy::ecs::batching::BatchingStrategy;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
@@ -218,6 +219,9 @@ impl FaultLog {
     }
 }
 
+/// Batches of strands per compute thread in [`step_strands`].
+const STEP_BATCHES_PER_THREAD: usize = 16;
+
 /// What [`step_strands`] reads and writes of each strand.
 type StepItem = (
     Entity,
@@ -257,7 +261,10 @@ pub(crate) fn step_strands(
 
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
-    strands.par_iter_mut().for_each(|(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
+    // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
+    // and others not), and big batches leave one thread waiting on another.
+    let batching = BatchingStrategy::new().batches_per_thread(STEP_BATCHES_PER_THREAD);
+    strands.par_iter_mut().batching_strategy(batching).for_each(|(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
         let contacts =
             Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
         threads.scope(|StepThread { workspace, tally }| {
@@ -269,7 +276,7 @@ pub(crate) fn step_strands(
                 return;
             }
             let steps = strand.detail.take_elapsed();
-            let longer = StepParams { dt: params.dt * f64::from(steps), ..params };
+            let longer = StepParams { dt: params.dt * f64::from(steps), max_newton_iterations: 1, ..params };
             let outcome = strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
             forces.clear();
             // Written here, while the strand is in this core's cache.

@@ -500,7 +500,7 @@ impl SimulatedStrand {
         }
         let snap = self.take_snap();
         let Self { detail, rod, head, .. } = self;
-        detail.write_drawn(rod, head, stepped, snap, nodes, frames);
+        detail.write_drawn(rod, head, stepped.is_some(), snap, nodes, frames);
     }
 
     /// Whether the drawn pose must jump to the strand (spawned, reset or teleported) rather than

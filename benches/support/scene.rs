@@ -117,8 +117,8 @@ impl Scene {
 }
 
 /// A crowd: `heads` heads of the scene's hair, each swaying and turning as [`Scene::head_pose`] with its own
-/// phase, around one camera. The camera looks at the first two heads from 1.2 m; the others stand on a
-/// spiral around it, 4 to 11 m away, some in its view and some behind it.
+/// phase, around one camera. The camera looks at the first two heads from 1.2 m; the others stand around
+/// it, 4 to 11 m away, half in its view and half behind it.
 #[allow(dead_code)]
 pub struct Crowd {
     pub app: App,
@@ -148,7 +148,9 @@ impl Crowd {
                     0 => Vec3::new(-0.2, 1.6, 0.0),
                     1 => Vec3::new(0.2, 1.6, 0.0),
                     _ => {
-                        let angle = (index - 2) as f32 * std::f32::consts::FRAC_PI_4;
+                        // Four ahead (two at every second step, two at every fourth), four behind.
+                        const DEGREES: [f32; 8] = [-20.0, 20.0, -10.0, 10.0, 100.0, 160.0, -160.0, -100.0];
+                        let angle = DEGREES[(index - 2) % 8].to_radians();
                         let distance = 2.0 + index as f32;
                         Vec3::new(distance * angle.sin(), 1.6, 1.2 - distance * angle.cos())
                     }
