@@ -132,7 +132,9 @@ fn main() {
 fn crowd(threads: usize, steps: usize) {
     println!();
     println!("Crowd, 10 heads × 200 strands × 32 edges, the camera 1.2 m from two of them:");
-    println!("| levels of detail | ms / step | strands stepped per step | Newton iterations per strand | heads full / ½ / ¼ / carried |");
+    println!(
+        "| levels of detail | ms / step | strands stepped per step | Newton iterations per strand | heads full / ½ / ¼ / carried |"
+    );
     println!("|---|---:|---:|---:|---|");
     let mut crowds = [false, true].map(|detail| Crowd::new(10, 200, 32, Some(threads), detail));
     for crowd in &mut crowds {

@@ -170,7 +170,7 @@ impl HairDetailSettings {
         if !interval_ok(self.max_step_interval) {
             return invalid("max_step_interval", self.max_step_interval.into(), "from 1 to 16");
         }
-        if !(self.carried_distance > 0.0) {
+        if self.carried_distance.is_nan() || self.carried_distance <= 0.0 {
             return invalid("carried_distance", self.carried_distance.into(), "positive (infinite: never)");
         }
         if let DetailLevel::Stepped(interval) = self.off_screen
@@ -271,7 +271,9 @@ pub(crate) fn choose_hair_detail(
     };
     viewers.clear();
     let active = cameras.iter().filter(|(camera, ..)| camera.is_active);
-    viewers.extend(active.map(|(_, transform, frustum)| Viewer { position: transform.translation(), frustum: frustum.copied() }));
+    viewers.extend(
+        active.map(|(_, transform, frustum)| Viewer { position: transform.translation(), frustum: frustum.copied() }),
+    );
     for (_, motion, head_strands, mut detail) in &mut heads {
         let centre = motion.translation();
         // A ball around the head that holds its hair: the farthest root plus that strand's length.
@@ -304,7 +306,8 @@ pub(crate) fn choose_hair_detail(
             Err(_) => (DetailLevel::FULL, 0),
         };
         // Heads at the same level take turns: each its own phase, from its entity.
-        let due = level.step_interval().is_some_and(|interval| (step + phase) % u64::from(interval) == 0);
+        let due =
+            level.step_interval().is_some_and(|interval| step.wrapping_add(phase).is_multiple_of(u64::from(interval)));
         strand.set_detail(level, due);
     });
 }

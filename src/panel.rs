@@ -10,6 +10,7 @@ use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
+use crate::detail::{DetailLevel, HairDetail, HairDetailSettings, MAX_STEP_INTERVAL};
 use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
 use crate::head::HairHead;
@@ -118,6 +119,7 @@ fn hair_panel(
     mut commands: Commands,
     heads: Query<(Entity, Option<&HairAppearance>), With<HairHead>>,
     mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
+    (detail_settings, details): (Option<ResMut<HairDetailSettings>>, Query<&HairDetail>),
 ) -> Result {
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
@@ -132,6 +134,7 @@ fn hair_panel(
     let mut rendered = rendered_shown;
     let shown_appearance = heads.iter().next().map(|(_, appearance)| appearance.cloned().unwrap_or_default());
     let mut appearance = shown_appearance.clone();
+    let mut edited_detail = detail_settings.as_deref().cloned();
     egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics, memory.frame_rate);
         step_time_plot(ui, &memory.step_milliseconds);
@@ -154,6 +157,9 @@ fn hair_panel(
         ui.collapsing("wind", |ui| wind_grid(ui, &mut edited_wind));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
+        if let Some(detail) = edited_detail.as_mut() {
+            ui.collapsing("levels of detail", |ui| detail_grid(ui, detail, &details, &statistics));
+        }
         ui.collapsing("drawing", |ui| {
             ui.horizontal(|ui| {
                 ui.checkbox(&mut rendered, "rendered hair");
@@ -187,6 +193,11 @@ fn hair_panel(
     }
     if edited_wind != *wind {
         *wind = edited_wind;
+    }
+    if let (Some(mut detail), Some(edited)) = (detail_settings, edited_detail)
+        && *detail != edited
+    {
+        *detail = edited;
     }
     memory.held_groom = groom.filter(|_| groom_held);
     if let Some(edit) = groom.filter(|_| !groom_held) {
@@ -301,6 +312,48 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
         grid_row(ui, "steps per frame (max)", egui::Slider::new(&mut settings.max_steps_per_frame, 0..=8));
         let teleport_distance = egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true);
         grid_row(ui, "teleport distance (m)", teleport_distance);
+    });
+}
+
+/// Levels of detail ([`HairDetailSettings`]) and the heads at each level.
+fn detail_grid(
+    ui: &mut egui::Ui,
+    detail: &mut HairDetailSettings,
+    heads: &Query<&HairDetail>,
+    statistics: &HairStatistics,
+) {
+    let mut counts = [0; 4];
+    for head in heads {
+        let slot = match head.level() {
+            DetailLevel::Stepped(1) => 0,
+            DetailLevel::Stepped(2) => 1,
+            DetailLevel::Stepped(_) => 2,
+            DetailLevel::Carried => 3,
+        };
+        counts[slot] += 1;
+    }
+    egui::Grid::new("hair detail").num_columns(2).show(ui, |ui| {
+        ui.label("chosen from the camera");
+        ui.checkbox(&mut detail.enabled, "on");
+        ui.end_row();
+        let full = egui::Slider::new(&mut detail.full_detail_distance, 0.5..=50.0).logarithmic(true);
+        grid_row(ui, "full detail within (m)", full);
+        grid_row(ui, "longest step interval", egui::Slider::new(&mut detail.max_step_interval, 1..=MAX_STEP_INTERVAL));
+        let carried = egui::Slider::new(&mut detail.carried_distance, 1.0..=1000.0).logarithmic(true);
+        grid_row(ui, "carried beyond (m)", carried);
+        ui.label("out of sight");
+        let mut carried_off_screen = detail.off_screen == DetailLevel::Carried;
+        if ui.checkbox(&mut carried_off_screen, "carried").changed() {
+            detail.off_screen =
+                if carried_off_screen { DetailLevel::Carried } else { DetailLevel::Stepped(detail.max_step_interval) };
+        }
+        ui.end_row();
+        ui.label("heads full / ½ / ≤¼ / carried");
+        ui.label(format!("{} / {} / {} / {}", counts[0], counts[1], counts[2], counts[3]));
+        ui.end_row();
+        ui.label("strands stepped / resting");
+        ui.label(format!("{} / {}", statistics.strands, statistics.unstepped_strands));
+        ui.end_row();
     });
 }
 

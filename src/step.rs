@@ -1,9 +1,9 @@
 //! The systems of one simulation step: pin roots to heads, step every strand in parallel, report
 //! faults, write the drawn poses.
 
+use bevy::ecs::batching::BatchingStrategy;
 use bevy::math::DVec3;
 use bevy::platform::time::Instant;
-use bevy::ecs::batching::BatchingStrategy;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
@@ -264,41 +264,44 @@ pub(crate) fn step_strands(
     // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
     // and others not), and big batches leave one thread waiting on another.
     let batching = BatchingStrategy::new().batches_per_thread(STEP_BATCHES_PER_THREAD);
-    strands.par_iter_mut().batching_strategy(batching).for_each(|(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
-        let contacts =
-            Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
-        threads.scope(|StepThread { workspace, tally }| {
-            if !strand.detail.due {
-                // A coarser level of detail: not stepped now, drawn carried with its head.
-                forces.clear();
-                strand.write_components(None, &mut nodes, &mut frames);
-                tally.unstepped += 1;
-                return;
-            }
-            let steps = strand.detail.take_elapsed();
-            let longer = StepParams { dt: params.dt * f64::from(steps), max_newton_iterations: 1, ..params };
-            let outcome = strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
-            forces.clear();
-            // Written here, while the strand is in this core's cache.
-            strand.write_components(Some(steps), &mut nodes, &mut frames);
-            tally.strands += 1;
-            tally.nodes += strand.rod().node_count();
-            tally.quarantined += usize::from(strand.is_quarantined());
-            match outcome {
-                StepOutcome::Stepped(report) => {
-                    tally.newton_iterations += u64::from(report.newton_iterations);
-                    tally.contacts += report.contacts as usize;
-                    tally.max_strain = tally.max_strain.max(report.max_strain);
+    strands.par_iter_mut().batching_strategy(batching).for_each(
+        |(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
+            let contacts =
+                Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
+            threads.scope(|StepThread { workspace, tally }| {
+                if !strand.detail.due {
+                    // A coarser level of detail: not stepped now, drawn carried with its head.
+                    forces.clear();
+                    strand.write_components(None, &mut nodes, &mut frames);
+                    tally.unstepped += 1;
+                    return;
                 }
-                StepOutcome::Held => {}
-                StepOutcome::Faulted { error, first_of_episode, quarantine } => tally.faults.push(Fault {
-                    message: StrandFault { strand: entity, error },
-                    first_of_episode,
-                    quarantine,
-                }),
-            }
-        });
-    });
+                let steps = strand.detail.take_elapsed();
+                let longer = StepParams { dt: params.dt * f64::from(steps), max_newton_iterations: 1, ..params };
+                let outcome =
+                    strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
+                forces.clear();
+                // Written here, while the strand is in this core's cache.
+                strand.write_components(Some(steps), &mut nodes, &mut frames);
+                tally.strands += 1;
+                tally.nodes += strand.rod().node_count();
+                tally.quarantined += usize::from(strand.is_quarantined());
+                match outcome {
+                    StepOutcome::Stepped(report) => {
+                        tally.newton_iterations += u64::from(report.newton_iterations);
+                        tally.contacts += report.contacts as usize;
+                        tally.max_strain = tally.max_strain.max(report.max_strain);
+                    }
+                    StepOutcome::Held => {}
+                    StepOutcome::Faulted { error, first_of_episode, quarantine } => tally.faults.push(Fault {
+                        message: StrandFault { strand: entity, error },
+                        first_of_episode,
+                        quarantine,
+                    }),
+                }
+            });
+        },
+    );
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);

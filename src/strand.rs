@@ -493,7 +493,12 @@ impl SimulatedStrand {
     /// Writes the strand's [`StrandNodes`] and [`StrandFrames`] after this fixed step: the rod as it is, or
     /// at a coarser level of detail the drawn shape carried with the head (see [`crate::detail`]).
     /// `stepped` is the length in fixed steps of the step just taken, `None` if none was.
-    pub(crate) fn write_components(&mut self, stepped: Option<u32>, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
+    pub(crate) fn write_components(
+        &mut self,
+        stepped: Option<u32>,
+        nodes: &mut StrandNodes,
+        frames: &mut StrandFrames,
+    ) {
         if self.detail.draws_simulation() {
             crate::strand_data::write_strand_data(self, nodes, frames);
             return;

@@ -30,8 +30,8 @@ fn allocations_during(count: fn() -> u64, work: impl FnOnce()) -> u64 {
 
 /// Allocations per update of an app with one head of `strands` strands (32 edges, 4 followers each) that
 /// moves, with colliders, in a gusty, turbulent wind with a fan, with hair–hair interaction (smoothing and
-/// pressure), once running.
-fn allocations_per_update(strands: usize) -> u64 {
+/// pressure), at the level of detail `level`, once running.
+fn allocations_per_update(strands: usize, level: DetailLevel) -> u64 {
     let mut app = hair_app();
     let volume = &mut app.world_mut().resource_mut::<HairSettings>().volume;
     (volume.enabled, volume.stiffness) = (true, 50.0);
@@ -41,7 +41,8 @@ fn allocations_per_update(strands: usize) -> u64 {
         Transform::from_xyz(0.0, 1.6, 0.5).looking_at(Vec3::new(0.0, 1.6, 0.0), Vec3::Y),
     ));
     let groom = HairGroom { strand_count: strands, segments: 32, followers_per_guide: 4, ..default() };
-    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom)).id();
+    let head =
+        app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0), groom, HairDetail::fixed(level))).id();
     // The skull, on the head, and a shared floor that the hair does not reach.
     app.world_mut().spawn((HairCollider::sphere(0.1), HairColliderOf(head), ChildOf(head)));
     app.world_mut().spawn(HairCollider::plane());
@@ -114,10 +115,15 @@ fn stepping_allocates_nothing_once_running() {
 
     // The plugin: Bevy allocates a little every frame (its executor, its task scopes); the hair adds
     // nothing to that, however many strands there are.
-    let few = allocations_per_update(50);
-    let many = allocations_per_update(400);
-    println!("allocations per update: {few} with 50 strands, {many} with 400");
-    assert_eq!(few, many, "allocations per update grow with the strands: {few} with 50, {many} with 400");
+    for level in [DetailLevel::FULL, DetailLevel::Stepped(4), DetailLevel::Carried] {
+        let few = allocations_per_update(50, level);
+        let many = allocations_per_update(400, level);
+        println!("allocations per update at {level:?}: {few} with 50 strands, {many} with 400");
+        assert_eq!(
+            few, many,
+            "allocations per update at {level:?} grow with the strands: {few} with 50, {many} with 400"
+        );
+    }
 
     // Preparing hair for the renderer: nothing on one thread; on two, only the task scope's, the same
     // however many strands.

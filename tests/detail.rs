@@ -85,8 +85,7 @@ fn hair_at_every_level_hangs_in_the_same_static_shape() {
         .iter()
         .enumerate()
         .map(|(index, &level)| {
-            let (head, strands) =
-                spawn_head(&mut app, Transform::from_xyz(index as f32, 1.6, 0.0), 10, 16);
+            let (head, strands) = spawn_head(&mut app, Transform::from_xyz(index as f32, 1.6, 0.0), 10, 16);
             app.world_mut().entity_mut(head).insert(HairDetail::fixed(level));
             (head, strands)
         })
@@ -101,11 +100,8 @@ fn hair_at_every_level_hangs_in_the_same_static_shape() {
         assert!(difference < 1e-4, "{level:?} hangs {difference} m away from full detail");
     }
     // Not trivially: the hair hangs well away from where it was spawned (straight out of the scalp).
-    let spawned: Vec<Vec3> = heads[0]
-        .1
-        .iter()
-        .flat_map(|&strand| app.world().get::<HairStrand>(strand).unwrap().nodes.clone())
-        .collect();
+    let spawned: Vec<Vec3> =
+        heads[0].1.iter().flat_map(|&strand| app.world().get::<HairStrand>(strand).unwrap().nodes.clone()).collect();
     assert!(largest_distance(&spawned, &shapes[0]) > 0.05);
 }
 
@@ -196,7 +192,10 @@ fn the_camera_chooses_levels_by_distance_and_sight_with_a_margin() {
     let behind = app.world().get::<HairDetail>(heads[4]).unwrap();
     assert!(!behind.on_screen() && (behind.distance() - 2.0).abs() < 1e-4);
     assert!(app.world().get::<HairDetail>(heads[1]).unwrap().on_screen());
-    assert_eq!(app.world().resource::<HairStatistics>().strands + app.world().resource::<HairStatistics>().unstepped_strands, 20);
+    assert_eq!(
+        app.world().resource::<HairStatistics>().strands + app.world().resource::<HairStatistics>().unstepped_strands,
+        20
+    );
 
     // Within the 10 % margin of the 3 m boundary the level stays; beyond it, it changes.
     let move_head = |app: &mut App, z: f32| {

@@ -47,8 +47,8 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
-use crate::detail::DetailLevel;
 use crate::HairSystems;
+use crate::detail::DetailLevel;
 use crate::followers::HairFollowers;
 use crate::head::StrandOf;
 use crate::parallel::run_in_parallel;
