@@ -127,23 +127,25 @@ fn main() {
 }
 
 /// A crowd of 10 heads × 200 strands × 32 edges around one camera that sees two of them up close (see
-/// `benches/support/scene.rs`), every head at full detail and with levels of detail chosen from the
-/// camera, stepped in turn: median ms per step, and the heads at each level.
+/// `benches/support/scene.rs`), stepped in turn: every head at full detail; levels of detail chosen from
+/// the camera with the eight others out of its view; and with four of them in view 4 to 7 m away. Median
+/// ms per step, strands stepped per step, Newton iterations, the heads at each level.
 fn crowd(threads: usize, steps: usize) {
     println!();
     println!("Crowd, 10 heads × 200 strands × 32 edges, the camera 1.2 m from two of them:");
     println!(
-        "| levels of detail | ms / step | strands stepped per step | Newton iterations per strand | heads full / ½ / ¼ / carried |"
+        "| levels of detail | other heads in view | ms / step | strands stepped per step | Newton iterations per strand | heads full / ½ / ¼ / carried |"
     );
-    println!("|---|---:|---:|---:|---|");
-    let mut crowds = [false, true].map(|detail| Crowd::new(10, 200, 32, Some(threads), detail));
+    println!("|---|---:|---:|---:|---:|---|");
+    let rows = [("off (all at full detail)", 0, false), ("on", 0, true), ("on", 4, true)];
+    let mut crowds = rows.map(|(_, in_view, detail)| Crowd::new(10, in_view, 200, 32, Some(threads), detail));
     for crowd in &mut crowds {
         for _ in 0..WARM_UP_STEPS {
             crowd.step();
         }
     }
-    let mut times = [Vec::with_capacity(steps), Vec::with_capacity(steps)];
-    let (mut stepped, mut iterations) = ([0; 2], [0.0; 2]);
+    let mut times = rows.map(|_| Vec::with_capacity(steps));
+    let (mut stepped, mut iterations) = ([0; 3], [0.0; 3]);
     for _ in 0..steps {
         for (index, crowd) in crowds.iter_mut().enumerate() {
             let started = Instant::now();
@@ -154,11 +156,11 @@ fn crowd(threads: usize, steps: usize) {
             iterations[index] += statistics.mean_newton_iterations * statistics.strands as f64;
         }
     }
-    for (index, name) in ["off (every head at full detail)", "on"].into_iter().enumerate() {
+    for (index, (name, in_view, _)) in rows.into_iter().enumerate() {
         times[index].sort_by(f64::total_cmp);
         let [full, half, quarter, carried] = crowds[index].levels();
         println!(
-            "| {name} | {:.2} | {:.0} | {:.2} | {full} / {half} / {quarter} / {carried} |",
+            "| {name} | {in_view} | {:.2} | {:.0} | {:.2} | {full} / {half} / {quarter} / {carried} |",
             1e3 * times[index][steps / 2],
             stepped[index] as f64 / steps as f64,
             iterations[index] / stepped[index] as f64

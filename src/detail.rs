@@ -83,6 +83,8 @@ pub struct HairDetail {
     distance: f32,
     on_screen: bool,
     reach: f32,
+    /// Which fixed steps of its interval the head is stepped on (see [`spread_turns`]).
+    phase: u32,
 }
 
 impl HairDetail {
@@ -108,7 +110,8 @@ impl HairDetail {
         self.on_screen
     }
 
-    /// Radius of a ball around the head's origin that holds its hair, m: what the sight test uses.
+    /// Radius of a ball around the head's origin that holds its hair, m: what the sight test uses
+    /// (measured every 16 fixed steps).
     pub fn reach(&self) -> f32 {
         self.reach
     }
@@ -237,6 +240,19 @@ impl Plugin for HairDetailPlugin {
     }
 }
 
+/// Fixed steps between two measurements of a head's reach ([`HairDetail::reach`]).
+const REACH_PERIOD: u64 = 16;
+
+/// What [`choose_hair_detail`] keeps from step to step: the fixed steps counted, the last error
+/// reported, and scratch lists reused so that no step allocates.
+#[derive(Default)]
+pub(crate) struct DetailMemory {
+    fixed_step: u64,
+    reported: Option<String>,
+    viewers: Vec<Viewer>,
+    turns: Vec<(u32, std::cmp::Reverse<usize>, Entity)>,
+}
+
 /// What one camera says about distance and sight.
 pub(crate) struct Viewer {
     position: Vec3,
@@ -248,12 +264,11 @@ pub(crate) struct Viewer {
 pub(crate) fn choose_hair_detail(
     settings: Res<HairDetailSettings>,
     cameras: Query<(&Camera, &GlobalTransform, Option<&Frustum>)>,
-    mut heads: Query<(Entity, &HeadMotion, &HeadStrands, &mut HairDetail)>,
+    mut heads: Query<HeadItem>,
     mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
-    mut fixed_step: Local<u64>,
-    mut reported: Local<Option<String>>,
-    mut viewers: Local<Vec<Viewer>>,
+    mut memory: Local<DetailMemory>,
 ) {
+    let DetailMemory { fixed_step, reported, viewers, turns } = &mut *memory;
     *fixed_step += 1;
     let valid = match settings.validate() {
         Ok(()) => {
@@ -276,16 +291,22 @@ pub(crate) fn choose_hair_detail(
     );
     for (_, motion, head_strands, mut detail) in &mut heads {
         let centre = motion.translation();
-        // A ball around the head that holds its hair: the farthest root plus that strand's length.
-        let reach = head_strands
-            .strands()
-            .iter()
-            .filter_map(|&entity| strands.get(entity).ok())
-            .map(|(strand, _)| {
+        // A ball around the head that holds its hair: the farthest root plus that strand's length
+        // (measured again every `REACH_PERIOD` fixed steps: it changes only with the hair's rest shape).
+        let reach = if detail.reach > 0.0 && !(*fixed_step).is_multiple_of(REACH_PERIOD) {
+            detail.reach
+        } else {
+            let reach_of = |(strand, _): (&SimulatedStrand, &StrandOf)| {
                 let rod = strand.rod();
                 rod.positions()[0].as_vec3().distance(centre) + rod.rest_lengths().iter().sum::<f64>() as f32
-            })
-            .fold(0.0, f32::max);
+            };
+            head_strands
+                .strands()
+                .iter()
+                .filter_map(|&entity| strands.get(entity).ok())
+                .map(reach_of)
+                .fold(0.0, f32::max)
+        };
         let distance = viewers.iter().map(|viewer| viewer.position.distance(centre)).fold(f32::INFINITY, f32::min);
         let ball = Sphere { center: centre.into(), radius: reach };
         let on_screen = viewers.is_empty()
@@ -298,19 +319,43 @@ pub(crate) fn choose_hair_detail(
         let new = HairDetail { level, distance, on_screen, reach, ..*detail };
         detail.set_if_neq(new);
     }
+    spread_turns(&mut heads, turns);
     let heads = heads.as_readonly();
     let step = *fixed_step;
     strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
-        let (level, phase) = match heads.get(head) {
-            Ok((entity, _, _, detail)) => (detail.level, entity.to_bits()),
-            Err(_) => (DetailLevel::FULL, 0),
-        };
-        // Heads at the same level take turns: each its own phase, from its entity.
+        let (level, phase) =
+            heads.get(head).map_or((DetailLevel::FULL, 0), |(.., detail)| (detail.level, detail.phase));
         let due =
-            level.step_interval().is_some_and(|interval| step.wrapping_add(phase).is_multiple_of(u64::from(interval)));
+            level.step_interval().is_some_and(|interval| (step + u64::from(phase)).is_multiple_of(u64::from(interval)));
         strand.set_detail(level, due);
     });
 }
+
+/// Spreads the heads stepped every `n`-th fixed step over the `n` fixed steps of their interval, so
+/// that every fixed step steps about as many strands: finest first, each head (largest first) takes the
+/// phase whose fixed steps have the fewest strands so far, over a cycle of [`MAX_STEP_INTERVAL`] fixed
+/// steps. The same heads at the same levels always get the same phases.
+fn spread_turns(heads: &mut Query<HeadItem>, turns: &mut Vec<(u32, std::cmp::Reverse<usize>, Entity)>) {
+    const CYCLE: usize = MAX_STEP_INTERVAL as usize;
+    turns.clear();
+    turns.extend(heads.iter().filter_map(|(entity, _, strands, detail)| {
+        Some((detail.level.step_interval()?, std::cmp::Reverse(strands.len()), entity))
+    }));
+    turns.sort_unstable();
+    let mut load = [0usize; CYCLE];
+    for &(interval, std::cmp::Reverse(strands), entity) in turns.iter() {
+        let steps_of =
+            |phase: u32| (0..CYCLE).filter(move |slot| (slot + phase as usize).is_multiple_of(interval as usize));
+        let phase = (0..interval).min_by_key(|&phase| steps_of(phase).map(|slot| load[slot]).max()).unwrap_or(0);
+        steps_of(phase).for_each(|slot| load[slot] += strands);
+        if let Ok((.., mut detail)) = heads.get_mut(entity) {
+            detail.set_if_neq(HairDetail { phase, ..*detail });
+        }
+    }
+}
+
+/// What [`choose_hair_detail`] reads and writes of a head.
+type HeadItem = (Entity, &'static HeadMotion, &'static HeadStrands, &'static mut HairDetail);
 
 /// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
 /// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three
@@ -330,6 +375,9 @@ pub(crate) struct StrandDetail {
     /// Whether the head teleported (or the strand comes back from being carried) since the rod last
     /// followed it: the rod is carried rigidly to its head before its next step.
     pub(crate) teleported: bool,
+    /// Whether the strand comes back from being carried: carried rigidly to its head and given its
+    /// head's motion before its next step.
+    pub(crate) resumed: bool,
     /// The head's pose at this fixed step.
     pub(crate) head: ScaledPose,
     /// The drawn shape while it is kept apart from the simulated one (below full detail, and until the
@@ -339,7 +387,15 @@ pub(crate) struct StrandDetail {
 
 impl Default for StrandDetail {
     fn default() -> Self {
-        Self { level: DetailLevel::FULL, due: true, elapsed: 0, teleported: false, head: default(), drawn: None }
+        Self {
+            level: DetailLevel::FULL,
+            due: true,
+            elapsed: 0,
+            teleported: false,
+            resumed: false,
+            head: default(),
+            drawn: None,
+        }
     }
 }
 
@@ -401,6 +457,13 @@ impl DrawnShape {
     /// [`DRAWN_CLOCK_RATE_CHANGE`], never past the last keyframe nor before the first; writes the drawn
     /// nodes there; lets go of keyframes the drawn clock has passed.
     fn advance(&mut self, lag: f32) {
+        if self.keyframes.len() == 1
+            && self.drawn_time == self.keyframes[0].time
+            && self.nodes.len() == self.keyframes[0].nodes.len()
+        {
+            // Settled on the only keyframe (carried, or waiting for the next step): nothing moves.
+            return;
+        }
         let wanted = self.clock - lag;
         let step = (wanted - self.drawn_time).clamp(1.0 - DRAWN_CLOCK_RATE_CHANGE, 1.0 + DRAWN_CLOCK_RATE_CHANGE);
         let (first, last) = match (self.keyframes.front(), self.keyframes.back()) {

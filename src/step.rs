@@ -128,10 +128,15 @@ fn preload_supports(rod: &Rod, colliders: &[MovingCollider], thickness: f64) -> 
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
 /// teleported (a root that cannot follow is reported as the strand's fault at its step).
-pub(crate) fn pin_roots(mut strands: Query<(&mut SimulatedStrand, &StrandOf)>, heads: Query<&HeadMotion>) {
+pub(crate) fn pin_roots(
+    time: Res<Time>,
+    mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
+    heads: Query<&HeadMotion>,
+) {
+    let dt = time.delta_secs_f64();
     strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
         if let Ok(motion) = heads.get(head) {
-            strand.follow_head(motion.current, motion.teleported);
+            strand.follow_head(motion, dt);
         }
     });
 }
@@ -220,7 +225,7 @@ impl FaultLog {
 }
 
 /// Batches of strands per compute thread in [`step_strands`].
-const STEP_BATCHES_PER_THREAD: usize = 16;
+const STEP_BATCHES_PER_THREAD: usize = 64;
 
 /// What [`step_strands`] reads and writes of each strand.
 type StepItem = (
@@ -277,7 +282,12 @@ pub(crate) fn step_strands(
                     return;
                 }
                 let steps = strand.detail.take_elapsed();
-                let longer = StepParams { dt: params.dt * f64::from(steps), max_newton_iterations: 1, ..params };
+                let longer = StepParams {
+                    dt: params.dt * f64::from(steps),
+                    max_newton_iterations: 1,
+                    strain_tolerance: params.strain_tolerance.max(1e-6),
+                    ..params
+                };
                 let outcome =
                     strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
                 forces.clear();

@@ -6,7 +6,7 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use crate::detail::{DetailLevel, StrandDetail};
-use crate::head::{ScaledPose, StrandOf};
+use crate::head::{HeadMotion, ScaledPose, StrandOf};
 use crate::rod::{
     Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
 };
@@ -383,10 +383,11 @@ impl SimulatedStrand {
     ///
     /// A strand not stepped at this fixed step (a coarser level of detail, see [`crate::detail`]) leaves
     /// its rod where it is, and follows the head (and any teleport in between) at its next step.
-    pub(crate) fn follow_head(&mut self, pose: ScaledPose, teleported: bool) {
+    pub(crate) fn follow_head(&mut self, motion: &HeadMotion, dt: f64) {
         let Some(anchor) = self.anchor else {
             return;
         };
+        let (pose, teleported) = (motion.current, motion.teleported);
         let detail = &mut self.detail;
         detail.head = pose;
         detail.elapsed += 1;
@@ -394,7 +395,8 @@ impl SimulatedStrand {
             detail.teleported |= teleported;
             return;
         }
-        let teleported = teleported || std::mem::take(&mut detail.teleported);
+        let resumed = std::mem::take(&mut detail.resumed);
+        let teleported = teleported || resumed || std::mem::take(&mut detail.teleported);
         if teleported {
             detail.elapsed = 1;
             let (rotation, translation) = self.head.rigid_motion_to(&pose);
@@ -409,6 +411,23 @@ impl SimulatedStrand {
             Ok(()) => self.head = pose,
             Err(error) => self.pin_error = Some(error),
         }
+        if resumed && dt > 0.0 {
+            self.move_with_head(motion, dt);
+        }
+    }
+
+    /// Gives every node the velocity it has moving rigidly with the head over the last fixed step of
+    /// `dt` s, and starts the integrator afresh: hair that comes back from being carried (see
+    /// [`crate::detail`]) moves with its head, not with the velocities it had when it was set aside.
+    fn move_with_head(&mut self, motion: &HeadMotion, dt: f64) {
+        let (rotation, translation) = motion.previous.rigid_motion_to(&motion.current);
+        let back = rotation.inverse();
+        let state = &mut self.rod.state;
+        for (velocity, &position) in state.velocities.iter_mut().zip(&state.positions) {
+            *velocity = (position - back * (position - translation)) / dt;
+        }
+        state.twist_rates.fill(0.0);
+        state.history.dt = 0.0;
     }
 
     /// Advances the strand by one step at simulated time `now` (s), kept outside the colliders of
@@ -485,7 +504,7 @@ impl SimulatedStrand {
     pub(crate) fn set_detail(&mut self, level: DetailLevel, due: bool) {
         if self.detail.level == DetailLevel::Carried && level != DetailLevel::Carried {
             // Back from being carried: carried rigidly to its head first, then simulated from there.
-            self.detail.teleported = true;
+            self.detail.resumed = true;
         }
         (self.detail.level, self.detail.due) = (level, due);
     }

@@ -117,8 +117,9 @@ impl Scene {
 }
 
 /// A crowd: `heads` heads of the scene's hair, each swaying and turning as [`Scene::head_pose`] with its own
-/// phase, around one camera. The camera looks at the first two heads from 1.2 m; the others stand around
-/// it, 4 to 11 m away, half in its view and half behind it.
+/// phase, around one camera. The camera looks at the first two heads from 1.2 m; the others stand 4 to
+/// 11 m away from it, the first `in_view` of them ahead (at 4, 5, 6, 7 m, … within 20° of its axis) and
+/// the rest behind it or to its sides, out of its view.
 #[allow(dead_code)]
 pub struct Crowd {
     pub app: App,
@@ -129,7 +130,14 @@ pub struct Crowd {
 #[allow(dead_code)]
 impl Crowd {
     /// The crowd with levels of detail chosen from the camera (`detail`), or every head at full detail.
-    pub fn new(heads: usize, strands: usize, edges: usize, threads: Option<usize>, detail: bool) -> Self {
+    pub fn new(
+        heads: usize,
+        in_view: usize,
+        strands: usize,
+        edges: usize,
+        threads: Option<usize>,
+        detail: bool,
+    ) -> Self {
         use bevy::camera::primitives::Frustum;
         use bevy::camera::{CameraProjection, PerspectiveProjection};
         use bevy::math::primitives::ViewFrustum;
@@ -148,9 +156,11 @@ impl Crowd {
                     0 => Vec3::new(-0.2, 1.6, 0.0),
                     1 => Vec3::new(0.2, 1.6, 0.0),
                     _ => {
-                        // Four ahead (two at every second step, two at every fourth), four behind.
-                        const DEGREES: [f32; 8] = [-20.0, 20.0, -10.0, 10.0, 100.0, 160.0, -160.0, -100.0];
-                        let angle = DEGREES[(index - 2) % 8].to_radians();
+                        const AHEAD: [f32; 4] = [-20.0, 20.0, -10.0, 10.0];
+                        const AWAY: [f32; 8] = [100.0, 160.0, -160.0, -100.0, 130.0, -130.0, 180.0, 70.0];
+                        let other = index - 2;
+                        let degrees = if other < in_view { AHEAD[other % 4] } else { AWAY[(other - in_view) % 8] };
+                        let angle = degrees.to_radians();
                         let distance = 2.0 + index as f32;
                         Vec3::new(distance * angle.sin(), 1.6, 1.2 - distance * angle.cos())
                     }
