@@ -19,9 +19,14 @@
 //!   involved (coming back to full detail from every fourth step, over four steps), and the simulation
 //!   itself never jumps (a longer or shorter step starts from where the hair is).
 //! - **What is lost at a coarser level:** motion faster than the longer step resolves (the implicit step
-//!   damps it, as at a lower frame rate), the hair–hair interaction of [`crate::volume`] (only heads at
-//!   full detail take part in their grid), and up to `n − 1` fixed steps of delay in the hair's motion
-//!   relative to its head.
+//!   damps it, as at a lower frame rate; a longer step also takes one Newton iteration and projects the
+//!   edge lengths to 1e-6 instead of 1e-8, which damps a little more), the hair–hair interaction of
+//!   [`crate::volume`] (only heads at full detail take part in their grid), and up to `n − 1` fixed
+//!   steps of delay in the hair's motion relative to its head. Going coarser, the hair's motion relative
+//!   to its head pauses for up to `n − 1` fixed steps while the drawn clock falls behind.
+//! - **Coming back from being carried** the hair starts with its head's motion (each node the velocity
+//!   of the head's rigid motion over the last fixed step), not with the velocities it had when it was
+//!   set aside.
 //!
 //! **Choice.** [`HairDetailSettings`] say at which distances the levels change (with a margin against
 //! flickering between two levels); a head's [`HairDetail`] shows the level in use and can fix one.
@@ -34,7 +39,7 @@ use bevy::math::DVec3;
 use bevy::prelude::*;
 
 use crate::head::{HeadMotion, HeadStrands, ScaledPose, StrandOf};
-use crate::rod::{Rod, RodError};
+use crate::rod::{Rod, RodError, StepParams};
 use crate::strand::SimulatedStrand;
 use crate::strand_data::{StrandFrames, StrandNodes, copy_converted, snap_previous};
 
@@ -356,6 +361,23 @@ fn spread_turns(heads: &mut Query<HeadItem>, turns: &mut Vec<(u32, std::cmp::Rev
 
 /// What [`choose_hair_detail`] reads and writes of a head.
 type HeadItem = (Entity, &'static HeadMotion, &'static HeadStrands, &'static mut HairDetail);
+
+/// Projection accuracy of a step longer than one fixed step (see [`StepParams::strain_tolerance`]): at a
+/// coarser level of detail the edge lengths are kept to 1e-6 instead of 1e-8, which saves projection
+/// iterations on the larger motion of a longer step.
+pub const LONGER_STEP_STRAIN_TOLERANCE: f64 = 1e-6;
+
+/// The parameters of a step of `steps` fixed steps (more than one, at a coarser level of detail): `steps`
+/// times as long, one Newton iteration (the longer step's larger motion would otherwise take more,
+/// costing what the coarser level saves), the edge lengths kept to [`LONGER_STEP_STRAIN_TOLERANCE`].
+pub(crate) fn longer_step_params(params: &StepParams, steps: u32) -> StepParams {
+    StepParams {
+        dt: params.dt * f64::from(steps),
+        max_newton_iterations: 1,
+        strain_tolerance: params.strain_tolerance.max(LONGER_STEP_STRAIN_TOLERANCE),
+        ..*params
+    }
+}
 
 /// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
 /// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three

@@ -8,8 +8,9 @@ use bevy::prelude::*;
 use bevy::utils::Parallel;
 
 use crate::collision::StrandColliders;
+use crate::detail::longer_step_params;
 use crate::head::{HeadMotion, StrandOf};
-use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
+use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
 use crate::settings::{HairPause, HairSettings, HairStatistics};
 use crate::strand::StepOutcome;
 use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
@@ -282,14 +283,14 @@ pub(crate) fn step_strands(
                     return;
                 }
                 let steps = strand.detail.take_elapsed();
-                let longer = StepParams {
-                    dt: params.dt * f64::from(steps),
-                    max_newton_iterations: 1,
-                    strain_tolerance: params.strain_tolerance.max(1e-6),
-                    ..params
+                let longer;
+                let params = if steps == 1 {
+                    &params
+                } else {
+                    longer = longer_step_params(&params, steps);
+                    &longer
                 };
-                let outcome =
-                    strand.advance(now, if steps == 1 { &params } else { &longer }, &forces, &contacts, workspace);
+                let outcome = strand.advance(now, params, &forces, &contacts, workspace);
                 forces.clear();
                 // Written here, while the strand is in this core's cache.
                 strand.write_components(Some(steps), &mut nodes, &mut frames);
