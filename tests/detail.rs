@@ -245,3 +245,33 @@ fn invalid_detail_settings_are_reported_and_every_head_is_simulated_fully() {
     app.update();
     assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), DetailLevel::Stepped(4));
 }
+
+#[test]
+fn a_head_teleported_between_its_turns_carries_its_hair_along() {
+    let mut app = hair_app();
+    let (head, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 10, 16);
+    app.world_mut().entity_mut(head).insert(HairDetail::fixed(DetailLevel::Stepped(4)));
+    // Hanging still after 8 s.
+    for _ in 0..480 {
+        app.update();
+    }
+    let before = head_local_nodes(&app, head, &strands);
+    // 5 m away and turned half round, in one fixed step, on each of the four turns of the interval.
+    for turn in 0..4 {
+        let place = Transform::from_xyz(5.0 * (turn + 1) as f32, 1.6, 0.0)
+            .with_rotation(Quat::from_rotation_y(std::f32::consts::PI * (turn + 1) as f32 / 2.0));
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = place;
+        app.update();
+        let moved = largest_distance(&before, &head_local_nodes(&app, head, &strands));
+        println!("teleported on turn {turn}: drawn hair within {moved:.2e} m of its shape on the head");
+        assert!(moved < 1e-4, "the hair was left behind or torn: {moved} m");
+        for _ in 0..8 {
+            app.update();
+        }
+    }
+    let after = head_local_nodes(&app, head, &strands);
+    let settled = largest_distance(&before, &after);
+    println!("after four teleports and settling: within {settled:.2e} m of the shape before");
+    assert!(settled < 1e-4, "{settled} m");
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+}
