@@ -121,6 +121,8 @@ struct Options {
     draw_every_frame: bool,
     /// The rendered hair's look (a preset of [`HairAppearance::presets`]).
     appearance: HairAppearance,
+    /// A level of detail to keep (`None`: chosen from the camera's distance).
+    detail: Option<DetailLevel>,
 }
 
 /// How the example draws hair: rendered strands, gizmo lines, or both over each other.
@@ -149,7 +151,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--draw hair|lines|both]
-            [--draw-every-frame on|off]
+            [--draw-every-frame on|off] [--detail auto|full|2|4|carried]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -175,6 +177,7 @@ impl Options {
             drawing: Drawing::Rendered,
             draw_every_frame: false,
             appearance: HairAppearance::default(),
+            detail: None,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -224,6 +227,16 @@ impl Options {
                         .into_iter()
                         .find(|drawing| drawing.name() == value)
                         .ok_or_else(|| format!("--draw needs hair, lines or both, got {value:?}"))?
+                }
+                "--detail" => {
+                    options.detail = match value.as_str() {
+                        "auto" => None,
+                        "full" => Some(DetailLevel::FULL),
+                        "carried" => Some(DetailLevel::Carried),
+                        interval => Some(DetailLevel::Stepped(interval.parse().map_err(|_| {
+                            format!("--detail needs auto, full, a step interval or carried, got {value:?}")
+                        })?)),
+                    }
                 }
                 "--color" => {
                     options.appearance = HairAppearance::presets()
@@ -370,6 +383,9 @@ fn spawn_scene(
             ChildOf(body),
         ))
         .id();
+    if let Some(level) = options.detail {
+        commands.entity(head).insert(HairDetail::fixed(level));
+    }
     if options.file_groom {
         commands.entity(head).insert(ratboy_groom(&assets, options.segments));
     } else {

@@ -4,8 +4,9 @@
 //!
 //! **Scheme.**
 //! - A head at level [`DetailLevel::Stepped`]`(n)` has its strands stepped on every `n`-th fixed step,
-//!   with a step of `n · dt`: the same implicit scheme, stable at any step, at `1/n` of the cost. Heads at
-//!   the same level take their turns on different fixed steps (by entity), so the cost is spread evenly.
+//!   with a step of `n · dt`: the same implicit scheme, stable at any step, at `1/n` of the cost. Its
+//!   strands take their turns on different fixed steps (a quarter of them on each, at every fourth step),
+//!   so every fixed step costs about the same: no spike every `n`-th step.
 //! - Between two of its steps the hair is **drawn from its head's frame**: the nodes are kept in the
 //!   head's (rigid) local space and carried with the head every fixed step, so the roots stay on the
 //!   head however fast it moves. The drawn shape moves in equal parts towards the shape of the last step,
@@ -88,8 +89,6 @@ pub struct HairDetail {
     distance: f32,
     on_screen: bool,
     reach: f32,
-    /// Which fixed steps of its interval the head is stepped on (see [`spread_turns`]).
-    phase: u32,
 }
 
 impl HairDetail {
@@ -255,7 +254,6 @@ pub(crate) struct DetailMemory {
     fixed_step: u64,
     reported: Option<String>,
     viewers: Vec<Viewer>,
-    turns: Vec<(u32, std::cmp::Reverse<usize>, Entity)>,
 }
 
 /// What one camera says about distance and sight.
@@ -270,10 +268,10 @@ pub(crate) fn choose_hair_detail(
     settings: Res<HairDetailSettings>,
     cameras: Query<(&Camera, &GlobalTransform, Option<&Frustum>)>,
     mut heads: Query<HeadItem>,
-    mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
+    mut strands: Query<(Entity, &mut SimulatedStrand, &StrandOf)>,
     mut memory: Local<DetailMemory>,
 ) {
-    let DetailMemory { fixed_step, reported, viewers, turns } = &mut *memory;
+    let DetailMemory { fixed_step, reported, viewers } = &mut *memory;
     *fixed_step += 1;
     let valid = match settings.validate() {
         Ok(()) => {
@@ -301,7 +299,7 @@ pub(crate) fn choose_hair_detail(
         let reach = if detail.reach > 0.0 && !(*fixed_step).is_multiple_of(REACH_PERIOD) {
             detail.reach
         } else {
-            let reach_of = |(strand, _): (&SimulatedStrand, &StrandOf)| {
+            let reach_of = |(_, strand, _): (Entity, &SimulatedStrand, &StrandOf)| {
                 let rod = strand.rod();
                 rod.positions()[0].as_vec3().distance(centre) + rod.rest_lengths().iter().sum::<f64>() as f32
             };
@@ -324,39 +322,17 @@ pub(crate) fn choose_hair_detail(
         let new = HairDetail { level, distance, on_screen, reach, ..*detail };
         detail.set_if_neq(new);
     }
-    spread_turns(&mut heads, turns);
     let heads = heads.as_readonly();
     let step = *fixed_step;
-    strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
-        let (level, phase) =
-            heads.get(head).map_or((DetailLevel::FULL, 0), |(.., detail)| (detail.level, detail.phase));
-        let due =
-            level.step_interval().is_some_and(|interval| (step + u64::from(phase)).is_multiple_of(u64::from(interval)));
+    strands.par_iter_mut().for_each(|(entity, mut strand, &StrandOf(head))| {
+        let level = heads.get(head).map_or(DetailLevel::FULL, |(.., detail)| detail.level);
+        // Each strand takes its own turn (by entity): a head's strands are spread evenly over the fixed
+        // steps of its interval, so that every fixed step costs about as much.
+        let due = level
+            .step_interval()
+            .is_some_and(|interval| step.wrapping_add(entity.to_bits()).is_multiple_of(u64::from(interval)));
         strand.set_detail(level, due);
     });
-}
-
-/// Spreads the heads stepped every `n`-th fixed step over the `n` fixed steps of their interval, so
-/// that every fixed step steps about as many strands: finest first, each head (largest first) takes the
-/// phase whose fixed steps have the fewest strands so far, over a cycle of [`MAX_STEP_INTERVAL`] fixed
-/// steps. The same heads at the same levels always get the same phases.
-fn spread_turns(heads: &mut Query<HeadItem>, turns: &mut Vec<(u32, std::cmp::Reverse<usize>, Entity)>) {
-    const CYCLE: usize = MAX_STEP_INTERVAL as usize;
-    turns.clear();
-    turns.extend(heads.iter().filter_map(|(entity, _, strands, detail)| {
-        Some((detail.level.step_interval()?, std::cmp::Reverse(strands.len()), entity))
-    }));
-    turns.sort_unstable();
-    let mut load = [0usize; CYCLE];
-    for &(interval, std::cmp::Reverse(strands), entity) in turns.iter() {
-        let steps_of =
-            |phase: u32| (0..CYCLE).filter(move |slot| (slot + phase as usize).is_multiple_of(interval as usize));
-        let phase = (0..interval).min_by_key(|&phase| steps_of(phase).map(|slot| load[slot]).max()).unwrap_or(0);
-        steps_of(phase).for_each(|slot| load[slot] += strands);
-        if let Ok((.., mut detail)) = heads.get_mut(entity) {
-            detail.set_if_neq(HairDetail { phase, ..*detail });
-        }
-    }
 }
 
 /// What [`choose_hair_detail`] reads and writes of a head.

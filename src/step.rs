@@ -128,7 +128,8 @@ fn preload_supports(rod: &Rod, colliders: &[MovingCollider], thickness: f64) -> 
 }
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
-/// teleported (a root that cannot follow is reported as the strand's fault at its step).
+/// teleported (a root that cannot follow is reported as the strand's fault at its step). A strand not
+/// stepped at this fixed step (a coarser level of detail) follows at its next step.
 pub(crate) fn pin_roots(
     time: Res<Time>,
     mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
@@ -240,7 +241,9 @@ type StepItem = (
 
 /// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
 /// with no head); a strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with
-/// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on.
+/// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on. A strand whose
+/// head is at a coarser level of detail is stepped only on its turns, by as many fixed steps as have
+/// passed, and drawn carried with its head in between (see [`crate::detail`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn step_strands(
     time: Res<Time>,
@@ -280,6 +283,7 @@ pub(crate) fn step_strands(
                     forces.clear();
                     strand.write_components(None, &mut nodes, &mut frames);
                     tally.unstepped += 1;
+                    tally.quarantined += usize::from(strand.is_quarantined());
                     return;
                 }
                 let steps = strand.detail.take_elapsed();
