@@ -9,16 +9,16 @@
 //!   so every fixed step costs about the same: no spike every `n`-th step.
 //! - Between two of its steps the hair is **drawn from its head's frame**: the nodes are kept in the
 //!   head's (rigid) local space and carried with the head every fixed step, so the roots stay on the
-//!   head however fast it moves. The drawn shape moves in equal parts towards the shape of the last step,
-//!   reaching it as the next step comes: the motion of the hair relative to the head is smooth and lags
-//!   it by at most `n − 1` fixed steps.
+//!   head however fast it moves. The drawn shape is interpolated between the shapes of the strand's last
+//!   steps (keyframes), at a drawn clock that runs `n − 1` fixed steps behind: never extrapolated, and
+//!   smooth relative to the head.
 //! - At [`DetailLevel::Carried`] a head's hair is not simulated at all: it keeps its shape in its head's
 //!   frame and follows the head rigidly. When the head comes back, its strands are carried rigidly to
 //!   where the head is and simulated from there.
-//! - **No pops.** A change of level never moves the drawn hair by more than one fixed step's motion: the
-//!   drawn shape always moves towards the simulated one over as many fixed steps as the longest step
-//!   involved (coming back to full detail from every fourth step, over four steps), and the simulation
-//!   itself never jumps (a longer or shorter step starts from where the hair is).
+//! - **No pops.** When the level changes, the drawn clock runs at most [`DRAWN_CLOCK_RATE_CHANGE`] (25 %)
+//!   faster or slower than the fixed steps until it has its new lag, so the drawn hair never moves more
+//!   than 25 % faster than the hair itself; the simulation never jumps either (a longer or shorter step
+//!   starts from where the hair is).
 //! - **What is lost at a coarser level:** motion faster than the longer step resolves (the implicit step
 //!   damps it, as at a lower frame rate; a longer step also takes one Newton iteration and projects the
 //!   edge lengths to 1e-6 instead of 1e-8, which damps a little more), the hair–hair interaction of
@@ -358,7 +358,7 @@ pub(crate) fn longer_step_params(params: &StepParams, steps: u32) -> StepParams 
 /// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
 /// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three
 /// fixed steps is made up in twelve, the hair meanwhile moving at most 25 % faster than it does.
-pub const DRAWN_CLOCK_RATE_CHANGE: f32 = 0.25;
+pub const DRAWN_CLOCK_RATE_CHANGE: f64 = 0.25;
 
 /// A strand's part in the levels of detail: its level at this fixed step, whether it is stepped in it, and
 /// its drawn shape while that is kept apart from the simulated one.
@@ -370,8 +370,8 @@ pub(crate) struct StrandDetail {
     pub(crate) due: bool,
     /// Fixed steps since the rod's state: the length of its next step, in fixed steps.
     pub(crate) elapsed: u32,
-    /// Whether the head teleported (or the strand comes back from being carried) since the rod last
-    /// followed it: the rod is carried rigidly to its head before its next step.
+    /// Whether the head teleported since the rod last followed it: the rod is carried rigidly to its
+    /// head before its next step.
     pub(crate) teleported: bool,
     /// Whether the strand comes back from being carried: carried rigidly to its head and given its
     /// head's motion before its next step.
@@ -402,7 +402,7 @@ impl Default for StrandDetail {
 #[derive(Debug, Clone, Default)]
 struct Keyframe {
     /// The fixed step it was taken at (the strand's own count).
-    time: f32,
+    time: f64,
     nodes: Vec<Vec3>,
 }
 
@@ -414,9 +414,9 @@ struct Keyframe {
 #[derive(Debug, Clone, Default)]
 struct DrawnShape {
     /// Fixed steps counted since the drawn shape was set apart.
-    clock: f32,
+    clock: f64,
     /// The drawn clock, in the same fixed steps.
-    drawn_time: f32,
+    drawn_time: f64,
     /// Keyframes, oldest first; the first is at or before the drawn clock.
     keyframes: std::collections::VecDeque<Keyframe>,
     /// Keyframes no longer needed, kept for their memory.
@@ -454,7 +454,7 @@ impl DrawnShape {
     /// Moves the drawn clock towards `lag` fixed steps behind the clock, by one step give or take
     /// [`DRAWN_CLOCK_RATE_CHANGE`], never past the last keyframe nor before the first; writes the drawn
     /// nodes there; lets go of keyframes the drawn clock has passed.
-    fn advance(&mut self, lag: f32) {
+    fn advance(&mut self, lag: f64) {
         if self.keyframes.len() == 1
             && self.drawn_time == self.keyframes[0].time
             && self.nodes.len() == self.keyframes[0].nodes.len()
@@ -478,7 +478,7 @@ impl DrawnShape {
             Some(after) => {
                 let fraction = (self.drawn_time - before.time) / (after.time - before.time);
                 self.nodes.clear();
-                self.nodes.extend(before.nodes.iter().zip(&after.nodes).map(|(a, b)| a.lerp(*b, fraction)));
+                self.nodes.extend(before.nodes.iter().zip(&after.nodes).map(|(a, b)| a.lerp(*b, fraction as f32)));
             }
             None => self.nodes.clone_from(&before.nodes),
         }
@@ -526,7 +526,7 @@ impl StrandDetail {
             copy_converted(&mut frames.reference_twist, &rod.frames().reference_twist, |angle| angle as f32);
         }
         // One step interval less one behind: at a step, the drawn shape sets out from the keyframe before.
-        let lag = self.level.step_interval().map_or(0, |interval| interval - 1) as f32;
+        let lag = f64::from(self.level.step_interval().map_or(0, |interval| interval - 1));
         drawn.advance(lag);
 
         let (rotation, translation) = (Mat3::from_quat(self.head.rotation.as_quat()), self.head.translation.as_vec3());

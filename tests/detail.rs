@@ -156,7 +156,7 @@ fn changing_levels_moves_the_drawn_hair_no_faster_than_a_quarter_above_full_deta
     assert!(reference_jump > 1e-3, "the moving head should move its hair");
     // The drawn clock catches up at most 25 % faster than the hair moves: no more than that beyond the
     // largest motion at full detail (the two heads' hair differs once the switched one has been carried).
-    let bound = (1.0 + bevy_hair_sim::detail::DRAWN_CLOCK_RATE_CHANGE) * reference_jump;
+    let bound = (1.0 + bevy_hair_sim::detail::DRAWN_CLOCK_RATE_CHANGE as f32) * reference_jump;
     assert!(switched_jump <= bound, "{switched_jump} m against {reference_jump} m at full detail");
     assert!(jump_at_switch <= bound, "{jump_at_switch} m at a switch");
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
