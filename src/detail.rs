@@ -24,7 +24,8 @@
 //!   edge lengths to 1e-6 instead of 1e-8, which damps a little more), the hair–hair interaction of
 //!   [`crate::volume`] (only heads at full detail take part in their grid), and up to `n − 1` fixed
 //!   steps of delay in the hair's motion relative to its head. Going coarser, the hair's motion relative
-//!   to its head pauses for up to `n − 1` fixed steps while the drawn clock falls behind.
+//!   to its head slows by a quarter for `4 (n − 1)` fixed steps while the drawn clock falls behind, the
+//!   strand meanwhile stepped every fixed step (so that its drawn shape always has a keyframe ahead).
 //! - **Coming back from being carried** the hair starts with its head's motion (each node the velocity
 //!   of the head's rigid motion over the last fixed step), not with the velocities it had when it was
 //!   set aside.
@@ -331,6 +332,7 @@ pub(crate) fn choose_hair_detail(
         let due = level
             .step_interval()
             .is_some_and(|interval| step.wrapping_add(entity.to_bits()).is_multiple_of(u64::from(interval)));
+        let due = due || strand.detail.falling_behind(level);
         strand.set_detail(level, due);
     });
 }
@@ -354,6 +356,9 @@ pub(crate) fn longer_step_params(params: &StepParams, steps: u32) -> StepParams 
         ..*params
     }
 }
+
+/// How close to its lag, in fixed steps, the drawn clock counts as there.
+const LAG_TOLERANCE: f64 = 1e-6;
 
 /// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
 /// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three
@@ -494,6 +499,15 @@ impl StrandDetail {
     /// Takes the length of the step about to be taken, in fixed steps (at least one).
     pub(crate) fn take_elapsed(&mut self) -> u32 {
         std::mem::take(&mut self.elapsed).max(1)
+    }
+
+    /// Whether the strand is still falling behind to `level`'s lag (see [`DrawnShape`]): until its drawn
+    /// clock is `n − 1` fixed steps behind, a strand going to every `n`-th step is stepped every fixed
+    /// step, so that its drawn shape always has a keyframe ahead to move to and never pauses.
+    pub(crate) fn falling_behind(&self, level: DetailLevel) -> bool {
+        let Some(interval) = level.step_interval() else { return false };
+        let lag = self.drawn.as_ref().map_or(0.0, |drawn| drawn.clock - drawn.drawn_time);
+        lag < f64::from(interval - 1) - LAG_TOLERANCE
     }
 
     /// Whether the drawn shape is the simulated one (full detail, caught up): the components are then
