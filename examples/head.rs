@@ -122,7 +122,7 @@ struct Options {
     /// The rendered hair's look (a preset of [`HairAppearance::presets`]).
     appearance: HairAppearance,
     /// A level of detail to keep (`None`: chosen from the camera's distance).
-    detail: Option<DetailLevel>,
+    detail: Option<HairDetailLevel>,
 }
 
 /// How the example draws hair: rendered strands, gizmo lines, or both over each other.
@@ -231,9 +231,9 @@ impl Options {
                 "--detail" => {
                     options.detail = match value.as_str() {
                         "auto" => None,
-                        "full" => Some(DetailLevel::FULL),
-                        "carried" => Some(DetailLevel::Carried),
-                        interval => Some(DetailLevel::Stepped(interval.parse().map_err(|_| {
+                        "full" => Some(HairDetailLevel::FULL),
+                        "carried" => Some(HairDetailLevel::Carried),
+                        interval => Some(HairDetailLevel::Stepped(interval.parse().map_err(|_| {
                             format!("--detail needs auto, full, a step interval or carried, got {value:?}")
                         })?)),
                     }

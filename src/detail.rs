@@ -3,7 +3,7 @@
 //! second or fourth step, hair out of sight or very far is carried with its head without being simulated.
 //!
 //! **Scheme.**
-//! - A head at level [`DetailLevel::Stepped`]`(n)` has its strands stepped on every `n`-th fixed step,
+//! - A head at level [`HairDetailLevel::Stepped`]`(n)` has its strands stepped on every `n`-th fixed step,
 //!   with a step of `n · dt`: the same implicit scheme, stable at any step, at `1/n` of the cost. Its
 //!   strands take their turns on different fixed steps (a quarter of them on each, at every fourth step),
 //!   so every fixed step costs about the same: no spike every `n`-th step.
@@ -12,7 +12,7 @@
 //!   head however fast it moves. The drawn shape is interpolated between the shapes of the strand's last
 //!   steps (keyframes), at a drawn clock that runs `n − 1` fixed steps behind: never extrapolated, and
 //!   smooth relative to the head.
-//! - At [`DetailLevel::Carried`] a head's hair is not simulated at all: it keeps its shape in its head's
+//! - At [`HairDetailLevel::Carried`] a head's hair is not simulated at all: it keeps its shape in its head's
 //!   frame and follows the head rigidly. When the head comes back, its strands are carried rigidly to
 //!   where the head is and simulated from there.
 //! - **No pops.** When the level changes, the drawn clock runs at most [`DRAWN_CLOCK_RATE_CHANGE`] (25 %)
@@ -48,14 +48,14 @@ use crate::strand_data::{StrandFrames, StrandNodes, copy_converted, snap_previou
 /// How a head's hair is simulated.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq, Eq)]
 #[reflect(Debug, Clone, PartialEq)]
-pub enum DetailLevel {
+pub enum HairDetailLevel {
     /// Stepped on every `n`-th fixed step, with a step `n` times as long (1: every step, full detail).
     Stepped(u32),
     /// Not simulated: carried rigidly with its head, in the shape it last had.
     Carried,
 }
 
-impl DetailLevel {
+impl HairDetailLevel {
     /// Every fixed step: full detail.
     pub const FULL: Self = Self::Stepped(1);
 
@@ -73,7 +73,7 @@ impl DetailLevel {
     }
 }
 
-impl Default for DetailLevel {
+impl Default for HairDetailLevel {
     fn default() -> Self {
         Self::FULL
     }
@@ -85,8 +85,8 @@ impl Default for DetailLevel {
 #[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct HairDetail {
     /// A level to keep whatever the distance (`None`, the default: chosen from [`HairDetailSettings`]).
-    pub fixed: Option<DetailLevel>,
-    level: DetailLevel,
+    pub fixed: Option<HairDetailLevel>,
+    level: HairDetailLevel,
     distance: f32,
     on_screen: bool,
     reach: f32,
@@ -94,12 +94,12 @@ pub struct HairDetail {
 
 impl HairDetail {
     /// A head whose hair is always simulated at `level`.
-    pub fn fixed(level: DetailLevel) -> Self {
+    pub fn fixed(level: HairDetailLevel) -> Self {
         Self { fixed: Some(level), ..default() }
     }
 
     /// The level in use at the last fixed step.
-    pub fn level(&self) -> DetailLevel {
+    pub fn level(&self) -> HairDetailLevel {
         self.level
     }
 
@@ -140,9 +140,9 @@ pub struct HairDetailSettings {
     /// Heads farther than this from every camera are carried, not simulated, m (infinite: never).
     /// Default 30.
     pub carried_distance: f32,
-    /// The level of heads no camera sees. Default [`DetailLevel::Carried`]: hair out of sight costs
+    /// The level of heads no camera sees. Default [`HairDetailLevel::Carried`]: hair out of sight costs
     /// nothing; a shadow cast by it keeps its last shape.
-    pub off_screen: DetailLevel,
+    pub off_screen: HairDetailLevel,
     /// Relative margin against flickering between two levels, 0 to 0.5: a head moves to a coarser level
     /// only once it is this much farther than the level's distance, and back only once it is this much
     /// nearer. Default 0.1.
@@ -156,7 +156,7 @@ impl Default for HairDetailSettings {
             full_detail_distance: 3.0,
             max_step_interval: 4,
             carried_distance: 30.0,
-            off_screen: DetailLevel::Carried,
+            off_screen: HairDetailLevel::Carried,
             hysteresis: 0.1,
         }
     }
@@ -181,7 +181,7 @@ impl HairDetailSettings {
         if self.carried_distance.is_nan() || self.carried_distance <= 0.0 {
             return invalid("carried_distance", self.carried_distance.into(), "positive (infinite: never)");
         }
-        if let DetailLevel::Stepped(interval) = self.off_screen
+        if let HairDetailLevel::Stepped(interval) = self.off_screen
             && !interval_ok(interval)
         {
             return invalid("off_screen", interval.into(), "a step interval from 1 to 16");
@@ -193,23 +193,23 @@ impl HairDetailSettings {
     }
 
     /// The level for a head `distance` m from the nearest camera, seen or not, with no hysteresis.
-    pub fn level_at(&self, distance: f32, on_screen: bool) -> DetailLevel {
+    pub fn level_at(&self, distance: f32, on_screen: bool) -> HairDetailLevel {
         if !on_screen {
             return self.off_screen;
         }
         if distance > self.carried_distance {
-            return DetailLevel::Carried;
+            return HairDetailLevel::Carried;
         }
         let mut interval = 1;
         while interval < self.max_step_interval && distance > self.full_detail_distance * interval as f32 {
             interval *= 2;
         }
-        DetailLevel::Stepped(interval.min(self.max_step_interval))
+        HairDetailLevel::Stepped(interval.min(self.max_step_interval))
     }
 
     /// The level for a head at `distance`, seen or not, that is at `current`: the level of the distance,
     /// unless the head is within [`HairDetailSettings::hysteresis`] of the distance where it would change.
-    pub fn next_level(&self, current: DetailLevel, distance: f32, on_screen: bool) -> DetailLevel {
+    pub fn next_level(&self, current: HairDetailLevel, distance: f32, on_screen: bool) -> HairDetailLevel {
         let coarser = self.level_at(distance * (1.0 - self.hysteresis), on_screen);
         if coarser.coarseness() > current.coarseness() {
             return coarser;
@@ -317,7 +317,7 @@ pub(crate) fn choose_hair_detail(
             || viewers.iter().any(|viewer| viewer.frustum.is_none_or(|frustum| frustum.intersects_sphere(&ball, true)));
         let level = match detail.fixed {
             Some(level) => level,
-            None if !valid || !settings.enabled || viewers.is_empty() => DetailLevel::FULL,
+            None if !valid || !settings.enabled || viewers.is_empty() => HairDetailLevel::FULL,
             None => settings.next_level(detail.level, distance, on_screen),
         };
         let new = HairDetail { level, distance, on_screen, reach, ..*detail };
@@ -326,7 +326,7 @@ pub(crate) fn choose_hair_detail(
     let heads = heads.as_readonly();
     let step = *fixed_step;
     strands.par_iter_mut().for_each(|(entity, mut strand, &StrandOf(head))| {
-        let level = heads.get(head).map_or(DetailLevel::FULL, |(.., detail)| detail.level);
+        let level = heads.get(head).map_or(HairDetailLevel::FULL, |(.., detail)| detail.level);
         // Each strand takes its own turn (by entity): a head's strands are spread evenly over the fixed
         // steps of its interval, so that every fixed step costs about as much.
         let due = level
@@ -370,7 +370,7 @@ pub const DRAWN_CLOCK_RATE_CHANGE: f64 = 0.25;
 #[derive(Debug, Clone)]
 pub(crate) struct StrandDetail {
     /// The level at this fixed step.
-    pub(crate) level: DetailLevel,
+    pub(crate) level: HairDetailLevel,
     /// Whether the strand is stepped at this fixed step.
     pub(crate) due: bool,
     /// Fixed steps since the rod's state: the length of its next step, in fixed steps.
@@ -391,7 +391,7 @@ pub(crate) struct StrandDetail {
 impl Default for StrandDetail {
     fn default() -> Self {
         Self {
-            level: DetailLevel::FULL,
+            level: HairDetailLevel::FULL,
             due: true,
             elapsed: 0,
             teleported: false,
@@ -504,7 +504,7 @@ impl StrandDetail {
     /// Whether the strand is still falling behind to `level`'s lag (see [`DrawnShape`]): until its drawn
     /// clock is `n − 1` fixed steps behind, a strand going to every `n`-th step is stepped every fixed
     /// step, so that its drawn shape always has a keyframe ahead to move to and never pauses.
-    pub(crate) fn falling_behind(&self, level: DetailLevel) -> bool {
+    pub(crate) fn falling_behind(&self, level: HairDetailLevel) -> bool {
         let Some(interval) = level.step_interval() else { return false };
         let lag = self.drawn.as_ref().map_or(0.0, |drawn| drawn.clock - drawn.drawn_time);
         lag < f64::from(interval - 1) - LAG_TOLERANCE
@@ -513,7 +513,7 @@ impl StrandDetail {
     /// Whether the drawn shape is the simulated one (full detail, caught up): the components are then
     /// written straight from the rod.
     pub(crate) fn draws_simulation(&self) -> bool {
-        self.drawn.is_none() && self.level == DetailLevel::FULL && self.due
+        self.drawn.is_none() && self.level == HairDetailLevel::FULL && self.due
     }
 
     /// Writes the drawn shape into `nodes` and `frames`, world space at this step's head pose (see
@@ -549,7 +549,7 @@ impl StrandDetail {
         snap_previous(&mut nodes.previous_positions, &nodes.positions, snap);
         copy_converted(&mut frames.tangents, &drawn.tangents, |t| rotation * t);
         copy_converted(&mut frames.reference_directors, &drawn.directors, |u| rotation * u);
-        if self.level == DetailLevel::FULL && drawn.caught_up() {
+        if self.level == HairDetailLevel::FULL && drawn.caught_up() {
             // From the next step on, the rod is drawn as it is.
             self.drawn = None;
         }

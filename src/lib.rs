@@ -28,7 +28,7 @@ pub mod prelude {
     pub use crate::collision::{
         HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };
-    pub use crate::detail::{DetailLevel, HairDetail, HairDetailPlugin, HairDetailSettings};
+    pub use crate::detail::{HairDetail, HairDetailLevel, HairDetailPlugin, HairDetailSettings};
     pub use crate::followers::{FollowerNodes, HairFollowers};
     pub use crate::gizmos::{HairDrawSystems, HairGizmoPlugin, HairGizmos};
     pub use crate::groom::{Combing, GroomedStrand, HairGroom, HairStyle, Scalp};

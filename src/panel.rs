@@ -10,7 +10,7 @@ use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
-use crate::detail::{DetailLevel, HairDetail, HairDetailSettings, MAX_STEP_INTERVAL};
+use crate::detail::{HairDetail, HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
 use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
 use crate::head::HairHead;
@@ -325,10 +325,10 @@ fn detail_grid(
     let mut counts = [0; 4];
     for head in heads {
         let slot = match head.level() {
-            DetailLevel::Stepped(1) => 0,
-            DetailLevel::Stepped(2) => 1,
-            DetailLevel::Stepped(_) => 2,
-            DetailLevel::Carried => 3,
+            HairDetailLevel::Stepped(1) => 0,
+            HairDetailLevel::Stepped(2) => 1,
+            HairDetailLevel::Stepped(_) => 2,
+            HairDetailLevel::Carried => 3,
         };
         counts[slot] += 1;
     }
@@ -342,10 +342,13 @@ fn detail_grid(
         let carried = egui::Slider::new(&mut detail.carried_distance, 1.0..=1000.0).logarithmic(true);
         grid_row(ui, "carried beyond (m)", carried);
         ui.label("out of sight");
-        let mut carried_off_screen = detail.off_screen == DetailLevel::Carried;
+        let mut carried_off_screen = detail.off_screen == HairDetailLevel::Carried;
         if ui.checkbox(&mut carried_off_screen, "carried").changed() {
-            detail.off_screen =
-                if carried_off_screen { DetailLevel::Carried } else { DetailLevel::Stepped(detail.max_step_interval) };
+            detail.off_screen = if carried_off_screen {
+                HairDetailLevel::Carried
+            } else {
+                HairDetailLevel::Stepped(detail.max_step_interval)
+            };
         }
         ui.end_row();
         ui.label("heads full / ½ / ≤¼ / carried");

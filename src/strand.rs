@@ -5,7 +5,7 @@ use bevy::math::{DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::detail::{DetailLevel, StrandDetail};
+use crate::detail::{HairDetailLevel, StrandDetail};
 use crate::head::{HeadMotion, ScaledPose, StrandOf};
 use crate::rod::{
     Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
@@ -490,7 +490,7 @@ impl SimulatedStrand {
     }
 
     /// The level of detail the strand was simulated at in the last fixed step (see [`crate::detail`]).
-    pub fn detail_level(&self) -> DetailLevel {
+    pub fn detail_level(&self) -> HairDetailLevel {
         self.detail.level
     }
 
@@ -501,8 +501,8 @@ impl SimulatedStrand {
     }
 
     /// Sets the strand's level of detail at this fixed step, and whether it is stepped in it.
-    pub(crate) fn set_detail(&mut self, level: DetailLevel, due: bool) {
-        if self.detail.level == DetailLevel::Carried && level != DetailLevel::Carried {
+    pub(crate) fn set_detail(&mut self, level: HairDetailLevel, due: bool) {
+        if self.detail.level == HairDetailLevel::Carried && level != HairDetailLevel::Carried {
             // Back from being carried: carried rigidly to its head first, then simulated from there.
             self.detail.resumed = true;
         }

@@ -31,7 +31,7 @@ fn allocations_during(count: fn() -> u64, work: impl FnOnce()) -> u64 {
 /// Allocations per update of an app with one head of `strands` strands (32 edges, 4 followers each) that
 /// moves, with colliders, in a gusty, turbulent wind with a fan, with hair–hair interaction (smoothing and
 /// pressure), at the level of detail `level`, once running.
-fn allocations_per_update(strands: usize, level: DetailLevel) -> u64 {
+fn allocations_per_update(strands: usize, level: HairDetailLevel) -> u64 {
     let mut app = hair_app();
     let volume = &mut app.world_mut().resource_mut::<HairSettings>().volume;
     (volume.enabled, volume.stiffness) = (true, 50.0);
@@ -115,7 +115,7 @@ fn stepping_allocates_nothing_once_running() {
 
     // The plugin: Bevy allocates a little every frame (its executor, its task scopes); the hair adds
     // nothing to that, however many strands there are.
-    for level in [DetailLevel::FULL, DetailLevel::Stepped(4), DetailLevel::Carried] {
+    for level in [HairDetailLevel::FULL, HairDetailLevel::Stepped(4), HairDetailLevel::Carried] {
         let few = allocations_per_update(50, level);
         let many = allocations_per_update(400, level);
         println!("allocations per update at {level:?}: {few} with 50 strands, {many} with 400");

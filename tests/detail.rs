@@ -41,8 +41,8 @@ fn a_coarser_level_steps_on_its_turns_and_keeps_the_roots_on_the_moving_head() {
     let (full_base, coarse_base) = (Vec3::new(0.0, 1.6, 0.0), Vec3::new(1.0, 1.6, 0.0));
     let (full, full_strands) = spawn_head(&mut app, Transform::from_translation(full_base), 12, 16);
     let (coarse, coarse_strands) = spawn_head(&mut app, Transform::from_translation(coarse_base), 12, 16);
-    app.world_mut().entity_mut(full).insert(HairDetail::fixed(DetailLevel::FULL));
-    app.world_mut().entity_mut(coarse).insert(HairDetail::fixed(DetailLevel::Stepped(4)));
+    app.world_mut().entity_mut(full).insert(HairDetail::fixed(HairDetailLevel::FULL));
+    app.world_mut().entity_mut(coarse).insert(HairDetail::fixed(HairDetailLevel::Stepped(4)));
     app.update();
     let anchors: Vec<[Vec3; 2]> = coarse_strands
         .iter()
@@ -82,7 +82,7 @@ fn a_coarser_level_steps_on_its_turns_and_keeps_the_roots_on_the_moving_head() {
     );
     assert!(coarse_steps.iter().all(|&count| count == 30));
     assert!(worst_root < 2e-6, "a root left its head by {worst_root} m");
-    assert_eq!(app.world().get::<HairDetail>(coarse).unwrap().level(), DetailLevel::Stepped(4));
+    assert_eq!(app.world().get::<HairDetail>(coarse).unwrap().level(), HairDetailLevel::Stepped(4));
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
     assert!(full_strands.iter().all(|&strand| app.world().get::<SimulatedStrand>(strand).unwrap().steps_now()));
 }
@@ -90,7 +90,7 @@ fn a_coarser_level_steps_on_its_turns_and_keeps_the_roots_on_the_moving_head() {
 #[test]
 fn hair_at_every_level_hangs_in_the_same_static_shape() {
     let mut app = hair_app();
-    let levels = [DetailLevel::FULL, DetailLevel::Stepped(2), DetailLevel::Stepped(4)];
+    let levels = [HairDetailLevel::FULL, HairDetailLevel::Stepped(2), HairDetailLevel::Stepped(4)];
     let heads: Vec<(Entity, Vec<Entity>)> = levels
         .iter()
         .enumerate()
@@ -121,19 +121,19 @@ fn changing_levels_moves_the_drawn_hair_no_faster_than_a_quarter_above_full_deta
     let (reference_base, switched_base) = (Vec3::new(0.0, 1.6, 0.0), Vec3::new(1.0, 1.6, 0.0));
     let (reference, reference_strands) = spawn_head(&mut app, Transform::from_translation(reference_base), 12, 16);
     let (switched, switched_strands) = spawn_head(&mut app, Transform::from_translation(switched_base), 12, 16);
-    app.world_mut().entity_mut(reference).insert(HairDetail::fixed(DetailLevel::FULL));
+    app.world_mut().entity_mut(reference).insert(HairDetail::fixed(HairDetailLevel::FULL));
     // Settle first, then move and switch levels every 30 steps.
     for _ in 0..240 {
         app.update();
     }
     let schedule = [
-        DetailLevel::FULL,
-        DetailLevel::Stepped(4),
-        DetailLevel::Carried,
-        DetailLevel::Stepped(2),
-        DetailLevel::FULL,
-        DetailLevel::Carried,
-        DetailLevel::FULL,
+        HairDetailLevel::FULL,
+        HairDetailLevel::Stepped(4),
+        HairDetailLevel::Carried,
+        HairDetailLevel::Stepped(2),
+        HairDetailLevel::FULL,
+        HairDetailLevel::Carried,
+        HairDetailLevel::FULL,
     ];
     let mut previous = [(reference, &reference_strands), (switched, &switched_strands)]
         .map(|(head, strands)| head_local_nodes(&app, head, strands));
@@ -207,20 +207,20 @@ fn the_camera_chooses_levels_by_distance_and_sight_with_a_margin() {
     let places = [-1.0, -5.0, -10.0, -50.0, 2.0];
     let heads: Vec<Entity> =
         places.iter().map(|&z| spawn_head(&mut app, Transform::from_xyz(0.0, 0.0, z), 4, 8).0).collect();
-    let levels = |app: &App| -> Vec<DetailLevel> {
+    let levels = |app: &App| -> Vec<HairDetailLevel> {
         heads.iter().map(|&head| app.world().get::<HairDetail>(head).unwrap().level()).collect()
     };
     app.update();
-    assert!(levels(&app).iter().all(|&level| level == DetailLevel::FULL), "no camera: full detail");
+    assert!(levels(&app).iter().all(|&level| level == HairDetailLevel::FULL), "no camera: full detail");
 
     let camera = app.world_mut().spawn(camera(Transform::IDENTITY)).id();
     app.update();
     let expected = [
-        DetailLevel::FULL,
-        DetailLevel::Stepped(2),
-        DetailLevel::Stepped(4),
-        DetailLevel::Carried,
-        DetailLevel::Carried,
+        HairDetailLevel::FULL,
+        HairDetailLevel::Stepped(2),
+        HairDetailLevel::Stepped(4),
+        HairDetailLevel::Carried,
+        HairDetailLevel::Carried,
     ];
     assert_eq!(levels(&app), expected);
     let behind = app.world().get::<HairDetail>(heads[4]).unwrap();
@@ -237,22 +237,22 @@ fn the_camera_chooses_levels_by_distance_and_sight_with_a_margin() {
         app.update();
         app.world().get::<HairDetail>(heads[1]).unwrap().level()
     };
-    assert_eq!(move_head(&mut app, -3.2), DetailLevel::Stepped(2));
-    assert_eq!(move_head(&mut app, -2.6), DetailLevel::FULL);
-    assert_eq!(move_head(&mut app, -3.2), DetailLevel::FULL);
-    assert_eq!(move_head(&mut app, -3.4), DetailLevel::Stepped(2));
+    assert_eq!(move_head(&mut app, -3.2), HairDetailLevel::Stepped(2));
+    assert_eq!(move_head(&mut app, -2.6), HairDetailLevel::FULL);
+    assert_eq!(move_head(&mut app, -3.2), HairDetailLevel::FULL);
+    assert_eq!(move_head(&mut app, -3.4), HairDetailLevel::Stepped(2));
 
     // A fixed level wins; turned off, every head is at full detail; a camera turned off does not count.
-    app.world_mut().entity_mut(heads[4]).insert(HairDetail::fixed(DetailLevel::Stepped(8)));
+    app.world_mut().entity_mut(heads[4]).insert(HairDetail::fixed(HairDetailLevel::Stepped(8)));
     app.update();
-    assert_eq!(levels(&app)[4], DetailLevel::Stepped(8));
+    assert_eq!(levels(&app)[4], HairDetailLevel::Stepped(8));
     app.world_mut().resource_mut::<HairDetailSettings>().enabled = false;
     app.update();
-    assert_eq!(levels(&app)[..4], [DetailLevel::FULL; 4]);
+    assert_eq!(levels(&app)[..4], [HairDetailLevel::FULL; 4]);
     app.world_mut().resource_mut::<HairDetailSettings>().enabled = true;
     app.world_mut().get_mut::<Camera>(camera).unwrap().is_active = false;
     app.update();
-    assert_eq!(levels(&app)[..4], [DetailLevel::FULL; 4]);
+    assert_eq!(levels(&app)[..4], [HairDetailLevel::FULL; 4]);
 }
 
 #[test]
@@ -261,30 +261,30 @@ fn invalid_detail_settings_are_reported_and_every_head_is_simulated_fully() {
     let (head, _) = spawn_head(&mut app, Transform::from_xyz(0.0, 0.0, -20.0), 4, 8);
     app.world_mut().spawn(camera(Transform::IDENTITY));
     app.update();
-    assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), DetailLevel::Stepped(4));
+    assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), HairDetailLevel::Stepped(4));
     for broken in [
         HairDetailSettings { full_detail_distance: f32::NAN, ..default() },
         HairDetailSettings { max_step_interval: 0, ..default() },
         HairDetailSettings { max_step_interval: 17, ..default() },
         HairDetailSettings { carried_distance: -1.0, ..default() },
-        HairDetailSettings { off_screen: DetailLevel::Stepped(0), ..default() },
+        HairDetailSettings { off_screen: HairDetailLevel::Stepped(0), ..default() },
         HairDetailSettings { hysteresis: 0.9, ..default() },
     ] {
         assert!(broken.validate().is_err(), "{broken:?}");
         app.insert_resource(broken);
         app.update();
-        assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), DetailLevel::FULL);
+        assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), HairDetailLevel::FULL);
     }
     app.insert_resource(HairDetailSettings::default());
     app.update();
-    assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), DetailLevel::Stepped(4));
+    assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), HairDetailLevel::Stepped(4));
 }
 
 #[test]
 fn a_head_teleported_between_its_turns_carries_its_hair_along() {
     let mut app = hair_app();
     let (head, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 10, 16);
-    app.world_mut().entity_mut(head).insert(HairDetail::fixed(DetailLevel::Stepped(4)));
+    app.world_mut().entity_mut(head).insert(HairDetail::fixed(HairDetailLevel::Stepped(4)));
     // Hanging still after 8 s.
     for _ in 0..480 {
         app.update();

@@ -197,10 +197,10 @@ impl Crowd {
         for &(head, _) in &self.heads {
             let level = self.app.world().get::<HairDetail>(head).expect("heads have a level").level();
             let slot = match level {
-                DetailLevel::Stepped(1) => 0,
-                DetailLevel::Stepped(2) => 1,
-                DetailLevel::Stepped(_) => 2,
-                DetailLevel::Carried => 3,
+                HairDetailLevel::Stepped(1) => 0,
+                HairDetailLevel::Stepped(2) => 1,
+                HairDetailLevel::Stepped(_) => 2,
+                HairDetailLevel::Carried => 3,
             };
             counts[slot] += 1;
         }

@@ -48,7 +48,7 @@ use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
 use crate::HairSystems;
-use crate::detail::DetailLevel;
+use crate::detail::HairDetailLevel;
 use crate::followers::HairFollowers;
 use crate::head::StrandOf;
 use crate::parallel::run_in_parallel;
@@ -325,7 +325,7 @@ pub(crate) fn interact_through_grid(
 
 /// Whether `strand` is stepped at this fixed step at full detail (see [`crate::detail`]).
 fn at_full_detail(strand: &SimulatedStrand) -> bool {
-    strand.steps_now() && strand.detail_level() == DetailLevel::FULL
+    strand.steps_now() && strand.detail_level() == HairDetailLevel::FULL
 }
 
 /// How many hairs a strand stands for: its [`RepresentedHairs`], or itself and its followers.
