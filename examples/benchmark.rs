@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use bevy::math::{DVec3, Vec3};
 use bevy::tasks::available_parallelism;
+use bevy_hair_sim::detail::HeadsByDetail;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose, StepTimings};
 use counting_allocator::BYTES_IN_USE;
@@ -158,7 +159,7 @@ fn crowd(threads: usize, steps: usize) {
     }
     for (index, (name, in_view, _)) in rows.into_iter().enumerate() {
         times[index].sort_by(f64::total_cmp);
-        let [full, half, quarter, carried] = crowds[index].levels();
+        let HeadsByDetail { full, every_second_step: half, rarer: quarter, carried } = crowds[index].levels();
         println!(
             "| {name} | {in_view} | {:.2} | {:.0} | {:.2} | {full} / {half} / {quarter} / {carried} |",
             1e3 * times[index][steps / 2],

@@ -42,6 +42,7 @@ use bevy::prelude::*;
 
 use crate::head::{HeadMotion, HeadStrands, ScaledPose, StrandOf};
 use crate::rod::{Rod, RodError, StepParams};
+use crate::settings::HairStatistics;
 use crate::strand::SimulatedStrand;
 use crate::strand_data::{StrandFrames, StrandNodes, copy_converted, snap_previous};
 
@@ -76,6 +77,34 @@ impl HairDetailLevel {
 impl Default for HairDetailLevel {
     fn default() -> Self {
         Self::FULL
+    }
+}
+
+/// How many heads are at each level of detail, counted at every fixed step that simulates hair
+/// ([`crate::settings::HairStatistics::heads_by_detail`]).
+#[derive(Reflect, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[reflect(Debug, Default, Clone, PartialEq)]
+pub struct HeadsByDetail {
+    /// Stepped every fixed step.
+    pub full: usize,
+    /// Stepped every second fixed step.
+    pub every_second_step: usize,
+    /// Stepped every third fixed step or more rarely.
+    pub rarer: usize,
+    /// Carried, not simulated.
+    pub carried: usize,
+}
+
+impl HeadsByDetail {
+    /// Counts one more head at `level`.
+    pub fn add(&mut self, level: HairDetailLevel) {
+        let count = match level.step_interval() {
+            Some(1) => &mut self.full,
+            Some(2) => &mut self.every_second_step,
+            Some(_) => &mut self.rarer,
+            None => &mut self.carried,
+        };
+        *count += 1;
     }
 }
 
@@ -270,6 +299,7 @@ pub(crate) fn choose_hair_detail(
     cameras: Query<(&Camera, &GlobalTransform, Option<&Frustum>)>,
     mut heads: Query<HeadItem>,
     mut strands: Query<(Entity, &mut SimulatedStrand, &StrandOf)>,
+    mut statistics: ResMut<HairStatistics>,
     mut memory: Local<DetailMemory>,
 ) {
     let DetailMemory { fixed_step, reported, viewers } = &mut *memory;
@@ -293,6 +323,7 @@ pub(crate) fn choose_hair_detail(
     viewers.extend(
         active.map(|(_, transform, frustum)| Viewer { position: transform.translation(), frustum: frustum.copied() }),
     );
+    let mut heads_by_detail = HeadsByDetail::default();
     for (_, motion, head_strands, mut detail) in &mut heads {
         let centre = motion.translation();
         // A ball around the head that holds its hair: the farthest root plus that strand's length
@@ -322,7 +353,9 @@ pub(crate) fn choose_hair_detail(
         };
         let new = HairDetail { level, distance, on_screen, reach, ..*detail };
         detail.set_if_neq(new);
+        heads_by_detail.add(level);
     }
+    statistics.heads_by_detail = heads_by_detail;
     let heads = heads.as_readonly();
     let step = *fixed_step;
     strands.par_iter_mut().for_each(|(entity, mut strand, &StrandOf(head))| {

@@ -10,7 +10,7 @@ use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
-use crate::detail::{HairDetail, HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
+use crate::detail::{HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
 use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
 use crate::head::HairHead;
@@ -119,7 +119,7 @@ fn hair_panel(
     mut commands: Commands,
     heads: Query<(Entity, Option<&HairAppearance>), With<HairHead>>,
     mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
-    (detail_settings, details): (Option<ResMut<HairDetailSettings>>, Query<&HairDetail>),
+    detail_settings: Option<ResMut<HairDetailSettings>>,
 ) -> Result {
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
@@ -158,7 +158,7 @@ fn hair_panel(
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
         if let Some(detail) = edited_detail.as_mut() {
-            ui.collapsing("levels of detail", |ui| detail_grid(ui, detail, &details, &statistics));
+            ui.collapsing("levels of detail", |ui| detail_grid(ui, detail, &statistics));
         }
         ui.collapsing("drawing", |ui| {
             ui.horizontal(|ui| {
@@ -316,22 +316,8 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
 }
 
 /// Levels of detail ([`HairDetailSettings`]) and the heads at each level.
-fn detail_grid(
-    ui: &mut egui::Ui,
-    detail: &mut HairDetailSettings,
-    heads: &Query<&HairDetail>,
-    statistics: &HairStatistics,
-) {
-    let mut counts = [0; 4];
-    for head in heads {
-        let slot = match head.level() {
-            HairDetailLevel::Stepped(1) => 0,
-            HairDetailLevel::Stepped(2) => 1,
-            HairDetailLevel::Stepped(_) => 2,
-            HairDetailLevel::Carried => 3,
-        };
-        counts[slot] += 1;
-    }
+fn detail_grid(ui: &mut egui::Ui, detail: &mut HairDetailSettings, statistics: &HairStatistics) {
+    let heads = statistics.heads_by_detail;
     egui::Grid::new("hair detail").num_columns(2).show(ui, |ui| {
         ui.label("chosen from the camera");
         ui.checkbox(&mut detail.enabled, "on");
@@ -352,7 +338,7 @@ fn detail_grid(
         }
         ui.end_row();
         ui.label("heads full / ½ / ≤¼ / carried");
-        ui.label(format!("{} / {} / {} / {}", counts[0], counts[1], counts[2], counts[3]));
+        ui.label(format!("{} / {} / {} / {}", heads.full, heads.every_second_step, heads.rarer, heads.carried));
         ui.end_row();
         ui.label("strands stepped / resting");
         ui.label(format!("{} / {}", statistics.strands, statistics.unstepped_strands));

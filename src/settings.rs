@@ -2,6 +2,7 @@
 
 use bevy::prelude::*;
 
+use crate::detail::HeadsByDetail;
 use crate::rod::{Integrator, RodError, RodMaterial, StepParams};
 use crate::volume::HairVolume;
 
@@ -129,6 +130,8 @@ pub struct HairStatistics {
     /// Strands not simulated in the last step because their head is at a coarser level of detail (stepped
     /// on other fixed steps, or carried; see [`crate::detail`]).
     pub unstepped_strands: usize,
+    /// Heads at each level of detail at the last step ([`crate::detail`]).
+    pub heads_by_detail: HeadsByDetail,
     /// Nodes of those strands.
     pub nodes: usize,
     /// Steps simulated since start.

@@ -223,6 +223,8 @@ fn the_camera_chooses_levels_by_distance_and_sight_with_a_margin() {
         HairDetailLevel::Carried,
     ];
     assert_eq!(levels(&app), expected);
+    let counted = app.world().resource::<HairStatistics>().heads_by_detail;
+    assert_eq!(counted, bevy_hair_sim::detail::HeadsByDetail { full: 1, every_second_step: 1, rarer: 1, carried: 2 });
     let behind = app.world().get::<HairDetail>(heads[4]).unwrap();
     assert!(!behind.on_screen() && (behind.distance() - 2.0).abs() < 1e-4);
     assert!(app.world().get::<HairDetail>(heads[1]).unwrap().on_screen());

@@ -7,6 +7,7 @@ use bevy::app::TaskPoolPlugin;
 use bevy::prelude::*;
 use bevy::tasks::available_parallelism;
 use bevy::time::TimeUpdateStrategy;
+use bevy_hair_sim::detail::HeadsByDetail;
 use bevy_hair_sim::prelude::*;
 
 /// Length of every strand, m.
@@ -191,19 +192,8 @@ impl Crowd {
         self.app.update();
     }
 
-    /// How many heads are at each level of detail: full, every second step, every fourth, carried.
-    pub fn levels(&self) -> [usize; 4] {
-        let mut counts = [0; 4];
-        for &(head, _) in &self.heads {
-            let level = self.app.world().get::<HairDetail>(head).expect("heads have a level").level();
-            let slot = match level {
-                HairDetailLevel::Stepped(1) => 0,
-                HairDetailLevel::Stepped(2) => 1,
-                HairDetailLevel::Stepped(_) => 2,
-                HairDetailLevel::Carried => 3,
-            };
-            counts[slot] += 1;
-        }
-        counts
+    /// How many heads are at each level of detail after the last step.
+    pub fn levels(&self) -> HeadsByDetail {
+        self.app.world().resource::<HairStatistics>().heads_by_detail
     }
 }
