@@ -2,7 +2,7 @@
 //! another head's when a `HairCollisionFilter` includes them. Press C to toggle the wireframes.
 //!
 //! ```sh
-//! cargo run --release --features render --example colliders
+//! cargo run --release --features examples --example colliders
 //! ```
 
 use std::f32::consts::FRAC_PI_2;

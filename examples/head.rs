@@ -1,8 +1,8 @@
 //! A head with a full head of simulated hair that you can orbit, move, animate, restyle and tune.
 //!
 //! ```sh
-//! cargo run --release --features egui --example head     # with the live panel
-//! cargo run --release --features render --example head   # without it (statistics in the title)
+//! cargo run --release --features examples,egui --example head     # with the live panel
+//! cargo run --release --features examples --example head   # without it (statistics in the title)
 //! ```
 //!
 //! Drag with the left mouse button to orbit and scroll to zoom. Arrow keys or WASD walk the body, Q and E
@@ -19,7 +19,7 @@
 //! (`--draw-every-frame on` draws it throughout, to time it).
 //!
 //! ```sh
-//! cargo run --release --features egui --example head -- --screenshot shot.png --frames 240 \
+//! cargo run --release --features examples,egui --example head -- --screenshot shot.png --frames 240 \
 //!     --style curly --animate shake --strands 2000 --segments 32 --yaw 30
 //! ```
 

@@ -2,7 +2,7 @@
 //! and a camera. Move the head's `Transform` and its hair follows.
 //!
 //! ```sh
-//! cargo run --release --features render --example minimal_head
+//! cargo run --release --features examples --example minimal_head
 //! ```
 
 use bevy::prelude::*;

@@ -3,7 +3,7 @@
 //! strands with their own material, on a head that turns.
 //!
 //! ```sh
-//! cargo run --release --features render --example own_strands
+//! cargo run --release --features examples --example own_strands
 //! ```
 
 use bevy::prelude::*;

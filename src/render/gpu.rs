@@ -19,12 +19,8 @@ use bevy::tasks::ComputeTaskPool;
 
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::FollowerNodes;
-use bevy::gizmos::config::GizmoConfigStore;
-
-use crate::gizmos::{HairDrawSystems, HairGizmos};
-use crate::head::{HairHead, HeadStrands};
-use crate::strand::SimulatedStrand;
-use crate::strand_data::StrandNodes;
+use crate::schedule::HairDrawSystems;
+use crate::simulation::{HairHead, HeadStrands, SimulatedStrand, StrandNodes};
 use crate::volume::RepresentedHairs;
 
 /// The shader: vertex expansion, hair shading, and the shadow (prepass) vertex stage.
@@ -41,16 +37,6 @@ const ATTRIBUTE_HAIR_VERTEX: MeshVertexAttribute =
 pub struct HairRenderPlugin;
 
 impl Plugin for HairRenderPlugin {
-    fn finish(&self, app: &mut App) {
-        // The rendered hair is the view; the gizmo lines become a debug view, off until asked for.
-        if app.is_plugin_added::<bevy::pbr::PbrPlugin>()
-            && let Some(mut store) = app.world_mut().get_resource_mut::<GizmoConfigStore>()
-            && let Some((_, lines)) = store.get_config_mut::<HairGizmos>()
-        {
-            lines.draw_strands = false;
-        }
-    }
-
     fn build(&self, app: &mut App) {
         app.register_type::<HairAppearance>();
         if !app.is_plugin_added::<bevy::pbr::PbrPlugin>() {
@@ -58,10 +44,8 @@ impl Plugin for HairRenderPlugin {
             return;
         }
         embedded_asset!(app, "hair.wgsl");
-        app.add_plugins(MaterialPlugin::<HairMaterial>::default()).add_systems(
-            PostUpdate,
-            (spawn_hair_meshes, prepare_hair_meshes).chain().in_set(HairDrawSystems).after(TransformSystems::Propagate),
-        );
+        app.add_plugins(MaterialPlugin::<HairMaterial>::default())
+            .add_systems(PostUpdate, (spawn_hair_meshes, prepare_hair_meshes).chain().in_set(HairDrawSystems));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render_app
                 .init_resource::<HairUploads>()
@@ -156,7 +140,7 @@ impl Material for HairMaterial {
 
 /// The entity that draws one head's hair: a child of the head, with the mesh and material the plugin
 /// keeps. Hide it (its `Visibility`) to hide the rendered hair; the gizmo lines, off with the renderer,
-/// come back with [`HairGizmos::draw_strands`].
+/// come back with [`HairGizmos::draw_strands`](crate::debug::HairGizmos::draw_strands).
 #[derive(Component, Debug, Default)]
 #[require(NoAutoAabb)]
 pub struct HairMesh {

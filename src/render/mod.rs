@@ -1,9 +1,9 @@
 //! Hair drawn as hair: every strand of a head, guides and followers, as a strip of thin camera-facing
 //! ribbons in Bevy's PBR pipeline, lit by Bevy's lights with an anisotropic hair shading model, casting and
-//! receiving Bevy's shadows. The gizmo lines ([`crate::gizmos`]) stay as a debug view.
+//! receiving Bevy's shadows. The gizmo lines ([`crate::debug`]) stay as a debug view.
 //!
 //! **How a frame is drawn.** For each head, [`HairStrips`] lays its hairs out once (the guides in
-//! [`crate::head::HeadStrands`] order, each followed by its followers) and, every frame, writes their node
+//! [`crate::simulation::HeadStrands`] order, each followed by its followers) and, every frame, writes their node
 //! positions, interpolated between the last two fixed steps like the gizmos, into one buffer of `f32`
 //! triples, in parallel over the guides. The GPU receives that buffer (one `write_buffer` into a storage
 //! buffer that lives as long as the layout) and a static mesh of two vertices per node that says which node
@@ -35,14 +35,14 @@ use bevy::math::Vec3;
 use bevy::prelude::*;
 
 use crate::followers::FollowerNodes;
-use crate::strand_data::StrandNodes;
+use crate::simulation::StrandNodes;
 
 #[cfg(feature = "render")]
 mod gpu;
 #[cfg(feature = "render")]
 pub use gpu::{HairMaterial, HairMesh, HairRenderPlugin, HairShading};
 
-/// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::head::HairHead`]
+/// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::simulation::HairHead`]
 /// entity; without one, hair is drawn with [`HairAppearance::default`]. Changes apply the next frame.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Default, Clone, PartialEq)]

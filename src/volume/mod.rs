@@ -37,7 +37,26 @@
 //! # let mut app = App::new();
 //! # app.add_systems(Startup, thick_hair);
 //! ```
-
+//!
+//! **Why the pressure is 0 by default.** The grooms lay their hair in one thin layer on the skull (a combed
+//! groom's layers span 0.4 mm), packed tens of times beyond any target. With the pressure on, that hair
+//! gains volume, but rearranges to get there: a combed groom moves by 1 to 5 cm and the fringe falls over
+//! the face. A groom grown with its volume is the missing piece.
+//!
+//! Checking settings before using them:
+//!
+//! ```
+//! use bevy::prelude::*;
+//! use bevy_hair_sim::prelude::*;
+//!
+//! let mut settings = HairSettings::default();
+//! // Hair meets hair: velocities smoothed, and a push back where hair is packed beyond a tenth of its
+//! // volume, resolved by 5 mm cells.
+//! settings.volume.enabled = true;
+//! settings.volume.stiffness = 50.0;
+//! settings.volume.cell_size = 0.005;
+//! assert!(settings.validated(1.0 / 60.0).is_ok());
+//! ```
 pub mod grid;
 
 use bevy::ecs::schedule::InternedScheduleLabel;
@@ -47,67 +66,14 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
-use crate::HairSystems;
-use crate::detail::HairDetailLevel;
 use crate::followers::HairFollowers;
-use crate::head::StrandOf;
 use crate::parallel::run_in_parallel;
-use crate::rod::RodError;
-use crate::settings::{HairSettings, HairStatistics};
-use crate::strand::{SimulatedStrand, StrandForces};
+use crate::schedule::HairSystems;
+pub use crate::simulation::HairVolume;
+use crate::simulation::{HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, StrandForces, StrandOf};
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
-/// The hair–hair interaction's parameters, in [`HairSettings::volume`].
-#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
-#[reflect(Debug, Default, Clone, PartialEq)]
-pub struct HairVolume {
-    /// Whether hair interacts with hair. Default false: the grid costs a sixth to a fifth of a step (6 to 7
-    /// ms for 2 000 strands × 32 edges on two cores), and what it buys by default, the velocity
-    /// smoothing, shows in motion more than at rest.
-    pub enabled: bool,
-    /// Spacing of the grid's points, m, from 2 mm to 20 cm: smaller resolves thinner layers of hair and
-    /// costs more (the grid spans each head's hair). Default 0.005, which resolves a layer of hair for
-    /// the pressure; 0.01 costs a third less and is enough for the smoothing alone.
-    pub cell_size: f32,
-    /// Velocity smoothing rate, 1/s: where hair is packed at its target fraction, a node's velocity
-    /// relative to the hair around it decays as `e^{−rate·t}` (less where the hair is sparser; a lone
-    /// strand is not smoothed). 0 turns the smoothing off. Default 5.
-    pub velocity_smoothing: f32,
-    /// The fraction of space that hair at rest fills, in (0, 1]: denser hair pushes back. Loose human
-    /// hair fills about a tenth of its volume; lower gives more volume. Default 0.1.
-    pub target_volume_fraction: f32,
-    /// Pressure of hair packed at twice its target fraction, Pa (the pressure grows linearly from zero
-    /// at the target). 0 turns the pressure off. Default 0: the grooms lay their hair in one thin layer,
-    /// packed far beyond any target, and the pressure rearranges a combed style to give it volume (see
-    /// the README). 50 with 5 mm cells gives a head of 100 000 hairs a layer of 6 mm instead of 1. It is
-    /// an explicit force (the grid is built before the step): the stiffer it is, the smaller the cells
-    /// and the longer the step, the likelier it jitters; the tests run 50 Pa on 5 mm cells at 60 Hz.
-    pub stiffness: f32,
-}
-
-impl Default for HairVolume {
-    fn default() -> Self {
-        Self { enabled: false, cell_size: 0.005, velocity_smoothing: 5.0, target_volume_fraction: 0.1, stiffness: 0.0 }
-    }
-}
-
 impl HairVolume {
-    /// Checks every parameter's range.
-    pub fn validate(&self) -> Result<(), RodError> {
-        let checks: [(&'static str, f32, f32, f32, &'static str); 4] = [
-            ("volume.cell_size", self.cell_size, 0.002, 0.2, "must be from 0.002 to 0.2 m"),
-            ("volume.velocity_smoothing", self.velocity_smoothing, 0.0, 1e4, "must be from 0 to 10 000 1/s"),
-            ("volume.target_volume_fraction", self.target_volume_fraction, 1e-3, 1.0, "must be from 0.001 to 1"),
-            ("volume.stiffness", self.stiffness, 0.0, 1e5, "must be from 0 to 100 000 Pa"),
-        ];
-        for (parameter, value, low, high, requirement) in checks {
-            if !(low..=high).contains(&value) {
-                return Err(RodError::InvalidStepParameter { parameter, value: f64::from(value), requirement });
-            }
-        }
-        Ok(())
-    }
-
     /// The grid's parameters for a step of `dt` seconds.
     pub fn params(&self, dt: f64) -> VolumeParams {
         VolumeParams {

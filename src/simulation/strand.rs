@@ -5,13 +5,14 @@ use bevy::math::{DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::detail::{HairDetailLevel, StrandDetail};
-use crate::head::{HeadMotion, ScaledPose, StrandOf};
 use crate::rod::{
     Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
 };
-use crate::settings::HairSettings;
-use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
+use crate::simulation::HairSettings;
+use crate::simulation::data::RestShapeScratch;
+use crate::simulation::{HairDetailLevel, StrandDetail};
+use crate::simulation::{HeadMotion, ScaledPose, StrandOf};
+use crate::simulation::{StrandFrames, StrandNodes, StrandRestShape};
 
 /// A hair strand to simulate, as it is spawned. Add it (with [`StrandOf`] to root it on a head) and the
 /// plugin builds its simulated [`SimulatedStrand`] at the next fixed step. Changing it (or its `StrandOf`) later
@@ -494,7 +495,7 @@ impl SimulatedStrand {
         self.detail.level
     }
 
-    /// Whether the strand is stepped in this fixed step (decided before [`crate::HairSystems::PinRoots`]
+    /// Whether the strand is stepped in this fixed step (decided before [`crate::schedule::HairSystems::PinRoots`]
     /// ends): at full detail always, at a coarser level on its turns.
     pub fn steps_now(&self) -> bool {
         self.detail.due
@@ -519,7 +520,7 @@ impl SimulatedStrand {
         frames: &mut StrandFrames,
     ) {
         if self.detail.draws_simulation() {
-            crate::strand_data::write_strand_data(self, nodes, frames);
+            write_strand_data(self, nodes, frames);
             return;
         }
         let snap = self.take_snap();
@@ -537,7 +538,7 @@ impl SimulatedStrand {
 /// What acts on a strand's nodes from outside for the coming step: forces (N; a hand, a custom field,
 /// the hair's volume pressure), the air's velocity (m/s; wind, see [`crate::wind`]), against which the
 /// air drag of [`HairSettings::air_damping`] acts, and changes of velocity (m/s; the hair–hair velocity
-/// smoothing of [`crate::volume`]). Add them in [`crate::HairSystems::ExternalForces`]; they are
+/// smoothing of [`crate::volume`]). Add them in [`crate::schedule::HairSystems::ExternalForces`]; they are
 /// cleared after each step. Gravity is applied by the plugin from [`HairSettings::gravity`].
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone)]
@@ -764,6 +765,32 @@ pub(crate) fn build_strands(
                     .try_remove::<SimulatedStrand>()
                     .try_insert(StrandRejected { reason, waits_for_head });
             }
+        }
+    }
+}
+
+/// Copies a strand's simulated state into its [`StrandNodes`] and [`StrandFrames`] (after its step).
+pub(crate) fn write_strand_data(strand: &mut SimulatedStrand, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
+    let snap = strand.take_snap();
+    let rod = strand.rod();
+    nodes.update(rod.state(), snap);
+    frames.update(rod.frames(), rod.twist_angles());
+}
+
+/// Gives every strand whose [`StrandRestShape`] was edited its new rest shape; an edit the rod rejects is
+/// logged and undone.
+pub(crate) fn apply_rest_shape_edits(
+    mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape), Changed<StrandRestShape>>,
+    mut scratch: Local<RestShapeScratch>,
+) {
+    for (entity, mut strand, mut shape) in &mut strands {
+        if !shape.differs_from(strand.rod()) {
+            continue;
+        }
+        shape.merge_into(strand.rod(), &mut scratch);
+        if let Err(error) = strand.set_rest_shape(&scratch.lengths, &scratch.curvatures, &scratch.twists) {
+            error!("hair strand {entity}: the edited StrandRestShape was rejected and undone: {error}");
+            shape.update(strand.rod());
         }
     }
 }

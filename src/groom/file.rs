@@ -1,5 +1,5 @@
 //! Grooms from files: TressFX `.tfx` and Cem Yuksel's `.hair` strand files, read into one
-//! [`GroomFile`] asset by [`GroomFileLoader`] ([`GroomFilePlugin`] registers it), and put on a head by
+//! [`GroomFile`] asset by [`GroomFileLoader`] ([`HairGroomPlugin`](super::HairGroomPlugin) registers it), and put on a head by
 //! [`HairGroomFile`].
 //!
 //! Both formats are little-endian binary. Every count and offset is checked against the file's length
@@ -23,11 +23,9 @@ use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::HairSystems;
-use crate::head::{HairHead, HeadStrands, StrandOf};
 use crate::rod::RodMaterial;
-use crate::settings::HairSettings;
-use crate::strand::{HairStrand, build_strands};
+use crate::schedule::HairPrepareSystems;
+use crate::simulation::{HairHead, HairSettings, HairStrand, HeadStrands, StrandOf};
 
 /// A strand shorter than this fraction of its groom's size (the largest side of the box around all its
 /// points) is a point blurred by rounding, not a strand.
@@ -577,23 +575,15 @@ fn place_groom_files(
 }
 
 /// Registers the [`GroomFile`] asset and its loaders, and places [`HairGroomFile`]s on their heads in
-/// [`HairSystems::Prepare`], when the app has Bevy's `AssetPlugin` (added before this plugin, as
-/// `DefaultPlugins` does); without it, it does nothing.
-#[derive(Debug, Clone)]
-pub struct GroomFilePlugin {
-    /// The fixed-timestep schedule the simulation runs in.
-    pub schedule: InternedScheduleLabel,
-}
-
-impl Plugin for GroomFilePlugin {
-    fn build(&self, app: &mut App) {
-        if !app.is_plugin_added::<AssetPlugin>() {
-            debug!("GroomFilePlugin: no AssetPlugin, so groom files cannot be loaded");
-            return;
-        }
-        app.init_asset::<GroomFile>()
-            .init_asset_loader::<GroomFileLoader>()
-            .register_type::<FileStrand>()
-            .add_systems(self.schedule, place_groom_files.in_set(HairSystems::Prepare).before(build_strands));
+/// [`HairPrepareSystems::Grow`], when the app has Bevy's `AssetPlugin` (added before this plugin, as
+/// `DefaultPlugins` does); without it, groom files cannot be loaded.
+pub(super) fn build_groom_files(app: &mut App, schedule: InternedScheduleLabel) {
+    if !app.is_plugin_added::<AssetPlugin>() {
+        debug!("HairGroomPlugin: no AssetPlugin, so groom files cannot be loaded");
+        return;
     }
+    app.init_asset::<GroomFile>()
+        .init_asset_loader::<GroomFileLoader>()
+        .register_type::<FileStrand>()
+        .add_systems(schedule, place_groom_files.in_set(HairPrepareSystems::Grow));
 }

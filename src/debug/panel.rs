@@ -10,14 +10,12 @@ use bevy::gizmos::config::GizmoConfigStore;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
+use super::HairGizmos;
 use crate::detail::{HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
-use crate::gizmos::HairGizmos;
 use crate::groom::{Combing, HairGroom, HairStyle};
-use crate::head::HairHead;
 use crate::render::{HairAppearance, HairMesh};
 use crate::rod::{Integrator, RodMaterial};
-use crate::settings::{HairPause, HairSettings, HairStatistics};
-use crate::strand::SimulatedStrand;
+use crate::simulation::{HairHead, HairPause, HairSettings, HairStatistics, HairVolume, SimulatedStrand};
 use crate::wind::HairWind;
 
 /// Adds a "Hair" window that reads [`HairStatistics`] and writes [`HairSettings`], [`HairPause`], [`HairWind`], every
@@ -347,7 +345,7 @@ fn detail_grid(ui: &mut egui::Ui, detail: &mut HairDetailSettings, statistics: &
 }
 
 /// Hair–hair interaction through the grid ([`crate::volume::HairVolume`]).
-fn volume_grid(ui: &mut egui::Ui, volume: &mut crate::volume::HairVolume) {
+fn volume_grid(ui: &mut egui::Ui, volume: &mut HairVolume) {
     egui::Grid::new("hair volume").num_columns(2).show(ui, |ui| {
         ui.label("grid");
         ui.checkbox(&mut volume.enabled, "hair meets hair");

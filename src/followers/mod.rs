@@ -20,17 +20,20 @@
 //!
 //! **Data.** A guide's followers live on the guide's entity, contiguous ([`FollowerNodes`]): one
 //! allocation per guide, written by the thread that steps the guide's neighbours, and read by the
-//! renderer and the gizmos (interpolated between steps like [`crate::strand_data::StrandNodes`]).
+//! renderer and the gizmos (interpolated between steps like [`crate::simulation::StrandNodes`]).
 
 use bevy::math::{DVec3, Vec3};
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
-use crate::head::StrandOf;
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
-use crate::settings::{HairSettings, HairStatistics};
-use crate::strand::{HairStrand, SimulatedStrand};
-use crate::strand_data::{EdgeFrame, StrandFrames, StrandNodes, snap_previous};
+use crate::schedule::{HairPrepareSystems, HairStepSystems};
+use crate::simulation::{
+    EdgeFrame, HairSettings, HairStatistics, HairStrand, SimulatedStrand, StrandColliders, StrandFrames, StrandNodes,
+    StrandOf, snap_previous,
+};
 
 /// The followers of a guide strand, as spawned: each a curve of as many nodes as the guide's
 /// [`HairStrand`], in the same space (the head's local space for a strand with a head), root first. Put
@@ -223,7 +226,7 @@ type GuideToBind = (
 /// Binds the followers of new or rebuilt guides and of changed [`HairFollowers`], and, when the settings
 /// change, of guides whose followers are not bound. A guide that follows the default material while it
 /// is invalid waits, silently: the invalid settings are reported once, by the step.
-pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
+fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
     let default_valid = settings.default_material.validate().is_ok();
     for (entity, spec, followers, strand, mut nodes) in &mut guides {
         let unbound = nodes.offsets.is_empty() && !followers.curves.is_empty();
@@ -242,11 +245,11 @@ pub(crate) fn bind_followers(settings: Res<HairSettings>, mut guides: Query<Guid
 }
 
 /// Places every guide's followers from its new state, in parallel.
-pub(crate) fn place_followers(
+fn place_followers(
     settings: Res<HairSettings>,
     mut statistics: ResMut<HairStatistics>,
     mut guides: Query<(&SimulatedStrand, &StrandNodes, &StrandFrames, &mut FollowerNodes, Option<&StrandOf>)>,
-    colliders: crate::collision::StrandColliders,
+    colliders: StrandColliders,
 ) {
     let started = Instant::now();
     let margin = f64::from(settings.collision_margin);
@@ -259,4 +262,28 @@ pub(crate) fn place_followers(
     });
     statistics.followers = guides.iter().map(|(.., followers, _)| followers.count()).sum();
     statistics.follower_seconds = started.elapsed().as_secs_f64();
+}
+
+/// Follower hairs (see the [module documentation](self)): binds each guide's [`HairFollowers`] in
+/// [`HairPrepareSystems::Bind`] and places them after every step in [`HairStepSystems::Follow`]. Part of
+/// [`crate::HairPlugin`]; without it, [`HairFollowers`] are ignored.
+#[derive(Debug, Clone)]
+pub struct HairFollowersPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
+
+impl Default for HairFollowersPlugin {
+    fn default() -> Self {
+        Self { schedule: FixedUpdate.intern() }
+    }
+}
+
+impl Plugin for HairFollowersPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairFollowers>().register_type::<FollowerNodes>().add_systems(
+            self.schedule,
+            (bind_followers.in_set(HairPrepareSystems::Bind), place_followers.in_set(HairStepSystems::Follow)),
+        );
+    }
 }

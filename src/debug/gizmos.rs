@@ -2,14 +2,14 @@
 
 use bevy::color::Mix;
 use bevy::gizmos::GizmoPlugin;
-use bevy::gizmos::config::GizmoConfigGroup;
+use bevy::gizmos::config::{GizmoConfigGroup, GizmoConfigStore};
 use bevy::prelude::*;
 
 use crate::collision::ColliderMotion;
 use crate::followers::FollowerNodes;
 use crate::rod::ColliderShape;
-use crate::strand::SimulatedStrand;
-use crate::strand_data::StrandNodes;
+use crate::schedule::HairDrawSystems;
+use crate::simulation::{SimulatedStrand, StrandNodes};
 
 /// The gizmo group hair is drawn in, with its colours. Change it (and the line width, depth bias, …) at
 /// run time through `GizmoConfigStore::config_mut::<HairGizmos>()`.
@@ -28,9 +28,10 @@ pub struct HairGizmos {
     /// Whether follower hairs ([`crate::followers`]) are drawn, besides the simulated strands; off shows
     /// the guides alone. Default on.
     pub draw_followers: bool,
-    /// Whether strands are drawn as lines at all. On by default; the hair renderer
-    /// (`HairRenderPlugin`, `render` feature) turns it off when it starts, making the lines a debug view
-    /// over the rendered hair (the colliders are still drawn when asked).
+    /// Whether strands are drawn as lines at all. On by default, unless the app draws hair with the
+    /// hair renderer (`HairRenderPlugin`, `render` feature, with Bevy's PBR): the [`HairGizmoPlugin`] then
+    /// starts with it off, making the lines a debug view over the rendered hair (the colliders are still
+    /// drawn when asked).
     pub draw_strands: bool,
 }
 
@@ -74,10 +75,6 @@ impl HairGizmos {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct HairGizmoPlugin;
 
-/// The system set in [`PostUpdate`] that draws hair.
-#[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct HairDrawSystems;
-
 impl Plugin for HairGizmoPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<HairGizmos>();
@@ -90,6 +87,26 @@ impl Plugin for HairGizmoPlugin {
         }
         app.init_gizmo_group::<HairGizmos>()
             .add_systems(PostUpdate, (draw_strands, draw_colliders).in_set(HairDrawSystems));
+        if renders_hair(app)
+            && let Some(mut store) = app.world_mut().get_resource_mut::<GizmoConfigStore>()
+            && let Some((_, lines)) = store.get_config_mut::<HairGizmos>()
+        {
+            // The rendered hair is the view; the lines become a debug view, off until asked for.
+            lines.draw_strands = false;
+        }
+    }
+}
+
+/// Whether the app draws hair with the hair renderer (which needs Bevy's PBR).
+fn renders_hair(app: &App) -> bool {
+    #[cfg(feature = "render")]
+    {
+        app.is_plugin_added::<crate::render::HairRenderPlugin>() && app.is_plugin_added::<bevy::pbr::PbrPlugin>()
+    }
+    #[cfg(not(feature = "render"))]
+    {
+        let _ = app;
+        false
     }
 }
 

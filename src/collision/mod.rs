@@ -19,13 +19,13 @@
 //! head's colliders are gathered into one contiguous list each step, reusing its memory. Measured: the
 //! README's "Collisions" table (`cargo run --release --example benchmark collisions`).
 
-use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use crate::head::{HairHead, HeadStrands, ScaledPose, StrandOf};
 use crate::rod::{ColliderShape, MovingCollider, RigidPose};
-use crate::settings::HairSettings;
+use crate::schedule::HairPinSystems;
+use crate::simulation::{HairHead, HairSettings, HeadStrands, ScaledPose};
+pub use crate::simulation::{HeadColliderSet, SharedColliderSet};
 
 /// A solid that hair cannot pass through, in the local space of its entity's transform (scale included:
 /// a sphere scaled unevenly becomes an ellipsoid). See the [module documentation](self) for which
@@ -162,72 +162,8 @@ impl ColliderMotion {
     }
 }
 
-/// The colliders a head's strands meet this step (its own, shared and included ones, less the
-/// excluded), gathered by the plugin into memory reused from step to step.
-#[derive(Component, Debug, Clone, Default, PartialEq)]
-pub struct HeadColliderSet {
-    colliders: Vec<MovingCollider>,
-    entities: Vec<Entity>,
-}
-
-impl HeadColliderSet {
-    /// The colliders, with their poses at the last step and at this one.
-    pub fn colliders(&self) -> &[MovingCollider] {
-        &self.colliders
-    }
-
-    /// The collider entities, in the same order.
-    pub fn entities(&self) -> &[Entity] {
-        &self.entities
-    }
-
-    fn clear(&mut self) {
-        self.colliders.clear();
-        self.entities.clear();
-    }
-
-    /// Adds `entity`'s collider if it is in use and not in the set yet.
-    fn add(&mut self, entity: Entity, motion: &ColliderMotion) {
-        if let Some(collider) = motion.collider
-            && !self.entities.contains(&entity)
-        {
-            self.colliders.push(collider);
-            self.entities.push(entity);
-        }
-    }
-}
-
-/// The colliders that strands with no head meet: the shared ones.
-#[derive(Resource, Debug, Clone, Default, PartialEq)]
-pub struct SharedColliderSet(pub(crate) HeadColliderSet);
-
-impl SharedColliderSet {
-    /// The colliders, with their poses at the last step and at this one.
-    pub fn colliders(&self) -> &[MovingCollider] {
-        self.0.colliders()
-    }
-}
-
-/// The colliders each strand meets this step, for the strands' step.
-#[derive(SystemParam)]
-pub(crate) struct StrandColliders<'w, 's> {
-    head_sets: Query<'w, 's, &'static HeadColliderSet>,
-    shared: Option<Res<'w, SharedColliderSet>>,
-}
-
-impl StrandColliders<'_, '_> {
-    /// The colliders of a strand rooted on `strand_of` (the shared ones for a strand with no head; none
-    /// without [`HairCollisionPlugin`]).
-    pub(crate) fn of(&self, strand_of: Option<&StrandOf>) -> &[MovingCollider] {
-        match strand_of {
-            Some(&StrandOf(head)) => self.head_sets.get(head).map(HeadColliderSet::colliders).unwrap_or_default(),
-            None => self.shared.as_deref().map(SharedColliderSet::colliders).unwrap_or_default(),
-        }
-    }
-}
-
 /// Collisions of hair with [`HairCollider`]s: tracks colliders and gathers each head's set every fixed
-/// step, in [`crate::HairSystems::PinRoots`]; the strands' steps then keep their nodes outside. Part of
+/// step, in [`crate::schedule::HairSystems::PinRoots`]; the strands' steps then keep their nodes outside. Part of
 /// [`crate::HairPlugin`]; without it, hair passes through everything.
 #[derive(Debug, Clone)]
 pub struct HairCollisionPlugin {
@@ -247,10 +183,7 @@ impl Plugin for HairCollisionPlugin {
             .init_resource::<SharedColliderSet>()
             .register_required_components::<HairHead, HeadColliderSet>()
             .register_required_components::<HeadStrands, HeadColliderSet>()
-            .add_systems(
-                self.schedule,
-                (track_colliders, gather_colliders).chain().in_set(crate::HairSystems::PinRoots),
-            );
+            .add_systems(self.schedule, (track_colliders, gather_colliders).chain().in_set(HairPinSystems::Colliders));
     }
 }
 
@@ -296,7 +229,7 @@ pub(crate) fn gather_colliders(
     shared_set.0.clear();
     for (entity, motion, of, shared) in &colliders {
         if of.is_none() || shared {
-            shared_set.0.add(entity, motion);
+            shared_set.0.add(entity, motion.collider);
         }
     }
     for (head, mut set, filter) in &mut heads {
@@ -311,7 +244,7 @@ pub(crate) fn gather_colliders(
             if let Ok((entity, motion, of, _)) = colliders.get(entity)
                 && !excluded(entity, of)
             {
-                set.add(entity, motion);
+                set.add(entity, motion.collider);
             }
         };
         let own = head_colliders.get(head).map(HeadColliders::colliders).unwrap_or_default();

@@ -7,14 +7,14 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
-use crate::collision::StrandColliders;
-use crate::detail::longer_step_params;
-use crate::head::{HeadMotion, StrandOf};
 use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
-use crate::settings::{HairPause, HairSettings, HairStatistics};
-use crate::strand::StepOutcome;
-use crate::strand::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
-use crate::strand_data::{StrandFrames, StrandNodes, StrandRestShape};
+use crate::simulation::StepOutcome;
+use crate::simulation::StrandColliders;
+use crate::simulation::longer_step_params;
+use crate::simulation::{HairPause, HairSettings, HairStatistics};
+use crate::simulation::{HeadMotion, StrandOf};
+use crate::simulation::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
+use crate::simulation::{StrandFrames, StrandNodes, StrandRestShape};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]
@@ -74,7 +74,7 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 /// resting on it. Writes the new rest shape into [`StrandRestShape`]. While the settings are invalid
 /// (reported once by [`step_strands`]) the preloads wait.
 ///
-/// [`HairStrand::gravity_preload`]: crate::strand::HairStrand::gravity_preload
+/// [`HairStrand::gravity_preload`]: crate::simulation::HairStrand::gravity_preload
 pub(crate) fn preload_rest_shapes(
     time: Res<Time>,
     settings: Res<HairSettings>,

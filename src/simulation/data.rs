@@ -1,21 +1,18 @@
 //! A strand's simulated data as components, in single precision: its nodes ([`StrandNodes`]), its edges'
-//! frames ([`StrandFrames`]) and its rest shape ([`StrandRestShape`]), which can be edited; and
-//! [`StrandSnapshot`], to save a strand and resume it later exactly.
+//! frames ([`StrandFrames`]) and its rest shape ([`StrandRestShape`]), which can be edited.
 //!
-//! The simulation itself runs in double precision on [`SimulatedStrand`]'s rod; these components are
-//! written from it by every step ([`crate::HairSystems::Step`]), and edits of the rest shape are
-//! read back into it before the next one ([`crate::HairSystems::Prepare`]).
+//! The simulation itself runs in double precision on [`SimulatedStrand`](super::SimulatedStrand)'s rod; these components are
+//! written from it by every step ([`crate::schedule::HairSystems::Step`]), and edits of the rest shape are
+//! read back into it before the next one ([`crate::schedule::HairSystems::Prepare`]).
 
-use bevy::ecs::query::QueryData;
 use bevy::math::{DVec2, Vec2, Vec3};
 use bevy::prelude::*;
 
-use crate::rod::{Rod, RodError, RodFrames, RodState};
-use crate::strand::SimulatedStrand;
+use crate::rod::{Rod, RodFrames, RodState};
 
 /// A strand's nodes after the last step, world space, single precision: what is drawn, and what a game
 /// reads to attach things to hair. Written by the plugin after every step; to move nodes, write the rod
-/// ([`SimulatedStrand::rod_mut`]) instead (changes made here are overwritten).
+/// ([`SimulatedStrand::rod_mut`](super::SimulatedStrand::rod_mut)) instead (changes made here are overwritten).
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct StrandNodes {
@@ -109,7 +106,7 @@ impl StrandFrames {
 }
 
 /// A strand's rest shape, single precision: the shape it has no elastic energy in (Bergou et al. 2008,
-/// §4.1–4.2). Written when the strand is built from its [`crate::strand::HairStrand`]; **edit it** to
+/// §4.1–4.2). Written when the strand is built from its [`HairStrand`](super::HairStrand); **edit it** to
 /// restyle a strand in place (grow it, curl it, straighten it): the change is picked up before the next
 /// step. Entries left as they were keep their full precision. A new length of the root edge moves the
 /// second node's anchor on the head along the edge.
@@ -140,21 +137,20 @@ impl StrandRestShape {
     }
 
     /// Whether this differs from the rod's rest shape in single precision.
-    fn differs_from(&self, rod: &Rod) -> bool {
+    pub(crate) fn differs_from(&self, rod: &Rod) -> bool {
         let rest = rod.rest_shape();
         !(self.lengths.iter().copied().eq(rest.lengths.iter().map(|&length| length as f32))
             && self.curvatures.iter().copied().eq(rest.curvatures.iter().map(|curvature| curvature.as_vec2()))
             && self.twists.iter().copied().eq(rest.twists.iter().map(|&twist| twist as f32)))
     }
 
-    /// Gives the strand this rest shape: the entries that differ from the rod's in single precision are
-    /// taken from here, the others keep the rod's double-precision values.
-    fn apply_to(&self, strand: &mut SimulatedStrand, scratch: &mut RestShapeScratch) -> Result<(), RodError> {
-        let rest = strand.rod().rest_shape();
+    /// This rest shape in double precision, into `scratch`: the entries that differ from the rod's in
+    /// single precision are taken from here, the others keep the rod's double-precision values.
+    pub(crate) fn merge_into(&self, rod: &Rod, scratch: &mut RestShapeScratch) {
+        let rest = rod.rest_shape();
         merge_edits(&self.lengths, &rest.lengths, |length| length as f32, f64::from, &mut scratch.lengths);
         merge_edits(&self.curvatures, &rest.curvatures, DVec2::as_vec2, Vec2::as_dvec2, &mut scratch.curvatures);
         merge_edits(&self.twists, &rest.twists, |twist| twist as f32, f64::from, &mut scratch.twists);
-        strand.set_rest_shape(&scratch.lengths, &scratch.curvatures, &scratch.twists)
     }
 }
 
@@ -178,78 +174,13 @@ fn merge_edits<S: Copy + PartialEq, D: Copy>(
 /// Memory reused from edit to edit of rest shapes.
 #[derive(Default)]
 pub(crate) struct RestShapeScratch {
-    lengths: Vec<f64>,
-    curvatures: Vec<DVec2>,
-    twists: Vec<f64>,
+    pub(crate) lengths: Vec<f64>,
+    pub(crate) curvatures: Vec<DVec2>,
+    pub(crate) twists: Vec<f64>,
 }
 
 /// `destination` made the converted copy of `source`, reusing its memory.
 pub(crate) fn copy_converted<S: Copy, T>(destination: &mut Vec<T>, source: &[S], convert: impl Fn(S) -> T) {
     destination.clear();
     destination.extend(source.iter().map(|&value| convert(value)));
-}
-
-/// Everything a strand's future depends on, copied out: restoring it (inserting it back on the strand,
-/// `commands.entity(strand).insert(snapshot)`) makes the strand repeat, bit for bit, the steps that
-/// followed the copy, given the same head motion, forces and settings. Take one with
-/// [`StrandSnapshot::of`] from a query for [`StrandSnapshotData`].
-///
-/// A snapshot belongs to the strand it was taken of (its nodes, its head anchor); restoring it into another
-/// strand replaces that strand's state with this one.
-#[derive(Bundle, Debug, Clone)]
-pub struct StrandSnapshot {
-    /// The simulated rod and its head anchor, double precision, with the strand's fault record.
-    pub strand: SimulatedStrand,
-    /// The nodes as drawn.
-    pub nodes: StrandNodes,
-    /// The frames as read.
-    pub frames: StrandFrames,
-    /// The rest shape, edits included.
-    pub rest_shape: StrandRestShape,
-}
-
-/// What [`StrandSnapshot::of`] reads: `Query<StrandSnapshotData>`.
-#[derive(QueryData)]
-pub struct StrandSnapshotData {
-    strand: &'static SimulatedStrand,
-    nodes: &'static StrandNodes,
-    frames: &'static StrandFrames,
-    rest_shape: &'static StrandRestShape,
-}
-
-impl StrandSnapshot {
-    /// Copies a strand's data out of a `Query<StrandSnapshotData>` item.
-    pub fn of(data: StrandSnapshotDataItem) -> Self {
-        Self {
-            strand: data.strand.clone(),
-            nodes: data.nodes.clone(),
-            frames: data.frames.clone(),
-            rest_shape: data.rest_shape.clone(),
-        }
-    }
-}
-
-/// Copies a strand's simulated state into its [`StrandNodes`] and [`StrandFrames`] (after its step).
-pub(crate) fn write_strand_data(strand: &mut SimulatedStrand, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
-    let snap = strand.take_snap();
-    let rod = strand.rod();
-    nodes.update(rod.state(), snap);
-    frames.update(rod.frames(), rod.twist_angles());
-}
-
-/// Gives every strand whose [`StrandRestShape`] was edited its new rest shape; an edit the rod rejects is
-/// logged and undone.
-pub(crate) fn apply_rest_shape_edits(
-    mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape), Changed<StrandRestShape>>,
-    mut scratch: Local<RestShapeScratch>,
-) {
-    for (entity, mut strand, mut shape) in &mut strands {
-        if !shape.differs_from(strand.rod()) {
-            continue;
-        }
-        if let Err(error) = shape.apply_to(&mut strand, &mut scratch) {
-            error!("hair strand {entity}: the edited StrandRestShape was rejected and undone: {error}");
-            shape.update(strand.rod());
-        }
-    }
 }

@@ -2,7 +2,7 @@
 //! plugin grows its strands (as [`HairStrand`]s rooted with [`StrandOf`]), and grows them anew whenever the
 //! groom changes.
 //!
-//! [`HairHead`]: crate::head::HairHead
+//! [`HairHead`]: crate::simulation::HairHead
 
 use std::f32::consts::{FRAC_PI_3, TAU};
 
@@ -10,8 +10,7 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use crate::followers::HairFollowers;
-use crate::head::{HeadStrands, StrandOf};
-use crate::strand::HairStrand;
+use crate::simulation::{HairStrand, HeadStrands, StrandOf};
 use crate::volume::RepresentedHairs;
 
 /// The hair-bearing part of a head: an ellipsoid skull in the head's local space (`−Z`, Bevy's forward,
@@ -162,7 +161,7 @@ impl HairStyle {
     }
 }
 
-/// Grows a head of hair: put it on a [`crate::head::HairHead`] and the plugin spawns `strand_count`
+/// Grows a head of hair: put it on a [`crate::simulation::HairHead`] and the plugin spawns `strand_count`
 /// strands of `style` over `scalp`, each marked [`GroomedStrand`]. Changing the groom despawns the
 /// groomed strands and grows new ones (strands you spawned yourself on the head are kept). An invalid
 /// groom is reported with an error message and the head keeps its hair.
@@ -231,7 +230,7 @@ pub struct Combing {
     /// down; 1: back as much as sideways). Default 1.2.
     pub sweep_back: f32,
     /// Height of the lowest layer of hair over the skull, m: just above the strands' collision thickness
-    /// (their radius plus [`crate::settings::HairSettings::collision_margin`], 1.04 mm by default), so
+    /// (their radius plus [`crate::simulation::HairSettings::collision_margin`], 1.04 mm by default), so
     /// that groomed hair starts out resting on the skull. Hair groomed higher drops onto it when
     /// simulated, and near a parting, where its preloaded shape balances on the skull's slope, that drop
     /// can tip it over to the other side. Default 0.00106.
@@ -581,7 +580,7 @@ pub enum GroomError {
 pub struct GroomedStrand;
 
 /// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands.
-pub(crate) fn grow_groomed_hair(
+pub(super) fn grow_groomed_hair(
     mut commands: Commands,
     heads: Query<(Entity, &HairGroom, Option<&HeadStrands>), Changed<HairGroom>>,
     groomed: Query<(), With<GroomedStrand>>,

@@ -1,5 +1,5 @@
 //! Wind: the air's velocity around the hair, against which the air drag of
-//! [`HairSettings::air_damping`](crate::settings::HairSettings::air_damping) acts. A global [`HairWind`] (a mean wind with gusts and turbulence) and
+//! [`HairSettings::air_damping`](crate::simulation::HairSettings::air_damping) acts. A global [`HairWind`] (a mean wind with gusts and turbulence) and
 //! local [`HairWindSource`]s (a fan, a hair dryer) add up; [`HairWindPlugin`] writes their sum at every
 //! node of every strand into [`StrandForces`] in [`HairSystems::ExternalForces`], where your own air
 //! fields can add theirs.
@@ -28,6 +28,20 @@
 //! # let mut app = App::new();
 //! # app.add_systems(Startup, breeze);
 //! ```
+//!
+//! Reading the wind field directly:
+//!
+//! ```
+//! use bevy::prelude::*;
+//! use bevy_hair_sim::prelude::*;
+//!
+//! let mut app = App::new();
+//! app.add_plugins((MinimalPlugins, HairPlugin::default()))
+//!     // 3 m/s from −X, gusting by ±1 m/s, with 0.5 m/s eddies of 30 cm.
+//!     .insert_resource(HairWind { velocity: Vec3::new(3.0, 0.0, 0.0), gusts: 1.0, turbulence: 0.5, ..default() });
+//! let wind = app.world().resource::<HairWind>();
+//! assert!(wind.velocity_at(Vec3::new(0.0, 1.6, 0.0), 2.0).x > 1.0);
+//! ```
 
 use std::f64::consts::TAU;
 
@@ -35,9 +49,8 @@ use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::math::DVec3;
 use bevy::prelude::*;
 
-use crate::HairSystems;
-use crate::strand::{SimulatedStrand, StrandForces};
-use crate::strand_data::StrandNodes;
+use crate::schedule::HairSystems;
+use crate::simulation::{SimulatedStrand, StrandForces, StrandNodes};
 
 /// Sinusoidal modes summed for the turbulence (Kraichnan 1970): enough for a field without visible
 /// repetition, few enough to stay cheap.

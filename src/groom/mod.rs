@@ -1,0 +1,90 @@
+//! Grooms: whole heads of hair. Two ways to get one:
+//!
+//! - **Procedural** ([`HairGroom`]): a few parameters (how many strands, how long, which [`HairStyle`],
+//!   which [`Scalp`], [`Combing`]) grow a head of hair, with followers and gravity preload, anew whenever
+//!   the groom changes. Its strands carry [`GroomedStrand`].
+//! - **From a file** ([`HairGroomFile`]): a TressFX `.tfx` or Cem Yuksel `.hair` file, loaded as a
+//!   [`GroomFile`] asset and placed on the head ([`GroomPlacement`]: scale, up axis, offset). Its strands
+//!   carry [`FileStrand`].
+//!
+//! [`HairGroomPlugin`] (part of [`crate::HairPlugin`]) grows both in
+//! [`HairPrepareSystems::Grow`](crate::schedule::HairPrepareSystems::Grow), before the strands are built.
+//!
+//! # Combed grooms that hold their style
+//! A [`HairGroom`] spreads its roots evenly over the scalp ellipsoid within a hairline, in one of five
+//! styles (`Straight`, `Wavy`, `Curly`, `Short`, `Long`). By default the hair is **combed** ([`Combing`]:
+//! parting, sweep back, lift, layer spread): each strand leaves its root along the scalp and lies on it,
+//! combed away from a side parting, back from the face and down, until the scalp turns under it, then falls
+//! in its style's shape. With `combing: None` each strand grows straight out along the scalp's normal.
+//!
+//! A groomed shape is not the shape hair rests in under gravity: simulated as it is, it sags.
+//! [`HairStrand::gravity_preload`](crate::simulation::HairStrand::gravity_preload) (1 for groomed hair by
+//! default) gives the strand, once built, rest curvatures and twists in which its groomed shape is its
+//! static equilibrium under gravity, lying on its head's colliders where it touches them
+//! ([`Rod::preload_for_gravity`](crate::rod::Rod::preload_for_gravity)). Gravity is baked into the rest
+//! shape, not applied as a counter-force: turn the head over and the hair moves. Measured: the default
+//! combed groom (500 strands) settles within 0.18 mm RMS of its groomed shape after 3 s, against 15.6 mm
+//! without preload.
+//!
+//! # Grooms from files
+//! A [`HairGroomFile`] on a head puts the file's strands on it once the file is loaded; changing it, or the
+//! file (hot reloading), regrows them, and a file that fails to load leaves the head's hair as it was (the
+//! asset server logs why). Each strand is resampled into [`GroomPlacement::segments`] equal edges, and at
+//! most [`GroomPlacement::max_strands`] are simulated, picked evenly. Strands with fewer than 3 distinct
+//! points or no length are skipped with one warning that counts them. A strand whose thickness makes a
+//! fibre radius within [`FIBRE_RADIUS_RANGE`] gets the default material with that radius; others follow
+//! [`HairSettings::default_material`](crate::simulation::HairSettings::default_material).
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_hair_sim::prelude::*;
+//!
+//! fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
+//!     let placement = GroomPlacement { metres_per_unit: 0.01, up: UpAxis::Z, segments: 16, ..default() };
+//!     let groom = HairGroomFile::new(assets.load("grooms/my_groom.hair")).with_placement(placement);
+//!     commands.spawn((groom, Transform::from_xyz(0.0, 1.6, 0.0)));
+//! }
+//! ```
+
+mod file;
+mod procedural;
+
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::prelude::*;
+
+pub use file::{
+    FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
+    MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, UpAxis,
+};
+pub use procedural::{Combing, GroomError, GroomedStrand, HairGroom, HairStyle, Scalp, ScalpRoot};
+
+use crate::schedule::HairPrepareSystems;
+
+/// Grows procedural grooms ([`HairGroom`]) and places groom files ([`HairGroomFile`]) on their heads;
+/// registers the [`GroomFile`] asset and its loaders when the app has Bevy's `AssetPlugin` (added before
+/// this plugin, as `DefaultPlugins` does; without it, groom files cannot be loaded). Part of
+/// [`crate::HairPlugin`].
+#[derive(Debug, Clone)]
+pub struct HairGroomPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
+
+impl Default for HairGroomPlugin {
+    fn default() -> Self {
+        Self { schedule: FixedUpdate.intern() }
+    }
+}
+
+/// The plugin that placed groom files before [`HairGroomPlugin`] grew procedural grooms too.
+#[deprecated(note = "HairGroomPlugin grows procedural grooms and places groom files")]
+pub type GroomFilePlugin = HairGroomPlugin;
+
+impl Plugin for HairGroomPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairGroom>()
+            .register_type::<GroomedStrand>()
+            .add_systems(self.schedule, procedural::grow_groomed_hair.in_set(HairPrepareSystems::Grow));
+        file::build_groom_files(app, self.schedule);
+    }
+}
