@@ -56,7 +56,7 @@
 //! Move the head's `Transform` (or its parent's) and the hair follows; despawn it and its strands go too.
 //! Changing a `HairGroom` regrows the hair (strands you added yourself stay). [`HairPause`](simulation::HairPause)
 //! pauses the simulation or runs it one step at a time. With the `render` feature the hair is drawn as lit,
-//! shadowed strands ([`render`]); without it, as gizmo lines ([`debug`]).
+//! shadowed strands ([`render`]); without it, as gizmo lines ([`debug`](mod@debug)).
 //!
 //! **Headless apps** (servers, tests, tools) use `MinimalPlugins`. The app's first `update()` only starts
 //! Bevy's clocks and runs no fixed step, and the plugin's warnings and errors are logged through
@@ -106,13 +106,13 @@
 //! | plugin | what it does | without it |
 //! |---|---|---|
 //! | [`HairSimulationPlugin`] | heads, strands, their data, [`HairSettings`](simulation::HairSettings), [`HairStatistics`](simulation::HairStatistics), the step; configures the [sets](schedule) | no hair |
-//! | [`HairCollisionPlugin`](collision::HairCollisionPlugin) | tracks [`HairCollider`](collision::HairCollider)s and gathers each head's set | hair passes through everything |
-//! | [`HairDetailPlugin`](detail::HairDetailPlugin) | levels of detail from the cameras | every head at full detail |
-//! | [`HairFollowersPlugin`](followers::HairFollowersPlugin) | binds and places follower hairs | followers ignored |
-//! | [`HairVolumePlugin`](volume::HairVolumePlugin) | hair–hair interaction through a grid, when [`HairVolume::enabled`](simulation::HairVolume::enabled) | strands meet only colliders |
-//! | [`HairWindPlugin`](wind::HairWindPlugin) | [`HairWind`](wind::HairWind) and [`HairWindSource`](wind::HairWindSource)s | still air |
-//! | [`HairGroomPlugin`](groom::HairGroomPlugin) | procedural grooms and groom files (`.tfx`, `.hair`; needs Bevy's `AssetPlugin`) | grooms ignored |
-//! | [`HairGizmoPlugin`](debug::HairGizmoPlugin) | strands and colliders as gizmo lines (needs Bevy's `GizmoPlugin`; off under the renderer until asked for) | no lines |
+//! | [`HairCollisionPlugin`] | tracks [`HairCollider`](collision::HairCollider)s and gathers each head's set | hair passes through everything |
+//! | [`HairDetailPlugin`] | levels of detail from the cameras | every head at full detail |
+//! | [`HairFollowersPlugin`] | binds and places follower hairs | followers ignored |
+//! | [`HairVolumePlugin`] | hair–hair interaction through a grid, when [`HairVolume::enabled`](simulation::HairVolume::enabled) | strands meet only colliders |
+//! | [`HairWindPlugin`] | [`HairWind`](wind::HairWind) and [`HairWindSource`](wind::HairWindSource)s | still air |
+//! | [`HairGroomPlugin`] | procedural grooms and groom files (`.tfx`, `.hair`; needs Bevy's `AssetPlugin`) | grooms ignored |
+//! | [`HairGizmoPlugin`] | strands and colliders as gizmo lines (needs Bevy's `GizmoPlugin`; off under the renderer until asked for) | no lines |
 //! | `HairRenderPlugin` (`render` feature) | hair drawn in Bevy's PBR pipeline (needs Bevy's `PbrPlugin`) | lines only |
 //! | `HairPanelPlugin` (`egui` feature; not in the group) | a live panel of settings and statistics | – |
 //!
@@ -158,7 +158,7 @@
 //! | [`volume`] | the hair–hair grid | the above, and `followers` |
 //! | [`groom`] | procedural grooms and groom files | the above |
 //! | [`render`] | the hair renderer | the above |
-//! | [`debug`] | gizmo lines, the panel | the above |
+//! | [`debug`](mod@debug) | gizmo lines, the panel | the above |
 //! | `lib.rs` | [`HairPlugin`], the [`prelude`] | everything |
 //!
 //! Dependencies point down this table only: a concern never imports one below it, and the sets live at
@@ -219,10 +219,10 @@
 //! `docs/performance.md` in the repository.
 //!
 //! **I used `bevy_hair_sim::head` (or `strand`, `settings`, `strand_data`, `groom_file`, `gizmos`, `panel`).**
-//! Those paths still build; their items now live in [`simulation`], [`groom`] and [`debug`], and the
-//! [`prelude`] is unchanged. `GroomFilePlugin` is now [`HairGroomPlugin`](groom::HairGroomPlugin), which
+//! Those paths still build; their items now live in [`simulation`], [`groom`] and [`debug`](mod@debug), and the
+//! [`prelude`] is unchanged. `GroomFilePlugin` is now [`HairGroomPlugin`], which
 //! grows procedural grooms too; an app that adds [`HairSimulationPlugin`] without the group also adds
-//! [`HairFollowersPlugin`](followers::HairFollowersPlugin) and [`HairGroomPlugin`](groom::HairGroomPlugin)
+//! [`HairFollowersPlugin`] and [`HairGroomPlugin`]
 //! for followers and grooms.
 #![warn(missing_docs)]
 

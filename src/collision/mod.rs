@@ -17,7 +17,8 @@
 //! strand, a cheap distance bound per nearby node and Newton iteration and exact tests only for nodes
 //! that can touch it; one more Newton iteration for a strand whose node lands or starts to slide. A
 //! head's colliders are gathered into one contiguous list each step, reusing its memory. Measured: the
-//! README's "Collisions" table (`cargo run --release --example benchmark collisions`).
+//! collisions table of `docs/performance.md` in the repository
+//! (`cargo run --release --example benchmark collisions`).
 
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;

@@ -1,6 +1,6 @@
 //! Grooms from files: TressFX `.tfx` and Cem Yuksel's `.hair` strand files, read into one
-//! [`GroomFile`] asset by [`GroomFileLoader`] ([`HairGroomPlugin`](super::HairGroomPlugin) registers it), and put on a head by
-//! [`HairGroomFile`].
+//! [`GroomFile`] asset by [`GroomFileLoader`] ([`HairGroomPlugin`](super::HairGroomPlugin) registers it),
+//! and put on a head by [`HairGroomFile`].
 //!
 //! Both formats are little-endian binary. Every count and offset is checked against the file's length
 //! before anything is allocated, so a truncated or corrupt file gives a [`GroomFileError`], never a

@@ -8,7 +8,7 @@
 //!   carry [`FileStrand`].
 //!
 //! [`HairGroomPlugin`] (part of [`crate::HairPlugin`]) grows both in
-//! [`HairPrepareSystems::Grow`](crate::schedule::HairPrepareSystems::Grow), before the strands are built.
+//! [`HairPrepareSystems::Grow`], before the strands are built.
 //!
 //! # Combed grooms that hold their style
 //! A [`HairGroom`] spreads its roots evenly over the scalp ellipsoid within a hairline, in one of five

@@ -1,6 +1,6 @@
 //! Hair drawn as hair: every strand of a head, guides and followers, as a strip of thin camera-facing
 //! ribbons in Bevy's PBR pipeline, lit by Bevy's lights with an anisotropic hair shading model, casting and
-//! receiving Bevy's shadows. The gizmo lines ([`crate::debug`]) stay as a debug view.
+//! receiving Bevy's shadows. The gizmo lines ([`debug`](mod@crate::debug)) stay as a debug view.
 //!
 //! **How a frame is drawn.** For each head, [`HairStrips`] lays its hairs out once (the guides in
 //! [`crate::simulation::HeadStrands`] order, each followed by its followers) and, every frame, writes their node

@@ -49,7 +49,7 @@ impl Rod {
     /// under `gravity` (m/s²), with the root edge held and each node for which `supports` gives the
     /// outward unit normal of a surface resting on it (one entry per node, `None` for a free node);
     /// `factor` (0 to 1) blends from the current rest shape (0) to the sag-free one (1). Rest lengths are
-    /// kept. See the [module documentation](self).
+    /// kept. The derivation is in the module documentation of `src/rod/preload.rs`.
     ///
     /// Rejects a non-finite `gravity`, a `factor` outside 0 to 1, `supports` of the wrong length or with
     /// a normal that is not finite, and leaves the rod unchanged.

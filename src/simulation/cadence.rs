@@ -92,7 +92,7 @@ pub(crate) fn longer_step_params(params: &StepParams, steps: u32) -> StepParams 
 const LAG_TOLERANCE: f64 = 1e-6;
 
 /// How much faster or slower than the simulation the drawn hair's clock may run while it catches up with
-/// a finer level of detail or falls back to a coarser one (see [`DrawnShape`]): 0.25, so a lag of three
+/// a finer level of detail or falls back to a coarser one (see [`crate::detail`]): 0.25, so a lag of three
 /// fixed steps is made up in twelve, the hair meanwhile moving at most 25 % faster than it does.
 pub const DRAWN_CLOCK_RATE_CHANGE: f64 = 0.25;
 

@@ -19,7 +19,7 @@
 //! # Loads
 //! Gravity ([`HairSettings::gravity`]), air drag relative to the wind ([`HairSettings::air_damping`]) and
 //! internal damping act on every strand; a game adds forces, air velocities and velocity changes per node to
-//! [`StrandForces`] in [`HairSystems::ExternalForces`](crate::schedule::HairSystems::ExternalForces).
+//! [`StrandForces`] in [`HairSystems::ExternalForces`].
 //! [`HairStrand::gravity_preload`] solves the rest shape so that a styled strand keeps its shape under
 //! gravity instead of sagging.
 //!

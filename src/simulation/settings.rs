@@ -13,8 +13,8 @@ pub struct HairSettings {
     /// Gravitational acceleration, m/s². Default `(0, −9.81, 0)`.
     pub gravity: Vec3,
     /// The time integrator: [`Integrator::Bdf2`] (default, second order: hair swings as long as its
-    /// damping says) or [`Integrator::BackwardEuler`] (first order: it damps every motion by itself, see
-    /// the README's table).
+    /// damping says) or [`Integrator::BackwardEuler`] (first order: it damps every motion by itself; see
+    /// [`Integrator`] for how much).
     pub integrator: Integrator,
     /// Air drag across the strands `γ`, 1/s: a strand moving sideways through the air (relative to the
     /// wind, [`crate::wind::HairWind`]) slows as `e^{−γt}`. Default 3 (see [`StepParams::air_damping`]).
@@ -185,7 +185,7 @@ pub struct HairVolume {
     /// Pressure of hair packed at twice its target fraction, Pa (the pressure grows linearly from zero
     /// at the target). 0 turns the pressure off. Default 0: the grooms lay their hair in one thin layer,
     /// packed far beyond any target, and the pressure rearranges a combed style to give it volume (see
-    /// the README). 50 with 5 mm cells gives a head of 100 000 hairs a layer of 6 mm instead of 1. It is
+    /// [`crate::volume`]). 50 with 5 mm cells gives a head of 100 000 hairs a layer of 6 mm instead of 1. It is
     /// an explicit force (the grid is built before the step): the stiffer it is, the smaller the cells
     /// and the longer the step, the likelier it jitters; the tests run 50 Pa on 5 mm cells at 60 Hz.
     pub stiffness: f32,
