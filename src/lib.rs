@@ -332,6 +332,27 @@ impl PluginGroup for HairPlugin {
     }
 }
 
+/// Each concern's plugin, by default in [`FixedUpdate`] (as [`HairPlugin::default`] adds them).
+macro_rules! in_fixed_update_by_default {
+    ($($plugin:ty),* $(,)?) => {
+        $(impl Default for $plugin {
+            fn default() -> Self {
+                Self { schedule: FixedUpdate.intern() }
+            }
+        })*
+    };
+}
+
+in_fixed_update_by_default!(
+    HairSimulationPlugin,
+    HairCollisionPlugin,
+    HairDetailPlugin,
+    HairFollowersPlugin,
+    HairVolumePlugin,
+    HairWindPlugin,
+    HairGroomPlugin,
+);
+
 /// The types most users need.
 pub mod prelude {
     pub use crate::HairPlugin;

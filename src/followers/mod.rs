@@ -26,7 +26,7 @@ use bevy::math::{DVec3, Vec3};
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
-use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::ecs::schedule::InternedScheduleLabel;
 
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::schedule::{HairPrepareSystems, HairStepSystems};
@@ -271,12 +271,6 @@ fn place_followers(
 pub struct HairFollowersPlugin {
     /// The fixed-timestep schedule the simulation runs in.
     pub schedule: InternedScheduleLabel,
-}
-
-impl Default for HairFollowersPlugin {
-    fn default() -> Self {
-        Self { schedule: FixedUpdate.intern() }
-    }
 }
 
 impl Plugin for HairFollowersPlugin {

@@ -49,7 +49,7 @@
 mod file;
 mod procedural;
 
-use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
 
 pub use file::{
@@ -68,12 +68,6 @@ use crate::schedule::HairPrepareSystems;
 pub struct HairGroomPlugin {
     /// The fixed-timestep schedule the simulation runs in.
     pub schedule: InternedScheduleLabel,
-}
-
-impl Default for HairGroomPlugin {
-    fn default() -> Self {
-        Self { schedule: FixedUpdate.intern() }
-    }
 }
 
 /// The plugin that placed groom files before [`HairGroomPlugin`] grew procedural grooms too.

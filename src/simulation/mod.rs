@@ -90,7 +90,7 @@ mod snapshot;
 mod step;
 mod strand;
 
-use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
 use bevy::transform::TransformSystems;
 
@@ -119,12 +119,6 @@ use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairS
 pub struct HairSimulationPlugin {
     /// The fixed-timestep schedule the simulation runs in.
     pub schedule: InternedScheduleLabel,
-}
-
-impl Default for HairSimulationPlugin {
-    fn default() -> Self {
-        Self { schedule: FixedUpdate.intern() }
-    }
 }
 
 impl Plugin for HairSimulationPlugin {
