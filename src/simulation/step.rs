@@ -8,13 +8,11 @@ use bevy::prelude::*;
 use bevy::utils::Parallel;
 
 use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
-use crate::simulation::StepOutcome;
-use crate::simulation::StrandColliders;
-use crate::simulation::longer_step_params;
-use crate::simulation::{HairPause, HairSettings, HairStatistics};
-use crate::simulation::{HeadMotion, StrandOf};
-use crate::simulation::{PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StrandFault, StrandForces};
-use crate::simulation::{StrandFrames, StrandNodes, StrandRestShape};
+use crate::simulation::{
+    HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StepOutcome,
+    StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRestShape,
+    longer_step_params,
+};
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
 #[derive(Resource, Debug, Default)]

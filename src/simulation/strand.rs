@@ -8,11 +8,10 @@ use thiserror::Error;
 use crate::rod::{
     Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams, StepReport,
 };
-use crate::simulation::HairSettings;
-use crate::simulation::data::RestShapeScratch;
-use crate::simulation::{HairDetailLevel, StrandDetail};
-use crate::simulation::{HeadMotion, ScaledPose, StrandOf};
-use crate::simulation::{StrandFrames, StrandNodes, StrandRestShape};
+use crate::simulation::{
+    HairDetailLevel, HairSettings, HeadMotion, ScaledPose, StrandDetail, StrandFrames, StrandNodes, StrandOf,
+    StrandRestShape, data::RestShapeScratch,
+};
 
 /// A hair strand to simulate, as it is spawned. Add it (with [`StrandOf`] to root it on a head) and the
 /// plugin builds its simulated [`SimulatedStrand`] at the next fixed step. Changing it (or its `StrandOf`) later
