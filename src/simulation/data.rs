@@ -1,9 +1,9 @@
 //! A strand's simulated data as components, in single precision: its nodes ([`StrandNodes`]), its edges'
 //! frames ([`StrandFrames`]) and its rest shape ([`StrandRestShape`]), which can be edited.
 //!
-//! The simulation itself runs in double precision on [`SimulatedStrand`](super::SimulatedStrand)'s rod; these components are
-//! written from it by every step ([`crate::schedule::HairSystems::Step`]), and edits of the rest shape are
-//! read back into it before the next one ([`crate::schedule::HairSystems::Prepare`]).
+//! The simulation itself runs in double precision on [`SimulatedStrand`](super::SimulatedStrand)'s rod;
+//! these components are written from it by every step ([`crate::schedule::HairSystems::Step`]), and edits
+//! of the rest shape are read back into it before the next one ([`crate::schedule::HairSystems::Prepare`]).
 
 use bevy::math::{DVec2, Vec2, Vec3};
 use bevy::prelude::*;
