@@ -1,11 +1,16 @@
-//! Fuzzing the public API with seeded random inputs: random strands, materials, step parameters,
-//! boundary conditions, moving and jumping colliders (over the roots too), forces (huge, non-finite),
-//! rest shapes, states written from outside; in the plugin also settings, heads that jump or lose their
-//! transform, spawns, respawns and despawns.
+//! Fuzzing the public API with seeded random inputs: random strands, materials (and material directions),
+//! step parameters (both integrators), boundary conditions, moving and jumping colliders (over the roots
+//! too), forces (huge, non-finite), rest shapes, states written from outside; in the plugin also settings,
+//! heads that jump or lose their transform, spawns, respawns and despawns, procedural grooms (combed,
+//! preloaded, with followers), groom files (valid and corrupted), followers of strands of one's own
+//! (valid and not), levels of detail (fixed, switching, from a moving camera, invalid), the hair–hair
+//! grid (on, off, toggled, invalid), wind and wind sources (valid and not).
 //!
 //! Checked after every step: no panic, no NaN anywhere in any state, every `Ok` step within the strain
 //! bound, no strand failing more than a few times in a row, and (in the plugin) a bounded number of log
-//! lines. `cargo test` runs a few hundred cases; the ignored `*_long` tests run 10 000 core cases and
+//! lines, nothing a game reads non-finite (`StrandNodes`, `StrandFrames`, `FollowerNodes`), and every
+//! drawn root, a guide's and each follower's, on its head within [`DRAWN_ROOT_TOLERANCE`] at every level
+//! of detail, in quarantine, after resets and while the settings are invalid. `cargo test` runs a few hundred cases; the ignored `*_long` tests run 10 000 core cases and
 //! 1 000 plugin scenarios (`cargo test --release --test fuzz -- --ignored --nocapture`). `FUZZ_SEED=N`
 //! prints every step of core case `N`.
 
@@ -14,12 +19,17 @@ mod common;
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
+use bevy::asset::AssetPlugin;
+use bevy::camera::primitives::Frustum;
+use bevy::camera::{CameraProjection, PerspectiveProjection};
+use bevy::math::primitives::ViewFrustum;
 use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Contacts, MovingCollider, RigidPose};
-use common::headless::{drain_messages, hair_app_with};
+use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose};
+use bevy_hair_sim::simulation::{HeadMotion, LONGER_STEP_STRAIN_TOLERANCE};
+use common::headless::{DT, drain_messages, hair_app_with};
 use common::logs;
 
 /// Most failed steps in a row of one rod in the core (counting neither invalid input nor the states this
@@ -113,6 +123,7 @@ fn random_params(rng: &mut fastrand::Rng) -> StepParams {
         strain_allowance: uniform(rng, 0.0, 0.01),
         strain_tolerance: log_uniform(rng, -8.0, -4.0),
         max_projection_iterations: rng.u32(1..=20),
+        integrator: if rng.bool() { Integrator::Bdf2 } else { Integrator::BackwardEuler },
         ..StepParams::default()
     }
 }
@@ -153,6 +164,10 @@ fn core_case(seed: u64, tally: &mut CoreTally) {
     let mut material_direction = unit_vector(&mut rng);
     if rng.f64() < 0.05 {
         material_direction = (nodes[1] - nodes[0]).normalize_or(DVec3::X) + 1e-9 * unit_vector(&mut rng);
+    } else if rng.f64() < 0.03 {
+        // Zero, subnormal, or not finite.
+        let tiny = 5e-324 * unit_vector(&mut rng);
+        material_direction = *rng.choice(&[DVec3::ZERO, tiny, DVec3::NAN]).unwrap();
     }
     let mut rod = match Rod::new(&nodes, material_direction, random_material(&mut rng)) {
         Ok(rod) => rod,
@@ -338,14 +353,37 @@ struct PluginTally {
     largest_strain: f64,
     log_lines: u64,
     most_fault_lines_per_second: f64,
+    /// Drawn roots checked on their heads (guides and followers), and the largest distance off, m.
+    drawn_roots_checked: u64,
+    largest_drawn_root_offset: f32,
+    /// Drawn strands checked at each level of detail (by its `Debug` name), and while the settings were
+    /// invalid.
+    drawn_by_level: BTreeMap<String, u64>,
+    drawn_while_settings_invalid: u64,
+    follower_nodes_checked: u64,
+    /// Groom files read (by kind of outcome), and strands placed from them.
+    groom_files: BTreeMap<String, u64>,
+    file_strands: u64,
+    grid_updates: u64,
+    wind_updates: u64,
+    camera_updates: u64,
 }
+
+/// How far a drawn root may be from its root on the head, m: single-precision rounding at a few metres.
+const DRAWN_ROOT_TOLERANCE: f32 = 1e-5;
 
 /// A random strand description (head-local), sometimes invalid.
 fn random_spec(rng: &mut fastrand::Rng) -> HairStrand {
     let nodes = random_nodes(rng);
     let root = nodes[0];
     let nodes: Vec<Vec3> = nodes.iter().map(|node| (0.1 * unit_vector(rng) + *node - root).as_vec3()).collect();
-    let mut spec = HairStrand::from_nodes(nodes, unit_vector(rng).as_vec3());
+    let direction = match rng.u8(0..50) {
+        0 => Vec3::ZERO,
+        1 => Vec3::new(1e-45, 0.0, 0.0),
+        2 => Vec3::NAN,
+        _ => unit_vector(rng).as_vec3(),
+    };
+    let mut spec = HairStrand::from_nodes(nodes, direction);
     if rng.f64() < 0.2 {
         spec = spec.with_material(random_material(rng));
     }
@@ -353,17 +391,203 @@ fn random_spec(rng: &mut fastrand::Rng) -> HairStrand {
         spec =
             spec.with_natural_curvature(Vec2::new(sometimes_bad(rng, 0.3, |rng| uniform(rng, 0.0, 300.0)) as f32, 0.0));
     }
+    if rng.f64() < 0.1 {
+        spec.gravity_preload = sometimes_bad(rng, 0.2, |rng| rng.f64()) as f32;
+    }
     spec
 }
 
-/// Runs one random scenario of the plugin in a headless app.
+/// Followers for `spec`: its curve shifted a little per follower; now and then of the wrong length, with
+/// a NaN node, or with a clumping out of range.
+fn random_followers(rng: &mut fastrand::Rng, spec: &HairStrand) -> HairFollowers {
+    let curves = (0..rng.usize(1..=4))
+        .map(|_| {
+            let shift = (unit_vector(rng) * 0.003).as_vec3();
+            let mut curve: Vec<Vec3> = spec.nodes.iter().map(|node| *node + shift).collect();
+            match rng.u8(0..30) {
+                0 => _ = curve.pop(),
+                1 => curve[rng.usize(..spec.nodes.len())] = Vec3::NAN,
+                _ => {}
+            }
+            curve
+        })
+        .collect();
+    HairFollowers { curves, clumping: sometimes_bad(rng, 0.05, |rng| rng.f64()) as f32 }
+}
+
+/// The bytes of a small groom file, `.tfx` (the flag) or `.hair`: a few curved strands over a 10 cm
+/// scalp, in metres; a third of them corrupted (bytes flipped, cut short, a count changed).
+fn random_groom_file(rng: &mut fastrand::Rng) -> (Vec<u8>, bool) {
+    let strands = rng.usize(1..=12);
+    let points = rng.usize(2..=10);
+    let curve = |rng: &mut fastrand::Rng| -> Vec<Vec3> {
+        let mut direction = unit_vector(rng);
+        let mut point = 0.1 * direction;
+        let step = log_uniform(rng, -3.0, -1.5);
+        (0..points)
+            .map(|_| {
+                let here = point;
+                direction = (direction + 0.3 * unit_vector(rng)).normalize();
+                point += step * direction;
+                here.as_vec3()
+            })
+            .collect()
+    };
+    let tfx = rng.bool();
+    let mut bytes = Vec::new();
+    let push_f32 = |bytes: &mut Vec<u8>, value: f32| bytes.extend_from_slice(&value.to_le_bytes());
+    let push_u32 = |bytes: &mut Vec<u8>, value: u32| bytes.extend_from_slice(&value.to_le_bytes());
+    if tfx {
+        push_f32(&mut bytes, 4.0);
+        push_u32(&mut bytes, strands as u32);
+        push_u32(&mut bytes, points as u32);
+        push_u32(&mut bytes, 160);
+        bytes.resize(160, 0);
+        for _ in 0..strands {
+            for point in curve(rng) {
+                [point.x, point.y, point.z, 0.0].into_iter().for_each(|value| push_f32(&mut bytes, value));
+            }
+        }
+    } else {
+        bytes.extend_from_slice(b"HAIR");
+        push_u32(&mut bytes, strands as u32);
+        push_u32(&mut bytes, (strands * points) as u32);
+        push_u32(&mut bytes, 1 | 2 | 4);
+        push_u32(&mut bytes, 0);
+        [2e-4, 0.0, 0.3, 0.2, 0.1].into_iter().for_each(|value| push_f32(&mut bytes, value));
+        bytes.resize(128, 0);
+        for _ in 0..strands {
+            bytes.extend_from_slice(&(points as u16 - 1).to_le_bytes());
+        }
+        for _ in 0..strands {
+            for point in curve(rng) {
+                [point.x, point.y, point.z].into_iter().for_each(|value| push_f32(&mut bytes, value));
+            }
+        }
+        (0..strands * points).for_each(|_| push_f32(&mut bytes, 1e-4));
+    }
+    match rng.u8(0..9) {
+        0 => bytes.truncate(rng.usize(..bytes.len())),
+        1 => {
+            for _ in 0..rng.usize(1..=8) {
+                let at = rng.usize(..bytes.len());
+                bytes[at] ^= 1 << rng.u8(0..8);
+            }
+        }
+        2 => {
+            let at = 4 * rng.usize(1..=3);
+            bytes[at..at + 4].copy_from_slice(&rng.u32(..).to_le_bytes());
+        }
+        _ => {}
+    }
+    (bytes, tfx)
+}
+
+/// A camera at `transform` with a 16:9 perspective frustum, for the levels of detail.
+fn camera(transform: Transform) -> (Camera, Transform, GlobalTransform, Frustum) {
+    let projection = PerspectiveProjection { aspect_ratio: 16.0 / 9.0, ..default() };
+    let clip_from_world = projection.get_clip_from_view() * transform.to_matrix().inverse();
+    let frustum = Frustum(ViewFrustum::from_clip_from_world(&clip_from_world));
+    (Camera::default(), transform, GlobalTransform::from(transform), frustum)
+}
+
+fn random_level(rng: &mut fastrand::Rng) -> HairDetailLevel {
+    *rng.choice(&[
+        HairDetailLevel::FULL,
+        HairDetailLevel::Stepped(2),
+        HairDetailLevel::Stepped(3),
+        HairDetailLevel::Stepped(4),
+        HairDetailLevel::Carried,
+    ])
+    .unwrap()
+}
+
+/// Random valid or invalid hair–hair interaction settings.
+fn random_volume(rng: &mut fastrand::Rng) -> HairVolume {
+    HairVolume {
+        enabled: rng.bool(),
+        cell_size: sometimes_bad(rng, 0.05, |rng| uniform(rng, 0.004, 0.02)) as f32,
+        velocity_smoothing: uniform(rng, 0.0, 20.0) as f32,
+        target_volume_fraction: uniform(rng, 0.05, 0.3) as f32,
+        stiffness: sometimes_bad(rng, 0.05, |rng| uniform(rng, 0.0, 60.0)) as f32,
+    }
+}
+
+/// Random valid or invalid wind.
+fn random_wind(rng: &mut fastrand::Rng) -> HairWind {
+    HairWind {
+        velocity: (unit_vector(rng) * sometimes_bad(rng, 0.05, |rng| uniform(rng, 0.0, 8.0))).as_vec3(),
+        gusts: uniform(rng, 0.0, 3.0) as f32,
+        turbulence: sometimes_bad(rng, 0.05, |rng| uniform(rng, 0.0, 2.0)) as f32,
+        seed: rng.u64(..),
+        ..default()
+    }
+}
+
+/// Checks what a game reads after an update: every value finite (`StrandNodes`, `StrandFrames`,
+/// `FollowerNodes`), every drawn root, a guide's and each follower's, on its head.
+fn check_drawn(app: &mut App, seed: u64, settings_valid: bool, tally: &mut PluginTally) {
+    let mut query = app.world_mut().query::<(
+        Entity,
+        &SimulatedStrand,
+        &HairStrand,
+        &StrandNodes,
+        &StrandFrames,
+        Option<&FollowerNodes>,
+        Option<&HairFollowers>,
+        Option<&StrandOf>,
+    )>();
+    let world = app.world();
+    for (entity, strand, spec, nodes, frames, follower_nodes, followers, strand_of) in query.iter(world) {
+        let vectors = nodes.positions.iter().chain(&nodes.previous_positions).chain(&nodes.velocities);
+        let frame_vectors = frames.tangents.iter().chain(&frames.reference_directors);
+        assert!(vectors.chain(frame_vectors).all(|v| v.is_finite()), "seed {seed}: strand {entity} drawn non-finite");
+        assert!(
+            frames.twist.iter().chain(&frames.reference_twist).all(|t| t.is_finite()),
+            "seed {seed}: strand {entity}'s drawn twist is not finite"
+        );
+        if let Some(follower_nodes) = follower_nodes {
+            let points = follower_nodes.positions.iter().chain(&follower_nodes.previous_positions);
+            assert!(points.clone().all(|p| p.is_finite()), "seed {seed}: followers of {entity} non-finite");
+            tally.follower_nodes_checked += follower_nodes.positions.len() as u64;
+        }
+        count(&mut tally.drawn_by_level, format!("{:?}", strand.detail_level()));
+        tally.drawn_while_settings_invalid += u64::from(!settings_valid);
+        let Some(motion) = strand_of.and_then(|StrandOf(head)| world.get::<HeadMotion>(*head)) else {
+            continue;
+        };
+        let mut check_root = |what: &str, drawn: Vec3, local: Vec3| {
+            let offset = drawn.distance(motion.transform_point(local));
+            tally.drawn_roots_checked += 1;
+            tally.largest_drawn_root_offset = tally.largest_drawn_root_offset.max(offset);
+            assert!(
+                offset <= DRAWN_ROOT_TOLERANCE,
+                "seed {seed}: {what} of strand {entity} drawn {offset} m off its head at {:?} (settings valid: \
+                 {settings_valid}, health {:?})",
+                strand.detail_level(),
+                strand.health()
+            );
+        };
+        check_root("the root", nodes.positions[0], spec.nodes[0]);
+        if let (Some(follower_nodes), Some(followers)) = (follower_nodes, followers) {
+            for index in 0..follower_nodes.count() {
+                check_root("a follower's root", follower_nodes.follower(index)[0], followers.curves[index][0]);
+            }
+        }
+    }
+}
+
+/// Runs one random scenario of the plugin in a headless app: heads with procedural grooms (combed,
+/// preloaded, with followers) and groom files (valid and corrupted), strands of their own (with
+/// followers), colliders, levels of detail (fixed, from a moving camera, invalid), the hair–hair grid,
+/// wind and wind sources, both integrators, and every kind of bad input now and then.
 fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
     let mut rng = fastrand::Rng::with_seed(seed);
     tally.scenarios += 1;
-    let mut app = hair_app_with(TransformPlugin);
+    let mut app = hair_app_with((TransformPlugin, AssetPlugin::default()));
     logs::take();
     let mut bad_events = 0_u64;
-    let heads: Vec<Entity> = (0..rng.usize(1..=2))
+    let mut heads: Vec<Entity> = (0..rng.usize(1..=2))
         .map(|index| {
             let style = *rng
                 .choice(&[HairStyle::Straight, HairStyle::Wavy, HairStyle::Curly, HairStyle::Short, HairStyle::Long])
@@ -373,17 +597,48 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 segments: rng.usize(3..=16),
                 style,
                 seed: rng.u64(..),
+                combing: rng.bool().then(Combing::default),
+                followers_per_guide: if rng.bool() { rng.usize(1..=4) } else { 0 },
+                follower_clumping: rng.f32(),
+                gravity_preload: if rng.bool() { rng.f32() } else { 0.0 },
                 ..default()
             };
             let transform = Transform::from_xyz(index as f32, 1.6, 0.0);
             app.world_mut().spawn((HairHead, groom, transform)).id()
         })
         .collect();
+    // A head grown from a groom file, now and then.
+    if rng.f64() < 0.3 {
+        let (bytes, tfx) = random_groom_file(&mut rng);
+        let file = if tfx { GroomFile::from_tfx(&bytes) } else { GroomFile::from_hair(&bytes) };
+        match file {
+            Ok(file) => {
+                count(&mut tally.groom_files, "read".to_string());
+                let handle = app.world_mut().resource_mut::<Assets<GroomFile>>().add(file);
+                let placement =
+                    GroomPlacement { segments: rng.usize(2..=12), max_strands: rng.usize(1..=12), ..default() };
+                let groom = HairGroomFile::new(handle).with_placement(placement);
+                heads.push(app.world_mut().spawn((groom, Transform::from_xyz(-1.0, 1.6, 0.0))).id());
+                bad_events += 1;
+            }
+            Err(error) => count(&mut tally.groom_files, kind(format!("{error:?}"))),
+        }
+    }
+    for &head in &heads {
+        if rng.bool() {
+            app.world_mut().entity_mut(head).insert(HairDetail::fixed(random_level(&mut rng)));
+        }
+    }
     let mut own: Vec<Entity> = Vec::new();
     for _ in 0..rng.usize(0..=4) {
         let head = *rng.choice(&heads).unwrap();
-        own.push(app.world_mut().spawn((random_spec(&mut rng), StrandOf(head))).id());
-        bad_events += 1;
+        let spec = random_spec(&mut rng);
+        let mut entity = app.world_mut().spawn((spec.clone(), StrandOf(head)));
+        if rng.bool() {
+            entity.insert(random_followers(&mut rng, &spec));
+        }
+        own.push(entity.id());
+        bad_events += 2;
     }
     let mut colliders: Vec<(Entity, Vec3)> = Vec::new();
     for _ in 0..rng.usize(0..=3) {
@@ -398,10 +653,32 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
         }
         colliders.push((entity.id(), velocity));
     }
-    let mut settings_valid = true;
+    let camera_entity = rng.bool().then(|| app.world_mut().spawn(camera(Transform::from_xyz(0.0, 1.6, 3.0))).id());
+    let mut wind_sources: Vec<Entity> = Vec::new();
+    for _ in 0..rng.usize(0..=2) {
+        let source = HairWindSource {
+            speed: sometimes_bad(&mut rng, 0.1, |rng| uniform(rng, 0.0, 8.0)) as f32,
+            radius: sometimes_bad(&mut rng, 0.1, |rng| uniform(rng, 0.02, 0.3)) as f32,
+            range: sometimes_bad(&mut rng, 0.1, |rng| uniform(rng, 0.5, 4.0)) as f32,
+        };
+        let transform = Transform::from_xyz(0.0, 1.6, 1.0);
+        wind_sources.push(app.world_mut().spawn((source, transform)).id());
+        bad_events += 1;
+    }
+    {
+        let mut settings = app.world_mut().resource_mut::<HairSettings>();
+        settings.integrator = if rng.bool() { Integrator::Bdf2 } else { Integrator::BackwardEuler };
+        settings.volume = random_volume(&mut rng);
+        bad_events += 1;
+    }
+    if rng.bool() {
+        *app.world_mut().resource_mut::<HairWind>() = random_wind(&mut rng);
+        bad_events += 1;
+    }
     let updates = rng.usize(20..=40);
     let mut fault_runs: BTreeMap<Entity, u32> = BTreeMap::new();
-    let dt = 1.0 / 60.0;
+    let mut levels: BTreeMap<Entity, HairDetailLevel> = BTreeMap::new();
+    let dt = DT;
     for _ in 0..updates {
         // Heads move, turn, jump, or lose their transform now and then.
         for &head in &heads {
@@ -422,6 +699,11 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 transform.translation += (unit_vector(&mut rng) * 0.05).as_vec3();
                 transform.rotate(random_rotation(&mut rng, 0.2).as_quat());
             }
+            // Levels of detail: fixed ones change, now and then.
+            if rng.f64() < 0.05 {
+                let detail = if rng.bool() { HairDetail::fixed(random_level(&mut rng)) } else { HairDetail::default() };
+                app.world_mut().entity_mut(head).insert(detail);
+            }
         }
         for (collider, velocity) in &colliders {
             let jump = rng.f64() < 0.03;
@@ -432,16 +714,35 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 transform.translation += *velocity * dt as f32;
             }
         }
-        // Settings: now and then invalid for a while.
+        // The camera walks off and back, turns away now and then: levels change with distance and sight.
+        if let Some(camera_entity) = camera_entity {
+            let mut transform = app.world_mut().get_mut::<Transform>(camera_entity).unwrap();
+            transform.translation += (unit_vector(&mut rng) * uniform(&mut rng, 0.0, 6.0)).as_vec3();
+            let target = if rng.f64() < 0.2 { Vec3::new(0.0, 1.6, -100.0) } else { Vec3::new(0.0, 1.6, 0.0) };
+            if transform.translation.distance(target) > 1e-3 {
+                *transform = transform.looking_at(target, Vec3::Y);
+            }
+            let transform = *transform;
+            app.world_mut().entity_mut(camera_entity).insert(camera(transform));
+            tally.camera_updates += 1;
+        }
+        if rng.f64() < 0.03 {
+            let mut detail_settings = app.world_mut().resource_mut::<HairDetailSettings>();
+            detail_settings.full_detail_distance = sometimes_bad(&mut rng, 0.3, |rng| uniform(rng, 0.5, 5.0)) as f32;
+            detail_settings.enabled = rng.bool();
+            bad_events += 1;
+        }
+        // Settings: now and then invalid for a while; the grid and the wind change.
         let event = rng.f64();
         if event < 0.03 {
             let mut settings = app.world_mut().resource_mut::<HairSettings>();
-            match rng.u8(0..3) {
+            match rng.u8(0..5) {
                 0 => settings.default_material.youngs_modulus = 0.0,
                 1 => settings.gravity.y = f32::NAN,
+                2 => settings.collision_margin = f32::INFINITY,
+                3 => settings.volume.cell_size = 0.0,
                 _ => settings.collision_margin = -1.0,
             }
-            settings_valid = false;
             bad_events += 1;
         } else if event < 0.15 {
             let mut settings = app.world_mut().resource_mut::<HairSettings>();
@@ -452,11 +753,29 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 max_projection_iterations: rng.u32(1..=20),
                 default_material: RodMaterial { youngs_modulus: log_uniform(&mut rng, 8.0, 10.0), ..default() },
                 gravity: if gravity.is_finite() { gravity } else { Vec3::new(0.0, -9.81, 0.0) },
+                integrator: if rng.bool() { Integrator::Bdf2 } else { Integrator::BackwardEuler },
+                volume: random_volume(&mut rng),
                 ..default()
             };
-            settings_valid = true;
+            bad_events += 1;
+        } else if event < 0.2 {
+            app.world_mut().resource_mut::<HairSettings>().volume.enabled ^= true;
+        } else if event < 0.23 {
+            *app.world_mut().resource_mut::<HairWind>() = random_wind(&mut rng);
+            bad_events += 1;
         }
-        // Strands: forces (huge, non-finite), written states, respawns, despawns, new ones.
+        let settings_valid = app.world().resource::<HairSettings>().validated(dt).is_ok();
+        tally.grid_updates += u64::from(settings_valid && app.world().resource::<HairSettings>().volume.enabled);
+        tally.wind_updates += u64::from(!app.world().resource::<HairWind>().is_calm() || !wind_sources.is_empty());
+        for &source in &wind_sources {
+            if rng.f64() < 0.03 {
+                app.world_mut().get_mut::<Transform>(source).unwrap().translation.y = f32::NAN;
+                bad_events += 1;
+            } else if rng.f64() < 0.05 {
+                *app.world_mut().get_mut::<Transform>(source).unwrap() = Transform::from_xyz(0.0, 1.6, 1.0);
+            }
+        }
+        // Strands: forces (huge, non-finite), written states, respawns, despawns, new ones, followers.
         let strands: Vec<Entity> =
             app.world_mut().query_filtered::<Entity, With<SimulatedStrand>>().iter(app.world()).collect();
         for &entity in &strands {
@@ -466,14 +785,18 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 world.get_mut::<StrandForces>(entity).unwrap().add_to_all((unit_vector(&mut rng) * 1e-4).as_vec3());
             } else if event < 0.06 {
                 world.get_mut::<StrandForces>(entity).unwrap().add_to_all(Vec3::new(1e6, f32::NAN, 0.0));
-            } else if event < 0.065 && settings_valid {
+            } else if event < 0.065 {
                 let mut strand = world.get_mut::<SimulatedStrand>(entity).unwrap();
                 let node = rng.usize(..strand.rod().node_count());
                 strand.rod_mut().positions_mut()[node] = DVec3::NAN;
             } else if event < 0.07 {
                 world.entity_mut(entity).insert(random_spec(&mut rng));
                 bad_events += 1;
-            } else if event < 0.075 {
+            } else if event < 0.073 {
+                let spec = world.get::<HairStrand>(entity).unwrap().clone();
+                world.entity_mut(entity).insert(random_followers(&mut rng, &spec));
+                bad_events += 1;
+            } else if event < 0.078 {
                 world.despawn(entity);
             }
         }
@@ -497,19 +820,37 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
         }
         let statistics = app.world().resource::<HairStatistics>().clone();
         tally.largest_quarantined = tally.largest_quarantined.max(statistics.quarantined);
+        // The strain bound of the step each strand took last: a step of several fixed steps (a coarser
+        // level of detail, or the first at full detail after one) keeps edge lengths more loosely.
         let bound = StepParams::default().strain_bound();
-        let mut query = app.world_mut().query::<&SimulatedStrand>();
-        for strand in query.iter(app.world()) {
+        let longer_bound =
+            StepParams { strain_tolerance: LONGER_STEP_STRAIN_TOLERANCE, ..StepParams::default() }.strain_bound();
+        let mut query = app.world_mut().query::<(Entity, &SimulatedStrand)>();
+        for (entity, strand) in query.iter(app.world()) {
+            let level = strand.detail_level();
+            let full = level == HairDetailLevel::FULL && levels.insert(entity, level) == Some(level);
+            levels.insert(entity, level);
+            let bound = if full { bound } else { longer_bound };
             let rod = strand.rod();
             let finite = rod.positions().iter().chain(rod.velocities()).all(|v| v.is_finite())
                 && rod.twist_angles().iter().all(|t| t.is_finite());
             assert!(finite, "seed {seed}: a non-finite strand");
             let strain = rod.max_strain().1;
-            assert!(strain <= bound, "seed {seed}: strain {strain:e} above the bound {bound:e}");
+            assert!(
+                strain <= bound,
+                "seed {seed}: strain {strain:e} above the bound {bound:e} at {:?}, {:?}, last report {:?}, stepped now {}",
+                strand.detail_level(),
+                strand.health(),
+                strand.last_report(),
+                strand.steps_now()
+            );
             tally.largest_strain = tally.largest_strain.max(strain);
             tally.strand_steps += 1;
         }
+        check_drawn(&mut app, seed, settings_valid, tally);
     }
+    let mut file_strands = app.world_mut().query_filtered::<(), With<FileStrand>>();
+    tally.file_strands += file_strands.iter(app.world()).count() as u64;
     let lines = logs::take();
     let seconds = updates as f64 * dt;
     let fault_lines =
@@ -539,9 +880,18 @@ fn fuzz_plugin(scenarios: u64, first_seed: u64) -> PluginTally {
 
 #[test]
 fn fuzz_the_plugin() {
-    let tally = fuzz_plugin(20, 0);
-    assert_eq!(tally.scenarios, 20);
+    let tally = fuzz_plugin(40, 0);
+    assert_eq!(tally.scenarios, 40);
     assert!(tally.strand_steps > 1000);
+    // The short run reaches every feature: each level of detail, invalid settings, followers, the grid,
+    // wind, a camera and groom files read and rejected.
+    for level in ["Stepped(1)", "Stepped(2)", "Stepped(4)", "Carried"] {
+        assert!(tally.drawn_by_level.get(level).is_some_and(|n| *n > 0), "{level}: {:?}", tally.drawn_by_level);
+    }
+    assert!(tally.drawn_while_settings_invalid > 0 && tally.follower_nodes_checked > 0);
+    assert!(tally.grid_updates > 0 && tally.wind_updates > 0 && tally.camera_updates > 0);
+    assert!(tally.groom_files.get("read").is_some_and(|n| *n > 0) && tally.groom_files.len() > 1, "{tally:?}");
+    assert!(tally.drawn_roots_checked > 10_000);
 }
 
 #[test]

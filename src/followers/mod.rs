@@ -31,8 +31,8 @@ use bevy::ecs::schedule::InternedScheduleLabel;
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::schedule::{HairPrepareSystems, HairStepSystems};
 use crate::simulation::{
-    EdgeFrame, HairSettings, HairStatistics, HairStrand, SimulatedStrand, StrandColliders, StrandFrames, StrandNodes,
-    StrandOf, snap_previous,
+    CheckedSettings, EdgeFrame, HairSettings, HairStatistics, HairStrand, SimulatedStrand, StrandColliders,
+    StrandFrames, StrandNodes, StrandOf, snap_previous,
 };
 
 /// The followers of a guide strand, as spawned: each a curve of as many nodes as the guide's
@@ -70,6 +70,8 @@ pub struct FollowerNodes {
     /// The head's colliders grown by the guide's thickness this step (scratch, reused).
     #[reflect(ignore)]
     colliders: Vec<GrownCollider>,
+    /// Why the followers were rejected when last bound, if they were.
+    rejection: Option<String>,
 }
 
 impl FollowerNodes {
@@ -81,6 +83,12 @@ impl FollowerNodes {
     /// Nodes of each follower.
     pub fn nodes_per_follower(&self) -> usize {
         self.nodes_per_follower
+    }
+
+    /// Why the guide's [`HairFollowers`] were rejected when last bound (logged once), if they were: none
+    /// of them is placed until they are changed.
+    pub fn rejection(&self) -> Option<&str> {
+        self.rejection.as_deref()
     }
 
     /// Follower `index`'s nodes after the last step, m.
@@ -217,42 +225,49 @@ fn push_out(position: Vec3, colliders: &[GrownCollider]) -> Vec3 {
 /// What [`bind_followers`] reads and writes of a guide.
 type GuideToBind = (
     Entity,
-    &'static HairStrand,
+    Ref<'static, HairStrand>,
     Ref<'static, HairFollowers>,
     Ref<'static, SimulatedStrand>,
     &'static mut FollowerNodes,
 );
 
-/// Binds the followers of new or rebuilt guides and of changed [`HairFollowers`], and, when the settings
-/// change, of guides whose followers are not bound. A guide that follows the default material while it
+/// Binds the followers of new or rebuilt guides (a changed [`HairStrand`] is rebuilt) and of changed
+/// [`HairFollowers`], and, when the settings change, of guides whose followers are not bound. A guide that follows the default material while it
 /// is invalid waits, silently: the invalid settings are reported once, by the step.
 fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
     let default_valid = settings.default_material.validate().is_ok();
     for (entity, spec, followers, strand, mut nodes) in &mut guides {
         let unbound = nodes.offsets.is_empty() && !followers.curves.is_empty();
-        if !(followers.is_changed() || strand.is_added() || settings.is_changed() && unbound) {
+        let rebuilt = strand.is_added() || spec.is_changed();
+        if !(followers.is_changed() || rebuilt || settings.is_changed() && unbound) {
             continue;
         }
         if spec.material.is_none() && !default_valid {
             *nodes = FollowerNodes::default();
             continue;
         }
-        if let Err(reason) = nodes.bind(spec, &followers, &settings.default_material) {
-            error!("hair strand {entity}: its followers were rejected: {reason}");
-            *nodes = FollowerNodes::default();
+        let rejection = nodes.rejection.take();
+        if let Err(reason) = nodes.bind(&spec, &followers, &settings.default_material) {
+            // Tried again when the guide or the settings change; the same reason is not news.
+            if followers.is_changed() || rejection.as_ref() != Some(&reason) {
+                error!("hair strand {entity}: its followers were rejected: {reason}");
+            }
+            *nodes = FollowerNodes { rejection: Some(reason), ..default() };
         }
     }
 }
 
-/// Places every guide's followers from its new state, in parallel.
+/// Places every guide's followers from its new state, in parallel, kept out of its head's colliders by
+/// the collision margin of the last valid settings (invalid ones hold the guides, which are drawn carried
+/// with their heads, and their followers with them).
 fn place_followers(
-    settings: Res<HairSettings>,
+    checked: Res<CheckedSettings>,
     mut statistics: ResMut<HairStatistics>,
     mut guides: Query<(&SimulatedStrand, &StrandNodes, &StrandFrames, &mut FollowerNodes, Option<&StrandOf>)>,
     colliders: StrandColliders,
 ) {
     let started = Instant::now();
-    let margin = f64::from(settings.collision_margin);
+    let margin = checked.collision_margin;
     guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of)| {
         if followers.offsets.is_empty() {
             return;

@@ -69,13 +69,22 @@ fn check_rest_twist(vertex: usize, twist: f64) -> Result<(), RodError> {
     Ok(())
 }
 
-/// `direction` made perpendicular to the unit `tangent` and normalised, if it is finite and at least
-/// [`MIN_MATERIAL_DIRECTION_ANGLE`] away from the tangent's line.
+/// `direction` made perpendicular to the unit `tangent` and normalised, if it is finite, not zero, and at
+/// least [`MIN_MATERIAL_DIRECTION_ANGLE`] away from the tangent's line. The direction is first scaled by
+/// its largest component, so that a tiny (even subnormal) direction is judged by its direction alone, and
+/// a zero one, which has none, is rejected.
 fn material_director(direction: DVec3, tangent: DVec3) -> Option<DVec3> {
-    let length = direction.length();
+    let direction = scaled_direction(direction)?;
     let perpendicular = direction - direction.dot(tangent) * tangent;
-    (length.is_finite() && perpendicular.length() >= MIN_MATERIAL_DIRECTION_ANGLE.sin() * length)
+    (perpendicular.length() >= MIN_MATERIAL_DIRECTION_ANGLE.sin() * direction.length())
         .then(|| perpendicular.normalize())
+}
+
+/// `direction` divided by its largest component's magnitude (from 1 to √3 long: no underflow, whatever
+/// its scale), if it is finite and not zero.
+fn scaled_direction(direction: DVec3) -> Option<DVec3> {
+    let largest = direction.abs().max_element();
+    (largest.is_finite() && largest > 0.0).then(|| direction / largest)
 }
 
 /// The first pair of consecutive unit tangents that turn by more than `max_angle` (rad), by the index of
@@ -130,7 +139,7 @@ impl Rod {
     /// `material_direction` (projected perpendicular to the edge). The given shape is the rest shape.
     ///
     /// Rejects fewer than 3 nodes, non-finite nodes, (nearly) zero-length edges, consecutive edges that
-    /// turn by more than [`MAX_TURNING_ANGLE`], a material direction within
+    /// turn by more than [`MAX_TURNING_ANGLE`], a material direction that is zero, not finite, or within
     /// [`MIN_MATERIAL_DIRECTION_ANGLE`] of the first edge, and invalid material parameters.
     pub fn new(positions: &[DVec3], material_direction: DVec3, material: RodMaterial) -> Result<Self, RodError> {
         material.validate()?;
@@ -470,8 +479,8 @@ impl Rod {
     /// Clamps `edge`: its two nodes are held at `start` and `end` (m) and its first material director
     /// points along `material_direction`. Call again each step to move the clamp (a hair root following a
     /// head); the step moves the nodes there and turns the edge's twist, continuing from its last value.
-    /// Rejects non-finite or coincident targets and a material direction within
-    /// [`MIN_MATERIAL_DIRECTION_ANGLE`] of the edge.
+    /// Rejects non-finite or coincident targets and a material direction that is zero, not finite, or
+    /// within [`MIN_MATERIAL_DIRECTION_ANGLE`] of the edge.
     pub fn clamp_edge(
         &mut self,
         edge: usize,
@@ -488,12 +497,14 @@ impl Rod {
             }
         }
         let tangent = (end - start).normalize_or_zero();
+        let direction = scaled_direction(material_direction);
         if tangent == DVec3::ZERO || material_director(material_direction, tangent).is_none() {
             return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
         }
         self.constraints.node_targets[edge] = Some(start);
         self.constraints.node_targets[edge + 1] = Some(end);
-        self.constraints.twist_targets[edge] = Some(material_direction);
+        // Scaled, so that a tiny direction that passed the check stays usable where it is projected.
+        self.constraints.twist_targets[edge] = direction;
         Ok(())
     }
 

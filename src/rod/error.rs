@@ -90,10 +90,10 @@ pub enum RodError {
         /// The parameter's unit.
         unit: &'static str,
     },
-    /// A material direction that is not finite, or lies within
+    /// A material direction that is zero, not finite, or lies within
     /// [`crate::rod::MIN_MATERIAL_DIRECTION_ANGLE`] of its edge (where `m1` would come from rounding).
     #[error(
-        "the material direction {direction} is not finite or is within MIN_MATERIAL_DIRECTION_ANGLE (1e-3 rad) of edge {edge}"
+        "the material direction {direction} is zero, not finite, or within MIN_MATERIAL_DIRECTION_ANGLE (1e-3 rad) of edge {edge}"
     )]
     InvalidMaterialDirection {
         /// The edge the direction was meant for.

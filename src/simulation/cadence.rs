@@ -112,6 +112,9 @@ pub(crate) struct StrandDetail {
     /// Whether the strand comes back from being carried: carried rigidly to its head and given its
     /// head's motion before its next step.
     pub(crate) resumed: bool,
+    /// Whether the strand is held at this fixed step because the settings are invalid: not stepped, drawn
+    /// carried with its head (see `check_settings`).
+    pub(crate) held: bool,
     /// The head's pose at this fixed step.
     pub(crate) head: ScaledPose,
     /// The drawn shape while it is kept apart from the simulated one (below full detail, and until the
@@ -127,6 +130,7 @@ impl Default for StrandDetail {
             elapsed: 0,
             teleported: false,
             resumed: false,
+            held: false,
             head: default(),
             drawn: None,
         }
@@ -244,12 +248,12 @@ impl StrandDetail {
     /// Whether the drawn shape is the simulated one (full detail, caught up): the components are then
     /// written straight from the rod.
     pub(crate) fn draws_simulation(&self) -> bool {
-        self.drawn.is_none() && self.level == HairDetailLevel::FULL && self.due
+        self.drawn.is_none() && self.level == HairDetailLevel::FULL && self.due && !self.held
     }
 
     /// Writes the drawn shape into `nodes` and `frames`, world space at this step's head pose (see
     /// [`DrawnShape`]); `rod` (at the head pose `rod_head`) is a new keyframe when `stepped` (or when the
-    /// drawn shape is set apart now). `snap` starts the drawn shape afresh on the rod.
+    /// drawn shape is set apart now). `snap` starts the drawn shape afresh on the rod (stepped or not).
     pub(crate) fn write_drawn(
         &mut self,
         rod: &Rod,
@@ -264,7 +268,8 @@ impl StrandDetail {
         if !fresh {
             drawn.clock += 1.0;
         }
-        if fresh || stepped {
+        // A snap without a step is a reset: the drawn shape starts afresh on the reset rod too.
+        if fresh || stepped || snap {
             drawn.add_keyframe(rod, rod_head, fresh || snap);
             copy_converted(&mut nodes.velocities, &rod.state().velocities, DVec3::as_vec3);
             copy_converted(&mut frames.twist, rod.twist_angles(), |angle| angle as f32);
@@ -280,7 +285,7 @@ impl StrandDetail {
         snap_previous(&mut nodes.previous_positions, &nodes.positions, snap);
         copy_converted(&mut frames.tangents, &drawn.tangents, |t| rotation * t);
         copy_converted(&mut frames.reference_directors, &drawn.directors, |u| rotation * u);
-        if self.level == HairDetailLevel::FULL && drawn.caught_up() {
+        if self.level == HairDetailLevel::FULL && !self.held && drawn.caught_up() {
             // From the next step on, the rod is drawn as it is.
             self.drawn = None;
         }

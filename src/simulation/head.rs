@@ -62,6 +62,12 @@ impl HeadMotion {
         self.current.rotation.as_quat()
     }
 
+    /// Where the head-local point `local` (m) is at this step, world space: where a root given there is
+    /// held (the head's scale moves the point, as it moves the roots).
+    pub fn transform_point(&self, local: Vec3) -> Vec3 {
+        self.current.transform_point(local.as_dvec3()).as_vec3()
+    }
+
     /// How far the head's origin moved since the previous step, m.
     pub fn displacement(&self) -> Vec3 {
         (self.current.translation - self.previous.translation).as_vec3()

@@ -104,6 +104,7 @@ pub use head::{HairHead, HeadMotion, HeadStrands, StrandOf};
 pub(crate) use pose::ScaledPose;
 pub use settings::{HairPause, HairSettings, HairStatistics, HairVolume};
 pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
+pub(crate) use step::CheckedSettings;
 pub(crate) use strand::StepOutcome;
 pub use strand::{
     FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
@@ -155,6 +156,7 @@ impl Plugin for HairSimulationPlugin {
             .init_resource::<HairPause>()
             .init_resource::<HairStatistics>()
             .init_resource::<step::StepBudget>()
+            .init_resource::<step::CheckedSettings>()
             .add_message::<StrandFault>()
             .add_systems(First, step::reset_step_budget)
             .configure_sets(PostUpdate, HairDrawSystems.after(TransformSystems::Propagate));
@@ -206,7 +208,7 @@ impl Plugin for HairSimulationPlugin {
                 (step::apply_default_material, strand::apply_rest_shape_edits)
                     .chain()
                     .in_set(HairPrepareSystems::Apply),
-                step::open_step.in_set(HairPrepareSystems::Budget),
+                (step::check_settings, step::open_step).chain().in_set(HairPrepareSystems::Budget),
                 head::track_heads.in_set(HairPinSystems::Track),
                 step::pin_roots.in_set(HairPinSystems::Pin),
                 (step::preload_rest_shapes, step::step_strands).chain().in_set(HairStepSystems::Integrate),

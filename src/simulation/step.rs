@@ -7,7 +7,7 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
-use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, held_reach};
+use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
 use crate::simulation::{
     HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StepOutcome,
     StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRestShape,
@@ -24,6 +24,50 @@ pub(crate) struct StepBudget {
 /// Starts a new rendered frame's step count.
 pub(crate) fn reset_step_budget(mut budget: ResMut<StepBudget>) {
     budget.steps_this_frame = 0;
+}
+
+/// [`HairSettings`] as checked at this fixed step, for every system of the step.
+#[derive(Resource, Debug, Clone)]
+pub(crate) struct CheckedSettings {
+    /// The step's parameters and collision margin (m) while the settings are valid; `None` while they are
+    /// not: the hair is then held, drawn carried with its heads, its clocks stopped (see [`check_settings`]).
+    pub(crate) valid: Option<(StepParams, f64)>,
+    /// The collision margin of the last valid settings, m: what follower hairs keep out of colliders by
+    /// while the settings are invalid.
+    pub(crate) collision_margin: f64,
+}
+
+impl Default for CheckedSettings {
+    fn default() -> Self {
+        Self { valid: None, collision_margin: f64::from(HairSettings::default().collision_margin) }
+    }
+}
+
+/// Checks [`HairSettings`] for this fixed step, once for every system that reads them. Invalid settings
+/// are reported once (an error line and [`HairStatistics::settings_error`]); until they are fixed the
+/// hair is held: not stepped, drawn carried rigidly with its heads (roots on the head however it moves),
+/// its clocks stopped, and it resumes with the heads' motion, as hair comes back from being carried.
+pub(crate) fn check_settings(
+    time: Res<Time>,
+    settings: Res<HairSettings>,
+    mut checked: ResMut<CheckedSettings>,
+    mut statistics: ResMut<HairStatistics>,
+) {
+    match settings.validated(time.delta_secs_f64()) {
+        Ok((params, margin)) => {
+            checked.valid = Some((params, margin));
+            checked.collision_margin = margin;
+            statistics.settings_error = None;
+        }
+        Err(error) => {
+            checked.valid = None;
+            let message = error.to_string();
+            if statistics.settings_error.as_ref() != Some(&message) {
+                error!("HairSettings rejected, hair is held on its heads until they are fixed: {message}");
+                statistics.settings_error = Some(message);
+            }
+        }
+    }
 }
 
 /// Decides whether this fixed step simulates hair: not while paused (unless a single step is pending), and
@@ -53,7 +97,7 @@ pub(crate) fn stepping(budget: Res<StepBudget>) -> bool {
 }
 
 /// Gives strands that follow [`HairSettings::default_material`] its new value when it changes (an
-/// invalid one is reported by [`step_strands`], which pauses the hair until it is fixed).
+/// invalid one is reported by [`check_settings`], which holds the hair until it is fixed).
 pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Query<(Entity, &mut SimulatedStrand)>) {
     if !settings.is_changed() || settings.default_material.validate().is_err() {
         return;
@@ -70,21 +114,18 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 /// with [`SimulatedStrand::preload_gravity`]): from each strand's shape now, the gravity of
 /// [`HairSettings`] and the colliders of its head, the nodes within [`PRELOAD_SUPPORT_DISTANCE`] of one
 /// resting on it. Writes the new rest shape into [`StrandRestShape`]. While the settings are invalid
-/// (reported once by [`step_strands`]) the preloads wait.
+/// (reported once by [`check_settings`]) the preloads wait.
 ///
 /// [`HairStrand::gravity_preload`]: crate::simulation::HairStrand::gravity_preload
 pub(crate) fn preload_rest_shapes(
-    time: Res<Time>,
-    settings: Res<HairSettings>,
+    checked: Res<CheckedSettings>,
     mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape, Option<&StrandOf>)>,
     colliders: StrandColliders,
 ) {
-    // Invalid settings (a non-finite gravity) are reported once, by the step; the preloads wait for them.
-    if settings.validated(time.delta_secs_f64()).is_err() {
+    let Some((params, margin)) = checked.valid else {
         return;
-    }
-    let gravity = settings.gravity.as_dvec3();
-    let margin = f64::from(settings.collision_margin);
+    };
+    let gravity = params.gravity;
     strands.par_iter_mut().for_each(|(entity, mut strand, mut rest_shape, strand_of)| {
         if !strand.preload_pending() {
             return;
@@ -127,16 +168,19 @@ fn preload_supports(rod: &Rod, colliders: &[MovingCollider], thickness: f64) -> 
 
 /// Clamps every strand's root edge to its anchor on its head, carrying the strand along when the head
 /// teleported (a root that cannot follow is reported as the strand's fault at its step). A strand not
-/// stepped at this fixed step (a coarser level of detail) follows at its next step.
+/// stepped at this fixed step (a coarser level of detail, or every strand while the settings are
+/// invalid) follows at its next step.
 pub(crate) fn pin_roots(
     time: Res<Time>,
+    checked: Res<CheckedSettings>,
     mut strands: Query<(&mut SimulatedStrand, &StrandOf)>,
     heads: Query<&HeadMotion>,
 ) {
     let dt = time.delta_secs_f64();
+    let held = checked.valid.is_none();
     strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
         if let Ok(motion) = heads.get(head) {
-            strand.follow_head(motion, dt);
+            strand.follow_head(motion, dt, held);
         }
     });
 }
@@ -241,11 +285,13 @@ type StepItem = (
 /// with no head); a strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with
 /// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on. A strand whose
 /// head is at a coarser level of detail is stepped only on its turns, by as many fixed steps as have
-/// passed, and drawn carried with its head in between (see [`crate::detail`]).
+/// passed, and drawn carried with its head in between (see [`crate::detail`]); while the settings are
+/// invalid every strand is drawn so (see [`check_settings`]). A strand not stepped whose state was
+/// written from outside has it checked before it is drawn.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn step_strands(
     time: Res<Time>,
-    settings: Res<HairSettings>,
+    checked: Res<CheckedSettings>,
     mut statistics: ResMut<HairStatistics>,
     mut strands: Query<StepItem>,
     colliders: StrandColliders,
@@ -253,19 +299,8 @@ pub(crate) fn step_strands(
     mut threads: Local<Parallel<StepThread>>,
     mut fault_log: Local<FaultLog>,
 ) {
-    let (params, collision_margin) = match settings.validated(time.delta_secs_f64()) {
-        Ok(validated) => validated,
-        Err(error) => {
-            let message = error.to_string();
-            if statistics.settings_error.as_ref() != Some(&message) {
-                error!("HairSettings rejected, hair is paused until they are fixed: {message}");
-                statistics.settings_error = Some(message);
-            }
-            return;
-        }
-    };
-    statistics.settings_error = None;
-
+    let valid = checked.valid;
+    let collision_margin = checked.collision_margin;
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
     // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
@@ -276,14 +311,24 @@ pub(crate) fn step_strands(
             let contacts =
                 Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
             threads.scope(|StepThread { workspace, tally }| {
-                if !strand.detail.due {
-                    // A coarser level of detail: not stepped now, drawn carried with its head.
-                    forces.clear();
-                    strand.write_components(None, &mut nodes, &mut frames);
-                    tally.unstepped += 1;
-                    tally.quarantined += usize::from(strand.is_quarantined());
-                    return;
-                }
+                let params = match valid {
+                    Some((params, _)) if strand.detail.due => params,
+                    _ => {
+                        // A coarser level of detail, or invalid settings: not stepped now, drawn carried
+                        // with its head, once its state is known to be drawable.
+                        forces.clear();
+                        if let Some(StepOutcome::Faulted { error, first_of_episode, quarantine }) =
+                            strand.check_unstepped(now)
+                        {
+                            let message = StrandFault { strand: entity, error };
+                            tally.faults.push(Fault { message, first_of_episode, quarantine });
+                        }
+                        strand.write_components(None, &mut nodes, &mut frames);
+                        tally.unstepped += 1;
+                        tally.quarantined += usize::from(strand.is_quarantined());
+                        return;
+                    }
+                };
                 let steps = strand.detail.take_elapsed();
                 let longer;
                 let params = if steps == 1 {
@@ -339,7 +384,8 @@ pub(crate) fn step_strands(
     statistics.quarantined = quarantined;
     statistics.unstepped_strands = unstepped;
     statistics.step_seconds = started.elapsed().as_secs_f64();
-    statistics.steps += 1;
+    // Held by invalid settings, the hair was not simulated.
+    statistics.steps += u64::from(valid.is_some());
     statistics.strands = strands_stepped;
     statistics.nodes = nodes_stepped;
     statistics.max_strain = max_strain;

@@ -226,6 +226,10 @@ pub struct SimulatedStrand {
     /// Why the root could not be clamped to the head this step, reported as the step's fault.
     #[reflect(ignore)]
     pin_error: Option<RodError>,
+    /// Whether the rod was lent out through [`SimulatedStrand::rod_mut`] since its state was last checked:
+    /// a strand not stepped (carried, or waiting for its turn or for valid settings) checks it before it
+    /// is drawn, as a step would.
+    rod_written: bool,
     /// The gravity preload factor to compute before the next step, if one is pending.
     pending_preload: Option<f32>,
     /// What the last gravity preload did.
@@ -277,6 +281,7 @@ impl SimulatedStrand {
             snap_pose: true,
             health: StrandHealth::default(),
             pin_error: None,
+            rod_written: false,
             pending_preload: (head.is_some() && spec.gravity_preload > 0.0).then_some(spec.gravity_preload),
             preload_report: None,
             detail: StrandDetail::default(),
@@ -289,8 +294,11 @@ impl SimulatedStrand {
     }
 
     /// The rod, to change it directly (its positions, boundary conditions, rest shape). The root edge is
-    /// still clamped to the head at every step.
+    /// still clamped to the head at every step. A state that cannot be stepped (a non-finite position,
+    /// nodes on top of each other) is found before the strand is next drawn, whether it is stepped then or
+    /// not, and reported as a [`StrandFault`]: the strand is put back in its rest pose on its head.
     pub fn rod_mut(&mut self) -> &mut Rod {
+        self.rod_written = true;
         &mut self.rod
     }
 
@@ -382,14 +390,21 @@ impl SimulatedStrand {
     /// whole strand along rigidly first. A pose the root cannot follow is reported by the next step.
     ///
     /// A strand not stepped at this fixed step (a coarser level of detail, see [`crate::detail`]) leaves
-    /// its rod where it is, and follows the head (and any teleport in between) at its next step.
-    pub(crate) fn follow_head(&mut self, motion: &HeadMotion, dt: f64) {
+    /// its rod where it is, and follows the head (and any teleport in between) at its next step. While
+    /// `held` (the settings are invalid) the strand is not stepped and its clock stands still: it is
+    /// drawn carried with its head, and comes back as from being carried once the settings are fixed.
+    pub(crate) fn follow_head(&mut self, motion: &HeadMotion, dt: f64, held: bool) {
         let Some(anchor) = self.anchor else {
             return;
         };
         let (pose, teleported) = (motion.current, motion.teleported);
         let detail = &mut self.detail;
         detail.head = pose;
+        detail.held = held;
+        if held {
+            detail.resumed = true;
+            return;
+        }
         detail.elapsed += 1;
         if !detail.due {
             detail.teleported |= teleported;
@@ -399,21 +414,28 @@ impl SimulatedStrand {
         let teleported = teleported || resumed || std::mem::take(&mut detail.teleported);
         if teleported {
             detail.elapsed = 1;
-            let (rotation, translation) = self.head.rigid_motion_to(&pose);
-            if let Err(error) = self.rod.transform_rigidly(rotation, translation) {
+            if let Err(error) = self.carry_to(pose) {
                 self.pin_error = Some(error);
                 return;
             }
             self.snap_pose = true;
         }
+        // The rod stays at `self.head` until its step brings the root to the clamp (see `advance`).
         let (start, end, material_direction) = anchor.world(&pose);
-        match self.rod.clamp_edge(0, start, end, material_direction) {
-            Ok(()) => self.head = pose,
-            Err(error) => self.pin_error = Some(error),
+        if let Err(error) = self.rod.clamp_edge(0, start, end, material_direction) {
+            self.pin_error = Some(error);
         }
         if resumed && dt > 0.0 {
             self.move_with_head(motion, dt);
         }
+    }
+
+    /// Carries the rod rigidly from the head pose it is at to `pose`, which it is then at.
+    fn carry_to(&mut self, pose: ScaledPose) -> Result<(), RodError> {
+        let (rotation, translation) = self.head.rigid_motion_to(&pose);
+        self.rod.transform_rigidly(rotation, translation)?;
+        self.head = pose;
+        Ok(())
     }
 
     /// Gives every node the velocity it has moving rigidly with the head over the last fixed step of
@@ -440,6 +462,11 @@ impl SimulatedStrand {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> StepOutcome {
+        self.rod_written = false;
+        // The step brings the root to its clamp at the head's pose now: the rod is at that pose after it,
+        // whatever happens (stepped, reset onto the head, or carried there when the step is skipped).
+        let (from, to) = (self.head, if self.anchor.is_some() { self.detail.head } else { self.head });
+        self.head = to;
         let retried = match self.health.quarantined_until {
             Some(until) if now < until => {
                 self.reset_to_rest();
@@ -453,9 +480,9 @@ impl SimulatedStrand {
             Some(error) => Err(StepError::InvalidInput(error)),
             None => self.rod.step_with_loads(params, &forces.loads(), contacts, workspace),
         };
-        let health = &mut self.health;
         let error = match result {
             Ok(report) => {
+                let health = &mut self.health;
                 self.last_report = Some(report);
                 health.quarantined_until = None;
                 if health.faults_in_episode > 0 && now - health.last_fault > QUARANTINE_WINDOW {
@@ -465,6 +492,33 @@ impl SimulatedStrand {
             }
             Err(error) => error,
         };
+        if matches!(error, StepError::InvalidInput(_)) {
+            // Skipped: nothing moved, so the rod is carried to the head as hair not stepped is.
+            self.head = from;
+            if let Err(carry_error) = self.carry_to(to) {
+                warn_once!("a hair strand whose step was skipped could not be carried with its head: {carry_error}");
+            }
+        }
+        self.fail(error, now, retried)
+    }
+
+    /// Checks the state of a strand that is not stepped at this fixed step, if it was written from outside
+    /// ([`SimulatedStrand::rod_mut`]) since it was last checked: one that cannot be stepped is handled as a
+    /// failed step (reset to its rest pose on its head, quarantined if it fails again soon), so that it is
+    /// never drawn. `None` when there was nothing to find.
+    pub(crate) fn check_unstepped(&mut self, now: f64) -> Option<StepOutcome> {
+        if !std::mem::take(&mut self.rod_written) {
+            return None;
+        }
+        let (node, reason) = self.rod.unusable_state()?;
+        Some(self.fail(StepError::UnusableState { node, reason }, now, false))
+    }
+
+    /// Records a fault at `now` (s): starts or continues the episode, quarantines the strand if it failed
+    /// again soon (or on a retry after quarantine, `retried`), and puts it back in its rest pose unless
+    /// the step was only skipped for invalid input.
+    fn fail(&mut self, error: StepError, now: f64, retried: bool) -> StepOutcome {
+        let health = &mut self.health;
         let first_of_episode = health.faults_in_episode == 0;
         let again = retried || (!first_of_episode && now - health.last_fault <= QUARANTINE_WINDOW);
         health.faults_in_episode += 1;

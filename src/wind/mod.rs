@@ -45,6 +45,7 @@
 
 use std::f64::consts::TAU;
 
+use bevy::ecs::entity::EntityHashMap;
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::math::DVec3;
 use bevy::prelude::*;
@@ -61,6 +62,10 @@ pub const TURBULENCE_MODES: usize = 8;
 /// about one, and a sinusoid sampled four times per wavelength is interpolated within 15 % of its
 /// amplitude (still smooth in time, where it matters for the motion).
 pub const TURBULENCE_SAMPLE_SPACING: f32 = 0.25;
+
+/// The fastest air a wind or wind source may blow, m/s (three times a record gust): beyond it the air is
+/// not wind, and sums of such speeds would overflow the drag.
+pub const MAX_WIND_SPEED: f32 = 1000.0;
 
 /// The global wind, the same for every head (a resource; insert it, or edit it at run time).
 ///
@@ -114,15 +119,18 @@ impl HairWind {
         self.velocity == Vec3::ZERO && self.turbulence == 0.0
     }
 
-    /// Checks that every parameter is finite and in its range (speeds and amplitudes at least 0, scales
-    /// and periods positive); says which is not.
+    /// Checks that every parameter is finite and in its range (speeds and amplitudes from 0 to
+    /// [`MAX_WIND_SPEED`], scales and periods positive); says which is not.
     pub fn validate(&self) -> Result<(), String> {
-        if !self.velocity.is_finite() {
-            return Err(format!("HairWind::velocity {} is not finite", self.velocity));
+        if !(self.velocity.is_finite() && self.velocity.length() <= MAX_WIND_SPEED) {
+            return Err(format!(
+                "HairWind::velocity {} is not finite or faster than {MAX_WIND_SPEED} m/s",
+                self.velocity
+            ));
         }
         for (name, value) in [("gusts", self.gusts), ("turbulence", self.turbulence)] {
-            if !(value.is_finite() && value >= 0.0) {
-                return Err(format!("HairWind::{name} {value} must be finite and at least 0"));
+            if !(0.0..=MAX_WIND_SPEED).contains(&value) {
+                return Err(format!("HairWind::{name} {value} must be from 0 to {MAX_WIND_SPEED} m/s"));
             }
         }
         for (name, value) in [
@@ -191,6 +199,20 @@ pub struct HairWindSource {
 }
 
 impl HairWindSource {
+    /// Checks that the speed is at most [`MAX_WIND_SPEED`] either way and the radius and range positive
+    /// and finite; says which is not.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.speed.abs() <= MAX_WIND_SPEED) {
+            return Err(format!("its speed {} m/s is not finite or beyond ±{MAX_WIND_SPEED} m/s", self.speed));
+        }
+        for (name, value) in [("radius", self.radius), ("range", self.range)] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err(format!("its {name} {value} m must be positive and finite"));
+            }
+        }
+        Ok(())
+    }
+
     /// The air's velocity at `position` (m) from this source placed at `transform`, m/s.
     pub fn velocity_at(&self, transform: &GlobalTransform, position: Vec3) -> Vec3 {
         let axis = transform.forward().as_vec3();
@@ -292,14 +314,17 @@ impl SplitMix64 {
 
 /// Adds the wind of [`HairWind`] and every [`HairWindSource`] to the air's velocity at every strand's
 /// nodes (in [`StrandForces`]), at their positions at the start of the step and the step's simulated
-/// time; in parallel over strands. A calm wind and no sources add nothing. An invalid [`HairWind`] is
-/// reported once and ignored until fixed.
+/// time; in parallel over strands. A calm wind and no sources add nothing. An invalid [`HairWind`], or
+/// an invalid [`HairWindSource`] (or one whose transform is not finite), is reported once, by name, and
+/// blows no air until it is fixed.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn add_wind(
     time: Res<Time>,
     wind: Res<HairWind>,
-    sources: Query<(&HairWindSource, &GlobalTransform)>,
+    sources: Query<(Entity, &HairWindSource, &GlobalTransform)>,
     mut strands: Query<(&SimulatedStrand, &StrandNodes, &mut StrandForces)>,
     mut reported: Local<Option<String>>,
+    mut reported_sources: Local<EntityHashMap<String>>,
     mut active_sources: Local<Vec<(HairWindSource, GlobalTransform)>>,
 ) {
     if let Err(error) = wind.validate() {
@@ -312,8 +337,28 @@ pub(crate) fn add_wind(
     *reported = None;
     // Reused from step to step, so that no step allocates.
     active_sources.clear();
-    let moving = sources.iter().filter(|(source, _)| source.speed != 0.0);
-    active_sources.extend(moving.map(|(source, transform)| (*source, *transform)));
+    for (entity, source, transform) in &sources {
+        let affine = transform.affine();
+        let checked = source.validate().and_then(|()| {
+            let finite = affine.matrix3.is_finite() && affine.translation.is_finite();
+            finite.then_some(()).ok_or_else(|| "its transform is not finite".to_string())
+        });
+        match checked {
+            Ok(()) => {
+                reported_sources.remove(&entity);
+                if source.speed != 0.0 {
+                    active_sources.push((*source, *transform));
+                }
+            }
+            Err(reason) if reported_sources.get(&entity) != Some(&reason) => {
+                error!("hair wind source {entity} blows no air until it is fixed: {reason}");
+                reported_sources.insert(entity, reason);
+            }
+            Err(_) => {}
+        }
+    }
+    // Sources despawned while reported.
+    reported_sources.retain(|entity, _| sources.contains(*entity));
     let sources = &*active_sources;
     if wind.is_calm() && sources.is_empty() {
         return;
