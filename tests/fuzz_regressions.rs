@@ -7,6 +7,7 @@ mod common;
 use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
+use bevy_hair_sim::groom::{GroomError, MAX_GROOM_SEGMENTS};
 use bevy_hair_sim::prelude::*;
 use common::headless::{DT, drain_messages, hair_app, hair_app_with, spawn_head, strand};
 use common::{logs, straight_nodes};
@@ -251,4 +252,51 @@ fn an_invalid_wind_source_is_reported_once_by_name_and_blows_nothing() {
     }
     assert!(!lines.iter().any(|(_, line)| line.contains(&format!("{good}"))), "{lines:#?}");
     assert_drawn_finite(&app, &strands, "invalid wind sources");
+}
+
+/// Beyond the six: every input added since the fuzz before is validated. A groom of absurd size, a groom
+/// file placed with absurd values, and followers that cannot be bound each give an error, never a panic
+/// or an allocation the size of the request; rejected followers are reported once, not at every
+/// settings change.
+#[test]
+fn groom_sizes_placements_and_followers_are_validated() {
+    let huge = HairGroom { segments: usize::MAX, ..default() };
+    assert!(matches!(huge.grow(), Err(GroomError::TooManySegments(_))));
+    let crowd = HairGroom { strand_count: usize::MAX, followers_per_guide: 2, ..default() };
+    assert!(matches!(crowd.grow(), Err(GroomError::TooManyHairs { .. })));
+    let fine = HairGroom { strand_count: 10, segments: MAX_GROOM_SEGMENTS, combing: None, ..default() };
+    assert_eq!(fine.grow().unwrap().len(), 10);
+
+    let tfx = include_bytes!("../../shared/data/Ratboy_mohawk.tfx");
+    let file = GroomFile::from_tfx(tfx).unwrap();
+    for placement in [
+        GroomPlacement { segments: usize::MAX, ..default() },
+        GroomPlacement { segments: 1, ..default() },
+        GroomPlacement { metres_per_unit: f32::NAN, ..default() },
+        GroomPlacement { transform: Transform::from_scale(Vec3::ZERO), ..default() },
+    ] {
+        assert!(matches!(placement.validate(), Err(GroomError::InvalidPlacement { .. })), "{placement:?}");
+        assert_eq!(file.placed_strands(&placement, &RodMaterial::human_hair()).0.len(), 0);
+    }
+    let mirrored = GroomPlacement { transform: Transform::from_scale(Vec3::new(-0.01, 0.01, 0.01)), ..default() };
+    assert!(mirrored.validate().is_ok() && !file.placed_strands(&mirrored, &RodMaterial::human_hair()).0.is_empty());
+
+    let _log = logs::serial();
+    let mut app = hair_app();
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    let nodes: Vec<Vec3> = (0..=6).map(|i| Vec3::new(0.0, 0.1 + 0.01 * i as f32, 0.0)).collect();
+    let short = HairFollowers { curves: vec![nodes[..5].to_vec()], clumping: 0.0 };
+    let guide = app.world_mut().spawn((HairStrand::from_nodes(nodes, Vec3::X), short, StrandOf(head))).id();
+    logs::take();
+    for update in 0..10 {
+        app.world_mut().resource_mut::<HairSettings>().air_damping = 1.0 + update as f32;
+        app.update();
+    }
+    // (Other tests of this binary log at the same time: only the guide's lines count.)
+    let lines = logs::take();
+    let about_guide: Vec<_> = lines.iter().filter(|(_, line)| line.contains(&format!("{guide}"))).collect();
+    assert_eq!(about_guide.len(), 1, "{about_guide:#?}");
+    let followers = app.world().get::<FollowerNodes>(guide).unwrap();
+    assert!(followers.rejection().is_some_and(|reason| reason.contains("5 nodes")), "{:?}", followers.rejection());
+    assert_eq!(followers.count(), 0);
 }

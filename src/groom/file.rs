@@ -23,6 +23,7 @@ use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
 use thiserror::Error;
 
+use super::procedural::{GroomError, MAX_GROOM_SEGMENTS};
 use crate::rod::RodMaterial;
 use crate::schedule::HairPrepareSystems;
 use crate::simulation::{HairHead, HairSettings, HairStrand, HeadStrands, StrandOf};
@@ -425,8 +426,8 @@ pub struct GroomPlacement {
     pub up: UpAxis,
     /// Moves the groom (in metres, after the unit conversion and the up axis) into the head's local space.
     pub transform: Transform,
-    /// Edges per simulated strand: every strand is resampled to this many edges of equal length, keeping
-    /// its length. Default 16.
+    /// Edges per simulated strand, from 2 to [`MAX_GROOM_SEGMENTS`]: every strand is resampled to this
+    /// many edges of equal length, keeping its length. Default 16.
     pub segments: usize,
     /// Most strands simulated: when the file has more, this many are picked evenly among them. Default
     /// 2 000.
@@ -440,6 +441,23 @@ impl Default for GroomPlacement {
 }
 
 impl GroomPlacement {
+    /// Checks that the unit is positive and finite, the transform finite (and not flattened by a zero
+    /// scale), and the segments from 2 to
+    /// [`MAX_GROOM_SEGMENTS`].
+    pub fn validate(&self) -> Result<(), GroomError> {
+        let invalid = |what, value: f64, requirement| Err(GroomError::InvalidPlacement { what, value, requirement });
+        if !(self.metres_per_unit.is_finite() && self.metres_per_unit > 0.0) {
+            return invalid("metres_per_unit", self.metres_per_unit.into(), "must be positive and finite");
+        }
+        if !self.transform.is_finite() || self.transform.scale.abs().min_element() == 0.0 {
+            return invalid("transform", f64::NAN, "must be finite, with no zero scale");
+        }
+        if !(2..=MAX_GROOM_SEGMENTS).contains(&self.segments) {
+            return invalid("segments", self.segments as f64, "must be from 2 to MAX_GROOM_SEGMENTS (1024)");
+        }
+        Ok(())
+    }
+
     /// A file point (file units and axes) in the head's local space, m.
     pub fn place(&self, point: Vec3) -> Vec3 {
         let point = match self.up {
@@ -501,8 +519,11 @@ impl GroomFile {
     /// edges. A strand whose mean thickness in metres makes a fibre radius within
     /// [`FIBRE_RADIUS_RANGE`] gets `material` with that radius (so a `.hair` file in real units gives its
     /// fibres' thickness); others follow the default material. Also returns how many strands were
-    /// skipped as degenerate.
+    /// skipped as degenerate. An invalid `placement` ([`GroomPlacement::validate`]) places none.
     pub fn placed_strands(&self, placement: &GroomPlacement, material: &RodMaterial) -> (Vec<HairStrand>, usize) {
+        if placement.validate().is_err() {
+            return (Vec::new(), 0);
+        }
         let usable: Vec<usize> = self.usable_strands().collect();
         let skipped = self.strand_count() - usable.len();
         let count = usable.len().min(placement.max_strands);
@@ -562,6 +583,12 @@ fn place_groom_files(
             if placed.contains(strand) {
                 commands.entity(strand).despawn();
             }
+        }
+        if let Err(error) = groom.placement.validate() {
+            if groom.is_changed() {
+                error!("hair groom file of head {head}: {error}; no strands are placed until it is fixed");
+            }
+            continue;
         }
         let (grown, skipped) = file.placed_strands(&groom.placement, &settings.default_material);
         if skipped > 0 {

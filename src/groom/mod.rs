@@ -56,7 +56,9 @@ pub use file::{
     FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
     MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, UpAxis,
 };
-pub use procedural::{Combing, GroomError, GroomedStrand, HairGroom, HairStyle, Scalp, ScalpRoot};
+pub use procedural::{
+    Combing, GroomError, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot,
+};
 
 use crate::schedule::HairPrepareSystems;
 

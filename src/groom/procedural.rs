@@ -161,6 +161,16 @@ impl HairStyle {
     }
 }
 
+/// The most edges per strand a groom grows (a [`HairGroom`], or a groom file's [`GroomPlacement`]):
+/// far more than real-time hair uses (16 to 32), and a bound on what one strand costs.
+///
+/// [`GroomPlacement`]: crate::groom::GroomPlacement
+pub const MAX_GROOM_SEGMENTS: usize = 1024;
+
+/// The most hairs a [`HairGroom`] grows, strands and their followers together: several heads of human
+/// hair (90 000 to 150 000 hairs each).
+pub const MAX_GROOM_HAIRS: usize = 1_000_000;
+
 /// Grows a head of hair: put it on a [`crate::simulation::HairHead`] and the plugin spawns `strand_count`
 /// strands of `style` over `scalp`, each marked [`GroomedStrand`]. Changing the groom despawns the
 /// groomed strands and grows new ones (strands you spawned yourself on the head are kept). An invalid
@@ -170,10 +180,10 @@ impl HairStyle {
 pub struct HairGroom {
     /// Where hair grows.
     pub scalp: Scalp,
-    /// Number of strands. Default 2 000.
+    /// Number of strands (with their followers at most [`MAX_GROOM_HAIRS`]). Default 2 000.
     pub strand_count: usize,
-    /// Edges per strand (nodes are one more), at least 2. More edges resolve curls better and cost
-    /// proportionally more. Default 24.
+    /// Edges per strand (nodes are one more), from 2 to [`MAX_GROOM_SEGMENTS`]. More edges resolve curls
+    /// better and cost proportionally more. Default 24.
     pub segments: usize,
     /// Shape and lengths of the hair.
     pub style: HairStyle,
@@ -300,6 +310,16 @@ impl HairGroom {
     fn validate(&self) -> Result<(), GroomError> {
         if self.segments < 2 {
             return Err(GroomError::TooFewSegments(self.segments));
+        }
+        if self.segments > MAX_GROOM_SEGMENTS {
+            return Err(GroomError::TooManySegments(self.segments));
+        }
+        let hairs = self.strand_count.checked_mul(self.followers_per_guide.saturating_add(1));
+        if hairs.is_none_or(|hairs| hairs > MAX_GROOM_HAIRS) {
+            return Err(GroomError::TooManyHairs {
+                strand_count: self.strand_count,
+                followers_per_guide: self.followers_per_guide,
+            });
         }
         if !(0.0..=1.0).contains(&self.gravity_preload) {
             return Err(GroomError::GravityPreload(self.gravity_preload));
@@ -537,6 +557,29 @@ pub enum GroomError {
     /// Strands need at least two edges.
     #[error("a groomed strand needs at least 2 segments (edges), got {0}")]
     TooFewSegments(usize),
+    /// More edges per strand than [`MAX_GROOM_SEGMENTS`].
+    #[error("a groomed strand has at most {MAX_GROOM_SEGMENTS} segments (edges), got {0}")]
+    TooManySegments(usize),
+    /// More hairs (strands and their followers) than [`MAX_GROOM_HAIRS`].
+    #[error(
+        "a groom grows at most {MAX_GROOM_HAIRS} hairs, got {strand_count} strands with {followers_per_guide} followers each"
+    )]
+    TooManyHairs {
+        /// The strands asked for.
+        strand_count: usize,
+        /// The followers per strand asked for.
+        followers_per_guide: usize,
+    },
+    /// A [`GroomPlacement`](crate::groom::GroomPlacement) value out of its range.
+    #[error("the groom placement's {what} is {value}, {requirement}")]
+    InvalidPlacement {
+        /// Which value.
+        what: &'static str,
+        /// The value given.
+        value: f64,
+        /// What it must satisfy.
+        requirement: &'static str,
+    },
     /// The skull ellipsoid is degenerate.
     #[error(
         "the scalp's skull needs a finite centre and positive finite semi-axes, got centre {centre} and semi-axes {semi_axes}"

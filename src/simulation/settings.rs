@@ -6,7 +6,9 @@ use super::cadence::HeadsByDetail;
 use crate::rod::{Integrator, RodError, RodMaterial, StepParams};
 
 /// Settings of the hair simulation, read at every fixed step: a change takes effect at the next step.
-/// Invalid values are reported once with an error message and the simulation waits until they are fixed.
+/// Invalid values are reported once with an error message ([`HairStatistics::settings_error`]); until they
+/// are fixed the hair is held: not simulated, drawn carried rigidly with its heads, its clocks stopped, and
+/// it resumes with its heads' motion.
 #[derive(Resource, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Resource, Debug, Default, Clone, PartialEq)]
 pub struct HairSettings {
