@@ -321,3 +321,30 @@ fn a_hair_file_loads_through_the_asset_server_and_a_corrupt_one_leaves_the_hair_
     assert_eq!(strands_of(&app), grown, "the head keeps the hair it had");
     std::fs::remove_dir_all(&directory).ok();
 }
+
+/// The fuzzers' seed corpus (`fuzz/seeds/`, made by `fuzz/make_seeds.py`) through both parsers: the valid
+/// seeds read with their counts, the cut ones give errors, and neither parser panics on the other's files.
+#[test]
+fn the_fuzz_seeds_read_as_made() {
+    let seeds = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/seeds");
+    let read = |path: &str| std::fs::read(seeds.join(path)).unwrap_or_else(|error| panic!("{path}: {error}"));
+    for (path, strands, points) in [
+        ("tfx/plain", 4, 32),
+        ("tfx/every_array", 3, 18),
+        ("tfx/two_points", 2, 4),
+        ("hair/segments_points", 3, 18),
+        ("hair/every_array", 2, 10),
+        ("hair/default_segments", 3, 21),
+        ("hair/one_point_strands", 3, 5),
+    ] {
+        let bytes = read(path);
+        let groom = if path.starts_with("tfx") { GroomFile::from_tfx(&bytes) } else { GroomFile::from_hair(&bytes) }
+            .unwrap_or_else(|error| panic!("{path}: {error}"));
+        assert_eq!((groom.strand_count(), groom.points.len()), (strands, points), "{path}");
+        // The other parser rejects it without panicking.
+        let other = if path.starts_with("tfx") { GroomFile::from_hair(&bytes) } else { GroomFile::from_tfx(&bytes) };
+        assert!(other.is_err() || path.starts_with("hair"), "{path}");
+    }
+    assert!(matches!(GroomFile::from_tfx(&read("tfx/truncated")), Err(GroomFileError::Truncated { .. })));
+    assert!(matches!(GroomFile::from_hair(&read("hair/truncated")), Err(GroomFileError::Truncated { .. })));
+}

@@ -202,7 +202,7 @@ impl HairWindSource {
     /// Checks that the speed is at most [`MAX_WIND_SPEED`] either way and the radius and range positive
     /// and finite; says which is not.
     pub fn validate(&self) -> Result<(), String> {
-        if !(self.speed.abs() <= MAX_WIND_SPEED) {
+        if !(-MAX_WIND_SPEED..=MAX_WIND_SPEED).contains(&self.speed) {
             return Err(format!("its speed {} m/s is not finite or beyond ±{MAX_WIND_SPEED} m/s", self.speed));
         }
         for (name, value) in [("radius", self.radius), ("range", self.range)] {
