@@ -276,7 +276,15 @@ fn invalid_volume_settings_are_reported_and_hold_the_hair() {
     }
     let error = app.world().resource::<HairStatistics>().settings_error.clone();
     assert!(error.as_deref().is_some_and(|error| error.contains("volume.cell_size")), "{error:?}");
-    assert_eq!(nodes(&app, &strands), before, "the hair waits for valid settings");
+    // Held: drawn carried with its (still) head, through its head's frame, so equal to single-precision
+    // rounding at 1.6 m (a few 1e-7 m).
+    let moved = nodes(&app, &strands)
+        .iter()
+        .flatten()
+        .zip(before.iter().flatten())
+        .map(|(now, then)| now.distance(*then))
+        .fold(0.0, f32::max);
+    assert!(moved < 1e-6, "the hair waits for valid settings: a node moved {moved} m");
     app.world_mut().resource_mut::<HairSettings>().volume.cell_size = 0.005;
     app.update();
     assert_eq!(app.world().resource::<HairStatistics>().settings_error, None);

@@ -503,8 +503,10 @@ impl Rod {
         }
         self.constraints.node_targets[edge] = Some(start);
         self.constraints.node_targets[edge + 1] = Some(end);
-        // Scaled, so that a tiny direction that passed the check stays usable where it is projected.
-        self.constraints.twist_targets[edge] = direction;
+        // A direction too small to square without underflow is kept scaled, so that it stays usable where
+        // it is projected; any other is kept as given.
+        let usable = material_direction.length_squared() >= f64::MIN_POSITIVE;
+        self.constraints.twist_targets[edge] = if usable { Some(material_direction) } else { direction };
         Ok(())
     }
 
