@@ -62,7 +62,7 @@ fn allocations_per_update(strands: usize, level: HairDetailLevel) -> u64 {
 /// Allocations per frame of preparing a head of `strands` strands (4 followers each) for the renderer
 /// (checking the layout, writing the interpolated positions) on `threads` threads, once laid out; counted
 /// on all threads, or on this one with `count`.
-fn allocations_per_drawn_frame(strands: usize, threads: usize, count: fn() -> u64) -> u64 {
+fn allocations_per_drawn_frame(strands: usize, threads: usize, count: fn() -> u64) -> f64 {
     use bevy_hair_sim::render::{GuideLayout, HairStrips};
     let mut app = hair_app();
     let groom = HairGroom { strand_count: strands, segments: 16, followers_per_guide: 4, ..default() };
@@ -88,7 +88,8 @@ fn allocations_per_drawn_frame(strands: usize, threads: usize, count: fn() -> u6
             assert!(!strips.set_layout(layout()));
             assert!(strips.fill(frame as f32 / frames as f32, threads, lookup).is_some());
         }
-    }) / frames
+    }) as f64
+        / frames as f64
 }
 
 // One test, so that no other test allocates while it counts.
@@ -128,9 +129,15 @@ fn stepping_allocates_nothing_once_running() {
     // Preparing hair for the renderer: nothing on one thread; on two, only the task scope's, the same
     // however many strands.
     let single = allocations_per_drawn_frame(400, 1, thread_allocations);
-    assert_eq!(single, 0, "preparing hair for drawing allocated {single} times per frame");
+    assert_eq!(single, 0.0, "preparing hair for drawing allocated {single} times per frame");
+    // The task scope's allocations on two threads vary by a few in 50 frames with how the threads are
+    // scheduled (11.26 in one run; whole numbers made 11.02 and 10.98 read as 11 and 10); one per strand
+    // would add 350 per frame.
     let few = allocations_per_drawn_frame(50, 2, all_threads);
     let many = allocations_per_drawn_frame(400, 2, all_threads);
     println!("allocations per drawn frame on two threads: {few} with 50 strands, {many} with 400");
-    assert_eq!(few, many, "allocations per drawn frame grow with the strands: {few} with 50, {many} with 400");
+    assert!(
+        (many - few).abs() < 1.0,
+        "allocations per drawn frame grow with the strands: {few} with 50, {many} with 400"
+    );
 }

@@ -72,6 +72,10 @@ fn a_zero_material_direction_is_rejected_and_a_tiny_one_is_a_direction() {
         rod.clamp_edge(0, nodes[0], nodes[1], DVec3::ZERO),
         Err(RodError::InvalidMaterialDirection { edge: 0, .. })
     ));
+    // Huge directions are directions too.
+    let huge = Rod::new(&nodes, DVec3::new(1e300, 0.0, 1e300), material).unwrap();
+    let expected = DVec3::new(1.0, 0.0, 1.0).normalize();
+    assert!((huge.material_frame(0).m1 - expected).length() < 1e-12, "{:?}", huge.material_frame(0));
     rod.clamp_edge(0, nodes[0], nodes[1], DVec3::new(0.0, 0.0, 1e-310)).unwrap();
     rod.step(&StepParams::default(), None, &mut RodWorkspace::default()).expect("a tiny clamp direction steps");
     assert!((rod.material_frame(0).m1 - DVec3::Z).length() < 1e-9, "{:?}", rod.material_frame(0));

@@ -74,10 +74,15 @@ fn check_rest_twist(vertex: usize, twist: f64) -> Result<(), RodError> {
 /// its largest component, so that a tiny (even subnormal) direction is judged by its direction alone, and
 /// a zero one, which has none, is rejected.
 fn material_director(direction: DVec3, tangent: DVec3) -> Option<DVec3> {
-    let direction = scaled_direction(direction)?;
-    let perpendicular = direction - direction.dot(tangent) * tangent;
-    (perpendicular.length() >= MIN_MATERIAL_DIRECTION_ANGLE.sin() * direction.length())
-        .then(|| perpendicular.normalize())
+    let scaled = scaled_direction(direction)?;
+    let perpendicular = scaled - scaled.dot(tangent) * tangent;
+    if perpendicular.length() < MIN_MATERIAL_DIRECTION_ANGLE.sin() * scaled.length() {
+        return None;
+    }
+    // From the direction as given when squaring it neither underflows nor overflows (the same bits as
+    // ever), else from the scaled one.
+    let source = if squares_safely(direction) { direction } else { scaled };
+    Some((source - source.dot(tangent) * tangent).normalize())
 }
 
 /// `direction` divided by its largest component's magnitude (from 1 to √3 long: no underflow, whatever
@@ -85,6 +90,13 @@ fn material_director(direction: DVec3, tangent: DVec3) -> Option<DVec3> {
 fn scaled_direction(direction: DVec3) -> Option<DVec3> {
     let largest = direction.abs().max_element();
     (largest.is_finite() && largest > 0.0).then(|| direction / largest)
+}
+
+/// Whether `direction`'s squared length is a normal, finite number: its length and projections are then
+/// exact to rounding.
+fn squares_safely(direction: DVec3) -> bool {
+    let squared = direction.length_squared();
+    squared.is_finite() && squared >= f64::MIN_POSITIVE
 }
 
 /// The first pair of consecutive unit tangents that turn by more than `max_angle` (rad), by the index of
@@ -503,10 +515,10 @@ impl Rod {
         }
         self.constraints.node_targets[edge] = Some(start);
         self.constraints.node_targets[edge + 1] = Some(end);
-        // A direction too small to square without underflow is kept scaled, so that it stays usable where
-        // it is projected; any other is kept as given.
-        let usable = material_direction.length_squared() >= f64::MIN_POSITIVE;
-        self.constraints.twist_targets[edge] = if usable { Some(material_direction) } else { direction };
+        // A direction too small or too large to square is kept scaled, so that it stays usable where it is
+        // projected; any other is kept as given.
+        self.constraints.twist_targets[edge] =
+            if squares_safely(material_direction) { Some(material_direction) } else { direction };
         Ok(())
     }
 
