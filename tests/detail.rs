@@ -3,12 +3,9 @@
 
 mod common;
 
-use bevy::camera::primitives::Frustum;
-use bevy::camera::{CameraProjection, PerspectiveProjection};
-use bevy::math::primitives::ViewFrustum;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
-use common::headless::{hair_app, spawn_head};
+use common::headless::{camera, hair_app, spawn_head};
 
 /// The head's pose at step `step`: swaying 3 cm and turning ±0.5 rad about once a second, around `base`.
 fn moving_pose(base: Vec3, step: usize) -> Transform {
@@ -190,14 +187,6 @@ fn changing_levels_moves_the_drawn_hair_no_faster_than_a_quarter_above_full_deta
     assert!(switched_jump <= bound, "{switched_jump} m against {reference_jump} m at full detail");
     assert!(jump_at_switch <= bound, "{jump_at_switch} m at a switch");
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
-}
-
-/// A camera at `transform` with a 16:9 perspective frustum.
-fn camera(transform: Transform) -> (Camera, Transform, GlobalTransform, Frustum) {
-    let projection = PerspectiveProjection { aspect_ratio: 16.0 / 9.0, ..default() };
-    let clip_from_world = projection.get_clip_from_view() * transform.to_matrix().inverse();
-    let frustum = Frustum(ViewFrustum::from_clip_from_world(&clip_from_world));
-    (Camera::default(), transform, GlobalTransform::from(transform), frustum)
 }
 
 #[test]

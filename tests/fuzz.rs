@@ -20,16 +20,13 @@ use std::collections::BTreeMap;
 use std::f64::consts::PI;
 
 use bevy::asset::AssetPlugin;
-use bevy::camera::primitives::Frustum;
-use bevy::camera::{CameraProjection, PerspectiveProjection};
-use bevy::math::primitives::ViewFrustum;
 use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose};
 use bevy_hair_sim::simulation::{HeadMotion, LONGER_STEP_STRAIN_TOLERANCE};
-use common::headless::{DT, drain_messages, hair_app_with};
+use common::headless::{DT, camera, drain_messages, drawn_is_finite, hair_app_with};
 use common::logs;
 
 /// Most failed steps in a row of one rod in the core (counting neither invalid input nor the states this
@@ -483,14 +480,6 @@ fn random_groom_file(rng: &mut fastrand::Rng) -> (Vec<u8>, bool) {
     (bytes, tfx)
 }
 
-/// A camera at `transform` with a 16:9 perspective frustum, for the levels of detail.
-fn camera(transform: Transform) -> (Camera, Transform, GlobalTransform, Frustum) {
-    let projection = PerspectiveProjection { aspect_ratio: 16.0 / 9.0, ..default() };
-    let clip_from_world = projection.get_clip_from_view() * transform.to_matrix().inverse();
-    let frustum = Frustum(ViewFrustum::from_clip_from_world(&clip_from_world));
-    (Camera::default(), transform, GlobalTransform::from(transform), frustum)
-}
-
 fn random_level(rng: &mut fastrand::Rng) -> HairDetailLevel {
     *rng.choice(&[
         HairDetailLevel::FULL,
@@ -539,18 +528,8 @@ fn check_drawn(app: &mut App, seed: u64, settings_valid: bool, tally: &mut Plugi
     )>();
     let world = app.world();
     for (entity, strand, spec, nodes, frames, follower_nodes, followers, strand_of) in query.iter(world) {
-        let vectors = nodes.positions.iter().chain(&nodes.previous_positions).chain(&nodes.velocities);
-        let frame_vectors = frames.tangents.iter().chain(&frames.reference_directors);
-        assert!(vectors.chain(frame_vectors).all(|v| v.is_finite()), "seed {seed}: strand {entity} drawn non-finite");
-        assert!(
-            frames.twist.iter().chain(&frames.reference_twist).all(|t| t.is_finite()),
-            "seed {seed}: strand {entity}'s drawn twist is not finite"
-        );
-        if let Some(follower_nodes) = follower_nodes {
-            let points = follower_nodes.positions.iter().chain(&follower_nodes.previous_positions);
-            assert!(points.clone().all(|p| p.is_finite()), "seed {seed}: followers of {entity} non-finite");
-            tally.follower_nodes_checked += follower_nodes.positions.len() as u64;
-        }
+        assert!(drawn_is_finite(nodes, frames, follower_nodes), "seed {seed}: strand {entity} drawn non-finite");
+        tally.follower_nodes_checked += follower_nodes.map_or(0, |followers| followers.positions.len() as u64);
         count(&mut tally.drawn_by_level, format!("{:?}", strand.detail_level()));
         tally.drawn_while_settings_invalid += u64::from(!settings_valid);
         let Some(motion) = strand_of.and_then(|StrandOf(head)| world.get::<HeadMotion>(*head)) else {

@@ -9,7 +9,7 @@ use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::groom::{GroomError, MAX_GROOM_SEGMENTS};
 use bevy_hair_sim::prelude::*;
-use common::headless::{DT, drain_messages, hair_app, hair_app_with, spawn_head, strand};
+use common::headless::{DT, drain_messages, drawn_is_finite, hair_app, hair_app_with, spawn_head, strand};
 use common::{logs, straight_nodes};
 
 /// Where the root of `strand` (head-local `HairStrand` nodes) is on its head now, world space.
@@ -35,16 +35,10 @@ fn largest_root_offset(app: &App, strands: &[Entity]) -> f32 {
 /// Every value a game reads of `strands` is finite: their nodes, frames and followers.
 fn assert_drawn_finite(app: &App, strands: &[Entity], when: &str) {
     for &entity in strands {
-        let nodes = app.world().get::<StrandNodes>(entity).unwrap();
-        let frames = app.world().get::<StrandFrames>(entity).unwrap();
-        let vectors = nodes.positions.iter().chain(&nodes.previous_positions).chain(&nodes.velocities);
-        let frame_vectors = frames.tangents.iter().chain(&frames.reference_directors);
-        assert!(vectors.chain(frame_vectors).all(|v| v.is_finite()), "{when}: strand {entity} drawn non-finite");
-        assert!(frames.twist.iter().chain(&frames.reference_twist).all(|t| t.is_finite()), "{when}: twist");
-        if let Some(followers) = app.world().get::<FollowerNodes>(entity) {
-            let points = followers.positions.iter().chain(&followers.previous_positions);
-            assert!(points.clone().all(|p| p.is_finite()), "{when}: followers of {entity} non-finite");
-        }
+        let world = app.world();
+        let (nodes, frames) = (world.get::<StrandNodes>(entity).unwrap(), world.get::<StrandFrames>(entity).unwrap());
+        let finite = drawn_is_finite(nodes, frames, world.get::<FollowerNodes>(entity));
+        assert!(finite, "{when}: strand {entity} drawn non-finite");
     }
 }
 

@@ -232,8 +232,9 @@ type GuideToBind = (
 );
 
 /// Binds the followers of new or rebuilt guides (a changed [`HairStrand`] is rebuilt) and of changed
-/// [`HairFollowers`], and, when the settings change, of guides whose followers are not bound. A guide that follows the default material while it
-/// is invalid waits, silently: the invalid settings are reported once, by the step.
+/// [`HairFollowers`], and, when the settings change, of guides whose followers are not bound. A guide that
+/// follows the default material while it is invalid waits, silently: the invalid settings are reported
+/// once, as invalid settings.
 fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
     let default_valid = settings.default_material.validate().is_ok();
     for (entity, spec, followers, strand, mut nodes) in &mut guides {

@@ -509,7 +509,6 @@ impl Rod {
             }
         }
         let tangent = (end - start).normalize_or_zero();
-        let direction = scaled_direction(material_direction);
         if tangent == DVec3::ZERO || material_director(material_direction, tangent).is_none() {
             return Err(RodError::InvalidMaterialDirection { edge, direction: material_direction });
         }
@@ -517,8 +516,11 @@ impl Rod {
         self.constraints.node_targets[edge + 1] = Some(end);
         // A direction too small or too large to square is kept scaled, so that it stays usable where it is
         // projected; any other is kept as given.
-        self.constraints.twist_targets[edge] =
-            if squares_safely(material_direction) { Some(material_direction) } else { direction };
+        self.constraints.twist_targets[edge] = if squares_safely(material_direction) {
+            Some(material_direction)
+        } else {
+            scaled_direction(material_direction)
+        };
         Ok(())
     }
 

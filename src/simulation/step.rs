@@ -29,17 +29,16 @@ pub(crate) fn reset_step_budget(mut budget: ResMut<StepBudget>) {
 /// [`HairSettings`] as checked at this fixed step, for every system of the step.
 #[derive(Resource, Debug, Clone)]
 pub(crate) struct CheckedSettings {
-    /// The step's parameters and collision margin (m) while the settings are valid; `None` while they are
-    /// not: the hair is then held, drawn carried with its heads, its clocks stopped (see [`check_settings`]).
-    pub(crate) valid: Option<(StepParams, f64)>,
-    /// The collision margin of the last valid settings, m: what follower hairs keep out of colliders by
-    /// while the settings are invalid.
+    /// The step's parameters while the settings are valid; `None` while they are not: the hair is then
+    /// held, drawn carried with its heads, its clocks stopped (see [`check_settings`]).
+    pub(crate) params: Option<StepParams>,
+    /// The collision margin of the last valid settings, m (the current one while they are valid).
     pub(crate) collision_margin: f64,
 }
 
 impl Default for CheckedSettings {
     fn default() -> Self {
-        Self { valid: None, collision_margin: f64::from(HairSettings::default().collision_margin) }
+        Self { params: None, collision_margin: f64::from(HairSettings::default().collision_margin) }
     }
 }
 
@@ -55,12 +54,12 @@ pub(crate) fn check_settings(
 ) {
     match settings.validated(time.delta_secs_f64()) {
         Ok((params, margin)) => {
-            checked.valid = Some((params, margin));
+            checked.params = Some(params);
             checked.collision_margin = margin;
             statistics.settings_error = None;
         }
         Err(error) => {
-            checked.valid = None;
+            checked.params = None;
             let message = error.to_string();
             if statistics.settings_error.as_ref() != Some(&message) {
                 error!("HairSettings rejected, hair is held on its heads until they are fixed: {message}");
@@ -122,10 +121,10 @@ pub(crate) fn preload_rest_shapes(
     mut strands: Query<(Entity, &mut SimulatedStrand, &mut StrandRestShape, Option<&StrandOf>)>,
     colliders: StrandColliders,
 ) {
-    let Some((params, margin)) = checked.valid else {
+    let Some(params) = checked.params else {
         return;
     };
-    let gravity = params.gravity;
+    let (gravity, margin) = (params.gravity, checked.collision_margin);
     strands.par_iter_mut().for_each(|(entity, mut strand, mut rest_shape, strand_of)| {
         if !strand.preload_pending() {
             return;
@@ -177,7 +176,7 @@ pub(crate) fn pin_roots(
     heads: Query<&HeadMotion>,
 ) {
     let dt = time.delta_secs_f64();
-    let held = checked.valid.is_none();
+    let held = checked.params.is_none();
     strands.par_iter_mut().for_each(|(mut strand, &StrandOf(head))| {
         if let Ok(motion) = heads.get(head) {
             strand.follow_head(motion, dt, held);
@@ -299,8 +298,7 @@ pub(crate) fn step_strands(
     mut threads: Local<Parallel<StepThread>>,
     mut fault_log: Local<FaultLog>,
 ) {
-    let valid = checked.valid;
-    let collision_margin = checked.collision_margin;
+    let (valid, collision_margin) = (checked.params, checked.collision_margin);
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
     // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
@@ -312,7 +310,7 @@ pub(crate) fn step_strands(
                 Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
             threads.scope(|StepThread { workspace, tally }| {
                 let params = match valid {
-                    Some((params, _)) if strand.detail.due => params,
+                    Some(params) if strand.detail.due => params,
                     _ => {
                         // A coarser level of detail, or invalid settings: not stepped now, drawn carried
                         // with its head, once its state is known to be drawable.

@@ -465,10 +465,10 @@ impl SimulatedStrand {
         self.rod_written = false;
         // The step brings the root to its clamp at the head's pose now: the rod is at that pose after it,
         // whatever happens (stepped, reset onto the head, or carried there when the step is skipped).
-        let (from, to) = (self.head, if self.anchor.is_some() { self.detail.head } else { self.head });
-        self.head = to;
+        let to = if self.anchor.is_some() { self.detail.head } else { self.head };
         let retried = match self.health.quarantined_until {
             Some(until) if now < until => {
+                self.head = to;
                 self.reset_to_rest();
                 self.pin_error = None;
                 return StepOutcome::Held;
@@ -482,6 +482,7 @@ impl SimulatedStrand {
         };
         let error = match result {
             Ok(report) => {
+                self.head = to;
                 let health = &mut self.health;
                 self.last_report = Some(report);
                 health.quarantined_until = None;
@@ -492,12 +493,12 @@ impl SimulatedStrand {
             }
             Err(error) => error,
         };
-        if matches!(error, StepError::InvalidInput(_)) {
+        if !matches!(error, StepError::InvalidInput(_)) {
+            // Put back in its rest pose on the head (by `fail`).
+            self.head = to;
+        } else if let Err(carry_error) = self.carry_to(to) {
             // Skipped: nothing moved, so the rod is carried to the head as hair not stepped is.
-            self.head = from;
-            if let Err(carry_error) = self.carry_to(to) {
-                warn_once!("a hair strand whose step was skipped could not be carried with its head: {carry_error}");
-            }
+            warn_once!("a hair strand whose step was skipped could not be carried with its head: {carry_error}");
         }
         self.fail(error, now, retried)
     }

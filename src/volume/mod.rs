@@ -70,7 +70,9 @@ use crate::followers::HairFollowers;
 use crate::parallel::run_in_parallel;
 use crate::schedule::HairSystems;
 pub use crate::simulation::HairVolume;
-use crate::simulation::{HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, StrandForces, StrandOf};
+use crate::simulation::{
+    CheckedSettings, HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, StrandForces, StrandOf,
+};
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
 impl HairVolume {
@@ -197,13 +199,14 @@ type GridItem = (
 pub(crate) fn interact_through_grid(
     time: Res<Time>,
     settings: Res<HairSettings>,
+    checked: Res<CheckedSettings>,
     mut grids: ResMut<HairVolumeGrids>,
     mut statistics: ResMut<HairStatistics>,
     mut strands: Query<GridItem>,
 ) {
     let dt = time.delta_secs_f64();
-    // Invalid settings are reported once, by the step, which waits for them.
-    if !settings.volume.enabled || settings.validated(dt).is_err() {
+    // Invalid settings are reported once, by `check_settings`, and hold the hair until they are fixed.
+    if !settings.volume.enabled || checked.params.is_none() {
         grids.clear();
         statistics.volume_seconds = 0.0;
         statistics.max_volume_fraction = 0.0;

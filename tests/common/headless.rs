@@ -1,5 +1,8 @@
 //! A headless Bevy app with the hair plugin, stepped by hand: one fixed step of 1/60 s per update.
 
+use bevy::camera::primitives::Frustum;
+use bevy::camera::{CameraProjection, PerspectiveProjection};
+use bevy::math::primitives::ViewFrustum;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
@@ -59,4 +62,23 @@ pub fn strand(app: &App, entity: Entity) -> &SimulatedStrand {
 /// Every message of type `M` sent since the last call.
 pub fn drain_messages<M: Message>(app: &mut App) -> Vec<M> {
     app.world_mut().resource_mut::<Messages<M>>().drain().collect()
+}
+
+/// A camera at `transform` with a 16:9 perspective frustum (for the levels of detail).
+pub fn camera(transform: Transform) -> (Camera, Transform, GlobalTransform, Frustum) {
+    let projection = PerspectiveProjection { aspect_ratio: 16.0 / 9.0, ..default() };
+    let clip_from_world = projection.get_clip_from_view() * transform.to_matrix().inverse();
+    let frustum = Frustum(ViewFrustum::from_clip_from_world(&clip_from_world));
+    (Camera::default(), transform, GlobalTransform::from(transform), frustum)
+}
+
+/// Whether everything a game reads of a strand is finite: its drawn nodes (positions, the positions one
+/// step before, velocities), its frames and twists, and its followers' nodes.
+pub fn drawn_is_finite(nodes: &StrandNodes, frames: &StrandFrames, followers: Option<&FollowerNodes>) -> bool {
+    let vectors = nodes.positions.iter().chain(&nodes.previous_positions).chain(&nodes.velocities);
+    let frame_vectors = frames.tangents.iter().chain(&frames.reference_directors);
+    let followers =
+        followers.map_or(&[][..], |f| &f.positions).iter().chain(followers.map_or(&[][..], |f| &f.previous_positions));
+    vectors.chain(frame_vectors).chain(followers).all(|v| v.is_finite())
+        && frames.twist.iter().chain(&frames.reference_twist).all(|t| t.is_finite())
 }
