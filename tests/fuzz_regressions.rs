@@ -265,7 +265,7 @@ fn groom_sizes_placements_and_followers_are_validated() {
     let fine = HairGroom { strand_count: 10, segments: MAX_GROOM_SEGMENTS, combing: None, ..default() };
     assert_eq!(fine.grow().unwrap().len(), 10);
 
-    let tfx = include_bytes!("../../shared/data/Ratboy_mohawk.tfx");
+    let tfx = include_bytes!("../assets/grooms/Ratboy_mohawk.tfx");
     let file = GroomFile::from_tfx(tfx).unwrap();
     for placement in [
         GroomPlacement { segments: usize::MAX, ..default() },
