@@ -203,3 +203,30 @@ fn a_broken_hair_shader_is_caught() {
     });
     assert!(result.is_err(), "a shader with an undefined name composed");
 }
+
+/// The GPU follower shader (`src/render/followers.wgsl`, no imports), parsed and validated by naga with
+/// WebGPU's capabilities.
+fn validate_followers_shader(source: &str) -> Result<naga::Module, String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|error| error.emit_to_string(source))?;
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+        .validate(&module)
+        .map_err(|error| error.emit_to_string(source))?;
+    Ok(module)
+}
+
+#[test]
+fn the_follower_shader_validates_with_its_two_compute_passes() {
+    let module = validate_followers_shader(include_str!("../src/render/followers.wgsl")).unwrap_or_else(|e| panic!("{e}"));
+    let mut entries = entry_points(&module);
+    entries.sort();
+    let compute = naga::ShaderStage::Compute;
+    assert_eq!(entries, [(compute, "draw".to_string()), (compute, "place".to_string())]);
+}
+
+#[test]
+fn a_broken_follower_shader_is_caught() {
+    let source = include_str!("../src/render/followers.wgsl");
+    let broken = source.replace("let m2 = cross(t, m1);", "let m2 = cross(t, m1, undefined_name);");
+    assert_ne!(broken, source, "the line to break is in the shader");
+    assert!(validate_followers_shader(&broken).is_err(), "a shader with an undefined name validated");
+}

@@ -21,6 +21,12 @@
 //! **Data.** A guide's followers live on the guide's entity, contiguous ([`FollowerNodes`]): one
 //! allocation per guide, written by the thread that steps the guide's neighbours, and read by the
 //! renderer and the gizmos (interpolated between steps like [`crate::simulation::StrandNodes`]).
+//!
+//! **Where they are placed** ([`FollowerPlacement`]). Without the renderer, every step on the CPU, as
+//! above. With the renderer (the `render` feature's `HairRenderPlugin`), on the GPU where they are
+//! drawn, by the same scheme from the guides' nodes and frames, and [`FollowerNodes`] stays unplaced
+//! (its [`FollowerNodes::positions`] empty) except for the heads or guides marked
+//! [`PlaceFollowersOnCpu`]: mark those whose followers the game reads.
 
 use bevy::math::{DVec3, Vec3};
 use bevy::platform::time::Instant;
@@ -52,7 +58,8 @@ pub struct HairFollowers {
 }
 
 /// Where a guide's followers are, world space, single precision: written every step after the guides'
-/// step (see the [module documentation](self)).
+/// step when they are placed on the CPU ([`FollowerPlacement`]; otherwise the positions stay empty and
+/// the rest offsets are what the GPU places them from; see the [module documentation](self)).
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct FollowerNodes {
@@ -72,12 +79,34 @@ pub struct FollowerNodes {
     colliders: Vec<GrownCollider>,
     /// Why the followers were rejected when last bound, if they were.
     rejection: Option<String>,
+    /// Which binding the offsets come from: unique per [`FollowerNodes::bind`] in the process, 0 unbound.
+    binding: u64,
 }
 
+/// The last binding made (see [`FollowerNodes::binding`]).
+static LAST_BINDING: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 impl FollowerNodes {
-    /// Number of followers.
+    /// Number of followers bound (placed or not).
     pub fn count(&self) -> usize {
-        self.positions.len().checked_div(self.nodes_per_follower).unwrap_or(0)
+        self.offsets.len().checked_div(self.nodes_per_follower).unwrap_or(0)
+    }
+
+    /// Whether the last step placed the followers on the CPU ([`FollowerNodes::positions`] holds them).
+    pub fn is_placed(&self) -> bool {
+        self.count() > 0 && self.positions.len() == self.offsets.len()
+    }
+
+    /// Which binding of the followers the rest offsets come from: a number unique in the process to each
+    /// time they are bound (0 when they are not), so that a renderer sees when to take them again.
+    pub fn binding(&self) -> u64 {
+        self.binding
+    }
+
+    /// Each follower node's rest offset from the guide's node of the same index, in the guide's material
+    /// frame there `(t, m1, m2)`, m: follower after follower, as bound (clumping included).
+    pub fn rest_offsets(&self) -> &[Vec3] {
+        &self.offsets
     }
 
     /// Nodes of each follower.
@@ -91,16 +120,19 @@ impl FollowerNodes {
         self.rejection.as_deref()
     }
 
-    /// Follower `index`'s nodes after the last step, m.
+    /// Follower `index`'s nodes after the last step, m (none when not placed on the CPU).
     pub fn follower(&self, index: usize) -> &[Vec3] {
-        &self.positions[index * self.nodes_per_follower..(index + 1) * self.nodes_per_follower]
+        let range = index * self.nodes_per_follower..(index + 1) * self.nodes_per_follower;
+        self.positions.get(range).unwrap_or(&[])
     }
 
-    /// Follower `index`'s nodes a fraction `alpha` (0 to 1) of the way from the step before to the last.
+    /// Follower `index`'s nodes a fraction `alpha` (0 to 1) of the way from the step before to the last
+    /// (none when not placed on the CPU).
     pub fn interpolated(&self, index: usize, alpha: f32) -> impl Iterator<Item = Vec3> + '_ {
+        let current = self.follower(index);
         let range = index * self.nodes_per_follower..(index + 1) * self.nodes_per_follower;
-        let previous = self.previous_positions.get(range.clone()).unwrap_or(&self.positions[range.clone()]);
-        previous.iter().zip(&self.positions[range]).map(move |(a, b)| a.lerp(*b, alpha))
+        let previous = self.previous_positions.get(range).unwrap_or(current);
+        previous.iter().zip(current).map(move |(a, b)| a.lerp(*b, alpha))
     }
 
     /// Binds `followers` to the guide `spec` at rest: each node's offset in the guide's rest material
@@ -133,6 +165,7 @@ impl FollowerNodes {
         }
         self.positions.clear();
         self.previous_positions.clear();
+        self.binding = LAST_BINDING.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         Ok(())
     }
 
@@ -258,25 +291,68 @@ fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
     }
 }
 
-/// Places every guide's followers from its new state, in parallel, kept out of its head's colliders by
-/// the collision margin of the last valid settings (invalid ones hold the guides, which are drawn carried
-/// with their heads, and their followers with them).
+/// Where follower hairs are placed each step. Without it (headless apps), [`FollowerPlacement::Cpu`];
+/// the renderer (`HairRenderPlugin`) inserts [`FollowerPlacement::Gpu`] unless the app has inserted one
+/// before adding the plugins. It can be changed at any time.
+#[derive(Resource, Reflect, Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub enum FollowerPlacement {
+    /// Every guide's followers are placed on the CPU, into [`FollowerNodes`], and drawn from there.
+    #[default]
+    Cpu,
+    /// The renderer places and draws the followers on the GPU; on the CPU only those of the heads and
+    /// guides marked [`PlaceFollowersOnCpu`] are placed (for a game that reads their [`FollowerNodes`]).
+    Gpu,
+}
+
+/// Marks a [`crate::simulation::HairHead`] (all its guides) or one guide strand whose followers are placed
+/// on the CPU into [`FollowerNodes`] every step even when the GPU draws them ([`FollowerPlacement::Gpu`]):
+/// what a game that reads follower positions asks for.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct PlaceFollowersOnCpu;
+
+/// What [`place_followers`] reads and writes of a guide.
+type GuideToPlace = (
+    &'static SimulatedStrand,
+    &'static StrandNodes,
+    &'static StrandFrames,
+    &'static mut FollowerNodes,
+    Option<&'static StrandOf>,
+    Has<PlaceFollowersOnCpu>,
+);
+
+/// Places the followers of every guide that is placed on the CPU ([`FollowerPlacement`]) from its new
+/// state, in parallel, kept out of its head's colliders by the collision margin of the last valid settings
+/// (invalid ones hold the guides, which are drawn carried with their heads, and their followers with
+/// them). The followers of the others are left unplaced.
 fn place_followers(
     checked: Res<CheckedSettings>,
+    placement: Option<Res<FollowerPlacement>>,
     mut statistics: ResMut<HairStatistics>,
-    mut guides: Query<(&SimulatedStrand, &StrandNodes, &StrandFrames, &mut FollowerNodes, Option<&StrandOf>)>,
+    mut guides: Query<GuideToPlace>,
+    marked_heads: Query<(), With<PlaceFollowersOnCpu>>,
     colliders: StrandColliders,
 ) {
     let started = Instant::now();
     let margin = checked.collision_margin;
-    guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of)| {
+    let all = placement.is_none_or(|placement| *placement == FollowerPlacement::Cpu);
+    guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of, marked)| {
         if followers.offsets.is_empty() {
+            return;
+        }
+        let asked = all || marked || strand_of.is_some_and(|head| marked_heads.contains(head.0));
+        if !asked {
+            if !followers.positions.is_empty() {
+                followers.positions.clear();
+                followers.previous_positions.clear();
+            }
             return;
         }
         let thickness = strand.contact_thickness(margin) as f32;
         followers.place(nodes, frames, colliders.of(strand_of), thickness);
     });
-    statistics.followers = guides.iter().map(|(.., followers, _)| followers.count()).sum();
+    statistics.followers = guides.iter().map(|(_, _, _, followers, ..)| followers.count()).sum();
     statistics.follower_seconds = started.elapsed().as_secs_f64();
 }
 
@@ -291,7 +367,11 @@ pub struct HairFollowersPlugin {
 
 impl Plugin for HairFollowersPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<HairFollowers>().register_type::<FollowerNodes>().add_systems(
+        app.register_type::<HairFollowers>()
+            .register_type::<FollowerNodes>()
+            .register_type::<FollowerPlacement>()
+            .register_type::<PlaceFollowersOnCpu>()
+            .add_systems(
             self.schedule,
             (bind_followers.in_set(HairPrepareSystems::Bind), place_followers.in_set(HairStepSystems::Follow)),
         );

@@ -11,16 +11,21 @@ use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{
     AsBindGroup, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError, VertexFormat,
 };
-use bevy::render::renderer::RenderQueue;
+use bevy::render::renderer::{RenderGraph, RenderQueue};
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
-use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
+use bevy::render::renderer::RenderGraphSystems;
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::{ShaderDefVal, ShaderRef};
 use bevy::tasks::ComputeTaskPool;
 
+use super::compute::{self, GpuHeads};
+use super::feed::GuideUpload;
 use super::{GuideLayout, HairAppearance, HairStrips};
-use crate::followers::FollowerNodes;
+use crate::followers::{FollowerNodes, FollowerPlacement};
 use crate::schedule::HairDrawSystems;
-use crate::simulation::{HairHead, HeadStrands, SimulatedStrand, StrandNodes};
+use crate::simulation::{
+    CheckedSettings, HairHead, HeadStrands, SimulatedStrand, StrandColliders, StrandFrames, StrandNodes, StrandOf,
+};
 use crate::volume::RepresentedHairs;
 
 /// The shader: vertex expansion, hair shading, and the shadow (prepass) vertex stage.
@@ -44,13 +49,24 @@ impl Plugin for HairRenderPlugin {
             return;
         }
         embedded_asset!(app, "hair.wgsl");
+        embedded_asset!(app, "followers.wgsl");
+        // The followers are placed where they are drawn unless the app asked for the CPU.
+        if !app.world().contains_resource::<FollowerPlacement>() {
+            app.insert_resource(FollowerPlacement::Gpu);
+        }
         app.add_plugins(MaterialPlugin::<HairMaterial>::default())
             .add_systems(PostUpdate, (spawn_hair_meshes, prepare_hair_meshes).chain().in_set(HairDrawSystems));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render_app
                 .init_resource::<HairUploads>()
-                .add_systems(ExtractSchedule, extract_hair_positions)
-                .add_systems(Render, upload_hair_positions.in_set(RenderSystems::PrepareResources));
+                .init_resource::<GpuHeads>()
+                .add_systems(RenderStartup, compute::init_follower_pipelines)
+                .add_systems(ExtractSchedule, (extract_hair_positions, compute::extract_gpu_followers))
+                .add_systems(
+                    Render,
+                    (upload_hair_positions, compute::prepare_gpu_followers).in_set(RenderSystems::PrepareResources),
+                )
+                .add_systems(RenderGraph, compute::dispatch_gpu_followers.in_set(RenderGraphSystems::Begin));
         }
     }
 }
@@ -147,17 +163,59 @@ pub struct HairMesh {
     strips: HairStrips,
     /// Whether the positions were written this frame (and not yet handed to the GPU).
     fresh: bool,
+    /// What the GPU places the followers from ([`FollowerPlacement::Gpu`]).
+    pub(super) upload: GuideUpload,
+    /// Whether `upload` follows the strips' layout.
+    upload_laid_out: bool,
+    /// What this frame sends to the GPU's follower placement, if anything (not yet extracted).
+    gpu_frame: Option<GpuFrame>,
+    /// The fixed clock at the last step packed into `upload`, s.
+    packed_at: Option<f64>,
+    /// Bounds of the last two steps' drawn hair, world space.
+    step_bounds: [Option<(Vec3, Vec3)>; 2],
     /// The appearance drawn (the last valid one asked for).
     appearance: Option<HairAppearance>,
     /// The appearance last asked for, valid or not.
     requested: Option<HairAppearance>,
-    buffer: Handle<ShaderBuffer>,
+    pub(super) buffer: Handle<ShaderBuffer>,
+}
+
+/// What one frame sends to the GPU's follower placement.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct GpuFrame {
+    /// A new layout ([`GuideUpload::drawn_nodes`], [`GuideUpload::guide_of_node`]).
+    pub(super) layout: bool,
+    /// A new step (the guides' nodes, frames, words and colliders).
+    pub(super) step: bool,
+    /// The fraction of the way from the step before to the last to draw.
+    pub(super) alpha: f32,
 }
 
 impl HairMesh {
-    /// The head's hair as laid out for drawing, with this frame's node positions.
+    /// The head's hair as laid out for drawing, with this frame's node positions when the CPU writes them
+    /// ([`FollowerPlacement::Cpu`]; with the GPU's placement the GPU writes them and these stay as they
+    /// were).
     pub fn strips(&self) -> &HairStrips {
         &self.strips
+    }
+
+    /// What the GPU places the followers from, as last sent ([`FollowerPlacement::Gpu`]): the step's data
+    /// stays here until the render world takes it.
+    pub fn upload(&self) -> &GuideUpload {
+        &self.upload
+    }
+
+    /// The storage buffer the hair material reads its node positions from (`x y z` per node, world
+    /// space, m, in the order of [`HairMesh::strips`]): written by the GPU's follower placement
+    /// ([`FollowerPlacement::Gpu`]) or uploaded from [`HairStrips`]. Read it back with Bevy's
+    /// `Readback::buffer` to see what is drawn.
+    pub fn positions_buffer(&self) -> &Handle<ShaderBuffer> {
+        &self.buffer
+    }
+
+    /// This frame's data for the GPU's placement, once.
+    pub(super) fn take_gpu_frame(&mut self) -> Option<GpuFrame> {
+        self.gpu_frame.take()
     }
 }
 
@@ -203,14 +261,22 @@ type HairMeshParts = (
 );
 
 /// What [`prepare_hair_meshes`] reads of a strand.
-type DrawnStrand =
-    (&'static SimulatedStrand, &'static StrandNodes, Option<&'static FollowerNodes>, Option<&'static RepresentedHairs>);
+type DrawnStrand = (
+    &'static SimulatedStrand,
+    &'static StrandNodes,
+    Option<&'static FollowerNodes>,
+    Option<&'static RepresentedHairs>,
+    &'static StrandFrames,
+);
 
 /// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
 /// frame's node positions; keeps the bounds and the material up to date.
 #[allow(clippy::too_many_arguments)]
 fn prepare_hair_meshes(
     fixed_time: Res<Time<Fixed>>,
+    placement: Option<Res<FollowerPlacement>>,
+    checked: Res<CheckedSettings>,
+    colliders: StrandColliders,
     mut hair_meshes: Query<HairMeshParts>,
     heads: Query<(&HeadStrands, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
@@ -220,6 +286,7 @@ fn prepare_hair_meshes(
 ) {
     let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
     let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num());
+    let on_gpu = placement.is_some_and(|placement| *placement == FollowerPlacement::Gpu);
     for (mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility) in &mut hair_meshes {
         let Ok((head_strands, head_transform, appearance)) = heads.get(child_of.parent()) else { continue };
         if !visibility.get() {
@@ -240,7 +307,7 @@ fn prepare_hair_meshes(
         }
         let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
         let layout = head_strands.strands().iter().filter_map(|&entity| {
-            let (strand, nodes, followers, represented) = strands.get(entity).ok()?;
+            let (strand, nodes, followers, represented, _) = strands.get(entity).ok()?;
             let material = strand.rod().material();
             let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
             let mut guide = GuideLayout::new(entity, nodes, followers, radius);
@@ -276,14 +343,73 @@ fn prepare_hair_meshes(
         if appearance_changed {
             hair_mesh.appearance = Some(appearance);
         }
-        let bounds = hair_mesh
-            .strips
-            .fill(alpha, threads, |entity| strands.get(entity).ok().map(|(_, nodes, followers, _)| (nodes, followers)));
-        hair_mesh.fresh = bounds.is_some();
+        let bounds = if on_gpu {
+            hair_mesh.fresh = false;
+            let head = StrandOf(child_of.parent());
+            let context = GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin };
+            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), &strands)
+        } else {
+            hair_mesh.upload_laid_out = false;
+            let lookup = |entity| strands.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
+            let bounds = hair_mesh.strips.fill(alpha, threads, lookup);
+            hair_mesh.fresh = bounds.is_some();
+            bounds
+        };
         if let Some((low, high)) = bounds {
             // The ribbons reach a hair's radius (or a pixel) beyond the nodes: a centimetre covers both.
             *aabb = local_bounds(head_transform, low - Vec3::splat(0.01), high + Vec3::splat(0.01));
         }
+    }
+}
+
+/// What [`send_to_gpu`] needs of the frame.
+struct GpuContext<'a> {
+    fixed_time: &'a Time<Fixed>,
+    alpha: f32,
+    threads: usize,
+    /// The collision margin of the last valid settings, m.
+    margin: f64,
+}
+
+/// Prepares what the GPU's follower placement needs this frame (see [`super::feed`]): the layout when it
+/// changed or a guide's followers were bound again, the guides' data when a step came since the last
+/// frame, the interpolation fraction always. Returns the bounds of the last two steps' hair.
+fn send_to_gpu(
+    hair_mesh: &mut HairMesh,
+    relaid: bool,
+    context: GpuContext,
+    colliders: &[crate::rod::MovingCollider],
+    strands: &Query<DrawnStrand>,
+) -> Option<(Vec3, Vec3)> {
+    let HairMesh { strips, upload, .. } = hair_mesh;
+    let followers_of = |layout: &GuideLayout| strands.get(layout.entity).ok().and_then(|(_, _, followers, ..)| followers);
+    let layout = relaid || !hair_mesh.upload_laid_out || upload.rebound(strips.guides().iter().map(followers_of));
+    if layout {
+        upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
+        hair_mesh.upload_laid_out = true;
+        hair_mesh.packed_at = None;
+    }
+    let now = context.fixed_time.elapsed_secs_f64();
+    let step = context.fixed_time.timestep().as_secs_f64();
+    let steps = hair_mesh.packed_at.map(|packed| ((now - packed) / step).round());
+    let stepped = steps.is_none_or(|steps| steps >= 1.0);
+    if stepped {
+        let margin = context.margin;
+        let lookup = |entity| {
+            let (strand, nodes, followers, _, frames) = strands.get(entity).ok()?;
+            Some((nodes, frames, followers, strand.contact_thickness(margin) as f32))
+        };
+        // After more than one step (or none packed yet) there is no step before to interpolate from.
+        let snap_all = steps.is_none_or(|steps| steps > 1.0);
+        let bounds = upload.pack(context.threads, colliders, snap_all, lookup);
+        hair_mesh.step_bounds = [hair_mesh.step_bounds[1], bounds];
+        hair_mesh.packed_at = Some(now);
+    }
+    hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha: context.alpha });
+    let [before, last] = hair_mesh.step_bounds;
+    match (before, last) {
+        (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
+        (one, other) => one.or(other),
     }
 }
 

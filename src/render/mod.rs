@@ -38,6 +38,9 @@ use crate::followers::FollowerNodes;
 use crate::simulation::StrandNodes;
 
 #[cfg(feature = "render")]
+mod compute;
+pub mod feed;
+#[cfg(feature = "render")]
 mod gpu;
 #[cfg(feature = "render")]
 pub use gpu::{HairMaterial, HairMesh, HairRenderPlugin, HairShading};
