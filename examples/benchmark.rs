@@ -121,6 +121,7 @@ fn main() {
     }
     if wanted("render") {
         render_preparation(threads, if quick { 50 } else { 400 });
+        followers_on_the_gpu(threads, if quick { 30 } else { 200 });
     }
     if wanted("crowd") {
         crowd(threads, steps);
@@ -238,6 +239,103 @@ fn render_preparation(threads: usize, frames: usize) {
             median(total)
         );
     }
+}
+
+/// The example's scene (2 000 guides × 24 edges, 10 followers each, moving), one frame per step: the CPU's
+/// work per frame for followers and drawing when the CPU places the followers and writes every drawn node
+/// ([`FollowerPlacement::Cpu`]: the placement in the step, `HairStrips::fill`), against what it does when
+/// the GPU places and interpolates them ([`FollowerPlacement::Gpu`]: the step's follower loop, which
+/// skips them, and `GuideUpload::pack` of the guides' nodes and frames), alternating step by step in one
+/// run; and the bytes each uploads per step. Median ms of `steps` steps each.
+fn followers_on_the_gpu(threads: usize, steps: usize) {
+    use bevy::prelude::{Entity, Transform};
+    use bevy_hair_sim::followers::FollowerPlacement;
+    use bevy_hair_sim::render::feed::GuideUpload;
+    use bevy_hair_sim::render::{GuideLayout, HairStrips};
+    let (guides, followers, edges) = (2000, 10, 24);
+    let mut app = Scene::app(Some(threads));
+    let groom =
+        HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    let mut step = 0;
+    let mut advance = |app: &mut bevy::prelude::App, placement: FollowerPlacement| {
+        step += 1;
+        let (translation, rotation) = Scene::head_pose(step);
+        let mut transform = app.world_mut().get_mut::<Transform>(head).expect("the head exists");
+        (transform.translation, transform.rotation) = (translation, rotation);
+        app.insert_resource(placement);
+        app.update();
+        app.world().resource::<HairStatistics>().follower_seconds
+    };
+    for _ in 0..WARM_UP_STEPS {
+        advance(&mut app, FollowerPlacement::Cpu);
+    }
+    let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
+    // The default material's thickness and margin, m: what the GPU pushes followers out by.
+    let thickness = 1e-4_f32;
+    let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
+    let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+    let (mut cpu_bytes, mut gpu_bytes) = (0, 0);
+    for frame in 0..2 * steps {
+        let on_gpu = frame % 2 == 1;
+        let placement = if on_gpu { FollowerPlacement::Gpu } else { FollowerPlacement::Cpu };
+        let placed = advance(&mut app, placement);
+        let world = app.world();
+        let layout = strands.iter().filter_map(|&entity| {
+            let nodes = world.get::<StrandNodes>(entity)?;
+            Some(GuideLayout::new(entity, nodes, world.get::<FollowerNodes>(entity), 4e-5))
+        });
+        strips.set_layout(layout);
+        let alpha = (frame % 7) as f32 / 7.0;
+        let started = Instant::now();
+        if on_gpu {
+            if upload.guide_node_count() == 0 {
+                let guides = strips.guides().iter().map(|guide| (guide.entity, guide.nodes, world.get::<FollowerNodes>(guide.entity)));
+                upload.set_layout(guides);
+            }
+            let lookup = |entity| {
+                Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, None, thickness))
+            };
+            assert!(upload.pack(threads, &[], false, lookup).is_some());
+            gpu_bytes = upload.step_bytes();
+        } else {
+            let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+            assert!(strips.fill(alpha, threads, lookup).is_some());
+            cpu_bytes = 4 * strips.positions().len();
+        }
+        let drawing = started.elapsed().as_secs_f64();
+        let row = 2 * usize::from(on_gpu);
+        samples[row].push(placed);
+        samples[row + 1].push(drawing);
+    }
+    let median = |values: &mut Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        1e3 * values[values.len() / 2]
+    };
+    let [cpu_placed, cpu_drawn, gpu_placed, gpu_drawn] = &mut samples;
+    let (cpu_placed, cpu_drawn, gpu_placed, gpu_drawn) =
+        (median(cpu_placed), median(cpu_drawn), median(gpu_placed), median(gpu_drawn));
+    println!();
+    println!(
+        "The example's scene, {guides} guides × {edges} edges with {followers} followers each, {threads} threads, one frame per step (interleaved):"
+    );
+    println!(
+        "| followers placed | followers on the CPU, ms | draw preparation, ms | CPU total, ms | bytes uploaded per step |"
+    );
+    println!("|---|---:|---:|---:|---:|");
+    println!(
+        "| on the CPU (`FollowerPlacement::Cpu`) | {cpu_placed:.2} | {cpu_drawn:.2} | {:.2} | {cpu_bytes} |",
+        cpu_placed + cpu_drawn
+    );
+    println!(
+        "| on the GPU (`FollowerPlacement::Gpu`) | {gpu_placed:.3} | {gpu_drawn:.2} | {:.2} | {gpu_bytes} |",
+        gpu_placed + gpu_drawn
+    );
+    println!(
+        "| ratio, CPU / GPU | | | {:.1} | {:.1} |",
+        (cpu_placed + cpu_drawn) / (gpu_placed + gpu_drawn),
+        cpu_bytes as f64 / gpu_bytes as f64
+    );
 }
 
 /// Hair–hair interaction ([`HairVolume`]) on the scene's 2 000 × 32 strands standing for 100 000 hairs

@@ -654,13 +654,16 @@ fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<Animatio
 }
 
 /// L cycles how hair is drawn: rendered, gizmo lines, both. The start comes from `--draw`; in between, the
-/// panel's switches are left alone.
+/// panel's switches are left alone. The lines draw the followers from the CPU's placement, so the heads ask
+/// for it while lines are drawn (the renderer places them on the GPU).
 fn switch_drawing(
+    mut commands: Commands,
     keys: Res<ButtonInput<KeyCode>>,
     options: Res<Options>,
     mut drawing: Local<Option<Drawing>>,
     mut gizmos: ResMut<GizmoConfigStore>,
     mut hair_meshes: Query<(&mut Visibility, Ref<HairMesh>)>,
+    heads: Query<Entity, With<HairHead>>,
 ) {
     let new_meshes = hair_meshes.iter().any(|(_, mesh)| mesh.is_added());
     let current = drawing.unwrap_or(options.drawing);
@@ -675,6 +678,13 @@ fn switch_drawing(
     }
     *drawing = Some(next);
     gizmos.config_mut::<HairGizmos>().1.draw_strands = next != Drawing::Rendered;
+    for head in &heads {
+        if next == Drawing::Rendered {
+            commands.entity(head).remove::<PlaceFollowersOnCpu>();
+        } else {
+            commands.entity(head).insert(PlaceFollowersOnCpu);
+        }
+    }
     let shown = if next == Drawing::Lines { Visibility::Hidden } else { Visibility::Inherited };
     for (mut visibility, _) in &mut hair_meshes {
         visibility.set_if_neq(shown);

@@ -137,12 +137,17 @@
 //! # Feature flags
 //! | feature | what it adds | default |
 //! |---|---|---|
-//! | `render` | the hair renderer, `HairRenderPlugin` (Bevy's `bevy_render`, `bevy_core_pipeline`, `bevy_pbr`; no window, platform or image format) | off |
+//! | `render` | the hair renderer, `HairRenderPlugin`, with the followers placed and drawn on the GPU (Bevy's `bevy_render`, `bevy_core_pipeline`, `bevy_pbr`; no window, platform or image format) | **on** |
 //! | `egui` | `render` and `HairPanelPlugin`, the live panel (bevy_egui) | off |
 //! | `examples` | `render` and what the examples need besides: a window (winit, X11), gizmo lines drawn, tonemapping tables, PNG screenshots | off |
 //!
-//! The library and its tests need none of them: the simulation uses Bevy's ECS, math, assets and gizmo API
-//! only, and builds no renderer.
+//! The simulation needs none of them: with `default-features = false` it uses Bevy's ECS, math, assets
+//! and gizmo API only, and builds no renderer (a server, a tool).
+//!
+//! **Where followers are placed** ([`FollowerPlacement`](followers::FollowerPlacement)): with the renderer,
+//! on the GPU where they are drawn (the CPU sends the guides' nodes and frames once per step; see
+//! [`render::feed`]), and [`FollowerNodes`](followers::FollowerNodes) stays empty unless a head or guide is
+//! marked [`PlaceFollowersOnCpu`](followers::PlaceFollowersOnCpu); without it, on the CPU.
 //!
 //! # Architecture
 //! Two layers. The **mechanics core**, [`rod`], is free of Bevy's ECS: plain structs on glam's `f64`
@@ -367,7 +372,9 @@ pub mod prelude {
     pub use crate::debug::HairPanelPlugin;
     pub use crate::debug::{HairGizmoPlugin, HairGizmos};
     pub use crate::detail::{HairDetail, HairDetailLevel, HairDetailPlugin, HairDetailSettings};
-    pub use crate::followers::{FollowerNodes, HairFollowers, HairFollowersPlugin};
+    pub use crate::followers::{
+        FollowerNodes, FollowerPlacement, HairFollowers, HairFollowersPlugin, PlaceFollowersOnCpu,
+    };
     #[allow(deprecated)]
     pub use crate::groom::GroomFilePlugin;
     pub use crate::groom::{

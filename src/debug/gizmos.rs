@@ -111,7 +111,9 @@ fn renders_hair(app: &App) -> bool {
 }
 
 /// Draws each strand at the pose a fraction of the way between its last two steps that the fixed clock has
-/// run past the last step, so that hair moves smoothly when frames come faster than steps.
+/// run past the last step, so that hair moves smoothly when frames come faster than steps. Followers are
+/// drawn where the CPU placed them: under the renderer, which places them on the GPU, only those of heads
+/// marked [`PlaceFollowersOnCpu`](crate::followers::PlaceFollowersOnCpu).
 pub fn draw_strands(
     mut gizmos: Gizmos<HairGizmos>,
     fixed_time: Res<Time<Fixed>>,

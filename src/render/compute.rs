@@ -163,6 +163,10 @@ pub(super) fn extract_gpu_followers(mut main_world: ResMut<MainWorld>, mut gpu: 
         head.seen = false;
     }
     for (entity, mut hair_mesh) in query.iter_mut(&mut main_world) {
+        // A head whose buffers the GPU keeps (hidden this frame, say) stays.
+        if let Some(head) = gpu.heads.get_mut(&entity) {
+            head.seen = hair_mesh.sends_to_gpu();
+        }
         let Some(sent) = hair_mesh.take_gpu_frame() else { continue };
         let head = gpu.heads.entry(entity).or_default();
         head.seen = true;

@@ -213,6 +213,11 @@ impl HairMesh {
         &self.buffer
     }
 
+    /// Whether the GPU places the followers and draws the nodes (it has their layout).
+    pub(super) fn sends_to_gpu(&self) -> bool {
+        self.upload_laid_out
+    }
+
     /// This frame's data for the GPU's placement, once.
     pub(super) fn take_gpu_frame(&mut self) -> Option<GpuFrame> {
         self.gpu_frame.take()
