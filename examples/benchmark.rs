@@ -290,12 +290,14 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let started = Instant::now();
         if on_gpu {
             if upload.guide_node_count() == 0 {
-                let guides = strips.guides().iter().map(|guide| (guide.entity, guide.nodes, world.get::<FollowerNodes>(guide.entity)));
+                let guides = strips
+                    .guides()
+                    .iter()
+                    .map(|guide| (guide.entity, guide.nodes, world.get::<FollowerNodes>(guide.entity)));
                 upload.set_layout(guides);
             }
-            let lookup = |entity| {
-                Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, None, thickness))
-            };
+            let lookup =
+                |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, None, thickness));
             assert!(upload.pack(threads, &[], false, lookup).is_some());
             gpu_bytes = upload.step_bytes();
         } else {

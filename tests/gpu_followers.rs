@@ -13,8 +13,8 @@ use std::time::Duration;
 use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
@@ -67,14 +67,15 @@ struct ReadBack(Arc<Mutex<Option<Vec<f32>>>>);
 fn rendering_app() -> App {
     let mut app = App::new();
     app.add_plugins((
-        DefaultPlugins.set(WindowPlugin {
-            primary_window: None,
-            exit_condition: ExitCondition::DontExit,
-            close_when_requested: false,
-            ..default()
-        })
-        // The render world stays in the app (not on a thread of its own), to be seen here.
-        .disable::<PipelinedRenderingPlugin>(),
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                close_when_requested: false,
+                ..default()
+            })
+            // The render world stays in the app (not on a thread of its own), to be seen here.
+            .disable::<PipelinedRenderingPlugin>(),
         HairPlugin::default(),
     ))
     .insert_resource(Time::<Fixed>::from_seconds(DT))
@@ -92,7 +93,8 @@ fn rendering_app() -> App {
 /// The pose of the shaking, turning head at `step`.
 fn head_pose(step: usize) -> Transform {
     let t = step as f32 / 60.0;
-    Transform::from_xyz(0.04 * (9.0 * t).sin(), 1.6, 0.02 * (5.0 * t).cos()).with_rotation(Quat::from_rotation_y(1.5 * t))
+    Transform::from_xyz(0.04 * (9.0 * t).sin(), 1.6, 0.02 * (5.0 * t).cos())
+        .with_rotation(Quat::from_rotation_y(1.5 * t))
 }
 
 #[test]
@@ -150,8 +152,9 @@ fn followers_placed_on_the_gpu_match_the_cpu_placement() {
             let at = |values: &[f32]| Vec3::from_slice(&values[3 * node..3 * node + 3]);
             at(&drawn).distance(at(expected.positions()))
         };
-        let (largest, node) =
-            (0..expected.node_count()).map(|node| (difference(node), node)).fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
+        let (largest, node) = (0..expected.node_count())
+            .map(|node| (difference(node), node))
+            .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
         worst = (largest, node);
         if largest <= 1e-5 {
             break;

@@ -216,7 +216,8 @@ fn validate_followers_shader(source: &str) -> Result<naga::Module, String> {
 
 #[test]
 fn the_follower_shader_validates_with_its_two_compute_passes() {
-    let module = validate_followers_shader(include_str!("../src/render/followers.wgsl")).unwrap_or_else(|e| panic!("{e}"));
+    let module =
+        validate_followers_shader(include_str!("../src/render/followers.wgsl")).unwrap_or_else(|e| panic!("{e}"));
     let mut entries = entry_points(&module);
     entries.sort();
     let compute = naga::ShaderStage::Compute;

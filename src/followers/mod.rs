@@ -372,8 +372,8 @@ impl Plugin for HairFollowersPlugin {
             .register_type::<FollowerPlacement>()
             .register_type::<PlaceFollowersOnCpu>()
             .add_systems(
-            self.schedule,
-            (bind_followers.in_set(HairPrepareSystems::Bind), place_followers.in_set(HairStepSystems::Follow)),
-        );
+                self.schedule,
+                (bind_followers.in_set(HairPrepareSystems::Bind), place_followers.in_set(HairStepSystems::Follow)),
+            );
     }
 }

@@ -331,17 +331,30 @@ impl HeadBuffers {
         let with_data = |label: &'static str, contents: &[u8]| {
             // A binding may not be empty.
             let contents = if contents.is_empty() { &[0; 16][..] } else { contents };
-            device.create_buffer_with_data(&BufferInitDescriptor { label: Some(label), contents, usage: BufferUsages::STORAGE })
+            device.create_buffer_with_data(&BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: BufferUsages::STORAGE,
+            })
         };
         let empty = |label: &'static str, size: u64, usage: BufferUsages| {
-            device.create_buffer(&BufferDescriptor { label: Some(label), size: size.max(16), usage, mapped_at_creation: false })
+            device.create_buffer(&BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
         };
         let words = step_words(3 * guide_nodes, guide_frames(guide_nodes as u32), guides);
         let placed_bytes = 12 * drawn_nodes.len() as u64;
         Self {
             drawn_nodes: with_data("hair drawn node offsets", bytemuck::cast_slice(drawn_nodes)),
             guide_of_node: with_data("hair guide of each node", bytemuck::cast_slice(guide_of_node)),
-            guide_data: empty("hair guide data", 4 * u64::from(words.total), BufferUsages::STORAGE | BufferUsages::COPY_DST),
+            guide_data: empty(
+                "hair guide data",
+                4 * u64::from(words.total),
+                BufferUsages::STORAGE | BufferUsages::COPY_DST,
+            ),
             colliders: colliders_buffer(device, 1),
             placed: [0, 1].map(|_| empty("hair follower placement", placed_bytes, BufferUsages::STORAGE)),
             params: empty("hair follower parameters", PARAMS_BYTES, BufferUsages::UNIFORM | BufferUsages::COPY_DST),

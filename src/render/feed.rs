@@ -240,7 +240,8 @@ impl GuideUpload {
                     continue;
                 }
                 // As the CPU placement and drawing see it: nothing to interpolate from.
-                let snap = snap_all || nodes.previous_positions == nodes.positions
+                let snap = snap_all
+                    || nodes.previous_positions == nodes.positions
                     || nodes.previous_positions.len() != nodes.positions.len();
                 let (mut low, mut high) = *bounds;
                 for (out, node) in positions[3 * start..3 * end].chunks_exact_mut(3).zip(&nodes.positions) {
@@ -268,18 +269,62 @@ fn node_word(guide_node: usize, node: usize) -> u32 {
 
 /// Writes the frame code of each node of one guide (the frame of the edge arriving at the node; the root
 /// edge's at the root); says whether the frames were usable (one per edge, no edge of zero length).
+///
+/// The material director `m1 = cos θ u + sin θ (t × u)` is coded without being made: in the basis
+/// `(b1, b2)` of `t`, `u = (c_u, s_u)` and `t × u = (−s_u, c_u)`, so `m1 = (c_u cos θ − s_u sin θ,
+/// s_u cos θ + c_u sin θ)`; the basis is left unnormalised (the diamond angle is a ratio), and `t` is the
+/// frame's (the GPU takes the edge's, the same to f32 rounding).
 fn pack_frames(nodes: &[Vec3], frames: &StrandFrames, out: &mut [u8]) -> bool {
     let edges = nodes.len().saturating_sub(1);
-    if edges == 0 || frames.tangents.len() != edges {
+    let (tangents, directors, twists) = (&frames.tangents, &frames.reference_directors, &frames.twist);
+    if edges == 0 || tangents.len() != edges || directors.len() != edges || twists.len() != edges {
         return false;
     }
     for (node, code) in out.chunks_exact_mut(FRAME_CODE_BYTES).enumerate() {
         let edge = node.saturating_sub(1);
-        let Some(frame) = frames.material_frame(edge) else { return false };
-        let Some(tangent) = (nodes[edge + 1] - nodes[edge]).try_normalize() else { return false };
-        code.copy_from_slice(&encode_frame(tangent, frame.m1).to_le_bytes()[..FRAME_CODE_BYTES]);
+        // The GPU divides by the edge's length.
+        if (nodes[edge + 1] - nodes[edge]).length_squared() < f32::MIN_POSITIVE {
+            return false;
+        }
+        let (tangent, reference) = (tangents[edge], directors[edge]);
+        let from_y = tangent.x.abs() > tangent.y.abs();
+        let b1 = tangent.cross(if from_y { Vec3::Y } else { Vec3::X });
+        let b2 = tangent.cross(b1);
+        let (c, s) = (reference.dot(b1), reference.dot(b2));
+        let (sin, cos) = sin_cos(twists[edge]);
+        let code_value = diamond_steps(c * cos - s * sin, s * cos + c * sin) | if from_y { FROM_Y } else { 0 };
+        code.copy_from_slice(&code_value.to_le_bytes()[..FRAME_CODE_BYTES]);
     }
     true
+}
+
+/// `(sin x, cos x)` to about 1e-9 for `|x|` up to 1e6 rad, without a call into libm: Cody–Waite reduction
+/// to `|r| ≤ π/4` in f64 and Taylor series to the 10th order there.
+fn sin_cos(angle: f32) -> (f32, f32) {
+    // Adding and taking away 1.5 · 2⁵² rounds to the nearest integer in f64 arithmetic.
+    const ROUNDING: f64 = 6_755_399_441_055_744.0;
+    let x = f64::from(angle);
+    let quadrant = (x * std::f64::consts::FRAC_2_PI + ROUNDING) - ROUNDING;
+    let r = x - quadrant * std::f64::consts::FRAC_PI_2;
+    let r2 = r * r;
+    let sin = r * (1.0 - r2 / 6.0 * (1.0 - r2 / 20.0 * (1.0 - r2 / 42.0 * (1.0 - r2 / 72.0))));
+    let cos = 1.0 - r2 / 2.0 * (1.0 - r2 / 12.0 * (1.0 - r2 / 30.0 * (1.0 - r2 / 56.0 * (1.0 - r2 / 90.0))));
+    let (sin, cos) = (sin as f32, cos as f32);
+    match (quadrant as i64).rem_euclid(4) {
+        0 => (sin, cos),
+        1 => (cos, -sin),
+        2 => (-sin, -cos),
+        _ => (-cos, sin),
+    }
+}
+
+/// The diamond angle of `(c, s)` (0 to 4 round the circle, `s / (|c| + |s|)` by quadrant) in steps of
+/// 1/[`ANGLE_STEPS`], rounded, 4 wrapping to 0; a zero vector has angle 0.
+fn diamond_steps(c: f32, s: f32) -> u32 {
+    let ratio = c / (c.abs() + s.abs());
+    let diamond = if s >= 0.0 { 1.0 - ratio } else { 3.0 + ratio };
+    let diamond = if diamond.is_finite() { diamond } else { 0.0 };
+    (diamond * ANGLE_STEPS + 0.5) as u32 & (FROM_Y - 1)
 }
 
 /// The basis `(b1, b2)` across `tangent` built from the X axis, or from the Y axis when `from_y`.
@@ -293,18 +338,7 @@ pub fn frame_basis(tangent: Vec3, from_y: bool) -> (Vec3, Vec3) {
 pub fn encode_frame(tangent: Vec3, m1: Vec3) -> u32 {
     let from_y = tangent.x.abs() > tangent.y.abs();
     let (b1, b2) = frame_basis(tangent, from_y);
-    let (c, s) = (m1.dot(b1), m1.dot(b2));
-    let diamond = if s >= 0.0 {
-        if c >= 0.0 { s / (c + s) } else { 1.0 - c / (s - c) }
-    } else if c < 0.0 {
-        2.0 + s / (c + s)
-    } else {
-        3.0 + c / (c - s)
-    };
-    // A zero vector (c = s = 0) has no angle: any code will do.
-    let diamond = if diamond.is_finite() { diamond } else { 0.0 };
-    let steps = (diamond * ANGLE_STEPS).round() as u32 % (4 * ANGLE_STEPS as u32);
-    steps | if from_y { FROM_Y } else { 0 }
+    diamond_steps(m1.dot(b1), m1.dot(b2)) | if from_y { FROM_Y } else { 0 }
 }
 
 /// The director `m1` a code stands for about the unit `tangent`, as `followers.wgsl` decodes it.
@@ -321,4 +355,48 @@ pub fn decode_frame(tangent: Vec3, code: u32) -> Vec3 {
         (d - 3.0, d - 4.0)
     };
     (c * b1 + s * b2).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sin_cos_matches_the_standard_library() {
+        let mut worst = 0.0_f64;
+        for index in -200_000..=200_000 {
+            let angle = index as f32 * 1.7e-3 + (index % 7) as f32 * 1e3;
+            let (sin, cos) = sin_cos(angle);
+            let (expected_sin, expected_cos) = f64::from(angle).sin_cos();
+            worst = worst.max((f64::from(sin) - expected_sin).abs()).max((f64::from(cos) - expected_cos).abs());
+        }
+        // f32 rounding of the result (6e-8) and the series' 2e-9.
+        assert!(worst < 1e-7, "{worst}");
+    }
+
+    #[test]
+    fn a_director_coded_from_the_reference_and_twist_is_the_director_coded_directly() {
+        let tangent = Vec3::new(0.3, -0.5, 0.81).normalize();
+        let reference = tangent.any_orthonormal_vector();
+        for step in 0..1000 {
+            let twist = step as f32 * 0.0137 - 6.0;
+            let frames = StrandFrames {
+                tangents: vec![tangent],
+                reference_directors: vec![reference],
+                twist: vec![twist],
+                reference_twist: vec![0.0; 2],
+            };
+            let nodes = [Vec3::ZERO, tangent * 0.01];
+            let mut codes = [0_u8; 6];
+            assert!(pack_frames(&nodes, &frames, &mut codes));
+            let packed = u32::from_le_bytes([codes[3], codes[4], codes[5], 0]);
+            let direct = encode_frame(tangent, frames.material_frame(0).unwrap().m1);
+            // The same angle, to a step of the code (the two round differently in f32).
+            let difference = (packed & (FROM_Y - 1)).abs_diff(direct & (FROM_Y - 1));
+            assert!(
+                packed & FROM_Y == direct & FROM_Y && (difference <= 2 || difference >= (FROM_Y - 3)),
+                "{packed} {direct}"
+            );
+        }
+    }
 }

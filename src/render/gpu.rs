@@ -11,9 +11,9 @@ use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{
     AsBindGroup, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError, VertexFormat,
 };
+use bevy::render::renderer::RenderGraphSystems;
 use bevy::render::renderer::{RenderGraph, RenderQueue};
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
-use bevy::render::renderer::RenderGraphSystems;
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::{ShaderDefVal, ShaderRef};
 use bevy::tasks::ComputeTaskPool;
@@ -387,7 +387,8 @@ fn send_to_gpu(
     strands: &Query<DrawnStrand>,
 ) -> Option<(Vec3, Vec3)> {
     let HairMesh { strips, upload, .. } = hair_mesh;
-    let followers_of = |layout: &GuideLayout| strands.get(layout.entity).ok().and_then(|(_, _, followers, ..)| followers);
+    let followers_of =
+        |layout: &GuideLayout| strands.get(layout.entity).ok().and_then(|(_, _, followers, ..)| followers);
     let layout = relaid || !hair_mesh.upload_laid_out || upload.rebound(strips.guides().iter().map(followers_of));
     if layout {
         upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
