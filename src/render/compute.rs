@@ -126,6 +126,9 @@ struct HeadBuffers {
     colliders_capacity: usize,
 }
 
+/// `[parity] = (place, draw)`: the bind groups of the two passes for each way round of the placements.
+type ParityBindGroups = [(BindGroup, BindGroup); 2];
+
 /// One head in the render world.
 #[derive(Default)]
 struct GpuHead {
@@ -141,8 +144,8 @@ struct GpuHead {
     snap_all: bool,
     /// Colliders this step.
     collider_count: u32,
-    /// `[parity] = (place, draw)`, made for the drawn buffer of the same id.
-    bind_groups: Option<([(BindGroup, BindGroup); 2], AssetId<ShaderBuffer>)>,
+    /// The bind groups, made for the drawn buffer of this id.
+    bind_groups: Option<(ParityBindGroups, AssetId<ShaderBuffer>)>,
     /// Seen in this frame's extraction.
     seen: bool,
 }
