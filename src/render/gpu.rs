@@ -389,15 +389,19 @@ fn send_to_gpu(
     let HairMesh { strips, upload, .. } = hair_mesh;
     let followers_of =
         |layout: &GuideLayout| strands.get(layout.entity).ok().and_then(|(_, _, followers, ..)| followers);
-    let layout = relaid || !hair_mesh.upload_laid_out || upload.rebound(strips.guides().iter().map(followers_of));
+    let now = context.fixed_time.elapsed_secs_f64();
+    let step = context.fixed_time.timestep().as_secs_f64();
+    let steps_since = |packed_at: Option<f64>| packed_at.map(|packed| ((now - packed) / step).round());
+    // Followers are bound again only in a fixed step: looked at when one came.
+    let due = steps_since(hair_mesh.packed_at).is_none_or(|steps| steps >= 1.0);
+    let layout =
+        relaid || !hair_mesh.upload_laid_out || due && upload.rebound(strips.guides().iter().map(followers_of));
     if layout {
         upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
         hair_mesh.upload_laid_out = true;
         hair_mesh.packed_at = None;
     }
-    let now = context.fixed_time.elapsed_secs_f64();
-    let step = context.fixed_time.timestep().as_secs_f64();
-    let steps = hair_mesh.packed_at.map(|packed| ((now - packed) / step).round());
+    let steps = steps_since(hair_mesh.packed_at);
     let stepped = steps.is_none_or(|steps| steps >= 1.0);
     if stepped {
         let margin = context.margin;
