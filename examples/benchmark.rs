@@ -243,10 +243,11 @@ fn render_preparation(threads: usize, frames: usize) {
 
 /// The example's scene (2 000 guides × 24 edges, 10 followers each, moving), one frame per step: the CPU's
 /// work per frame for followers and drawing when the CPU places the followers and writes every drawn node
-/// ([`FollowerPlacement::Cpu`]: the placement in the step, `HairStrips::fill`), against what it does when
-/// the GPU places and interpolates them ([`FollowerPlacement::Gpu`]: the step's follower loop, which
-/// skips them, and `GuideUpload::pack` of the guides' nodes and frames), alternating step by step in one
-/// run; and the bytes each uploads per step. Median ms of `steps` steps each.
+/// ([`FollowerPlacement::Cpu`]: the placement in the step, the layout check and `HairStrips::fill`),
+/// against what it does when the GPU places and interpolates them ([`FollowerPlacement::Gpu`]: the step's
+/// follower loop, which skips them, the layout and rebinding checks and `GuideUpload::pack` of the guides'
+/// nodes and frames), alternating step by step in one run; and the bytes each uploads per step. Median ms
+/// of `steps` steps each.
 fn followers_on_the_gpu(threads: usize, steps: usize) {
     use bevy::prelude::{Entity, Transform};
     use bevy_hair_sim::followers::FollowerPlacement;
@@ -285,15 +286,14 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
             let nodes = world.get::<StrandNodes>(entity)?;
             Some(GuideLayout::new(entity, nodes, world.get::<FollowerNodes>(entity), 4e-5))
         });
-        strips.set_layout(layout);
         let alpha = (frame % 7) as f32 / 7.0;
+        // As the renderer does every frame: the layout checked, then the nodes written or the guides packed.
         let started = Instant::now();
+        let relaid = strips.set_layout(layout);
         if on_gpu {
-            if upload.guide_node_count() == 0 {
-                let guides = strips
-                    .guides()
-                    .iter()
-                    .map(|guide| (guide.entity, guide.nodes, world.get::<FollowerNodes>(guide.entity)));
+            let followers = || strips.guides().iter().map(|guide| world.get::<FollowerNodes>(guide.entity));
+            if relaid || upload.guide_node_count() == 0 || upload.rebound(followers()) {
+                let guides = strips.guides().iter().zip(followers()).map(|(guide, f)| (guide.entity, guide.nodes, f));
                 upload.set_layout(guides);
             }
             let lookup =

@@ -337,21 +337,35 @@ fn place_followers(
     let started = Instant::now();
     let margin = checked.collision_margin;
     let all = placement.is_none_or(|placement| *placement == FollowerPlacement::Cpu);
-    guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of, marked)| {
-        if followers.offsets.is_empty() {
-            return;
+    let asked = |marked: bool, strand_of: Option<&StrandOf>| {
+        all || marked || strand_of.is_some_and(|head| marked_heads.contains(head.0))
+    };
+    let unplaced = |followers: &mut Mut<FollowerNodes>| {
+        if !followers.positions.is_empty() {
+            followers.positions.clear();
+            followers.previous_positions.clear();
         }
-        let asked = all || marked || strand_of.is_some_and(|head| marked_heads.contains(head.0));
-        if !asked {
-            if !followers.positions.is_empty() {
-                followers.positions.clear();
-                followers.previous_positions.clear();
+    };
+    if all
+        || guides
+            .iter()
+            .any(|(_, _, _, followers, strand_of, marked)| !followers.offsets.is_empty() && asked(marked, strand_of))
+    {
+        guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of, marked)| {
+            if followers.offsets.is_empty() {
+                return;
             }
-            return;
-        }
-        let thickness = strand.contact_thickness(margin) as f32;
-        followers.place(nodes, frames, colliders.of(strand_of), thickness);
-    });
+            if !asked(marked, strand_of) {
+                unplaced(&mut followers);
+                return;
+            }
+            let thickness = strand.contact_thickness(margin) as f32;
+            followers.place(nodes, frames, colliders.of(strand_of), thickness);
+        });
+    } else {
+        // None to place (the GPU places them all): one pass on this thread, cheaper than spreading it.
+        guides.iter_mut().for_each(|(.., mut followers, _, _)| unplaced(&mut followers));
+    }
     statistics.followers = guides.iter().map(|(_, _, _, followers, ..)| followers.count()).sum();
     statistics.follower_seconds = started.elapsed().as_secs_f64();
 }

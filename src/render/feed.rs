@@ -243,18 +243,13 @@ impl GuideUpload {
                 let snap = snap_all
                     || nodes.previous_positions == nodes.positions
                     || nodes.previous_positions.len() != nodes.positions.len();
-                let (mut low, mut high) = *bounds;
-                for (out, node) in positions[3 * start..3 * end].chunks_exact_mut(3).zip(&nodes.positions) {
-                    out.copy_from_slice(&node.to_array());
-                    low = low.min(*node);
-                    high = high.max(*node);
-                }
-                *bounds = (low, high);
                 let codes = &mut frames[FRAME_CODE_BYTES * start..FRAME_CODE_BYTES * end];
-                let usable = pack_frames(&nodes.positions, strand_frames, codes);
+                let usable = pack_guide(&nodes.positions, strand_frames, &mut positions[3 * start..3 * end], codes);
                 let flags = if snap { GUIDE_SNAP } else { 0 } | if usable { 0 } else { GUIDE_NO_FRAMES };
                 *guide = [thickness.to_bits(), flags];
             }
+            // What is drawn: a guide not found this step is drawn where it was.
+            *bounds = bounds_of(positions);
         });
         let (low, high) = self.piece_bounds.iter().fold(empty, |(low, high), (a, b)| (low.min(*a), high.max(*b)));
         let reach = Vec3::splat(2.0 * self.max_offset);
@@ -267,35 +262,126 @@ fn node_word(guide_node: usize, node: usize) -> u32 {
     (guide_node as u32 & DRAWN_GUIDE_NODE) | if node == 0 { DRAWN_ROOT } else { 0 }
 }
 
-/// Writes the frame code of each node of one guide (the frame of the edge arriving at the node; the root
-/// edge's at the root); says whether the frames were usable (one per edge, no edge of zero length).
-///
-/// The material director `m1 = cos θ u + sin θ (t × u)` is coded without being made: in the basis
-/// `(b1, b2)` of `t`, `u = (c_u, s_u)` and `t × u = (−s_u, c_u)`, so `m1 = (c_u cos θ − s_u sin θ,
-/// s_u cos θ + c_u sin θ)`; the basis is left unnormalised (the diamond angle is a ratio), and `t` is the
-/// frame's (the GPU takes the edge's, the same to f32 rounding).
-fn pack_frames(nodes: &[Vec3], frames: &StrandFrames, out: &mut [u8]) -> bool {
+/// Edges coded side by side by [`frame_codes`]: its loops run over them without a branch, so that the
+/// compiler vectorises them (four lanes at a time with the baseline SSE2).
+const LANES: usize = 8;
+
+/// The largest twist (rad) that [`frame_codes`] reduces in single precision: a batch with a larger one
+/// (or one that is not finite) takes [`sin_cos`]'s double-precision reduction instead.
+const SINGLE_PRECISION_TWIST: f32 = 8192.0;
+
+/// Writes one guide's node positions (`x y z` per node, for the GPU) and the frame code of each node (the
+/// frame of the edge arriving at the node; the root edge's at the root); says whether the frames were
+/// usable (one per edge, no edge of zero length).
+fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], codes: &mut [u8]) -> bool {
+    positions.copy_from_slice(bytemuck::cast_slice(nodes));
     let edges = nodes.len().saturating_sub(1);
     let (tangents, directors, twists) = (&frames.tangents, &frames.reference_directors, &frames.twist);
     if edges == 0 || tangents.len() != edges || directors.len() != edges || twists.len() != edges {
         return false;
     }
-    for (node, code) in out.chunks_exact_mut(FRAME_CODE_BYTES).enumerate() {
-        let edge = node.saturating_sub(1);
-        // The GPU divides by the edge's length.
-        if (nodes[edge + 1] - nodes[edge]).length_squared() < f32::MIN_POSITIVE {
-            return false;
-        }
-        let (tangent, reference) = (tangents[edge], directors[edge]);
-        let from_y = tangent.x.abs() > tangent.y.abs();
-        let b1 = tangent.cross(if from_y { Vec3::Y } else { Vec3::X });
-        let b2 = tangent.cross(b1);
-        let (c, s) = (reference.dot(b1), reference.dot(b2));
-        let (sin, cos) = sin_cos(twists[edge]);
-        let code_value = diamond_steps(c * cos - s * sin, s * cos + c * sin) | if from_y { FROM_Y } else { 0 };
-        code.copy_from_slice(&code_value.to_le_bytes()[..FRAME_CODE_BYTES]);
+    // The GPU divides by each edge's length: one of zero length makes the frames unusable.
+    if nodes.windows(2).any(|ends| (ends[1] - ends[0]).length_squared() < f32::MIN_POSITIVE) {
+        return false;
     }
+    let mut edge_codes = &mut codes[FRAME_CODE_BYTES..];
+    let batches = tangents.chunks(LANES).zip(directors.chunks(LANES)).zip(twists.chunks(LANES));
+    for ((tangents, directors), twists) in batches {
+        let (here, rest) = std::mem::take(&mut edge_codes).split_at_mut(FRAME_CODE_BYTES * tangents.len());
+        edge_codes = rest;
+        for (out, code) in here.chunks_exact_mut(FRAME_CODE_BYTES).zip(frame_codes(tangents, directors, twists)) {
+            out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
+        }
+    }
+    // The root is drawn in the root edge's frame.
+    codes.copy_within(FRAME_CODE_BYTES..2 * FRAME_CODE_BYTES, 0);
     true
+}
+
+/// The smallest and largest coordinates of the nodes in `xyz` (`x y z` per node), four nodes at a time
+/// (a loop the compiler vectorises); `(∞, −∞)` when there are none.
+fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
+    const NODES: usize = 4;
+    let (mut low, mut high) = ([f32::INFINITY; 3 * NODES], [f32::NEG_INFINITY; 3 * NODES]);
+    let mut chunks = xyz.chunks_exact(3 * NODES);
+    for chunk in &mut chunks {
+        for (index, &value) in chunk.iter().enumerate() {
+            // Comparisons rather than `f32::min`, whose NaN rules cost a select more (positions are finite).
+            low[index] = if value < low[index] { value } else { low[index] };
+            high[index] = if value > high[index] { value } else { high[index] };
+        }
+    }
+    for (index, &value) in chunks.remainder().iter().enumerate() {
+        low[index] = low[index].min(value);
+        high[index] = high[index].max(value);
+    }
+    let fold = |values: [f32; 3 * NODES], pick: fn(Vec3, Vec3) -> Vec3| {
+        (1..NODES).fold(Vec3::from_slice(&values), |out, node| pick(out, Vec3::from_slice(&values[3 * node..])))
+    };
+    (fold(low, Vec3::min), fold(high, Vec3::max))
+}
+
+/// The frame codes (see the [module documentation](self)) of up to [`LANES`] edges, each the material
+/// director `m1 = cos θ u + sin θ v`, `v = t × u`, of the edge with unit tangent `t`, reference director
+/// `u` and twist `θ`; lanes past the edges given are not to be read.
+///
+/// Made without making `m1` or the basis: with `r` the axis the basis is built from, `b1 = t × r` and
+/// `b2 = t × b1`, the director's coordinates are `m1 · b1 = −m2 · r` and `m1 · b2 = −m1 · r` (`m1 ⟂ t`),
+/// with `m1 · r = cos θ u_r + sin θ v_r` and `m2 · r = cos θ v_r − sin θ u_r`: one component of `u` and
+/// of `v`. The basis is left unnormalised (the diamond angle is a ratio); `t` is the frame's (the GPU takes
+/// the edge's, the same to f32 rounding). The twist is reduced to `θ = q π/2 + ρ`, `|ρ| ≤ π/4`: the
+/// director is coded at `ρ` and turned by `q` quarter turns after, which adds `q` to its diamond angle.
+fn frame_codes(tangents: &[Vec3], directors: &[Vec3], twists: &[f32]) -> [u32; LANES] {
+    let (mut t, mut u, mut twist) = ([[0.0_f32; LANES]; 3], [[0.0_f32; LANES]; 3], [0.0_f32; LANES]);
+    for (lane, ((tangent, director), &angle)) in tangents.iter().zip(directors).zip(twists).take(LANES).enumerate() {
+        (t[0][lane], t[1][lane], t[2][lane]) = (*tangent).into();
+        (u[0][lane], u[1][lane], u[2][lane]) = (*director).into();
+        twist[lane] = angle;
+    }
+    let (mut sin, mut cos, mut turns) = ([0.0_f32; LANES], [0.0_f32; LANES], [0_u32; LANES]);
+    if twist.iter().all(|angle| angle.abs() <= SINGLE_PRECISION_TWIST) {
+        for lane in 0..LANES {
+            (sin[lane], cos[lane], turns[lane]) = reduced_sin_cos(twist[lane]);
+        }
+    } else {
+        for lane in 0..LANES {
+            (sin[lane], cos[lane]) = sin_cos(twist[lane]);
+        }
+    }
+    let mut codes = [0_u32; LANES];
+    for lane in 0..LANES {
+        let (tx, ty, tz) = (t[0][lane], t[1][lane], t[2][lane]);
+        let (ux, uy, uz) = (u[0][lane], u[1][lane], u[2][lane]);
+        let from_y = tx.abs() > ty.abs();
+        let u_r = if from_y { uy } else { ux };
+        let v_r = if from_y { tz * ux - tx * uz } else { ty * uz - tz * uy };
+        let (m1_r, m2_r) = (cos[lane] * u_r + sin[lane] * v_r, cos[lane] * v_r - sin[lane] * u_r);
+        let steps = diamond_steps(-m2_r, -m1_r).wrapping_add(turns[lane] << 21) & (FROM_Y - 1);
+        codes[lane] = steps | if from_y { FROM_Y } else { 0 };
+    }
+    codes
+}
+
+/// `(sin ρ, cos ρ, q mod 4)` with `x = q π/2 + ρ`, `|ρ| ≤ π/4`, for `|x| ≤` [`SINGLE_PRECISION_TWIST`], to
+/// about 1e-7, in single precision and without a branch: Cody–Waite reduction by `π/2` split in two (the
+/// first with 11 bits, so that its product with `q` is exact), and minimax polynomials of the 7th and 8th
+/// degrees on `|ρ| ≤ π/4` (Cephes' `sinf` and `cosf`, relative error under 1e-7).
+#[inline]
+fn reduced_sin_cos(x: f32) -> (f32, f32, u32) {
+    // Adding 1.5 · 2²³ rounds to the nearest integer, which then sits in the low bits of the sum.
+    const ROUNDING: f32 = 12_582_912.0;
+    const HALF_PI: [f32; 2] = [1.570_312_5, 4.838_267_9e-4];
+    let shifted = x * std::f32::consts::FRAC_2_PI + ROUNDING;
+    let quadrant = shifted - ROUNDING;
+    let r = (x - quadrant * HALF_PI[0]) - quadrant * HALF_PI[1];
+    // Below 1e-8 the terms past `r` and `1` vanish in f32; dropping them keeps their products out of the
+    // subnormal range, where each operation costs a hundred cycles (a twist within 1e-13 of a multiple of
+    // π/2 would otherwise make them subnormal).
+    let r_odd = if r.abs() < 1e-8 { 0.0 } else { r };
+    let r2 = r_odd * r_odd;
+    let sin = r + r_odd * r2 * (-1.666_665_5e-1 + r2 * (8.332_161e-3 + r2 * -1.951_529_6e-4));
+    let cos = 1.0 - 0.5 * r2 + r2 * r2 * (4.166_664_6e-2 + r2 * (-1.388_731_6e-3 + r2 * 2.443_315_7e-5));
+    (sin, cos, shifted.to_bits() & 3)
 }
 
 /// `(sin x, cos x)` to about 1e-9 for `|x|` up to 1e6 rad, without a call into libm: Cody–Waite reduction
@@ -307,9 +393,12 @@ fn sin_cos(angle: f32) -> (f32, f32) {
     let quadrant = (x * std::f64::consts::FRAC_2_PI + ROUNDING) - ROUNDING;
     let r = x - quadrant * std::f64::consts::FRAC_PI_2;
     let r2 = r * r;
-    let sin = r * (1.0 - r2 / 6.0 * (1.0 - r2 / 20.0 * (1.0 - r2 / 42.0 * (1.0 - r2 / 72.0))));
-    let cos = 1.0 - r2 / 2.0 * (1.0 - r2 / 12.0 * (1.0 - r2 / 30.0 * (1.0 - r2 / 56.0 * (1.0 - r2 / 90.0))));
+    // Horner's scheme on the Taylor coefficients `(−1)^k / (2k + 1)!` and `(−1)^k / (2k)!`.
+    let sin = r * (1.0 + r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5_040.0 + r2 * (1.0 / 362_880.0)))));
+    let cos =
+        1.0 + r2 * (-0.5 + r2 * (1.0 / 24.0 + r2 * (-1.0 / 720.0 + r2 * (1.0 / 40_320.0 + r2 * (-1.0 / 3_628_800.0)))));
     let (sin, cos) = (sin as f32, cos as f32);
+    // Quadrant q turns by q · π/2: an odd one swaps the two (cos → sin, −sin → cos), q = 2, 3 negate both.
     match (quadrant as i64).rem_euclid(4) {
         0 => (sin, cos),
         1 => (cos, -sin),
@@ -318,13 +407,17 @@ fn sin_cos(angle: f32) -> (f32, f32) {
     }
 }
 
-/// The diamond angle of `(c, s)` (0 to 4 round the circle, `s / (|c| + |s|)` by quadrant) in steps of
-/// 1/[`ANGLE_STEPS`], rounded, 4 wrapping to 0; a zero vector has angle 0.
+/// The diamond angle of `(c, s)` (0 to 4 round the circle: `1 − c / (|c| + |s|)` for `s ≥ 0`,
+/// `3 + c / (|c| + |s|)` below) in steps of 1/[`ANGLE_STEPS`], rounded, 4 wrapping to 0; a zero vector has
+/// angle 1. Without a branch: the side of `s` is a factor, and adding 2²³ rounds the steps (under 2²³)
+/// into the low bits of the sum.
+#[inline]
 fn diamond_steps(c: f32, s: f32) -> u32 {
-    let ratio = c / (c.abs() + s.abs());
-    let diamond = if s >= 0.0 { 1.0 - ratio } else { 3.0 + ratio };
-    let diamond = if diamond.is_finite() { diamond } else { 0.0 };
-    (diamond * ANGLE_STEPS + 0.5) as u32 & (FROM_Y - 1)
+    const INTEGER: f32 = 8_388_608.0;
+    let ratio = c / (c.abs() + s.abs()).max(f32::MIN_POSITIVE);
+    let below = if s < 0.0 { 1.0 } else { 0.0 };
+    let diamond = 1.0 + 2.0 * below + ratio * (2.0 * below - 1.0);
+    (diamond * ANGLE_STEPS + INTEGER).to_bits() & (FROM_Y - 1)
 }
 
 /// The basis `(b1, b2)` across `tangent` built from the X axis, or from the Y axis when `from_y`.
@@ -375,28 +468,97 @@ mod tests {
     }
 
     #[test]
-    fn a_director_coded_from_the_reference_and_twist_is_the_director_coded_directly() {
-        let tangent = Vec3::new(0.3, -0.5, 0.81).normalize();
-        let reference = tangent.any_orthonormal_vector();
-        for step in 0..1000 {
-            let twist = step as f32 * 0.0137 - 6.0;
-            let frames = StrandFrames {
-                tangents: vec![tangent],
-                reference_directors: vec![reference],
-                twist: vec![twist],
-                reference_twist: vec![0.0; 2],
+    fn the_single_precision_reduction_matches_the_standard_library() {
+        let mut worst = 0.0_f64;
+        for index in -400_000..=400_000 {
+            // Steps that are not a fraction of π/2, up to the bound of the single-precision path.
+            let angle = index as f32 * 0.020_479_3;
+            assert!(angle.abs() <= SINGLE_PRECISION_TWIST);
+            let (sin, cos, quadrant) = reduced_sin_cos(angle);
+            let (sin, cos) = match quadrant {
+                0 => (sin, cos),
+                1 => (cos, -sin),
+                2 => (-sin, -cos),
+                _ => (-cos, sin),
             };
-            let nodes = [Vec3::ZERO, tangent * 0.01];
-            let mut codes = [0_u8; 6];
-            assert!(pack_frames(&nodes, &frames, &mut codes));
-            let packed = u32::from_le_bytes([codes[3], codes[4], codes[5], 0]);
-            let direct = encode_frame(tangent, frames.material_frame(0).unwrap().m1);
-            // The same angle, to a step of the code (the two round differently in f32).
-            let difference = (packed & (FROM_Y - 1)).abs_diff(direct & (FROM_Y - 1));
-            assert!(
-                packed & FROM_Y == direct & FROM_Y && (difference <= 2 || difference >= (FROM_Y - 3)),
-                "{packed} {direct}"
-            );
+            let (expected_sin, expected_cos) = f64::from(angle).sin_cos();
+            worst = worst.max((f64::from(sin) - expected_sin).abs()).max((f64::from(cos) - expected_cos).abs());
         }
+        // The polynomials' 1e-7 relative error, the f32 rounding of `ρ` (3e-8) and of the result (6e-8).
+        assert!(worst < 2e-7, "{worst}");
+    }
+
+    /// Frames of `edges` edges along a wavy strand with twists from `twist`, and its nodes.
+    fn strand(edges: usize, twist: impl Fn(usize) -> f32) -> (Vec<Vec3>, StrandFrames) {
+        let mut nodes = vec![Vec3::new(0.1, 1.5, -0.2)];
+        let mut frames = StrandFrames::default();
+        for edge in 0..edges {
+            let phase = edge as f32 * 0.7;
+            // Tangents on both sides of |x| = |y|, so that both bases are used.
+            let tangent = Vec3::new(1.3 * phase.sin(), -1.0, 0.6 * (1.3 * phase).cos()).normalize();
+            let reference = tangent.cross(Vec3::new(0.2, 0.3, 1.0)).normalize();
+            nodes.push(nodes[edge] + 0.01 * tangent);
+            frames.tangents.push(tangent);
+            frames.reference_directors.push(reference);
+            frames.twist.push(twist(edge));
+        }
+        frames.reference_twist = vec![0.0; edges + 1];
+        (nodes, frames)
+    }
+
+    #[test]
+    fn a_director_coded_from_the_reference_and_twist_is_the_director_coded_directly() {
+        // Twists in the single-precision path, and batches that take the double-precision one: past its
+        // bound, and not finite.
+        let twists: [(&str, fn(usize) -> f32); 4] = [
+            ("small", |edge| edge as f32 * 0.37 - 6.0),
+            ("large", |edge| ((edge % 17) as f32 * 997.3 - 8000.0) * if edge % 2 == 0 { 1.0 } else { -1.0 }),
+            ("beyond the single-precision bound", |edge| 8192.0 + edge as f32 * 12_345.6),
+            ("one batch not finite", |edge| if edge == 9 { f32::NAN } else { edge as f32 }),
+        ];
+        let mut froms = [0, 0];
+        for (name, twist) in twists {
+            let edges = 21;
+            let (nodes, frames) = strand(edges, twist);
+            let mut positions = vec![0.0; 3 * nodes.len()];
+            let mut codes = vec![0_u8; FRAME_CODE_BYTES * nodes.len()];
+            assert!(pack_guide(&nodes, &frames, &mut positions, &mut codes), "{name}");
+            assert_eq!(positions, nodes.iter().flat_map(|node| node.to_array()).collect::<Vec<_>>(), "{name}");
+            let low = nodes.iter().fold(Vec3::INFINITY, |low, node| low.min(*node));
+            let high = nodes.iter().fold(Vec3::NEG_INFINITY, |high, node| high.max(*node));
+            assert_eq!(bounds_of(&positions), (low, high), "{name}");
+            let code = |node: usize| {
+                let bytes = &codes[FRAME_CODE_BYTES * node..FRAME_CODE_BYTES * (node + 1)];
+                u32::from_le_bytes([bytes[0], bytes[1], bytes[2], 0])
+            };
+            assert_eq!(code(0), code(1), "{name}: the root takes the root edge's frame");
+            for edge in 0..edges {
+                let (packed, tangent) = (code(edge + 1), frames.tangents[edge]);
+                if !frames.twist[edge].is_finite() {
+                    continue;
+                }
+                let direct = encode_frame(tangent, frames.material_frame(edge).unwrap().m1);
+                // The same angle, to a step of the code (the two round differently in f32).
+                let difference = (packed & (FROM_Y - 1)).abs_diff(direct & (FROM_Y - 1));
+                assert!(
+                    packed & FROM_Y == direct & FROM_Y && (difference <= 2 || difference >= FROM_Y - 3),
+                    "{name}, edge {edge}: {packed} {direct}"
+                );
+                froms[usize::from(packed & FROM_Y != 0)] += 1;
+            }
+        }
+        assert!(froms[0] > 10 && froms[1] > 10, "both bases are used: {froms:?}");
+    }
+
+    #[test]
+    fn frames_with_an_edge_of_zero_length_are_not_usable() {
+        let (mut nodes, frames) = strand(10, |edge| edge as f32);
+        nodes[4] = nodes[3];
+        let mut positions = vec![0.0; 3 * nodes.len()];
+        let mut codes = vec![0_u8; FRAME_CODE_BYTES * nodes.len()];
+        assert!(!pack_guide(&nodes, &frames, &mut positions, &mut codes));
+        let (nodes, mut frames) = strand(10, |edge| edge as f32);
+        frames.twist.pop();
+        assert!(!pack_guide(&nodes, &frames, &mut positions, &mut codes), "a frame missing");
     }
 }
