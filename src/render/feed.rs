@@ -370,7 +370,7 @@ fn frame_codes(tangents: &[Vec3], directors: &[Vec3], twists: &[f32]) -> [u32; L
 fn reduced_sin_cos(x: f32) -> (f32, f32, u32) {
     // Adding 1.5 · 2²³ rounds to the nearest integer, which then sits in the low bits of the sum.
     const ROUNDING: f32 = 12_582_912.0;
-    const HALF_PI: [f32; 2] = [1.570_312_5, 4.838_267_9e-4];
+    const HALF_PI: [f32; 2] = [1.570_312_5, 4.838_268e-4];
     let shifted = x * std::f32::consts::FRAC_2_PI + ROUNDING;
     let quadrant = shifted - ROUNDING;
     let r = (x - quadrant * HALF_PI[0]) - quadrant * HALF_PI[1];
@@ -510,7 +510,8 @@ mod tests {
     fn a_director_coded_from_the_reference_and_twist_is_the_director_coded_directly() {
         // Twists in the single-precision path, and batches that take the double-precision one: past its
         // bound, and not finite.
-        let twists: [(&str, fn(usize) -> f32); 4] = [
+        type TwistOfEdge = fn(usize) -> f32;
+        let twists: [(&str, TwistOfEdge); 4] = [
             ("small", |edge| edge as f32 * 0.37 - 6.0),
             ("large", |edge| ((edge % 17) as f32 * 997.3 - 8000.0) * if edge % 2 == 0 { 1.0 } else { -1.0 }),
             ("beyond the single-precision bound", |edge| 8192.0 + edge as f32 * 12_345.6),
