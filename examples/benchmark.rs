@@ -297,7 +297,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
                 upload.set_layout(guides);
             }
             let lookup =
-                |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, None, thickness));
+                |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, thickness));
             assert!(upload.pack(threads, &[], false, lookup).is_some());
             gpu_bytes = upload.step_bytes();
         } else {

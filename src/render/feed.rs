@@ -17,6 +17,7 @@
 use bevy::math::Vec3;
 use bevy::prelude::Entity;
 
+use super::take_front;
 use crate::followers::FollowerNodes;
 use crate::rod::{ColliderShape, MovingCollider};
 use crate::simulation::{StrandFrames, StrandNodes};
@@ -107,8 +108,8 @@ pub struct GuideUpload {
     piece_bounds: Vec<(Vec3, Vec3)>,
 }
 
-/// What [`GuideUpload::pack`] reads of one guide: its nodes, frames, followers and contact thickness (m).
-pub type PackedGuide<'a> = (&'a StrandNodes, &'a StrandFrames, Option<&'a FollowerNodes>, f32);
+/// What [`GuideUpload::pack`] reads of one guide: its nodes, frames and contact thickness (m).
+pub type PackedGuide<'a> = (&'a StrandNodes, &'a StrandFrames, f32);
 
 impl GuideUpload {
     /// Lays out the drawn nodes of `guides` (entity, node count, followers as bound; in drawing order), as
@@ -179,8 +180,8 @@ impl GuideUpload {
             + std::mem::size_of::<GpuCollider>() * self.colliders.len()
     }
 
-    /// Writes this step's guide data (`lookup` gives each guide's nodes, frames, followers and contact
-    /// thickness) in parallel on up to `threads` threads, with `colliders`;
+    /// Writes this step's guide data (`lookup` gives each guide's nodes, frames and contact thickness) in
+    /// parallel on up to `threads` threads, with `colliders`;
     /// `snap_all` draws every guide where it is now (when more than one step passed since the last upload,
     /// the GPU has no previous step to interpolate from). Returns the bounds of what will be drawn (the
     /// guides' nodes widened by twice the longest offset: a follower node pushed out of a collider stays
@@ -195,43 +196,32 @@ impl GuideUpload {
     ) -> Option<(Vec3, Vec3)> {
         self.colliders.clear();
         self.colliders.extend(colliders.iter().map(GpuCollider::new));
-        let guide_count = self.entities.len();
-        let entities = &self.entities;
-        let pieces = (threads.max(1) * 4).min(guide_count).max(1);
         let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let (entities, first_nodes) = (&self.entities, &self.guide_first);
+        let ranges = super::piece_ranges(entities.len(), threads);
         self.piece_bounds.clear();
-        self.piece_bounds.resize(pieces, empty);
-        let per_piece = guide_count.div_ceil(pieces).max(1);
-        let first_nodes = &self.guide_first;
-        let mut positions: &mut [f32] = &mut self.positions;
-        let mut frames: &mut [u8] = &mut self.frames;
-        let mut guides: &mut [[u32; 2]] = &mut self.guides;
-        let mut bounds_left: &mut [(Vec3, Vec3)] = &mut self.piece_bounds;
-        let mut first = 0;
-        let work = std::iter::from_fn(|| {
-            if first >= guide_count {
-                return None;
-            }
-            let end = (first + per_piece).min(guide_count);
-            let nodes = first_nodes[end] - first_nodes[first];
-            let (piece_positions, rest) = std::mem::take(&mut positions).split_at_mut(3 * nodes);
-            positions = rest;
-            let (piece_frames, rest) = std::mem::take(&mut frames).split_at_mut(FRAME_CODE_BYTES * nodes);
-            frames = rest;
-            let (piece_guides, rest) = std::mem::take(&mut guides).split_at_mut(end - first);
-            guides = rest;
-            let (bounds, more) = std::mem::take(&mut bounds_left).split_first_mut()?;
-            bounds_left = more;
-            let piece = (first..end, piece_positions, piece_frames, piece_guides, bounds);
-            first = end;
-            Some(piece)
+        self.piece_bounds.resize(ranges.len(), empty);
+        let (mut positions, mut frames): (&mut [f32], &mut [u8]) = (&mut self.positions, &mut self.frames);
+        let (mut guides, mut bounds) = (&mut self.guides[..], &mut self.piece_bounds[..]);
+        let work = ranges.map(|range| {
+            let nodes = first_nodes[range.end] - first_nodes[range.start];
+            let guide_count = range.len();
+            let piece_positions = take_front(&mut positions, 3 * nodes);
+            let piece_frames = take_front(&mut frames, FRAME_CODE_BYTES * nodes);
+            (
+                range,
+                piece_positions,
+                piece_frames,
+                take_front(&mut guides, guide_count),
+                &mut take_front(&mut bounds, 1)[0],
+            )
         });
         let lookup = &lookup;
         crate::parallel::run_in_parallel(threads, work, |(range, positions, frames, guides, bounds)| {
             let base = first_nodes[range.start];
             for (guide, index) in guides.iter_mut().zip(range) {
                 let (start, end) = (first_nodes[index] - base, first_nodes[index + 1] - base);
-                let Some((nodes, strand_frames, _, thickness)) = lookup(entities[index]) else {
+                let Some((nodes, strand_frames, thickness)) = lookup(entities[index]) else {
                     guide[1] |= GUIDE_SNAP;
                     continue;
                 };
@@ -306,7 +296,7 @@ fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
     let mut chunks = xyz.chunks_exact(3 * NODES);
     for chunk in &mut chunks {
         for (index, &value) in chunk.iter().enumerate() {
-            // Comparisons rather than `f32::min`, whose NaN rules cost a select more (positions are finite).
+            // Comparisons rather than `f32::min`, whose NaN rules cost a select more; a NaN is skipped by both.
             low[index] = if value < low[index] { value } else { low[index] };
             high[index] = if value > high[index] { value } else { high[index] };
         }

@@ -406,8 +406,8 @@ fn send_to_gpu(
     if stepped {
         let margin = context.margin;
         let lookup = |entity| {
-            let (strand, nodes, followers, _, frames) = strands.get(entity).ok()?;
-            Some((nodes, frames, followers, strand.contact_thickness(margin) as f32))
+            let (strand, nodes, _, _, frames) = strands.get(entity).ok()?;
+            Some((nodes, frames, strand.contact_thickness(margin) as f32))
         };
         // After more than one step (or none packed yet) there is no step before to interpolate from.
         let snap_all = steps.is_none_or(|steps| steps > 1.0);

@@ -31,6 +31,8 @@
 //! The CPU side ([`HairStrips`], [`ribbon_width`], [`HairAppearance`]) needs no renderer; the plugin that
 //! draws ([`HairRenderPlugin`]) needs the crate's `render` feature.
 
+use std::ops::Range;
+
 use bevy::math::Vec3;
 use bevy::prelude::*;
 
@@ -224,8 +226,24 @@ pub struct HairStrips {
     piece_bounds: Vec<(Vec3, Vec3)>,
 }
 
-/// How many pieces [`HairStrips::fill`] cuts its guides into per thread, to even out the load.
+/// How many pieces the guides are cut into per thread ([`piece_ranges`]), to even out the load.
 const PIECES_PER_THREAD: usize = 4;
+
+/// The guides `0..guides` cut into runs of consecutive guides, [`PIECES_PER_THREAD`] runs per thread of
+/// `threads` (at most one per guide; none without guides), for [`HairStrips::fill`] and
+/// [`feed::GuideUpload::pack`] to work on in parallel.
+pub(crate) fn piece_ranges(guides: usize, threads: usize) -> impl ExactSizeIterator<Item = Range<usize>> {
+    let pieces = (threads.max(1) * PIECES_PER_THREAD).min(guides).max(1);
+    let per_piece = guides.div_ceil(pieces).max(1);
+    (0..guides.div_ceil(per_piece)).map(move |piece| piece * per_piece..((piece + 1) * per_piece).min(guides))
+}
+
+/// The first `count` items of `slice`, which keeps the rest: how each piece takes its part of an output.
+pub(crate) fn take_front<'a, T>(slice: &mut &'a mut [T], count: usize) -> &'a mut [T] {
+    let (front, rest) = std::mem::take(slice).split_at_mut(count);
+    *slice = rest;
+    front
+}
 
 impl HairStrips {
     /// Lays out `guides` (in drawing order) if they differ from the current layout; says whether they did,
@@ -341,28 +359,15 @@ impl HairStrips {
         threads: usize,
         lookup: impl Fn(Entity) -> Option<(&'a StrandNodes, Option<&'a FollowerNodes>)> + Sync,
     ) -> Option<(Vec3, Vec3)> {
-        let pieces = (threads.max(1) * PIECES_PER_THREAD).min(self.guides.len()).max(1);
         let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        self.piece_bounds.clear();
-        self.piece_bounds.resize(pieces, empty);
         let (guides, offsets) = (&self.guides, &self.guide_offsets);
-        let per_piece = guides.len().div_ceil(pieces).max(1);
-        let mut rest: &mut [f32] = &mut self.positions;
-        let mut bounds_left: &mut [(Vec3, Vec3)] = &mut self.piece_bounds;
-        let mut first = 0;
-        let work = std::iter::from_fn(|| {
-            if first >= guides.len() {
-                return None;
-            }
-            let end = (first + per_piece).min(guides.len());
-            let nodes = offsets[end] - offsets[first];
-            let (positions, tail) = std::mem::take(&mut rest).split_at_mut(3 * nodes);
-            rest = tail;
-            let (bounds, more) = std::mem::take(&mut bounds_left).split_first_mut()?;
-            bounds_left = more;
-            let piece = (first..end, positions, bounds);
-            first = end;
-            Some(piece)
+        let ranges = piece_ranges(guides.len(), threads);
+        self.piece_bounds.clear();
+        self.piece_bounds.resize(ranges.len(), empty);
+        let (mut positions, mut bounds): (&mut [f32], _) = (&mut self.positions, &mut self.piece_bounds[..]);
+        let work = ranges.map(|range| {
+            let nodes = offsets[range.end] - offsets[range.start];
+            (range, take_front(&mut positions, 3 * nodes), &mut take_front(&mut bounds, 1)[0])
         });
         let lookup = &lookup;
         crate::parallel::run_in_parallel(threads, work, |(range, positions, bounds)| {
@@ -404,4 +409,27 @@ fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alph
         high = high.max(p);
     }
     *bounds = (low, high);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pieces_cover_every_guide_once_in_order() {
+        for guides in [0, 1, 2, 7, 8, 9, 100, 2000, 2001] {
+            for threads in [0, 1, 2, 3, 16] {
+                let ranges: Vec<_> = piece_ranges(guides, threads).collect();
+                assert_eq!(ranges.len(), piece_ranges(guides, threads).len());
+                assert!(ranges.len() <= (threads.max(1) * PIECES_PER_THREAD).min(guides));
+                assert!(ranges.iter().all(|range| !range.is_empty()), "{guides} {threads}: {ranges:?}");
+                let joined: Vec<usize> = ranges.into_iter().flatten().collect();
+                assert_eq!(joined, (0..guides).collect::<Vec<_>>(), "{guides} guides, {threads} threads");
+            }
+        }
+        let mut items = [1, 2, 3, 4, 5];
+        let mut rest = &mut items[..];
+        assert_eq!(take_front(&mut rest, 2), [1, 2]);
+        assert_eq!(rest, [3, 4, 5]);
+    }
 }
