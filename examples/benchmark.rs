@@ -170,24 +170,41 @@ fn crowd(threads: usize, steps: usize) {
     }
 }
 
+/// The plugin's app on `threads` threads with one head of `guides` combed guides × `edges` edges, each with
+/// `followers` followers, at the benchmark's first pose.
+fn groomed_head(
+    threads: usize,
+    guides: usize,
+    followers: usize,
+    edges: usize,
+) -> (bevy::prelude::App, bevy::prelude::Entity) {
+    let mut app = Scene::app(Some(threads));
+    let groom =
+        HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
+    let head = app.world_mut().spawn((HairHead, groom, bevy::prelude::Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    (app, head)
+}
+
+/// Moves `head` to the benchmark's pose at `step` and updates the app (one fixed step).
+fn move_head(app: &mut bevy::prelude::App, head: bevy::prelude::Entity, step: usize) {
+    let (translation, rotation) = Scene::head_pose(step);
+    let mut transform = app.world_mut().get_mut::<bevy::prelude::Transform>(head).expect("the head exists");
+    (transform.translation, transform.rotation) = (translation, rotation);
+    app.update();
+}
+
 /// What the hair renderer does on the CPU each frame ([`bevy_hair_sim::render`]) for 20 000 drawn strands
 /// × 24 edges (2 000 guides with 9 followers each, moving): checking the layout, writing the node positions
 /// interpolated between steps (with their bounds), and the copy `write_buffer` makes into the GPU's staging
 /// memory (timed here as a copy of the same bytes into a buffer of that size). Median of `frames` frames, on
 /// `threads` threads and on one.
 fn render_preparation(threads: usize, frames: usize) {
-    use bevy::prelude::{Entity, Transform};
+    use bevy::prelude::Entity;
     use bevy_hair_sim::render::{GuideLayout, HairStrips};
-    let (guides, followers, edges) = (2000, 9, 24);
-    let mut app = Scene::app(Some(threads));
-    let groom =
-        HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
-    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    let edges = 24;
+    let (mut app, head) = groomed_head(threads, 2000, 9, edges);
     for step in 0..WARM_UP_STEPS {
-        let (translation, rotation) = Scene::head_pose(step);
-        let mut transform = app.world_mut().get_mut::<Transform>(head).expect("the head exists");
-        (transform.translation, transform.rotation) = (translation, rotation);
-        app.update();
+        move_head(&mut app, head, step);
     }
     let world = app.world();
     let strands: Vec<Entity> = world.get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
@@ -249,23 +266,17 @@ fn render_preparation(threads: usize, frames: usize) {
 /// nodes and frames), alternating step by step in one run; and the bytes each uploads per step. Median ms
 /// of `steps` steps each.
 fn followers_on_the_gpu(threads: usize, steps: usize) {
-    use bevy::prelude::{Entity, Transform};
+    use bevy::prelude::Entity;
     use bevy_hair_sim::followers::FollowerPlacement;
     use bevy_hair_sim::render::feed::GuideUpload;
     use bevy_hair_sim::render::{GuideLayout, HairStrips};
     let (guides, followers, edges) = (2000, 10, 24);
-    let mut app = Scene::app(Some(threads));
-    let groom =
-        HairGroom { strand_count: guides, followers_per_guide: followers, segments: edges, ..HairGroom::default() };
-    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+    let (mut app, head) = groomed_head(threads, guides, followers, edges);
     let mut step = 0;
     let mut advance = |app: &mut bevy::prelude::App, placement: FollowerPlacement| {
         step += 1;
-        let (translation, rotation) = Scene::head_pose(step);
-        let mut transform = app.world_mut().get_mut::<Transform>(head).expect("the head exists");
-        (transform.translation, transform.rotation) = (translation, rotation);
         app.insert_resource(placement);
-        app.update();
+        move_head(app, head, step);
         app.world().resource::<HairStatistics>().follower_seconds
     };
     for _ in 0..WARM_UP_STEPS {
