@@ -43,9 +43,8 @@ const FROM_Y: u32 = 1 << 23;
 pub const FRAME_CODE_BYTES: usize = 3;
 
 /// A collider as `followers.wgsl` reads it: three `vec4<f32>`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
-#[cfg_attr(feature = "render", derive(bytemuck::Pod, bytemuck::Zeroable))]
 pub struct GpuCollider {
     /// Centre (m) and the shape's bounding radius (m, infinite for a plane).
     pub centre: [f32; 4],
@@ -277,8 +276,7 @@ fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], code
     let mut edge_codes = &mut codes[FRAME_CODE_BYTES..];
     let batches = tangents.chunks(LANES).zip(directors.chunks(LANES)).zip(twists.chunks(LANES));
     for ((tangents, directors), twists) in batches {
-        let (here, rest) = std::mem::take(&mut edge_codes).split_at_mut(FRAME_CODE_BYTES * tangents.len());
-        edge_codes = rest;
+        let here = take_front(&mut edge_codes, FRAME_CODE_BYTES * tangents.len());
         for (out, code) in here.chunks_exact_mut(FRAME_CODE_BYTES).zip(frame_codes(tangents, directors, twists)) {
             out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
         }
