@@ -283,8 +283,9 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         advance(&mut app, FollowerPlacement::Cpu);
     }
     let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
-    // The default material's thickness and margin, m: what the GPU pushes followers out by.
-    let thickness = 1e-4_f32;
+    // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
+    let mut drawn = app.world_mut().query::<(&SimulatedStrand, &StrandNodes, Option<&FollowerNodes>, &StrandFrames)>();
+    let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
     let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     let (mut cpu_bytes, mut gpu_bytes) = (0, 0);
@@ -293,26 +294,32 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let placement = if on_gpu { FollowerPlacement::Gpu } else { FollowerPlacement::Cpu };
         let placed = advance(&mut app, placement);
         let world = app.world();
+        let strand_query = drawn.query(world);
         let layout = strands.iter().filter_map(|&entity| {
-            let nodes = world.get::<StrandNodes>(entity)?;
-            Some(GuideLayout::new(entity, nodes, world.get::<FollowerNodes>(entity), 4e-5))
+            let (strand, nodes, followers, _) = strand_query.get(entity).ok()?;
+            let material = strand.rod().material();
+            let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
+            Some(GuideLayout::new(entity, nodes, followers, radius))
         });
         let alpha = (frame % 7) as f32 / 7.0;
         // As the renderer does every frame: the layout checked, then the nodes written or the guides packed.
         let started = Instant::now();
         let relaid = strips.set_layout(layout);
         if on_gpu {
-            let followers = || strips.guides().iter().map(|guide| world.get::<FollowerNodes>(guide.entity));
+            let followers =
+                || strips.guides().iter().map(|guide| strand_query.get(guide.entity).ok().and_then(|s| s.2));
             if relaid || upload.guide_node_count() == 0 || upload.rebound(followers()) {
                 let guides = strips.guides().iter().zip(followers()).map(|(guide, f)| (guide.entity, guide.nodes, f));
                 upload.set_layout(guides);
             }
-            let lookup =
-                |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<StrandFrames>(entity)?, thickness));
+            let lookup = |entity| {
+                let (strand, nodes, _, frames) = strand_query.get(entity).ok()?;
+                Some((nodes, frames, strand.collision_thickness(margin)))
+            };
             assert!(upload.pack(threads, &[], false, lookup).is_some());
             gpu_bytes = upload.step_bytes();
         } else {
-            let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+            let lookup = |entity| strand_query.get(entity).ok().map(|(_, nodes, followers, _)| (nodes, followers));
             assert!(strips.fill(alpha, threads, lookup).is_some());
             cpu_bytes = 4 * strips.positions().len();
         }

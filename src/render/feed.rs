@@ -14,11 +14,12 @@
 //! Bytes per step: 15 per guide node and 8 per guide, against 12 per drawn node when the CPU writes every
 //! node (a guide with ten followers: 11 × 12 = 132 bytes per node before, 15 after).
 
-use bevy::math::Vec3;
+use bevy::math::{Vec3, Vec4};
 use bevy::prelude::Entity;
 
 use super::take_front;
 use crate::followers::FollowerNodes;
+use crate::parallel::prefetch;
 use crate::rod::{ColliderShape, MovingCollider};
 use crate::simulation::{StrandFrames, StrandNodes};
 
@@ -218,9 +219,20 @@ impl GuideUpload {
         let lookup = &lookup;
         crate::parallel::run_in_parallel(threads, work, |(range, positions, frames, guides, bounds)| {
             let base = first_nodes[range.start];
+            // Each guide is looked up `AHEAD` guides early and its arrays asked for then.
+            let end_of_piece = range.end;
+            let look = |index: usize| {
+                let found = if index < end_of_piece { lookup(entities[index]) } else { None };
+                found.inspect(|&guide| prefetch_guide(guide))
+            };
+            let mut found: [Option<PackedGuide<'a>>; AHEAD] = [None; AHEAD];
+            for index in range.start..range.start + AHEAD {
+                found[index % AHEAD] = look(index);
+            }
             for (guide, index) in guides.iter_mut().zip(range) {
+                let this = std::mem::replace(&mut found[index % AHEAD], look(index + AHEAD));
                 let (start, end) = (first_nodes[index] - base, first_nodes[index + 1] - base);
-                let Some((nodes, strand_frames, thickness)) = lookup(entities[index]) else {
+                let Some((nodes, strand_frames, thickness)) = this else {
                     guide[1] |= GUIDE_SNAP;
                     continue;
                 };
@@ -259,9 +271,23 @@ const LANES: usize = 8;
 /// (or one that is not finite) takes [`sin_cos`]'s double-precision reduction instead.
 const SINGLE_PRECISION_TWIST: f32 = 8192.0;
 
+/// How many guides ahead [`GuideUpload::pack`] looks guides up and asks for their arrays.
+const AHEAD: usize = 4;
+
+/// Asks for what [`pack_guide`] and the snapping check read of `guide` (see [`prefetch`]).
+fn prefetch_guide((nodes, frames, _): PackedGuide) {
+    prefetch(&nodes.positions);
+    prefetch(&nodes.previous_positions[..nodes.previous_positions.len().min(1)]);
+    prefetch(&frames.tangents);
+    prefetch(&frames.reference_directors);
+    prefetch(&frames.twist);
+}
+
 /// Writes one guide's node positions (`x y z` per node, for the GPU) and the frame code of each node (the
 /// frame of the edge arriving at the node; the root edge's at the root); says whether the frames were
-/// usable (one per edge, no edge of zero length).
+/// usable (one per edge, no edge of zero length). Compiled for AVX2 and FMA too, used where the CPU has them
+/// (the eight lanes of [`frame_codes`] fill one register then).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], codes: &mut [u8]) -> bool {
     positions.copy_from_slice(bytemuck::cast_slice(nodes));
     let edges = nodes.len().saturating_sub(1);
@@ -274,10 +300,21 @@ fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], code
         return false;
     }
     let mut edge_codes = &mut codes[FRAME_CODE_BYTES..];
-    let batches = tangents.chunks(LANES).zip(directors.chunks(LANES)).zip(twists.chunks(LANES));
-    for ((tangents, directors), twists) in batches {
-        let here = take_front(&mut edge_codes, FRAME_CODE_BYTES * tangents.len());
-        for (out, code) in here.chunks_exact_mut(FRAME_CODE_BYTES).zip(frame_codes(tangents, directors, twists)) {
+    let (mut tangents, mut directors, mut twists) = (tangents.as_slice(), directors.as_slice(), twists.as_slice());
+    while !twists.is_empty() {
+        let count = twists.len().min(LANES);
+        let batch = if count == LANES {
+            frame_codes(&take_lanes(&mut tangents), &take_lanes(&mut directors), &take_lanes(&mut twists))
+        } else {
+            // The last, short batch: its lanes padded with a frame that codes without trouble.
+            let (mut t, mut u, mut twist) = ([Vec3::Z; LANES], [Vec3::X; LANES], [0.0; LANES]);
+            t[..count].copy_from_slice(std::mem::take(&mut tangents));
+            u[..count].copy_from_slice(std::mem::take(&mut directors));
+            twist[..count].copy_from_slice(std::mem::take(&mut twists));
+            frame_codes(&t, &u, &twist)
+        };
+        let here = take_front(&mut edge_codes, FRAME_CODE_BYTES * count);
+        for (out, code) in here.chunks_exact_mut(FRAME_CODE_BYTES).zip(batch) {
             out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
         }
     }
@@ -286,32 +323,44 @@ fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], code
     true
 }
 
-/// The smallest and largest coordinates of the nodes in `xyz` (`x y z` per node), four nodes at a time
-/// (a loop the compiler vectorises); `(∞, −∞)` when there are none.
-fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
-    const NODES: usize = 4;
-    let (mut low, mut high) = ([f32::INFINITY; 3 * NODES], [f32::NEG_INFINITY; 3 * NODES]);
-    let mut chunks = xyz.chunks_exact(3 * NODES);
-    for chunk in &mut chunks {
-        for (index, &value) in chunk.iter().enumerate() {
-            // Comparisons rather than `f32::min`, whose NaN rules cost a select more; a NaN is skipped by both.
-            low[index] = if value < low[index] { value } else { low[index] };
-            high[index] = if value > high[index] { value } else { high[index] };
-        }
-    }
-    for (index, &value) in chunks.remainder().iter().enumerate() {
-        low[index] = low[index].min(value);
-        high[index] = high[index].max(value);
-    }
-    let fold = |values: [f32; 3 * NODES], pick: fn(Vec3, Vec3) -> Vec3| {
-        (1..NODES).fold(Vec3::from_slice(&values), |out, node| pick(out, Vec3::from_slice(&values[3 * node..])))
-    };
-    (fold(low, Vec3::min), fold(high, Vec3::max))
+/// The first [`LANES`] items of `slice` (which has that many), taken off its front.
+fn take_lanes<T: Copy + Default>(slice: &mut &[T]) -> [T; LANES] {
+    let (front, rest) = slice.split_at(LANES);
+    *slice = rest;
+    let mut lanes = [T::default(); LANES];
+    lanes.copy_from_slice(front);
+    lanes
 }
 
-/// The frame codes (see the [module documentation](self)) of up to [`LANES`] edges, each the material
+/// The smallest and largest coordinates of the nodes in `xyz` (`x y z` per node); `(∞, −∞)` when there
+/// are none, and a coordinate that is NaN is skipped. Four nodes (twelve numbers) at a time, as three
+/// vectors loaded straight from `xyz`, whose lanes hold `x y z x`, `y z x y`, `z x y z`: every lane of
+/// the three accumulators has one coordinate, sorted out at the end.
+fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
+    let (mut low, mut high) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
+    let mut chunks = xyz.chunks_exact(12);
+    for chunk in &mut chunks {
+        for (k, part) in chunk.chunks_exact(4).enumerate() {
+            // `value.min(low)`: where `value` is NaN, `minps` gives its second operand, so it is skipped.
+            let value = Vec4::from_slice(part);
+            (low[k], high[k]) = (value.min(low[k]), value.max(high[k]));
+        }
+    }
+    let unscramble = |[a, b, c]: [Vec4; 3], pick: fn(f32, f32) -> f32| {
+        let coordinate = |lanes: [f32; 4]| lanes.into_iter().reduce(pick).unwrap_or(lanes[0]);
+        Vec3::new(coordinate([a.x, a.w, b.z, c.y]), coordinate([a.y, b.x, b.w, c.z]), coordinate([a.z, b.y, c.x, c.w]))
+    };
+    let (mut low, mut high) = (unscramble(low, f32::min), unscramble(high, f32::max));
+    for node in chunks.remainder().chunks_exact(3) {
+        let node = Vec3::from_slice(node);
+        (low, high) = (node.min(low), node.max(high));
+    }
+    (low, high)
+}
+
+/// The frame codes (see the [module documentation](self)) of [`LANES`] edges, each the material
 /// director `m1 = cos θ u + sin θ v`, `v = t × u`, of the edge with unit tangent `t`, reference director
-/// `u` and twist `θ`; lanes past the edges given are not to be read.
+/// `u` and twist `θ`.
 ///
 /// Made without making `m1` or the basis: with `r` the axis the basis is built from, `b1 = t × r` and
 /// `b2 = t × b1`, the director's coordinates are `m1 · b1 = −m2 · r` and `m1 · b2 = −m1 · r` (`m1 ⟂ t`),
@@ -319,13 +368,12 @@ fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
 /// of `v`. The basis is left unnormalised (the diamond angle is a ratio); `t` is the frame's (the GPU takes
 /// the edge's, the same to f32 rounding). The twist is reduced to `θ = q π/2 + ρ`, `|ρ| ≤ π/4`: the
 /// director is coded at `ρ` and turned by `q` quarter turns after, which adds `q` to its diamond angle.
-fn frame_codes(tangents: &[Vec3], directors: &[Vec3], twists: &[f32]) -> [u32; LANES] {
-    let (mut t, mut u, mut twist) = ([[0.0_f32; LANES]; 3], [[0.0_f32; LANES]; 3], [0.0_f32; LANES]);
-    for (lane, ((tangent, director), &angle)) in tangents.iter().zip(directors).zip(twists).take(LANES).enumerate() {
-        (t[0][lane], t[1][lane], t[2][lane]) = (*tangent).into();
-        (u[0][lane], u[1][lane], u[2][lane]) = (*director).into();
-        twist[lane] = angle;
-    }
+/// The lanes are whole arrays, so that the compiler keeps them in SIMD registers (a slice of variable
+/// length made it go through the stack, a store and a reload per lane).
+#[inline(always)]
+fn frame_codes(tangents: &[Vec3; LANES], directors: &[Vec3; LANES], twist: &[f32; LANES]) -> [u32; LANES] {
+    let t = [tangents.map(|t| t.x), tangents.map(|t| t.y), tangents.map(|t| t.z)];
+    let u = [directors.map(|u| u.x), directors.map(|u| u.y), directors.map(|u| u.z)];
     let (mut sin, mut cos, mut turns) = ([0.0_f32; LANES], [0.0_f32; LANES], [0_u32; LANES]);
     if twist.iter().all(|angle| angle.abs() <= SINGLE_PRECISION_TWIST) {
         for lane in 0..LANES {
@@ -354,7 +402,7 @@ fn frame_codes(tangents: &[Vec3], directors: &[Vec3], twists: &[f32]) -> [u32; L
 /// about 1e-7, in single precision and without a branch: Cody–Waite reduction by `π/2` split in two (the
 /// first with 11 bits, so that its product with `q` is exact), and minimax polynomials of the 7th and 8th
 /// degrees on `|ρ| ≤ π/4` (Cephes' `sinf` and `cosf`, relative error under 1e-7).
-#[inline]
+#[inline(always)]
 fn reduced_sin_cos(x: f32) -> (f32, f32, u32) {
     // Adding 1.5 · 2²³ rounds to the nearest integer, which then sits in the low bits of the sum.
     const ROUNDING: f32 = 12_582_912.0;
@@ -399,7 +447,7 @@ fn sin_cos(angle: f32) -> (f32, f32) {
 /// `3 + c / (|c| + |s|)` below) in steps of 1/[`ANGLE_STEPS`], rounded, 4 wrapping to 0; a zero vector has
 /// angle 1. Without a branch: the side of `s` is a factor, and adding 2²³ rounds the steps (under 2²³)
 /// into the low bits of the sum.
-#[inline]
+#[inline(always)]
 fn diamond_steps(c: f32, s: f32) -> u32 {
     const INTEGER: f32 = 8_388_608.0;
     let ratio = c / (c.abs() + s.abs()).max(f32::MIN_POSITIVE);
@@ -441,6 +489,37 @@ pub fn decode_frame(tangent: Vec3, code: u32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bounds_cover_every_node_and_skip_nan() {
+        // Every count from none to three whole chunks and a remainder, and a NaN at each place in turn.
+        for count in 0..15_usize {
+            let nodes: Vec<Vec3> = (0..count)
+                .map(|node| {
+                    let k = node as f32;
+                    Vec3::new((k * 1.3).sin() + k * 0.1, (k * 0.7).cos() - 2.0, k * k * 0.01 - 0.5)
+                })
+                .collect();
+            let low = nodes.iter().fold(Vec3::INFINITY, |low, node| low.min(*node));
+            let high = nodes.iter().fold(Vec3::NEG_INFINITY, |high, node| high.max(*node));
+            let xyz: Vec<f32> = nodes.iter().flat_map(|node| node.to_array()).collect();
+            assert_eq!(bounds_of(&xyz), (low, high), "{count} nodes");
+            for place in 0..xyz.len() {
+                let mut with_nan = xyz.clone();
+                with_nan[place] = f32::NAN;
+                let (nan_low, nan_high) = bounds_of(&with_nan);
+                let (axis, others) = (place % 3, nodes.iter().enumerate().filter(|&(node, _)| node != place / 3));
+                let (low_axis, high_axis) = others
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), (_, node)| {
+                        (low.min(node[axis]), high.max(node[axis]))
+                    });
+                assert_eq!((nan_low[axis], nan_high[axis]), (low_axis, high_axis), "{count} nodes, NaN at {place}");
+                for other in (0..3).filter(|&other| other != axis) {
+                    assert_eq!((nan_low[other], nan_high[other]), (low[other], high[other]), "{count}, {place}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn sin_cos_matches_the_standard_library() {
