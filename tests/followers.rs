@@ -186,3 +186,29 @@ fn clumping_gathers_followers_onto_their_guide_towards_the_tip() {
     let groom = HairGroom { follower_clumping: 1.5, followers_per_guide: 2, ..default() };
     assert!(groom.grow_with_followers().unwrap_err().to_string().contains("clumping"));
 }
+
+#[test]
+fn followers_left_to_the_gpu_are_counted_but_placed_only_where_asked() {
+    use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
+    let (mut app, head, _) = weightless_head(40, 8);
+    let guides = app.world().get::<HeadStrands>(head).unwrap().strands().to_vec();
+    let placed =
+        |app: &App| guides.iter().filter(|&&g| app.world().get::<FollowerNodes>(g).unwrap().is_placed()).count();
+    assert_eq!(placed(&app), 40, "placed on the CPU without a placement resource");
+    // The GPU places them: none placed here, and the positions placed before are dropped.
+    app.insert_resource(FollowerPlacement::Gpu);
+    app.update();
+    assert_eq!(placed(&app), 0);
+    assert!(guides.iter().all(|&g| app.world().get::<FollowerNodes>(g).unwrap().positions.is_empty()));
+    assert_eq!(app.world().resource::<HairStatistics>().followers, 320, "bound followers are still counted");
+    // One guide marked, then the whole head.
+    app.world_mut().entity_mut(guides[7]).insert(PlaceFollowersOnCpu);
+    app.update();
+    assert_eq!(placed(&app), 1);
+    assert!(app.world().get::<FollowerNodes>(guides[7]).unwrap().is_placed());
+    assert_eq!(app.world().resource::<HairStatistics>().followers, 320);
+    app.world_mut().entity_mut(head).insert(PlaceFollowersOnCpu);
+    app.update();
+    assert_eq!(placed(&app), 40);
+    assert_eq!(app.world().resource::<HairStatistics>().followers, 320);
+}

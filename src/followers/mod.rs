@@ -346,11 +346,24 @@ fn place_followers(
             followers.previous_positions.clear();
         }
     };
-    if all
-        || guides
-            .iter()
-            .any(|(_, _, _, followers, strand_of, marked)| !followers.offsets.is_empty() && asked(marked, strand_of))
-    {
+    // One pass on this thread finds whether any guide is to be placed here, counts the followers and
+    // clears what the others placed before (cheaper than spreading it when the GPU places them all).
+    let mut any_asked = all;
+    let mut count = 0;
+    if !all {
+        for (.., mut followers, strand_of, marked) in &mut guides {
+            count += followers.count();
+            if followers.offsets.is_empty() {
+                continue;
+            }
+            if asked(marked, strand_of) {
+                any_asked = true;
+                break;
+            }
+            unplaced(&mut followers);
+        }
+    }
+    if any_asked {
         guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of, marked)| {
             if followers.offsets.is_empty() {
                 return;
@@ -362,11 +375,9 @@ fn place_followers(
             let thickness = strand.contact_thickness(margin) as f32;
             followers.place(nodes, frames, colliders.of(strand_of), thickness);
         });
-    } else {
-        // None to place (the GPU places them all): one pass on this thread, cheaper than spreading it.
-        guides.iter_mut().for_each(|(.., mut followers, _, _)| unplaced(&mut followers));
+        count = guides.iter().map(|(_, _, _, followers, ..)| followers.count()).sum();
     }
-    statistics.followers = guides.iter().map(|(_, _, _, followers, ..)| followers.count()).sum();
+    statistics.followers = count;
     statistics.follower_seconds = started.elapsed().as_secs_f64();
 }
 
