@@ -14,10 +14,10 @@
 //! Bytes per step: 15 per guide node and 8 per guide, against 12 per drawn node when the CPU writes every
 //! node (a guide with ten followers: 11 × 12 = 132 bytes per node before, 15 after).
 
-use bevy::math::{Vec3, Vec4};
+use bevy::math::Vec3;
 use bevy::prelude::Entity;
 
-use super::take_front;
+use super::{bounds_of, take_front};
 use crate::followers::FollowerNodes;
 use crate::parallel::prefetch;
 use crate::rod::{ColliderShape, MovingCollider};
@@ -332,32 +332,6 @@ fn take_lanes<T: Copy + Default>(slice: &mut &[T]) -> [T; LANES] {
     lanes
 }
 
-/// The smallest and largest coordinates of the nodes in `xyz` (`x y z` per node); `(∞, −∞)` when there
-/// are none, and a coordinate that is NaN is skipped. Four nodes (twelve numbers) at a time, as three
-/// vectors loaded straight from `xyz`, whose lanes hold `x y z x`, `y z x y`, `z x y z`: every lane of
-/// the three accumulators has one coordinate, sorted out at the end.
-fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
-    let (mut low, mut high) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
-    let mut chunks = xyz.chunks_exact(12);
-    for chunk in &mut chunks {
-        for (k, part) in chunk.chunks_exact(4).enumerate() {
-            // `value.min(low)`: where `value` is NaN, `minps` gives its second operand, so it is skipped.
-            let value = Vec4::from_slice(part);
-            (low[k], high[k]) = (value.min(low[k]), value.max(high[k]));
-        }
-    }
-    let unscramble = |[a, b, c]: [Vec4; 3], pick: fn(f32, f32) -> f32| {
-        let coordinate = |lanes: [f32; 4]| lanes.into_iter().reduce(pick).unwrap_or(lanes[0]);
-        Vec3::new(coordinate([a.x, a.w, b.z, c.y]), coordinate([a.y, b.x, b.w, c.z]), coordinate([a.z, b.y, c.x, c.w]))
-    };
-    let (mut low, mut high) = (unscramble(low, f32::min), unscramble(high, f32::max));
-    for node in chunks.remainder().chunks_exact(3) {
-        let node = Vec3::from_slice(node);
-        (low, high) = (node.min(low), node.max(high));
-    }
-    (low, high)
-}
-
 /// The frame codes (see the [module documentation](self)) of [`LANES`] edges, each the material
 /// director `m1 = cos θ u + sin θ v`, `v = t × u`, of the edge with unit tangent `t`, reference director
 /// `u` and twist `θ`.
@@ -489,37 +463,6 @@ pub fn decode_frame(tangent: Vec3, code: u32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn bounds_cover_every_node_and_skip_nan() {
-        // Every count from none to three whole chunks and a remainder, and a NaN at each place in turn.
-        for count in 0..15_usize {
-            let nodes: Vec<Vec3> = (0..count)
-                .map(|node| {
-                    let k = node as f32;
-                    Vec3::new((k * 1.3).sin() + k * 0.1, (k * 0.7).cos() - 2.0, k * k * 0.01 - 0.5)
-                })
-                .collect();
-            let low = nodes.iter().fold(Vec3::INFINITY, |low, node| low.min(*node));
-            let high = nodes.iter().fold(Vec3::NEG_INFINITY, |high, node| high.max(*node));
-            let xyz: Vec<f32> = nodes.iter().flat_map(|node| node.to_array()).collect();
-            assert_eq!(bounds_of(&xyz), (low, high), "{count} nodes");
-            for place in 0..xyz.len() {
-                let mut with_nan = xyz.clone();
-                with_nan[place] = f32::NAN;
-                let (nan_low, nan_high) = bounds_of(&with_nan);
-                let (axis, others) = (place % 3, nodes.iter().enumerate().filter(|&(node, _)| node != place / 3));
-                let (low_axis, high_axis) = others
-                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), (_, node)| {
-                        (low.min(node[axis]), high.max(node[axis]))
-                    });
-                assert_eq!((nan_low[axis], nan_high[axis]), (low_axis, high_axis), "{count} nodes, NaN at {place}");
-                for other in (0..3).filter(|&other| other != axis) {
-                    assert_eq!((nan_low[other], nan_high[other]), (low[other], high[other]), "{count}, {place}");
-                }
-            }
-        }
-    }
 
     #[test]
     fn sin_cos_matches_the_standard_library() {

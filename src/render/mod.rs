@@ -33,7 +33,7 @@
 
 use std::ops::Range;
 
-use bevy::math::Vec3;
+use bevy::math::{Vec3, Vec4};
 use bevy::prelude::*;
 
 use crate::followers::FollowerNodes;
@@ -400,20 +400,77 @@ impl HairStrips {
 /// current positions alone when the previous ones do not match), growing `bounds` to hold them.
 fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alpha: f32, bounds: &mut (Vec3, Vec3)) {
     let previous = if previous.len() == current.len() { previous } else { current };
-    let (mut low, mut high) = *bounds;
+    let mut written = 0;
     for ((out, a), b) in out.chunks_exact_mut(3).zip(previous).zip(current) {
         let p = a.lerp(*b, alpha);
         out.copy_from_slice(&[p.x, p.y, p.z]);
-        // `f32::min` and `max` skip a NaN, so a NaN node leaves the bounds alone.
-        low = low.min(p);
-        high = high.max(p);
+        written += 3;
     }
-    *bounds = (low, high);
+    // Over what was written, in vectors (a `min` and `max` per node here would wait on each other).
+    let (low, high) = bounds_of(&out[..written]);
+    *bounds = (bounds.0.min(low), bounds.1.max(high));
+}
+
+/// The smallest and largest coordinates of the nodes in `xyz` (`x y z` per node); `(∞, −∞)` when there
+/// are none, and a coordinate that is NaN is skipped. Four nodes (twelve numbers) at a time, as three
+/// vectors loaded straight from `xyz`, whose lanes hold `x y z x`, `y z x y`, `z x y z`: every lane of
+/// the three accumulators has one coordinate, sorted out at the end.
+pub(crate) fn bounds_of(xyz: &[f32]) -> (Vec3, Vec3) {
+    let (mut low, mut high) = ([Vec4::INFINITY; 3], [Vec4::NEG_INFINITY; 3]);
+    let mut chunks = xyz.chunks_exact(12);
+    for chunk in &mut chunks {
+        for (k, part) in chunk.chunks_exact(4).enumerate() {
+            // `value.min(low)`: where `value` is NaN, `minps` gives its second operand, so it is skipped.
+            let value = Vec4::from_slice(part);
+            (low[k], high[k]) = (value.min(low[k]), value.max(high[k]));
+        }
+    }
+    let unscramble = |[a, b, c]: [Vec4; 3], pick: fn(f32, f32) -> f32| {
+        let coordinate = |lanes: [f32; 4]| lanes.into_iter().reduce(pick).unwrap_or(lanes[0]);
+        Vec3::new(coordinate([a.x, a.w, b.z, c.y]), coordinate([a.y, b.x, b.w, c.z]), coordinate([a.z, b.y, c.x, c.w]))
+    };
+    let (mut low, mut high) = (unscramble(low, f32::min), unscramble(high, f32::max));
+    for node in chunks.remainder().chunks_exact(3) {
+        let node = Vec3::from_slice(node);
+        (low, high) = (node.min(low), node.max(high));
+    }
+    (low, high)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bounds_cover_every_node_and_skip_nan() {
+        // Every count from none to three whole chunks and a remainder, and a NaN at each place in turn.
+        for count in 0..15_usize {
+            let nodes: Vec<Vec3> = (0..count)
+                .map(|node| {
+                    let k = node as f32;
+                    Vec3::new((k * 1.3).sin() + k * 0.1, (k * 0.7).cos() - 2.0, k * k * 0.01 - 0.5)
+                })
+                .collect();
+            let low = nodes.iter().fold(Vec3::INFINITY, |low, node| low.min(*node));
+            let high = nodes.iter().fold(Vec3::NEG_INFINITY, |high, node| high.max(*node));
+            let xyz: Vec<f32> = nodes.iter().flat_map(|node| node.to_array()).collect();
+            assert_eq!(bounds_of(&xyz), (low, high), "{count} nodes");
+            for place in 0..xyz.len() {
+                let mut with_nan = xyz.clone();
+                with_nan[place] = f32::NAN;
+                let (nan_low, nan_high) = bounds_of(&with_nan);
+                let (axis, others) = (place % 3, nodes.iter().enumerate().filter(|&(node, _)| node != place / 3));
+                let (low_axis, high_axis) = others
+                    .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), (_, node)| {
+                        (low.min(node[axis]), high.max(node[axis]))
+                    });
+                assert_eq!((nan_low[axis], nan_high[axis]), (low_axis, high_axis), "{count} nodes, NaN at {place}");
+                for other in (0..3).filter(|&other| other != axis) {
+                    assert_eq!((nan_low[other], nan_high[other]), (low[other], high[other]), "{count}, {place}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn pieces_cover_every_guide_once_in_order() {
