@@ -299,37 +299,33 @@ fn pack_guide(nodes: &[Vec3], frames: &StrandFrames, positions: &mut [f32], code
     if nodes.windows(2).any(|ends| (ends[1] - ends[0]).length_squared() < f32::MIN_POSITIVE) {
         return false;
     }
-    let mut edge_codes = &mut codes[FRAME_CODE_BYTES..];
-    let (mut tangents, mut directors, mut twists) = (tangents.as_slice(), directors.as_slice(), twists.as_slice());
-    while !twists.is_empty() {
-        let count = twists.len().min(LANES);
-        let batch = if count == LANES {
-            frame_codes(&take_lanes(&mut tangents), &take_lanes(&mut directors), &take_lanes(&mut twists))
-        } else {
-            // The last, short batch: its lanes padded with a frame that codes without trouble.
-            let (mut t, mut u, mut twist) = ([Vec3::Z; LANES], [Vec3::X; LANES], [0.0; LANES]);
-            t[..count].copy_from_slice(std::mem::take(&mut tangents));
-            u[..count].copy_from_slice(std::mem::take(&mut directors));
-            twist[..count].copy_from_slice(std::mem::take(&mut twists));
-            frame_codes(&t, &u, &twist)
-        };
-        let here = take_front(&mut edge_codes, FRAME_CODE_BYTES * count);
-        for (out, code) in here.chunks_exact_mut(FRAME_CODE_BYTES).zip(batch) {
-            out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
-        }
+    let (whole_tangents, last_tangents) = tangents.as_chunks::<LANES>();
+    let (whole_directors, last_directors) = directors.as_chunks::<LANES>();
+    let (whole_twists, last_twists) = twists.as_chunks::<LANES>();
+    let mut edge_codes = codes[FRAME_CODE_BYTES..].chunks_exact_mut(FRAME_CODE_BYTES * LANES);
+    let whole = whole_tangents.iter().zip(whole_directors).zip(whole_twists);
+    for (((t, u), twist), out) in whole.zip(&mut edge_codes) {
+        write_codes(out, frame_codes(t, u, twist));
+    }
+    if !last_twists.is_empty() {
+        // The last, short batch: its lanes padded with a frame that codes without trouble (and not written).
+        let (mut t, mut u, mut twist) = ([Vec3::Z; LANES], [Vec3::X; LANES], [0.0; LANES]);
+        t[..last_tangents.len()].copy_from_slice(last_tangents);
+        u[..last_directors.len()].copy_from_slice(last_directors);
+        twist[..last_twists.len()].copy_from_slice(last_twists);
+        write_codes(edge_codes.into_remainder(), frame_codes(&t, &u, &twist));
     }
     // The root is drawn in the root edge's frame.
     codes.copy_within(FRAME_CODE_BYTES..2 * FRAME_CODE_BYTES, 0);
     true
 }
 
-/// The first [`LANES`] items of `slice` (which has that many), taken off its front.
-fn take_lanes<T: Copy + Default>(slice: &mut &[T]) -> [T; LANES] {
-    let (front, rest) = slice.split_at(LANES);
-    *slice = rest;
-    let mut lanes = [T::default(); LANES];
-    lanes.copy_from_slice(front);
-    lanes
+/// Writes the first `out.len() / 3` of `codes`, three bytes each (little-endian).
+#[inline(always)]
+fn write_codes(out: &mut [u8], codes: [u32; LANES]) {
+    for (out, code) in out.chunks_exact_mut(FRAME_CODE_BYTES).zip(codes) {
+        out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
+    }
 }
 
 /// The frame codes (see the [module documentation](self)) of [`LANES`] edges, each the material

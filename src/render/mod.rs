@@ -400,14 +400,14 @@ impl HairStrips {
 /// current positions alone when the previous ones do not match), growing `bounds` to hold them.
 fn write_interpolated(out: &mut [f32], previous: &[Vec3], current: &[Vec3], alpha: f32, bounds: &mut (Vec3, Vec3)) {
     let previous = if previous.len() == current.len() { previous } else { current };
-    let mut written = 0;
+    let nodes = current.len().min(out.len() / 3);
+    let out = &mut out[..3 * nodes];
     for ((out, a), b) in out.chunks_exact_mut(3).zip(previous).zip(current) {
         let p = a.lerp(*b, alpha);
         out.copy_from_slice(&[p.x, p.y, p.z]);
-        written += 3;
     }
     // Over what was written, in vectors (a `min` and `max` per node here would wait on each other).
-    let (low, high) = bounds_of(&out[..written]);
+    let (low, high) = bounds_of(out);
     *bounds = (bounds.0.min(low), bounds.1.max(high));
 }
 
