@@ -262,14 +262,17 @@ fn render_preparation(threads: usize, frames: usize) {
 /// work per frame for followers and drawing when the CPU places the followers and writes every drawn node
 /// ([`FollowerPlacement::Cpu`]: the placement in the step, the layout check and `HairStrips::fill`),
 /// against what it does when the GPU places and interpolates them ([`FollowerPlacement::Gpu`]: the step's
-/// follower loop, which skips them, the layout and rebinding checks and `GuideUpload::pack` of the guides'
-/// nodes and frames), alternating step by step in one run; and the bytes each uploads per step. Median ms
-/// of `steps` steps each.
+/// follower loop, which skips them, the step's packing of each guide's pose, the layout and rebinding
+/// checks and `GuideUpload::pack`), alternating step by step in one run; and the bytes each uploads per
+/// step. Median ms of `steps` steps each.
+/// The step's packing is [`HairStatistics::pose_seconds`] (timed strand by strand, the clock's own cost
+/// included) divided by the threads.
 fn followers_on_the_gpu(threads: usize, steps: usize) {
     use bevy::prelude::Entity;
     use bevy_hair_sim::followers::FollowerPlacement;
     use bevy_hair_sim::render::feed::GuideUpload;
     use bevy_hair_sim::render::{GuideLayout, HairStrips};
+    use bevy_hair_sim::simulation::PackedStrandPose;
     let (guides, followers, edges) = (2000, 10, 24);
     let (mut app, head) = groomed_head(threads, guides, followers, edges);
     let mut step = 0;
@@ -277,26 +280,37 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         step += 1;
         app.insert_resource(placement);
         move_head(app, head, step);
-        app.world().resource::<HairStatistics>().follower_seconds
+        let statistics = app.world().resource::<HairStatistics>();
+        (statistics.follower_seconds, statistics.pose_seconds / threads as f64)
     };
     for _ in 0..WARM_UP_STEPS {
         advance(&mut app, FollowerPlacement::Cpu);
     }
     let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
+    // As the renderer does when it lays the guides out for the GPU: the step packs their poses from now on.
+    for &strand in &strands {
+        app.world_mut().entity_mut(strand).insert(PackedStrandPose::default());
+    }
     // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
-    let mut drawn = app.world_mut().query::<(&SimulatedStrand, &StrandNodes, Option<&FollowerNodes>, &StrandFrames)>();
+    let mut drawn = app.world_mut().query::<(
+        &SimulatedStrand,
+        &StrandNodes,
+        Option<&FollowerNodes>,
+        &StrandFrames,
+        Option<&PackedStrandPose>,
+    )>();
     let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
-    let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+    let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new()];
     let (mut cpu_bytes, mut gpu_bytes) = (0, 0);
     for frame in 0..2 * steps {
         let on_gpu = frame % 2 == 1;
         let placement = if on_gpu { FollowerPlacement::Gpu } else { FollowerPlacement::Cpu };
-        let placed = advance(&mut app, placement);
+        let (placed, packed) = advance(&mut app, placement);
         let world = app.world();
         let strand_query = drawn.query(world);
         let layout = strands.iter().filter_map(|&entity| {
-            let (strand, nodes, followers, _) = strand_query.get(entity).ok()?;
+            let (strand, nodes, followers, ..) = strand_query.get(entity).ok()?;
             let material = strand.rod().material();
             let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
             Some(GuideLayout::new(entity, nodes, followers, radius))
@@ -313,13 +327,13 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
                 upload.set_layout(guides);
             }
             let lookup = |entity| {
-                let (strand, nodes, _, frames) = strand_query.get(entity).ok()?;
-                Some((nodes, frames, strand.collision_thickness(margin)))
+                let (strand, nodes, _, frames, pose) = strand_query.get(entity).ok()?;
+                Some((pose, nodes, frames, strand))
             };
-            assert!(upload.pack(threads, &[], false, lookup).is_some());
+            assert!(upload.pack(threads, &[], margin, false, lookup).is_some());
             gpu_bytes = upload.step_bytes();
         } else {
-            let lookup = |entity| strand_query.get(entity).ok().map(|(_, nodes, followers, _)| (nodes, followers));
+            let lookup = |entity| strand_query.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
             assert!(strips.fill(alpha, threads, lookup).is_some());
             cpu_bytes = 4 * strips.positions().len();
         }
@@ -327,33 +341,36 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let row = 2 * usize::from(on_gpu);
         samples[row].push(placed);
         samples[row + 1].push(drawing);
+        if on_gpu {
+            samples[4].push(packed);
+        }
     }
     let median = |values: &mut Vec<f64>| {
         values.sort_by(f64::total_cmp);
         1e3 * values[values.len() / 2]
     };
-    let [cpu_placed, cpu_drawn, gpu_placed, gpu_drawn] = &mut samples;
-    let (cpu_placed, cpu_drawn, gpu_placed, gpu_drawn) =
-        (median(cpu_placed), median(cpu_drawn), median(gpu_placed), median(gpu_drawn));
+    let [cpu_placed, cpu_drawn, gpu_placed, gpu_drawn, gpu_packed] = &mut samples;
+    let (cpu_placed, cpu_drawn, gpu_placed, gpu_drawn, gpu_packed) =
+        (median(cpu_placed), median(cpu_drawn), median(gpu_placed), median(gpu_drawn), median(gpu_packed));
     println!();
     println!(
         "The example's scene, {guides} guides × {edges} edges with {followers} followers each, {threads} threads, one frame per step (interleaved):"
     );
     println!(
-        "| followers placed | followers on the CPU, ms | draw preparation, ms | CPU total, ms | bytes uploaded per step |"
+        "| followers placed | followers on the CPU, ms | poses packed in the step, ms | draw preparation, ms | CPU total, ms | bytes uploaded per step |"
     );
-    println!("|---|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|");
     println!(
-        "| on the CPU (`FollowerPlacement::Cpu`) | {cpu_placed:.2} | {cpu_drawn:.2} | {:.2} | {cpu_bytes} |",
+        "| on the CPU (`FollowerPlacement::Cpu`) | {cpu_placed:.2} | – | {cpu_drawn:.2} | {:.2} | {cpu_bytes} |",
         cpu_placed + cpu_drawn
     );
+    let gpu_total = gpu_placed + gpu_packed + gpu_drawn;
     println!(
-        "| on the GPU (`FollowerPlacement::Gpu`) | {gpu_placed:.3} | {gpu_drawn:.2} | {:.2} | {gpu_bytes} |",
-        gpu_placed + gpu_drawn
+        "| on the GPU (`FollowerPlacement::Gpu`) | {gpu_placed:.3} | {gpu_packed:.3} | {gpu_drawn:.2} | {gpu_total:.2} | {gpu_bytes} |"
     );
     println!(
-        "| ratio, CPU / GPU | | | {:.1} | {:.1} |",
-        (cpu_placed + cpu_drawn) / (gpu_placed + gpu_drawn),
+        "| ratio, CPU / GPU | | | | {:.1} | {:.1} |",
+        (cpu_placed + cpu_drawn) / gpu_total,
         cpu_bytes as f64 / gpu_bytes as f64
     );
 }

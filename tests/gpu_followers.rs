@@ -2,8 +2,6 @@
 //! placement (`src/followers`) and drawing (`HairStrips::fill`), on a real adapter: Mesa's software
 //! Vulkan (lavapipe) on a machine without a GPU, which `.ci/run` installs. Without any adapter the test
 //! fails (Bevy's renderer cannot start); it never skips.
-//!
-//! Also, without a GPU: the 24-bit frame codes the CPU sends, decoded as the shader decodes them.
 
 mod common;
 
@@ -19,44 +17,18 @@ use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::render::feed::{decode_frame, encode_frame};
 use bevy_hair_sim::render::{GuideLayout, HairStrips};
+use bevy_hair_sim::simulation::PackedStrandPose;
+use bevy_hair_sim::simulation::packed::walk_directors;
 
 /// Fixed step, s.
 const DT: f64 = 1.0 / 60.0;
 
-/// The largest angle a frame code may be off, rad: the diamond angle's step of 2⁻²¹ a quadrant turns the
-/// director by at most 2 · 2⁻²¹ rad (where `dθ/dd` is largest, at 45°), half of it by rounding; plus the
-/// f32 rounding of the basis and of this measurement (a few 1e-7).
-const FRAME_CODE_TOLERANCE: f32 = 1.0 / 2_097_152.0 + 1e-6;
-
-#[test]
-fn frame_codes_keep_the_director_within_their_resolution() {
-    let mut rng = fastrand::Rng::with_seed(7);
-    let mut unit = || {
-        loop {
-            let v = Vec3::new(rng.f32() * 2.0 - 1.0, rng.f32() * 2.0 - 1.0, rng.f32() * 2.0 - 1.0);
-            if (0.01..=1.0).contains(&v.length_squared()) {
-                return v.normalize();
-            }
-        }
-    };
-    let mut worst = 0.0_f32;
-    // Random frames, and the tangents along the axes, where the basis changes axis.
-    let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, Vec3::new(1.0, 1.0, 0.0).normalize()];
-    for index in 0..20_000 {
-        let tangent = if index < axes.len() { axes[index] } else { unit() };
-        let m1 = tangent.any_orthonormal_vector();
-        let (sin, cos) = (index as f32 * 0.377).sin_cos();
-        let m1 = cos * m1 + sin * tangent.cross(m1);
-        let decoded = decode_frame(tangent, encode_frame(tangent, m1));
-        assert!((decoded.length() - 1.0).abs() < 1e-5 && decoded.dot(tangent).abs() < 1e-5);
-        // The angle by its sine: in f32, `acos` of a dot product this close to 1 has steps of 3e-4 rad.
-        worst = worst.max(decoded.cross(m1).length().asin());
-    }
-    println!("worst director error of a frame code: {worst:.2e} rad");
-    assert!(worst <= FRAME_CODE_TOLERANCE, "{worst} rad");
-}
+/// The largest angle (rad) a director walked from a packed pose may be from the strand's material frame
+/// about the drawn edge: the root's code (2⁻²¹ rad), then per vertex at most 1e-6 rad (half a step of the
+/// twist's code, 1.9e-7; the f32 rounding of `θ^i − θ^{i−1} + m_i` for angles of a few rad, 3 × 2.4e-7;
+/// the transport and renormalisation in f32, 1e-7), adding up over the 24 vertices of a strand.
+const WALKED_DIRECTOR_TOLERANCE: f32 = 1.0 / 2_097_152.0 + 24.0 * 1e-6;
 
 /// What the read-back observer last received: the drawn node buffer.
 #[derive(Resource, Clone, Default)]
@@ -197,4 +169,56 @@ fn compare_drawn_halfway(app: &mut App) -> (f32, usize, usize) {
     app.world_mut().despawn(reader);
     assert!(worst.0.is_finite(), "no read-back arrived from the GPU in 120 frames");
     (worst.0, worst.1, expected.node_count())
+}
+
+/// Without a GPU: the frames the GPU walks from the poses the step packs (`walk_directors`, which `frames`
+/// in `followers.wgsl` follows line by line) against the strands' own material frames, on curly hair
+/// (rest curvature and twist) on a shaking, turning head for two seconds.
+#[test]
+fn frames_walked_from_packed_poses_are_the_material_frames() {
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, HairPlugin::default()))
+        .insert_resource(Time::<Fixed>::from_seconds(DT))
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    let groom = HairGroom { strand_count: 60, segments: 24, style: HairStyle::Curly, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, head_pose(0))).id();
+    for _ in 0..3 {
+        app.update();
+    }
+    let strands = app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+    assert_eq!(strands.len(), 60);
+    for &strand in &strands {
+        app.world_mut().entity_mut(strand).insert(PackedStrandPose::default());
+    }
+    let margin = HairSettings::default().collision_margin;
+    let (mut worst, mut checked, mut directors) = (0.0_f32, 0, Vec::new());
+    for step in 1..=120 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
+        app.update();
+        if step % 10 != 0 {
+            continue;
+        }
+        let mut query = app.world_mut().query::<(&PackedStrandPose, &StrandNodes, &StrandFrames, &SimulatedStrand)>();
+        for (pose, nodes, frames, strand) in query.iter(app.world()) {
+            let positions: &[Vec3] = bytemuck::cast_slice(pose.positions());
+            assert_eq!(positions, &nodes.positions[..], "the pose's nodes are the strand's");
+            assert_eq!(pose.thickness(), strand.collision_thickness(margin));
+            assert_eq!(pose.flags(), 0, "frames usable, stepped from the step before");
+            walk_directors(positions, pose.frame_codes(), &mut directors);
+            assert_eq!(directors.len(), positions.len());
+            for (node, walked) in directors.iter().enumerate() {
+                let edge = node.saturating_sub(1);
+                let expected = frames.material_frame(edge).unwrap().m1;
+                // The walk's tangent is the edge's direction in the drawn nodes (as on the GPU); the twist
+                // about it is what the codes carry.
+                let tangent = (positions[edge + 1] - positions[edge]).normalize();
+                let across = (expected - expected.dot(tangent) * tangent).normalize();
+                worst = worst.max(walked.cross(across).length().asin());
+                checked += 1;
+            }
+        }
+    }
+    println!("{checked} directors walked from packed poses: largest angle from the material frame {worst:.2e} rad");
+    assert!(checked >= 60 * 12 * 25);
+    assert!(worst <= WALKED_DIRECTOR_TOLERANCE, "{worst} rad");
 }

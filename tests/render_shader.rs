@@ -215,13 +215,14 @@ fn validate_followers_shader(source: &str) -> Result<naga::Module, String> {
 }
 
 #[test]
-fn the_follower_shader_validates_with_its_two_compute_passes() {
+fn the_follower_shader_validates_with_its_three_compute_passes() {
     let module =
         validate_followers_shader(include_str!("../src/render/followers.wgsl")).unwrap_or_else(|e| panic!("{e}"));
     let mut entries = entry_points(&module);
     entries.sort();
     let compute = naga::ShaderStage::Compute;
-    assert_eq!(entries, [(compute, "draw".to_string()), (compute, "place".to_string())]);
+    let names = ["draw", "frames", "place"];
+    assert_eq!(entries, names.map(|name| (compute, name.to_string())));
 }
 
 #[test]

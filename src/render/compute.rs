@@ -1,5 +1,5 @@
-//! The render world's side of GPU followers: each head's buffers, the two compute passes of
-//! `followers.wgsl` (`place` once per step, `draw` every frame), dispatched before the cameras draw.
+//! The render world's side of GPU followers: each head's buffers, the compute passes of `followers.wgsl`
+//! (`frames` and `place` once per step, `draw` every frame), dispatched before the cameras draw.
 
 use std::borrow::Cow;
 use std::num::NonZeroU64;
@@ -36,16 +36,17 @@ const MAX_GROUPS: u32 = 65_535;
 /// `Params` of the shader: eight words.
 const PARAMS_BYTES: u64 = 32;
 
-/// The two pipelines and their layouts.
+/// The three pipelines and their layouts (`frames` and `place` share one).
 #[derive(Resource)]
 pub(super) struct FollowerPipelines {
     place_layout: BindGroupLayoutDescriptor,
     draw_layout: BindGroupLayoutDescriptor,
+    frames: CachedComputePipelineId,
     place: CachedComputePipelineId,
     draw: CachedComputePipelineId,
 }
 
-/// Queues the two compute pipelines (in `RenderStartup`).
+/// Queues the three compute pipelines (in `RenderStartup`).
 pub(super) fn init_follower_pipelines(
     mut commands: Commands,
     asset_server: Res<AssetServer>,
@@ -63,6 +64,8 @@ pub(super) fn init_follower_pipelines(
                 read(),
                 read(),
                 storage_buffer_sized(false, None),
+                storage_buffer_sized(false, None),
+                read(),
                 storage_buffer_sized(false, None),
             ),
         ),
@@ -89,9 +92,10 @@ pub(super) fn init_follower_pipelines(
             ..default()
         })
     };
+    let frames = pipeline("hair guide frames", &place_layout, "frames");
     let place = pipeline("hair follower placement", &place_layout, "place");
     let draw = pipeline("hair drawn nodes", &draw_layout, "draw");
-    commands.insert_resource(FollowerPipelines { place_layout, draw_layout, place, draw });
+    commands.insert_resource(FollowerPipelines { place_layout, draw_layout, frames, place, draw });
 }
 
 /// What one head sends this frame: the layout when it changed, the step's data when a step came, the
@@ -100,8 +104,8 @@ pub(super) fn init_follower_pipelines(
 struct HeadFeed {
     /// The buffer the hair material reads.
     drawn: AssetId<ShaderBuffer>,
-    /// A new layout: per drawn node and per guide node.
-    layout: Option<(Vec<[u32; 4]>, Vec<u32>)>,
+    /// A new layout: per drawn node, per guide node, and where each guide starts.
+    layout: Option<GuideLayoutData>,
     /// Whether `positions` … `colliders` hold a new step.
     stepped: bool,
     positions: Vec<f32>,
@@ -111,10 +115,25 @@ struct HeadFeed {
     alpha: f32,
 }
 
+/// A layout as the GPU keeps it: [`GuideUpload::drawn_nodes`], [`GuideUpload::guide_of_node`],
+/// [`GuideUpload::guide_starts`].
+///
+/// [`GuideUpload::drawn_nodes`]: super::feed::GuideUpload::drawn_nodes
+/// [`GuideUpload::guide_of_node`]: super::feed::GuideUpload::guide_of_node
+/// [`GuideUpload::guide_starts`]: super::feed::GuideUpload::guide_starts
+struct GuideLayoutData {
+    drawn_nodes: Vec<[u32; 4]>,
+    guide_of_node: Vec<u32>,
+    guide_starts: Vec<u32>,
+}
+
 /// One head's buffers on the GPU.
 struct HeadBuffers {
     drawn_nodes: Buffer,
     guide_of_node: Buffer,
+    guide_starts: Buffer,
+    /// The director `m1` of each guide node's edge, made by `frames` each step.
+    guide_frames: Buffer,
     guide_data: Buffer,
     colliders: Buffer,
     /// This step's and the step before's placements, alternating.
@@ -179,7 +198,11 @@ pub(super) fn extract_gpu_followers(mut main_world: ResMut<MainWorld>, mut gpu: 
         feed.drawn = drawn;
         feed.alpha = sent.alpha;
         if sent.layout {
-            feed.layout = Some((std::mem::take(&mut upload.drawn_nodes), std::mem::take(&mut upload.guide_of_node)));
+            feed.layout = Some(GuideLayoutData {
+                drawn_nodes: std::mem::take(&mut upload.drawn_nodes),
+                guide_of_node: std::mem::take(&mut upload.guide_of_node),
+                guide_starts: std::mem::take(&mut upload.guide_starts),
+            });
         }
         if sent.step {
             feed.stepped = true;
@@ -212,8 +235,8 @@ pub(super) fn prepare_gpu_followers(
 ) {
     let Some(pipelines) = pipelines else { return };
     for head in gpu.heads.values_mut() {
-        if let Some((drawn_nodes, guide_of_node)) = head.feed.layout.take() {
-            head.buffers = Some(HeadBuffers::new(&device, &drawn_nodes, &guide_of_node));
+        if let Some(layout) = head.feed.layout.take() {
+            head.buffers = Some(HeadBuffers::new(&device, &layout));
             head.bind_groups = None;
             (head.place_due, head.placed_once) = (false, false);
         }
@@ -278,6 +301,8 @@ pub(super) fn prepare_gpu_followers(
                         buffers.colliders.as_entire_binding(),
                         now.as_entire_binding(),
                         before.as_entire_binding(),
+                        buffers.guide_starts.as_entire_binding(),
+                        buffers.guide_frames.as_entire_binding(),
                     )),
                 );
                 let draw = device.create_bind_group(
@@ -328,9 +353,10 @@ fn colliders_buffer(device: &RenderDevice, capacity: usize) -> Buffer {
 }
 
 impl HeadBuffers {
-    fn new(device: &RenderDevice, drawn_nodes: &[[u32; 4]], guide_of_node: &[u32]) -> Self {
+    fn new(device: &RenderDevice, layout: &GuideLayoutData) -> Self {
+        let GuideLayoutData { drawn_nodes, guide_of_node, guide_starts } = layout;
         let guide_nodes = guide_of_node.len();
-        let guides = guide_of_node.last().map_or(0, |&last| last as usize + 1);
+        let guides = guide_starts.len().saturating_sub(1);
         let with_data = |label: &'static str, contents: &[u8]| {
             // A binding may not be empty.
             let contents = if contents.is_empty() { &[0; 16][..] } else { contents };
@@ -353,6 +379,8 @@ impl HeadBuffers {
         Self {
             drawn_nodes: with_data("hair drawn node offsets", bytemuck::cast_slice(drawn_nodes)),
             guide_of_node: with_data("hair guide of each node", bytemuck::cast_slice(guide_of_node)),
+            guide_starts: with_data("hair guide starts", bytemuck::cast_slice(guide_starts)),
+            guide_frames: empty("hair guide frames", 16 * guide_nodes as u64, BufferUsages::STORAGE),
             guide_data: empty(
                 "hair guide data",
                 4 * u64::from(words.total),
@@ -375,7 +403,7 @@ fn workgroups(invocations: u32) -> (u32, u32) {
     if groups <= MAX_GROUPS { (groups.max(1), 1) } else { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) }
 }
 
-/// Places each head's followers when a step came, and writes every drawn node for this frame (in the
+/// Walks each head's guide frames and places its followers when a step came, and writes every drawn node for this frame (in the
 /// render graph, before the cameras draw).
 pub(super) fn dispatch_gpu_followers(
     mut render_context: RenderContext,
@@ -384,8 +412,9 @@ pub(super) fn dispatch_gpu_followers(
     pipeline_cache: Res<PipelineCache>,
 ) {
     let Some(pipelines) = pipelines else { return };
-    let (Some(place), Some(draw)) =
-        (pipeline_cache.get_compute_pipeline(pipelines.place), pipeline_cache.get_compute_pipeline(pipelines.draw))
+    let pipeline = |id| pipeline_cache.get_compute_pipeline(id);
+    let (Some(frames), Some(place), Some(draw)) =
+        (pipeline(pipelines.frames), pipeline(pipelines.place), pipeline(pipelines.draw))
     else {
         return;
     };
@@ -404,8 +433,12 @@ pub(super) fn dispatch_gpu_followers(
         let (place_group, draw_group) = &groups[head.parity];
         if std::mem::take(&mut head.place_due) {
             (head.placed_once, head.snap_all) = (true, false);
-            pass.set_pipeline(place);
+            // The guides' frames, walked from each root, then the followers placed in them.
+            let (guides_x, guides_y) = workgroups(buffers.guides);
             pass.set_bind_group(0, place_group, &[]);
+            pass.set_pipeline(frames);
+            pass.dispatch_workgroups(guides_x, guides_y, 1);
+            pass.set_pipeline(place);
             pass.dispatch_workgroups(x, y, 1);
         }
         pass.set_pipeline(draw);

@@ -1,6 +1,11 @@
-// Follower hairs placed and every drawn node interpolated on the GPU (see `feed.rs` for what is sent and
-// `followers/mod.rs` for the scheme, which `place` follows step by step in single precision).
+// Follower hairs placed and every drawn node interpolated on the GPU (see `feed.rs` for what is sent,
+// `simulation/packed.rs` for the frame codes, and `followers/mod.rs` for the scheme, which `place` follows
+// step by step in single precision).
 //
+// `frames` (once per step, one invocation per guide): the director `m1` of each of the guide's edges,
+// walked from the root: the root edge's decoded from its code, each next edge's carried onto it by
+// parallel transport and turned about it by the material twist of the vertex between them
+// (`walk_directors` in `packed.rs` does the same on the CPU).
 // `place` (once per step, one invocation per drawn node): a guide's own node is where the guide is; a
 // follower node is `x_g + o_t t + o_1 m1 + o_2 m2` in the frame of the guide's edge arriving at the node,
 // then, from the third node on, moved out of each collider grown by the guide's thickness.
@@ -30,6 +35,9 @@ const GUIDE_SNAP: u32 = 1u;
 const GUIDE_NO_FRAMES: u32 = 2u;
 const FROM_Y: u32 = 0x800000u;
 const ANGLE_STEPS: f32 = 2097152.0;
+const CODE_BITS: u32 = 0xffffffu;
+// A material twist's step: a turn in 2^24 steps, rad.
+const TURN_STEP: f32 = 3.7450702e-7;
 const WORKGROUP: u32 = 64u;
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -44,6 +52,10 @@ const WORKGROUP: u32 = 64u;
 // This step's placement, and the step before's (written too when a guide snaps).
 @group(0) @binding(5) var<storage, read_write> placed: array<f32>;
 @group(0) @binding(6) var<storage, read_write> placed_before: array<f32>;
+// Per guide: its first guide node; then one past the last guide node. Kept for the layout.
+@group(0) @binding(7) var<storage, read> guide_starts: array<u32>;
+// This step: the director `m1` of each guide node's edge (the root edge's at the root), made by `frames`.
+@group(0) @binding(8) var<storage, read_write> guide_frames: array<vec4<f32>>;
 
 fn invocation(id: vec3<u32>, groups: vec3<u32>) -> u32 {
     return id.x + id.y * groups.x * WORKGROUP;
@@ -65,6 +77,52 @@ fn frame_code(node: u32) -> u32 {
     return code & 0xffffffu;
 }
 
+// `(sin, cos)` of the turn a material twist code stands for (`turn_sin_cos` in `packed.rs`): the quarter
+// turns exactly from the code's top bits, the rest through Cephes' minimax polynomials, so that no builtin
+// `sin` or `cos` is needed (WGSL allows them an absolute error of 2^-11).
+fn turn_sin_cos(code: u32) -> vec2<f32> {
+    let quarter = ((code + 0x200000u) >> 22u) & 3u;
+    let rest = (bitcast<i32>(((code & CODE_BITS) - (quarter << 22u)) << 8u)) >> 8u;
+    let r = f32(rest) * TURN_STEP;
+    let r2 = r * r;
+    let s = r + r * r2 * (-1.6666655e-1 + r2 * (8.332161e-3 + r2 * -1.9515296e-4));
+    let c = 1.0 - 0.5 * r2 + r2 * r2 * (4.1666646e-2 + r2 * (-1.3887316e-3 + r2 * 2.4433157e-5));
+    switch quarter {
+        case 0u: { return vec2<f32>(s, c); }
+        case 1u: { return vec2<f32>(c, -s); }
+        case 2u: { return vec2<f32>(-s, -c); }
+        default: { return vec2<f32>(-c, s); }
+    }
+}
+
+// `v` carried from the unit tangent `a` to the unit tangent `b` (`transport` in `packed.rs`).
+fn transport(a: vec3<f32>, b: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    let axis = cross(a, b);
+    let c = dot(a, b);
+    if c <= -0.999 {
+        return v;
+    }
+    return v * c + cross(axis, v) + axis * (dot(axis, v) / (1.0 + c));
+}
+
+// The basis direction `b1` across the unit `t` (`director_basis` in `packed.rs`).
+fn basis_b1(t: vec3<f32>, from_y: bool) -> vec3<f32> {
+    var axis = vec3<f32>(1.0, 0.0, 0.0);
+    if from_y {
+        axis = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    return normalize(cross(t, axis));
+}
+
+// `v` made perpendicular to the unit `t` and unit (`perpendicular_unit` in `packed.rs`).
+fn perpendicular_unit(v: vec3<f32>, t: vec3<f32>) -> vec3<f32> {
+    let across = v - dot(v, t) * t;
+    if dot(across, across) > 1e-12 {
+        return normalize(across);
+    }
+    return basis_b1(t, abs(t.x) > abs(t.y));
+}
+
 // Glam's `Quat * Vec3`.
 fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
     let b = q.xyz;
@@ -72,13 +130,9 @@ fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
     return v * (q.w * q.w - b2) + b * (dot(v, b) * 2.0) + cross(b, v) * (q.w * 2.0);
 }
 
-// The director `m1` a frame code stands for about the unit tangent `t` (`feed.rs`, `decode_frame`).
-fn decode_frame(t: vec3<f32>, code: u32) -> vec3<f32> {
-    var axis = vec3<f32>(1.0, 0.0, 0.0);
-    if (code & FROM_Y) != 0u {
-        axis = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let b1 = normalize(cross(t, axis));
+// The director `m1` a code stands for about the unit tangent `t` (`decode_director` in `packed.rs`).
+fn decode_director(t: vec3<f32>, code: u32) -> vec3<f32> {
+    let b1 = basis_b1(t, (code & FROM_Y) != 0u);
     let b2 = cross(t, b1);
     let d = f32(code & (FROM_Y - 1u)) / ANGLE_STEPS;
     var cs: vec2<f32>;
@@ -152,6 +206,33 @@ fn push_out(world: vec3<f32>, index: u32, thickness: f32) -> vec3<f32> {
 }
 
 @compute @workgroup_size(64)
+fn frames(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let guide = invocation(id, groups);
+    if guide >= params.guides {
+        return;
+    }
+    let first = guide_starts[guide];
+    let end = guide_starts[guide + 1u];
+    let flags = guide_data[params.guides_offset + 2u * guide + 1u];
+    // `place` reads no frames of such a guide.
+    if (flags & GUIDE_NO_FRAMES) != 0u || end < first + 2u {
+        return;
+    }
+    var t = normalize(guide_position(first + 1u) - guide_position(first));
+    var m1 = decode_director(t, frame_code(first));
+    guide_frames[first] = vec4<f32>(m1, 0.0);
+    guide_frames[first + 1u] = vec4<f32>(m1, 0.0);
+    for (var node = first + 2u; node < end; node++) {
+        let next = normalize(guide_position(node) - guide_position(node - 1u));
+        let carried = transport(t, next, m1);
+        let turn = turn_sin_cos(frame_code(node));
+        m1 = perpendicular_unit(turn.y * carried + turn.x * cross(next, carried), next);
+        guide_frames[node] = vec4<f32>(m1, 0.0);
+        t = next;
+    }
+}
+
+@compute @workgroup_size(64)
 fn place(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let index = invocation(id, groups);
     if index >= params.drawn_nodes {
@@ -171,7 +252,7 @@ fn place(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
                 start = node;
             }
             let t = normalize(guide_position(start + 1u) - guide_position(start));
-            let m1 = decode_frame(t, frame_code(node));
+            let m1 = guide_frames[node].xyz;
             let m2 = cross(t, m1);
             let offset = bitcast<vec3<f32>>(drawn.xyz);
             position = position + offset.x * t + offset.y * m1 + offset.z * m2;

@@ -24,7 +24,8 @@ use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::{FollowerNodes, FollowerPlacement};
 use crate::schedule::HairDrawSystems;
 use crate::simulation::{
-    CheckedSettings, HairHead, HeadStrands, SimulatedStrand, StrandColliders, StrandFrames, StrandNodes, StrandOf,
+    CheckedSettings, HairHead, HeadStrands, PackedStrandPose, SimulatedStrand, StrandColliders, StrandFrames,
+    StrandNodes, StrandOf,
 };
 use crate::volume::RepresentedHairs;
 
@@ -272,12 +273,14 @@ type DrawnStrand = (
     Option<&'static FollowerNodes>,
     Option<&'static RepresentedHairs>,
     &'static StrandFrames,
+    Option<&'static PackedStrandPose>,
 );
 
 /// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
 /// frame's node positions; keeps the bounds and the material up to date.
 #[allow(clippy::too_many_arguments)]
 fn prepare_hair_meshes(
+    mut commands: Commands,
     fixed_time: Res<Time<Fixed>>,
     placement: Option<Res<FollowerPlacement>>,
     checked: Res<CheckedSettings>,
@@ -312,7 +315,7 @@ fn prepare_hair_meshes(
         }
         let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
         let layout = head_strands.strands().iter().filter_map(|&entity| {
-            let (strand, nodes, followers, represented, _) = strands.get(entity).ok()?;
+            let (strand, nodes, followers, represented, ..) = strands.get(entity).ok()?;
             let material = strand.rod().material();
             let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
             let mut guide = GuideLayout::new(entity, nodes, followers, radius);
@@ -351,8 +354,9 @@ fn prepare_hair_meshes(
         let bounds = if on_gpu {
             hair_mesh.fresh = false;
             let head = StrandOf(child_of.parent());
-            let context = GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin };
-            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), &strands)
+            let context =
+                GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin as f32 };
+            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), &strands, &mut commands)
         } else {
             hair_mesh.upload_laid_out = false;
             let lookup = |entity| strands.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
@@ -373,18 +377,20 @@ struct GpuContext<'a> {
     alpha: f32,
     threads: usize,
     /// The collision margin of the last valid settings, m.
-    margin: f64,
+    margin: f32,
 }
 
 /// Prepares what the GPU's follower placement needs this frame (see [`super::feed`]): the layout when it
 /// changed or a guide's followers were bound again, the guides' data when a step came since the last
-/// frame, the interpolation fraction always. Returns the bounds of the last two steps' hair.
+/// frame, the interpolation fraction always. Returns the bounds of the last two steps' hair. A new layout
+/// gives its guides a [`PackedStrandPose`] for the step to write.
 fn send_to_gpu(
     hair_mesh: &mut HairMesh,
     relaid: bool,
     context: GpuContext,
     colliders: &[crate::rod::MovingCollider],
     strands: &Query<DrawnStrand>,
+    commands: &mut Commands,
 ) -> Option<(Vec3, Vec3)> {
     let HairMesh { strips, upload, .. } = hair_mesh;
     let followers_of =
@@ -398,20 +404,24 @@ fn send_to_gpu(
         relaid || !hair_mesh.upload_laid_out || due && upload.rebound(strips.guides().iter().map(followers_of));
     if layout {
         upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
+        for guide in strips.guides() {
+            if strands.get(guide.entity).is_ok_and(|(.., pose)| pose.is_none()) {
+                commands.entity(guide.entity).try_insert(PackedStrandPose::default());
+            }
+        }
         hair_mesh.upload_laid_out = true;
         hair_mesh.packed_at = None;
     }
     let steps = steps_since(hair_mesh.packed_at);
     let stepped = steps.is_none_or(|steps| steps >= 1.0);
     if stepped {
-        let margin = context.margin;
         let lookup = |entity| {
-            let (strand, nodes, _, _, frames) = strands.get(entity).ok()?;
-            Some((nodes, frames, strand.contact_thickness(margin) as f32))
+            let (strand, nodes, _, _, frames, pose) = strands.get(entity).ok()?;
+            Some((pose, nodes, frames, strand))
         };
         // After more than one step (or none packed yet) there is no step before to interpolate from.
         let snap_all = steps.is_none_or(|steps| steps > 1.0);
-        let bounds = upload.pack(context.threads, colliders, snap_all, lookup);
+        let bounds = upload.pack(context.threads, colliders, context.margin, snap_all, lookup);
         hair_mesh.step_bounds = [hair_mesh.step_bounds[1], bounds];
         hair_mesh.packed_at = Some(now);
     }

@@ -14,7 +14,9 @@
 //! single-precision view: [`StrandNodes`] (positions, velocities, the positions one step before, for
 //! drawing between steps) and [`StrandFrames`] (tangents, material frames, twist). [`StrandRestShape`] is the
 //! shape the strand has no elastic energy in; edit it to restyle a strand in place. [`StrandSnapshot`] saves
-//! a strand so that it repeats its future bit for bit.
+//! a strand so that it repeats its future bit for bit. On a strand with a [`PackedStrandPose`] (the
+//! renderer gives one to each guide whose followers the GPU places) the step also packs its pose into one
+//! array of 32-bit words for a GPU, while the strand is in the core's cache.
 //!
 //! # Loads
 //! Gravity ([`HairSettings::gravity`]), air drag relative to the wind ([`HairSettings::air_damping`]) and
@@ -84,6 +86,7 @@ mod cadence;
 mod contacts;
 mod data;
 mod head;
+pub mod packed;
 mod pose;
 mod settings;
 mod snapshot;
@@ -101,6 +104,7 @@ pub use contacts::{HeadColliderSet, SharedColliderSet};
 pub(crate) use data::snap_previous;
 pub use data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape};
 pub use head::{HairHead, HeadMotion, HeadStrands, StrandOf};
+pub use packed::PackedStrandPose;
 pub(crate) use pose::ScaledPose;
 pub use settings::{HairPause, HairSettings, HairStatistics, HairVolume};
 pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
@@ -146,6 +150,7 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<StrandForces>()
             .register_type::<StrandNodes>()
             .register_type::<StrandFrames>()
+            .register_type::<PackedStrandPose>()
             .register_type::<EdgeFrame>()
             .register_type::<StrandRestShape>()
             .register_type::<StrandRejected>()

@@ -152,6 +152,12 @@ pub struct HairStatistics {
     pub mean_newton_iterations: f64,
     /// Wall-clock time the last step of all strands took, s.
     pub step_seconds: f64,
+    /// Of that, the time spent packing strand poses for the GPU ([`PackedStrandPose`], only on strands
+    /// that have one), summed over the threads that stepped them, s: every eighth pose a thread packs is
+    /// timed (a clock read costs a third of a packing) and the rest counted at their mean.
+    ///
+    /// [`PackedStrandPose`]: crate::simulation::PackedStrandPose
+    pub pose_seconds: f64,
     /// Follower hairs placed after the last step ([`crate::followers`]).
     pub followers: usize,
     /// Wall-clock time placing them took, s.

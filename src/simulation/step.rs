@@ -9,8 +9,8 @@ use bevy::utils::Parallel;
 
 use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
 use crate::simulation::{
-    HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, SimulatedStrand, StepOutcome,
-    StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRestShape,
+    HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose, SimulatedStrand,
+    StepOutcome, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRestShape,
     longer_step_params,
 };
 
@@ -200,6 +200,9 @@ struct StepTally {
     newton_iterations: u64,
     contacts: usize,
     max_strain: f64,
+    /// Poses packed, and the time the timed ones of them took, s (see [`pack_pose`]).
+    poses: u32,
+    timed_pose_seconds: f64,
     quarantined: usize,
     /// Strands not stepped at this fixed step (a coarser level of detail).
     unstepped: usize,
@@ -267,6 +270,29 @@ impl FaultLog {
     }
 }
 
+/// Every how many poses a thread packs it times one for [`HairStatistics::pose_seconds`] (a clock read
+/// costs a third of a packing).
+const POSE_TIMING_INTERVAL: u32 = 8;
+
+/// Packs a strand's pose for the GPU from its components just written (in this core's cache), with its
+/// contact thickness (m) and whether it snapped; times every [`POSE_TIMING_INTERVAL`]-th.
+fn pack_pose(
+    pose: &mut PackedStrandPose,
+    nodes: &StrandNodes,
+    frames: &StrandFrames,
+    (thickness, snapped): (f64, bool),
+    tally: &mut StepTally,
+) {
+    tally.poses += 1;
+    if tally.poses % POSE_TIMING_INTERVAL != 1 {
+        pose.write(nodes, frames, thickness as f32, snapped);
+        return;
+    }
+    let started = Instant::now();
+    pose.write(nodes, frames, thickness as f32, snapped);
+    tally.timed_pose_seconds += started.elapsed().as_secs_f64();
+}
+
 /// Batches of strands per compute thread in [`step_strands`].
 const STEP_BATCHES_PER_THREAD: usize = 64;
 
@@ -277,6 +303,7 @@ type StepItem = (
     &'static mut StrandForces,
     &'static mut StrandNodes,
     &'static mut StrandFrames,
+    Option<&'static mut PackedStrandPose>,
     Option<&'static StrandOf>,
 );
 
@@ -305,7 +332,7 @@ pub(crate) fn step_strands(
     // and others not), and big batches leave one thread waiting on another.
     let batching = BatchingStrategy::new().batches_per_thread(STEP_BATCHES_PER_THREAD);
     strands.par_iter_mut().batching_strategy(batching).for_each(
-        |(entity, mut strand, mut forces, mut nodes, mut frames, strand_of)| {
+        |(entity, mut strand, mut forces, mut nodes, mut frames, mut pose, strand_of)| {
             let contacts =
                 Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
             threads.scope(|StepThread { workspace, tally }| {
@@ -321,7 +348,10 @@ pub(crate) fn step_strands(
                             let message = StrandFault { strand: entity, error };
                             tally.faults.push(Fault { message, first_of_episode, quarantine });
                         }
-                        strand.write_components(None, &mut nodes, &mut frames);
+                        let snapped = strand.write_components(None, &mut nodes, &mut frames);
+                        if let Some(pose) = pose.as_mut() {
+                            pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
+                        }
                         tally.unstepped += 1;
                         tally.quarantined += usize::from(strand.is_quarantined());
                         return;
@@ -338,7 +368,10 @@ pub(crate) fn step_strands(
                 let outcome = strand.advance(now, params, &forces, &contacts, workspace);
                 forces.clear();
                 // Written here, while the strand is in this core's cache.
-                strand.write_components(Some(steps), &mut nodes, &mut frames);
+                let snapped = strand.write_components(Some(steps), &mut nodes, &mut frames);
+                if let Some(pose) = pose.as_mut() {
+                    pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
+                }
                 tally.strands += 1;
                 tally.nodes += strand.rod().node_count();
                 tally.quarantined += usize::from(strand.is_quarantined());
@@ -361,7 +394,7 @@ pub(crate) fn step_strands(
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);
-    let (mut quarantined, mut unstepped) = (0, 0);
+    let (mut quarantined, mut unstepped, mut pose_seconds) = (0, 0, 0.0);
     for StepThread { tally, .. } in threads.iter_mut() {
         unstepped += tally.unstepped;
         strands_stepped += tally.strands;
@@ -370,6 +403,11 @@ pub(crate) fn step_strands(
         contacts += tally.contacts;
         max_strain = max_strain.max(tally.max_strain);
         quarantined += tally.quarantined;
+        // The timed poses are the 1st, 9th, 17th, … of each thread.
+        let timed = tally.poses.div_ceil(POSE_TIMING_INTERVAL);
+        if timed > 0 {
+            pose_seconds += tally.timed_pose_seconds * f64::from(tally.poses) / f64::from(timed);
+        }
         for fault in tally.faults.drain(..) {
             fault_log.record(now, &fault);
             statistics.faults += 1;
@@ -382,6 +420,7 @@ pub(crate) fn step_strands(
     statistics.quarantined = quarantined;
     statistics.unstepped_strands = unstepped;
     statistics.step_seconds = started.elapsed().as_secs_f64();
+    statistics.pose_seconds = pose_seconds;
     // Held by invalid settings, the hair was not simulated.
     statistics.steps += u64::from(valid.is_some());
     statistics.strands = strands_stepped;

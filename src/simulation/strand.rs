@@ -566,20 +566,21 @@ impl SimulatedStrand {
 
     /// Writes the strand's [`StrandNodes`] and [`StrandFrames`] after this fixed step: the rod as it is, or
     /// at a coarser level of detail the drawn shape carried with the head (see [`crate::detail`]).
-    /// `stepped` is the length in fixed steps of the step just taken, `None` if none was.
+    /// `stepped` is the length in fixed steps of the step just taken, `None` if none was. Returns whether
+    /// the drawn pose jumped there (spawned, reset or teleported: nothing to interpolate from).
     pub(crate) fn write_components(
         &mut self,
         stepped: Option<u32>,
         nodes: &mut StrandNodes,
         frames: &mut StrandFrames,
-    ) {
+    ) -> bool {
         if self.detail.draws_simulation() {
-            write_strand_data(self, nodes, frames);
-            return;
+            return write_strand_data(self, nodes, frames);
         }
         let snap = self.take_snap();
         let Self { detail, rod, head, .. } = self;
         detail.write_drawn(rod, head, stepped.is_some(), snap, nodes, frames);
+        snap
     }
 
     /// Whether the drawn pose must jump to the strand (spawned, reset or teleported) rather than
@@ -823,12 +824,18 @@ pub(crate) fn build_strands(
     }
 }
 
-/// Copies a strand's simulated state into its [`StrandNodes`] and [`StrandFrames`] (after its step).
-pub(crate) fn write_strand_data(strand: &mut SimulatedStrand, nodes: &mut StrandNodes, frames: &mut StrandFrames) {
+/// Copies a strand's simulated state into its [`StrandNodes`] and [`StrandFrames`] (after its step);
+/// returns whether the previous positions jumped to the new ones.
+pub(crate) fn write_strand_data(
+    strand: &mut SimulatedStrand,
+    nodes: &mut StrandNodes,
+    frames: &mut StrandFrames,
+) -> bool {
     let snap = strand.take_snap();
     let rod = strand.rod();
     nodes.update(rod.state(), snap);
     frames.update(rod.frames(), rod.twist_angles());
+    snap
 }
 
 /// Gives every strand whose [`StrandRestShape`] was edited its new rest shape; an edit the rod rejects is
