@@ -289,16 +289,12 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
     let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).expect("the head has strands").strands().to_vec();
     // As the renderer does when it lays the guides out for the GPU: the step packs their poses from now on.
     for &strand in &strands {
-        app.world_mut().entity_mut(strand).insert(PackedStrandPose::default());
+        let nodes = app.world().get::<StrandNodes>(strand).map_or(0, |nodes| nodes.positions.len());
+        app.world_mut().entity_mut(strand).insert(PackedStrandPose::with_capacity(nodes));
     }
     // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
-    let mut drawn = app.world_mut().query::<(
-        &SimulatedStrand,
-        &StrandNodes,
-        Option<&FollowerNodes>,
-        &StrandFrames,
-        Option<&PackedStrandPose>,
-    )>();
+    let mut drawn = app.world_mut().query::<(&SimulatedStrand, &StrandNodes, Option<&FollowerNodes>, &StrandFrames)>();
+    let mut poses = app.world_mut().query::<&PackedStrandPose>();
     let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
     let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new()];
@@ -308,7 +304,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let placement = if on_gpu { FollowerPlacement::Gpu } else { FollowerPlacement::Cpu };
         let (placed, packed) = advance(&mut app, placement);
         let world = app.world();
-        let strand_query = drawn.query(world);
+        let (strand_query, pose_query) = (drawn.query(world), poses.query(world));
         let layout = strands.iter().filter_map(|&entity| {
             let (strand, nodes, followers, ..) = strand_query.get(entity).ok()?;
             let material = strand.rod().material();
@@ -326,11 +322,14 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
                 let guides = strips.guides().iter().zip(followers()).map(|(guide, f)| (guide.entity, guide.nodes, f));
                 upload.set_layout(guides);
             }
-            let lookup = |entity| {
-                let (strand, nodes, _, frames, pose) = strand_query.get(entity).ok()?;
-                Some((pose, nodes, frames, strand))
+            let pose_of = |entity| pose_query.get(entity).ok();
+            let unpacked = |entity, pose: &mut PackedStrandPose| {
+                let Ok((strand, nodes, _, frames)) = strand_query.get(entity) else { return false };
+                let snapped = nodes.previous_positions == nodes.positions;
+                pose.write(nodes, frames, strand.collision_thickness(margin), snapped);
+                true
             };
-            assert!(upload.pack(threads, &[], margin, false, lookup).is_some());
+            assert!(upload.pack(threads, &[], false, pose_of, unpacked).is_some());
             gpu_bytes = upload.step_bytes();
         } else {
             let lookup = |entity| strand_query.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));

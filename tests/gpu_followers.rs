@@ -204,7 +204,7 @@ fn frames_walked_from_packed_poses_are_the_material_frames() {
             assert_eq!(positions, &nodes.positions[..], "the pose's nodes are the strand's");
             assert_eq!(pose.thickness(), strand.collision_thickness(margin));
             assert_eq!(pose.flags(), 0, "frames usable, stepped from the step before");
-            walk_directors(positions, pose.frame_codes(), &mut directors);
+            walk_directors(pose, &mut directors);
             assert_eq!(directors.len(), positions.len());
             for (node, walked) in directors.iter().enumerate() {
                 let edge = node.saturating_sub(1);

@@ -23,8 +23,8 @@ use super::{bounds_of, take_front};
 use crate::followers::FollowerNodes;
 use crate::parallel::prefetch;
 use crate::rod::{ColliderShape, MovingCollider};
+use crate::simulation::PackedStrandPose;
 use crate::simulation::packed::{POSE_NO_FRAMES, POSE_SNAP};
-use crate::simulation::{PackedStrandPose, SimulatedStrand, StrandFrames, StrandNodes};
 
 /// A drawn node that is its guide's own node (drawn where the guide is), in [`GuideUpload::drawn_nodes`].
 pub const DRAWN_GUIDE: u32 = 1 << 31;
@@ -98,7 +98,7 @@ pub struct GuideUpload {
     max_offset: f32,
     /// This step's guide node positions, `x y z` per node, world space, m.
     pub positions: Vec<f32>,
-    /// This step's frame code per guide node ([`PackedStrandPose::frame_codes`]), three bytes each
+    /// This step's frame code per guide node ([`PackedStrandPose::frame_code_bytes`]), three bytes each
     /// (little-endian), padded to whole words.
     pub frames: Vec<u8>,
     /// Per guide: its contact thickness (m, `f32` bits) and flags ([`GUIDE_SNAP`], [`GUIDE_NO_FRAMES`]).
@@ -110,11 +110,6 @@ pub struct GuideUpload {
     /// Each piece's pose packed here for a guide the step packed none for (reused).
     piece_poses: Vec<PackedStrandPose>,
 }
-
-/// What [`GuideUpload::pack`] reads of one guide: the pose the step packed, if any, and what to pack one
-/// from where the step has not (yet) packed it: the strand's nodes and frames, and the strand for its
-/// contact thickness.
-pub type GuideToPack<'a> = (Option<&'a PackedStrandPose>, &'a StrandNodes, &'a StrandFrames, &'a SimulatedStrand);
 
 impl GuideUpload {
     /// Lays out the drawn nodes of `guides` (entity, node count, followers as bound; in drawing order), as
@@ -187,20 +182,22 @@ impl GuideUpload {
             + std::mem::size_of::<GpuCollider>() * self.colliders.len()
     }
 
-    /// Writes this step's guide data (`lookup` gives each guide's pose, see [`GuideToPack`]) in parallel on
-    /// up to `threads` threads, with `colliders`; `margin` is the collision margin (m) of a thickness
-    /// packed here. `snap_all` draws every guide where it is now (when more than one step passed since
-    /// the last upload, the GPU has no previous step to interpolate from). Returns the bounds of what will
-    /// be drawn (the guides' nodes widened by twice the longest offset: a follower node pushed out of a
-    /// collider stays that close), `None` when nothing is there. A guide `lookup` does not find, or whose
-    /// node count no longer matches, keeps its last data and is drawn still.
+    /// Writes this step's guide data in parallel on up to `threads` threads, with `colliders`: each
+    /// guide's pose as the step packed it (`pose_of`), or, where the step has not (just laid out, or the
+    /// strand changed since), as `unpacked` packs it into the array it is given from the guide's
+    /// components (saying whether the guide was found). `snap_all` draws every guide where it is now (when
+    /// more than one step passed since the last upload, the GPU has no previous step to interpolate
+    /// from). Returns the bounds of what will be drawn (the guides' nodes widened by twice the longest
+    /// offset: a follower node pushed out of a collider stays that close), `None` when nothing is there. A
+    /// guide found neither way, or whose node count no longer matches, keeps its last data and is drawn
+    /// still.
     pub fn pack<'a>(
         &mut self,
         threads: usize,
         colliders: &[MovingCollider],
-        margin: f32,
         snap_all: bool,
-        lookup: impl Fn(Entity) -> Option<GuideToPack<'a>> + Sync,
+        pose_of: impl Fn(Entity) -> Option<&'a PackedStrandPose> + Sync,
+        unpacked: impl Fn(Entity, &mut PackedStrandPose) -> bool + Sync,
     ) -> Option<(Vec3, Vec3)> {
         self.colliders.clear();
         self.colliders.extend(colliders.iter().map(GpuCollider::new));
@@ -219,46 +216,31 @@ impl GuideUpload {
             let piece_positions = take_front(&mut positions, 3 * nodes);
             let piece_frames = take_front(&mut frames, FRAME_CODE_BYTES * nodes);
             let piece_guides = take_front(&mut guides, guide_count);
-            (
-                range,
-                piece_positions,
-                piece_frames,
-                piece_guides,
-                &mut take_front(&mut bounds, 1)[0],
-                &mut take_front(&mut poses, 1)[0],
-            )
+            let piece_bounds = &mut take_front(&mut bounds, 1)[0];
+            (range, piece_positions, piece_frames, piece_guides, piece_bounds, &mut take_front(&mut poses, 1)[0])
         });
-        let lookup = &lookup;
+        let (pose_of, unpacked) = (&pose_of, &unpacked);
         crate::parallel::run_in_parallel(threads, work, |(range, positions, frames, guides, bounds, scratch)| {
             let base = first_nodes[range.start];
-            // Each guide is looked up `AHEAD` guides early and its pose asked for then.
+            // Each guide's pose is looked up `AHEAD` guides early and asked for then.
             let end_of_piece = range.end;
             let look = |index: usize| {
-                let found = if index < end_of_piece { lookup(entities[index]) } else { None };
-                found.inspect(|(pose, ..)| {
-                    if let Some(pose) = pose {
-                        prefetch(pose.words());
-                    }
-                })
+                let found = if index < end_of_piece { pose_of(entities[index]) } else { None };
+                found.inspect(|pose| prefetch(pose.words()))
             };
-            let mut found: [Option<GuideToPack<'a>>; AHEAD] = [None; AHEAD];
+            let mut found: [Option<&PackedStrandPose>; AHEAD] = [None; AHEAD];
             for index in range.start..range.start + AHEAD {
                 found[index % AHEAD] = look(index);
             }
             for (guide, index) in guides.iter_mut().zip(range) {
                 let this = std::mem::replace(&mut found[index % AHEAD], look(index + AHEAD));
                 let (start, end) = (first_nodes[index] - base, first_nodes[index + 1] - base);
-                let Some((pose, nodes, strand_frames, strand)) = this else {
-                    guide[1] |= GUIDE_SNAP;
-                    continue;
-                };
-                let pose = match pose {
+                let pose = match this {
                     Some(pose) if pose.node_count() == end - start => pose,
-                    // Not packed by the step yet (just laid out), or packed before the strand changed.
+                    _ if unpacked(entities[index], scratch) => &*scratch,
                     _ => {
-                        let snapped = nodes.previous_positions == nodes.positions;
-                        scratch.write(nodes, strand_frames, strand.collision_thickness(margin), snapped);
-                        &*scratch
+                        guide[1] |= GUIDE_SNAP;
+                        continue;
                     }
                 };
                 if pose.node_count() != end - start {
@@ -266,10 +248,7 @@ impl GuideUpload {
                     continue;
                 }
                 positions[3 * start..3 * end].copy_from_slice(bytemuck::cast_slice(pose.positions()));
-                let codes = &mut frames[FRAME_CODE_BYTES * start..FRAME_CODE_BYTES * end];
-                for (out, code) in codes.chunks_exact_mut(FRAME_CODE_BYTES).zip(pose.frame_codes()) {
-                    out.copy_from_slice(&code.to_le_bytes()[..FRAME_CODE_BYTES]);
-                }
+                frames[FRAME_CODE_BYTES * start..FRAME_CODE_BYTES * end].copy_from_slice(pose.frame_code_bytes());
                 let flags = pose.flags() | if snap_all { GUIDE_SNAP } else { 0 };
                 *guide = [pose.thickness().to_bits(), flags];
             }
@@ -289,3 +268,75 @@ fn node_word(guide_node: usize, node: usize) -> u32 {
 
 /// How many guides ahead [`GuideUpload::pack`] looks guides up and asks for their poses.
 const AHEAD: usize = 4;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulation::{StrandFrames, StrandNodes};
+
+    /// A wavy strand of `edges` edges with consistent frames (reference directors carried along by
+    /// parallel transport, so that the reference twists are zero) and twist angles from `twist`.
+    fn strand(edges: usize, shift: f32, twist: impl Fn(usize) -> f32) -> (StrandNodes, StrandFrames) {
+        let mut nodes = StrandNodes { positions: vec![Vec3::new(shift, 1.5, -0.2)], ..Default::default() };
+        let mut frames = StrandFrames::default();
+        let mut reference = Vec3::ZERO;
+        for edge in 0..edges {
+            let phase = edge as f32 * 0.7;
+            let tangent = Vec3::new(0.8 * phase.sin(), -1.0, 0.6 * (1.3 * phase).cos()).normalize();
+            reference = if edge == 0 {
+                tangent.any_orthonormal_vector()
+            } else {
+                crate::simulation::packed::transport(frames.tangents[edge - 1], tangent, reference).normalize()
+            };
+            let next = nodes.positions[edge] + 0.01 * tangent;
+            nodes.positions.push(next);
+            frames.tangents.push(tangent);
+            frames.reference_directors.push(reference);
+            frames.twist.push(twist(edge));
+        }
+        nodes.previous_positions = nodes.positions.iter().map(|p| *p - Vec3::X * 1e-3).collect();
+        frames.reference_twist = vec![0.0; edges + 1];
+        (nodes, frames)
+    }
+
+    #[test]
+    fn poses_packed_by_the_step_and_poses_packed_here_upload_the_same() {
+        let guides: Vec<(StrandNodes, StrandFrames)> =
+            (0..9).map(|index| strand(8 + index, index as f32 * 0.01, |edge| (edge * index) as f32 * 0.1)).collect();
+        let entities: Vec<Entity> = (0..guides.len() as u32).map(Entity::from_raw_u32).map(Option::unwrap).collect();
+        let packed: Vec<PackedStrandPose> = guides
+            .iter()
+            .map(|(nodes, frames)| {
+                let mut pose = PackedStrandPose::default();
+                pose.write(nodes, frames, 2e-4, false);
+                pose
+            })
+            .collect();
+        let index_of = |entity: Entity| entities.iter().position(|&e| e == entity);
+        let layout = || entities.iter().zip(&guides).map(|(&e, (nodes, _))| (e, nodes.positions.len() as u32, None));
+        let (mut by_step, mut here) = (GuideUpload::default(), GuideUpload::default());
+        by_step.set_layout(layout());
+        here.set_layout(layout());
+        // Two threads' pieces on one side, one on the other.
+        let bounds = by_step.pack(2, &[], false, |entity| index_of(entity).map(|i| &packed[i]), |_, _| false);
+        let unpacked = |entity: Entity, pose: &mut PackedStrandPose| {
+            let Some(i) = index_of(entity) else { return false };
+            pose.write(&guides[i].0, &guides[i].1, 2e-4, false);
+            true
+        };
+        assert_eq!(here.pack(1, &[], false, |_| None, unpacked), bounds);
+        assert!(bounds.is_some());
+        assert_eq!(
+            (&by_step.positions, &by_step.frames, &by_step.guides),
+            (&here.positions, &here.frames, &here.guides)
+        );
+        let expected: Vec<f32> =
+            guides.iter().flat_map(|(nodes, _)| nodes.positions.iter().flat_map(|p| p.to_array())).collect();
+        assert_eq!(by_step.positions, expected);
+        assert!(by_step.guides.iter().all(|&[thickness, flags]| f32::from_bits(thickness) == 2e-4 && flags == 0));
+        // A guide found neither way keeps its data and is drawn still.
+        here.pack(1, &[], false, |_| None, |_, _| false);
+        assert_eq!(here.positions, expected);
+        assert!(here.guides.iter().all(|&[_, flags]| flags & GUIDE_SNAP != 0));
+    }
+}

@@ -288,6 +288,7 @@ fn prepare_hair_meshes(
     mut hair_meshes: Query<HairMeshParts>,
     heads: Query<(&HeadStrands, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
+    poses: Query<&PackedStrandPose>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<HairMaterial>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
@@ -356,7 +357,8 @@ fn prepare_hair_meshes(
             let head = StrandOf(child_of.parent());
             let context =
                 GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin as f32 };
-            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), &strands, &mut commands)
+            let strands = (&strands, &poses);
+            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), strands, &mut commands)
         } else {
             hair_mesh.upload_laid_out = false;
             let lookup = |entity| strands.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
@@ -389,7 +391,7 @@ fn send_to_gpu(
     relaid: bool,
     context: GpuContext,
     colliders: &[crate::rod::MovingCollider],
-    strands: &Query<DrawnStrand>,
+    (strands, poses): (&Query<DrawnStrand>, &Query<&PackedStrandPose>),
     commands: &mut Commands,
 ) -> Option<(Vec3, Vec3)> {
     let HairMesh { strips, upload, .. } = hair_mesh;
@@ -404,9 +406,10 @@ fn send_to_gpu(
         relaid || !hair_mesh.upload_laid_out || due && upload.rebound(strips.guides().iter().map(followers_of));
     if layout {
         upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
+        // Made here in drawing order, the poses lie in memory in the order they are read.
         for guide in strips.guides() {
             if strands.get(guide.entity).is_ok_and(|(.., pose)| pose.is_none()) {
-                commands.entity(guide.entity).try_insert(PackedStrandPose::default());
+                commands.entity(guide.entity).try_insert(PackedStrandPose::with_capacity(guide.nodes as usize));
             }
         }
         hair_mesh.upload_laid_out = true;
@@ -415,13 +418,16 @@ fn send_to_gpu(
     let steps = steps_since(hair_mesh.packed_at);
     let stepped = steps.is_none_or(|steps| steps >= 1.0);
     if stepped {
-        let lookup = |entity| {
-            let (strand, nodes, _, _, frames, pose) = strands.get(entity).ok()?;
-            Some((pose, nodes, frames, strand))
+        let pose_of = |entity| poses.get(entity).ok();
+        let unpacked = |entity, pose: &mut PackedStrandPose| {
+            let Ok((strand, nodes, _, _, frames, _)) = strands.get(entity) else { return false };
+            let snapped = nodes.previous_positions == nodes.positions;
+            pose.write(nodes, frames, strand.collision_thickness(context.margin), snapped);
+            true
         };
         // After more than one step (or none packed yet) there is no step before to interpolate from.
         let snap_all = steps.is_none_or(|steps| steps > 1.0);
-        let bounds = upload.pack(context.threads, colliders, context.margin, snap_all, lookup);
+        let bounds = upload.pack(context.threads, colliders, snap_all, pose_of, unpacked);
         hair_mesh.step_bounds = [hair_mesh.step_bounds[1], bounds];
         hair_mesh.packed_at = Some(now);
     }

@@ -38,19 +38,27 @@ const CODE_BITS: u32 = (1 << 24) - 1;
 
 /// A strand's pose after the last step, packed in 32-bit words (see the [module documentation](self)): its
 /// flags ([`POSE_SNAP`], [`POSE_NO_FRAMES`]), its contact thickness, its node positions (world space,
-/// single precision) and one 24-bit frame code per node. Add it to a strand to have the step write it;
-/// the renderer adds it to the guides whose followers the GPU places.
+/// single precision) and one 24-bit frame code per node, three bytes each. Add it to a strand to have
+/// the step write it; the renderer adds it to the guides whose followers the GPU places.
 #[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
 #[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct PackedStrandPose {
-    /// Flags, thickness (m, `f32` bits), `x y z` per node (`f32` bits), a frame code per node.
+    /// Flags, thickness (m, `f32` bits), node count; `x y z` per node (`f32` bits); the frame codes, three
+    /// bytes each (little-endian), padded with zeros to a whole word.
     words: Vec<u32>,
 }
 
-/// Words before the positions: flags and thickness.
-const HEADER_WORDS: usize = 2;
+/// Words before the positions: flags, thickness, node count.
+const HEADER_WORDS: usize = 3;
 
 impl PackedStrandPose {
+    /// An empty pose with room for a strand of `nodes` nodes: poses made one after the other for the
+    /// strands in the order they are read lie one after the other in memory (the step never has to move
+    /// them), so that reading them is one pass through memory instead of a jump per strand.
+    pub fn with_capacity(nodes: usize) -> Self {
+        Self { words: Vec::with_capacity(HEADER_WORDS + 4 * nodes) }
+    }
+
     /// Packs `nodes` and `frames` (as the step wrote them) with the strand's contact thickness (m);
     /// `snapped` says the pose jumped there (spawned, reset or teleported), as whoever wrote `nodes` knows
     /// (`nodes.previous_positions == nodes.positions` otherwise). A pose whose previous positions do not
@@ -58,10 +66,21 @@ impl PackedStrandPose {
     pub fn write(&mut self, nodes: &StrandNodes, frames: &StrandFrames, thickness: f32, snapped: bool) {
         let count = nodes.positions.len();
         self.words.clear();
-        self.words.extend([0, thickness.to_bits()]);
+        self.words.extend([0, thickness.to_bits(), count as u32]);
         self.words.extend_from_slice(bytemuck::cast_slice(&nodes.positions));
-        self.words.resize(HEADER_WORDS + 4 * count, 0);
-        let usable = frame_codes(&nodes.positions, frames, &mut self.words[HEADER_WORDS + 3 * count..]);
+        // A word per code first, then each moved down to three bytes (to a lower address than it is read
+        // from, so that none is overwritten before it is moved).
+        let codes_at = self.words.len();
+        self.words.resize(codes_at + count, 0);
+        let usable = frame_codes(&nodes.positions, frames, &mut self.words[codes_at..]);
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut self.words[codes_at..]);
+        for node in 0..count {
+            let code = [bytes[4 * node], bytes[4 * node + 1], bytes[4 * node + 2]];
+            bytes[3 * node..3 * node + 3].copy_from_slice(&code);
+        }
+        let code_words = (3 * count).div_ceil(4);
+        bytes[3 * count..4 * code_words].fill(0);
+        self.words.truncate(codes_at + code_words);
         let snap = snapped || nodes.previous_positions.len() != count;
         self.words[0] = if snap { POSE_SNAP } else { 0 } | if usable { 0 } else { POSE_NO_FRAMES };
     }
@@ -73,7 +92,7 @@ impl PackedStrandPose {
 
     /// Number of nodes (0 before the first write).
     pub fn node_count(&self) -> usize {
-        self.words.len().saturating_sub(HEADER_WORDS) / 4
+        self.words.get(2).map_or(0, |&count| count as usize)
     }
 
     /// [`POSE_SNAP`] and [`POSE_NO_FRAMES`].
@@ -88,20 +107,27 @@ impl PackedStrandPose {
 
     /// Node positions, `x y z` per node as `f32` bits, m.
     pub fn positions(&self) -> &[u32] {
-        let count = self.node_count();
-        &self.words[HEADER_WORDS.min(self.words.len())..][..3 * count]
+        self.words.get(HEADER_WORDS..HEADER_WORDS + 3 * self.node_count()).unwrap_or_default()
     }
 
-    /// One 24-bit frame code per node: the root edge's director ([`encode_director`]) at the root and the
-    /// next node, then at node `i + 1` the material twist of vertex `i` ([`encode_turn`]).
-    pub fn frame_codes(&self) -> &[u32] {
+    /// The frame codes, three bytes each (little-endian), as the GPU reads them: the root edge's director
+    /// ([`encode_director`]) at the root and the next node, then at node `i + 1` the material twist of
+    /// vertex `i` ([`encode_turn`]).
+    pub fn frame_code_bytes(&self) -> &[u8] {
         let count = self.node_count();
-        &self.words[(HEADER_WORDS + 3 * count).min(self.words.len())..][..count]
+        let codes = self.words.get(HEADER_WORDS + 3 * count..).unwrap_or_default();
+        bytemuck::cast_slice(codes).get(..3 * count).unwrap_or_default()
+    }
+
+    /// The frame code of `node` (see [`PackedStrandPose::frame_code_bytes`]); 0 past the last.
+    pub fn frame_code(&self, node: usize) -> u32 {
+        let bytes = self.frame_code_bytes().get(3 * node..3 * node + 3).unwrap_or(&[0; 3]);
+        u32::from_le_bytes([bytes[0], bytes[1], bytes[2], 0])
     }
 }
 
-/// Writes the frame codes of a strand with nodes `positions` and `frames` (see
-/// [`PackedStrandPose::frame_codes`]); says whether they are usable.
+/// Writes the frame codes of a strand with nodes `positions` and `frames`, a word each (see
+/// [`PackedStrandPose::frame_code_bytes`]); says whether they are usable.
 fn frame_codes(positions: &[Vec3], frames: &StrandFrames, codes: &mut [u32]) -> bool {
     let edges = positions.len().saturating_sub(1);
     let (twist, reference_twist) = (&frames.twist, &frames.reference_twist);
@@ -218,22 +244,22 @@ fn perpendicular_unit(v: Vec3, t: Vec3) -> Vec3 {
     if across.length_squared() > 1e-12 { across.normalize() } else { director_basis(t, t.x.abs() > t.y.abs()).0 }
 }
 
-/// The director `m1` of each node's edge (the root edge's at the root), walked from the root as the GPU
-/// walks it (`followers.wgsl`, `frames`): the root's from its code about the root edge, each next edge's
-/// carried onto it and turned by its vertex's material twist. `positions` and `codes` as in
-/// [`PackedStrandPose`]; tangents from the positions.
-pub fn walk_directors(positions: &[Vec3], codes: &[u32], directors: &mut Vec<Vec3>) {
+/// The director `m1` of each node's edge (the root edge's at the root) of `pose`, walked from the root as
+/// the GPU walks it (`followers.wgsl`, `frames`): the root's from its code about the root edge, each next
+/// edge's carried onto it and turned by its vertex's material twist; tangents from the pose's positions.
+pub fn walk_directors(pose: &PackedStrandPose, directors: &mut Vec<Vec3>) {
     directors.clear();
-    if positions.len() < 2 || codes.len() != positions.len() {
+    let positions: &[Vec3] = bytemuck::cast_slice(pose.positions());
+    if positions.len() < 2 {
         return;
     }
     let mut tangent = (positions[1] - positions[0]).normalize();
-    let mut m1 = decode_director(tangent, codes[0]);
+    let mut m1 = decode_director(tangent, pose.frame_code(0));
     directors.extend([m1, m1]);
-    for (ends, &code) in positions[1..].windows(2).zip(&codes[2..]) {
+    for (node, ends) in positions[1..].windows(2).enumerate() {
         let next = (ends[1] - ends[0]).normalize();
         let carried = transport(tangent, next, m1);
-        let (sin, cos) = turn_sin_cos(code);
+        let (sin, cos) = turn_sin_cos(pose.frame_code(node + 2));
         let turned = cos * carried + sin * next.cross(carried);
         m1 = perpendicular_unit(turned, next);
         directors.push(m1);

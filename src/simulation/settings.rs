@@ -154,7 +154,8 @@ pub struct HairStatistics {
     pub step_seconds: f64,
     /// Of that, the time spent packing strand poses for the GPU ([`PackedStrandPose`], only on strands
     /// that have one), summed over the threads that stepped them, s: every eighth pose a thread packs is
-    /// timed (a clock read costs a third of a packing) and the rest counted at their mean.
+    /// timed (a clock read costs half a packing; its own cost, measured alongside, is taken off) and the
+    /// rest counted at their mean.
     ///
     /// [`PackedStrandPose`]: crate::simulation::PackedStrandPose
     pub pose_seconds: f64,
