@@ -273,7 +273,6 @@ type DrawnStrand = (
     Option<&'static FollowerNodes>,
     Option<&'static RepresentedHairs>,
     &'static StrandFrames,
-    Option<&'static PackedStrandPose>,
 );
 
 /// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
@@ -408,7 +407,7 @@ fn send_to_gpu(
         upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
         // Made here in drawing order, the poses lie in memory in the order they are read.
         for guide in strips.guides() {
-            if strands.get(guide.entity).is_ok_and(|(.., pose)| pose.is_none()) {
+            if strands.contains(guide.entity) && !poses.contains(guide.entity) {
                 commands.entity(guide.entity).try_insert(PackedStrandPose::with_capacity(guide.nodes as usize));
             }
         }
@@ -420,7 +419,7 @@ fn send_to_gpu(
     if stepped {
         let pose_of = |entity| poses.get(entity).ok();
         let unpacked = |entity, pose: &mut PackedStrandPose| {
-            let Ok((strand, nodes, _, _, frames, _)) = strands.get(entity) else { return false };
+            let Ok((strand, nodes, _, _, frames)) = strands.get(entity) else { return false };
             let snapped = nodes.previous_positions == nodes.positions;
             pose.write(nodes, frames, strand.collision_thickness(context.margin), snapped);
             true
