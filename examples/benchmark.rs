@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `followers`, `integrators`, `volume`, `render`, `crowd`; all by
+//! `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -125,6 +125,134 @@ fn main() {
     }
     if wanted("crowd") {
         crowd(threads, steps);
+    }
+    if wanted("coverage") {
+        coverage(threads, if quick { 1.0 } else { 4.0 });
+    }
+}
+
+/// The example's default scene (`examples/head.rs`: 2 000 combed straight guides × 24 edges with 10
+/// followers each on its skull; skull, face, neck, shoulders and torso as colliders; the hair–hair grid's
+/// velocity smoothing on), held still, shaken, turned and flicked as the example animates its head, for
+/// `seconds` each from a fresh start after one still second: the scalp's exposure
+/// ([`coverage::scalp_exposure`]: 2 000 points over the haired scalp, each hidden when the guides and
+/// followers within 3 mm of it, drawn as wide as the renderer draws them, cover the 3 mm disc about it)
+/// and the strays ([`coverage::StrayCheck`]: guides whose tip has moved more than 5 cm from where it was
+/// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
+/// run (every 0.1 s) and at its end.
+fn coverage(threads: usize, seconds: f32) {
+    use bevy::prelude::{ChildOf, Quat, Transform};
+    use bevy_hair_sim::groom::coverage::{self, StrayCheck};
+    // As `examples/head.rs` sets them.
+    const NECK_HEIGHT: f32 = 1.5;
+    const FOLLOWERS: usize = 10;
+    let scalp =
+        Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..Scalp::default() };
+    type Motion = fn(f32) -> Quat;
+    let motions: [(&str, Motion); 4] = [
+        ("rest", |_| Quat::IDENTITY),
+        ("shake", |t| Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * t).sin())),
+        ("turn", |t| Quat::from_rotation_y(1.2 * (std::f32::consts::TAU * 0.3 * t).sin())),
+        ("flick", |t| {
+            let s = ((t - 1.0) / 0.3).clamp(0.0, 1.0);
+            Quat::from_rotation_y(0.8 * s * s * (3.0 - 2.0 * s))
+        }),
+    ];
+    println!();
+    println!(
+        "The example's scene moving, {seconds} s each: scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
+    );
+    println!("| motion | exposure, largest | exposure at the end | strays, largest | strays at the end |");
+    println!("|---|---:|---:|---:|---:|");
+    for (name, rotation) in motions {
+        let mut app = Scene::app(Some(threads));
+        app.world_mut().resource_mut::<HairSettings>().volume = HairVolume { enabled: true, ..HairVolume::default() };
+        let groom = HairGroom {
+            scalp,
+            strand_count: 2000,
+            segments: 24,
+            seed: 1,
+            followers_per_guide: FOLLOWERS,
+            ..HairGroom::default()
+        };
+        let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0))).id();
+        let on_head = [
+            (HairCollider::ellipsoid(scalp.semi_axes), scalp.centre),
+            (HairCollider::ellipsoid(Vec3::new(0.062, 0.075, 0.07)), Vec3::new(0.0, 0.065, -0.035)),
+        ];
+        for (collider, centre) in on_head {
+            app.world_mut().spawn((collider, Transform::from_translation(centre), HairColliderOf(head), ChildOf(head)));
+        }
+        let half_turn = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+        let on_body = [
+            (HairCollider::capsule(0.045, 0.05), Transform::from_xyz(0.0, 1.47, 0.0)),
+            (HairCollider::capsule(0.06, 0.12), Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(half_turn)),
+            (HairCollider::capsule(0.12, 0.35), Transform::from_xyz(0.0, 0.93, 0.0)),
+        ];
+        for (collider, transform) in on_body {
+            app.world_mut().spawn((collider, transform, HairColliderOf(head)));
+        }
+        for _ in 0..60 {
+            app.update();
+        }
+        let head_pose = |app: &bevy::prelude::App| {
+            let transform = app.world().get::<Transform>(head).expect("the head exists");
+            bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation)
+        };
+        let strands: Vec<bevy::prelude::Entity> =
+            app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+        let to_local = head_pose(&app).inverse();
+        let roots: Vec<Vec3> = strands
+            .iter()
+            .map(|&strand| to_local.transform_point3(app.world().get::<StrandNodes>(strand).unwrap().positions[0]))
+            .collect();
+        let rest_tips: Vec<Vec3> = strands
+            .iter()
+            .map(|&strand| *app.world().get::<StrandNodes>(strand).unwrap().positions.last().expect("nodes"))
+            .collect();
+        let strays = StrayCheck::new(&roots, 6, &head_pose(&app), &rest_tips);
+        // Each hair as the renderer draws it: a ribbon of the fibre's diameter times the hairs it stands for.
+        let first = strands[0];
+        let material = *app.world().get::<SimulatedStrand>(first).expect("a strand").rod().material();
+        let represented = app.world().get::<bevy_hair_sim::volume::RepresentedHairs>(first).map_or(1, |hairs| hairs.0);
+        let width = 2.0
+            * (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32
+            * (represented as f32 / (1 + FOLLOWERS) as f32).max(1.0);
+        let measure = |app: &bevy::prelude::App| {
+            let world = app.world();
+            let mut hairs: Vec<&[Vec3]> = Vec::new();
+            let mut tips = Vec::with_capacity(strands.len());
+            for &strand in &strands {
+                let nodes = &world.get::<StrandNodes>(strand).expect("a strand").positions;
+                hairs.push(nodes);
+                tips.push(*nodes.last().expect("nodes"));
+                if let Some(followers) = world.get::<FollowerNodes>(strand) {
+                    let per = followers.nodes_per_follower().max(1);
+                    hairs.extend(followers.positions.chunks_exact(per));
+                }
+            }
+            let exposure =
+                coverage::scalp_exposure(&scalp, &head_pose(app), hairs, 2000, (0.003, width)).expect("the scalp");
+            (exposure, strays.stray_fraction(&head_pose(app), &tips, 0.05))
+        };
+        let (mut largest, mut last) = ((0.0_f32, 0.0_f32), (0.0, 0.0));
+        let steps = (seconds * 60.0).round() as usize;
+        for step in 1..=steps {
+            app.world_mut().get_mut::<Transform>(head).expect("the head exists").rotation =
+                rotation(step as f32 / 60.0);
+            app.update();
+            if step % 6 == 0 || step == steps {
+                last = measure(&app);
+                largest = (largest.0.max(last.0), largest.1.max(last.1));
+            }
+        }
+        println!(
+            "| {name} | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
+            100.0 * largest.0,
+            100.0 * last.0,
+            100.0 * largest.1,
+            100.0 * last.1
+        );
     }
 }
 

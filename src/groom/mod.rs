@@ -46,6 +46,7 @@
 //! }
 //! ```
 
+pub mod coverage;
 mod file;
 mod procedural;
 

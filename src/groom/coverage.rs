@@ -1,0 +1,243 @@
+//! How a head of hair covers its scalp and holds together, measured headless: the figures a groom's look
+//! in motion can be judged by without a picture (issue 36 states its targets in them).
+//!
+//! - **Scalp exposure** ([`scalp_exposure`]): the fraction of the haired scalp that the hair within a few
+//!   millimetres of it does not hide, sampled at points spread evenly over the scalp as [`Scalp::roots`]
+//!   spreads roots. A point is hidden when the hair drawn within `reach` of it, each hair a ribbon of its
+//!   drawn width, covers at least the disc of radius `reach` around it (summed width × length inside the
+//!   ball of `reach` ≥ π reach²). Every root has hair at it, so "any hair near" would hide every point; a
+//!   bald patch is where the hair left, only the roots' first millimetres remaining.
+//! - **Strays** ([`StrayCheck`]): the fraction of guides whose tip has left the tips of their neighbours
+//!   (the guides rooted nearest them) by more than a set distance, counted from where it was at rest
+//!   relative to them (a groom's parting or layers set tips apart at rest): single strands flying out.
+
+use bevy::math::{Affine3A, IVec3, Vec3};
+
+use super::{GroomError, Scalp};
+
+/// The fraction (0 to 1) of `scalp`'s haired surface the hair does not hide: `samples` points spread
+/// evenly over the haired scalp ([`Scalp::roots`]), each hidden when the segments of `hairs` (each hair's
+/// node positions, world space, root first, drawn `hair_width` m wide) within `reach` (m) of it cover the
+/// disc of radius `reach` (see the [module documentation](self)). `head` takes the scalp's head-local space
+/// to world space. Fails as [`Scalp::roots`] does.
+pub fn scalp_exposure<'a>(
+    scalp: &Scalp,
+    head: &Affine3A,
+    hairs: impl IntoIterator<Item = &'a [Vec3]>,
+    samples: usize,
+    (reach, hair_width): (f32, f32),
+) -> Result<f32, GroomError> {
+    let points: Vec<Vec3> = scalp.roots(samples)?.iter().map(|root| head.transform_point3(root.position)).collect();
+    if points.is_empty() || !(reach > 0.0 && reach.is_finite()) {
+        return Ok(1.0);
+    }
+    let grid = PointGrid::new(&points, reach);
+    // Per point, the length of hair within `reach` of it, m.
+    let mut lengths = vec![0.0_f32; points.len()];
+    for hair in hairs {
+        for ends in hair.windows(2) {
+            grid.add_lengths(ends[0], ends[1], reach, &points, &mut lengths);
+        }
+    }
+    let disc = std::f32::consts::PI * reach * reach;
+    let exposed = lengths.iter().filter(|&&length| length * hair_width < disc).count();
+    Ok(exposed as f32 / points.len() as f32)
+}
+
+/// The sample points in cells of `reach`, to find those near a segment.
+struct PointGrid {
+    cell: f32,
+    /// Per cell (by its integer coordinates), the indices of the points in it.
+    cells: bevy::platform::collections::HashMap<IVec3, Vec<u32>>,
+    low: Vec3,
+    high: Vec3,
+}
+
+impl PointGrid {
+    fn new(points: &[Vec3], reach: f32) -> Self {
+        let mut cells: bevy::platform::collections::HashMap<IVec3, Vec<u32>> = Default::default();
+        let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for (index, point) in points.iter().enumerate() {
+            cells.entry((*point / reach).floor().as_ivec3()).or_default().push(index as u32);
+            (low, high) = (low.min(*point), high.max(*point));
+        }
+        Self { cell: reach, cells, low, high }
+    }
+
+    /// Adds to each point's length the length of the segment `a … b` within `reach` of it (the chord of
+    /// the ball of radius `reach` about the point).
+    fn add_lengths(&self, a: Vec3, b: Vec3, reach: f32, points: &[Vec3], lengths: &mut [f32]) {
+        let (low, high) = (a.min(b) - Vec3::splat(reach), a.max(b) + Vec3::splat(reach));
+        // Most of a head's hair hangs away from its scalp: nothing to look up there.
+        if low.cmpgt(self.high).any() || high.cmplt(self.low).any() || !(low.is_finite() && high.is_finite()) {
+            return;
+        }
+        let (first, last) = ((low / self.cell).floor().as_ivec3(), (high / self.cell).floor().as_ivec3());
+        let along = b - a;
+        let length = along.length();
+        if length <= 0.0 {
+            return;
+        }
+        let direction = along / length;
+        for x in first.x..=last.x {
+            for y in first.y..=last.y {
+                for z in first.z..=last.z {
+                    let Some(indices) = self.cells.get(&IVec3::new(x, y, z)) else { continue };
+                    for &index in indices {
+                        // The line `a + s d` meets the ball where `(s − c)² ≤ reach² − h²`.
+                        let offset = points[index as usize] - a;
+                        let centre = offset.dot(direction);
+                        let half_chord_squared = reach * reach - (offset.length_squared() - centre * centre);
+                        if half_chord_squared > 0.0 {
+                            let half_chord = half_chord_squared.sqrt();
+                            let inside = (centre + half_chord).min(length) - (centre - half_chord).max(0.0);
+                            lengths[index as usize] += inside.max(0.0);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Finds the guides that stray: those whose tip has moved more than a set distance from where it was at
+/// rest relative to the mean tip of the guides rooted nearest them. Made once from a groom at rest, used
+/// for any later pose.
+#[derive(Debug, Clone)]
+pub struct StrayCheck {
+    /// Each guide's neighbours, `per_guide` indices per guide.
+    neighbours: Vec<u32>,
+    per_guide: usize,
+    /// Each guide's tip at rest less its neighbours' mean tip, head-local, m.
+    rest_offsets: Vec<Vec3>,
+}
+
+impl StrayCheck {
+    /// Each guide of `roots` (head-local, m) gets its `neighbours` nearest others (fewer when there are not
+    /// so many); `rest_tips` are the guides' tips at rest (world space, the head at `head`).
+    pub fn new(roots: &[Vec3], neighbours: usize, head: &Affine3A, rest_tips: &[Vec3]) -> Self {
+        let per_guide = neighbours.min(roots.len().saturating_sub(1));
+        let mut lists = Vec::with_capacity(roots.len() * per_guide);
+        let mut by_distance: Vec<(f32, u32)> = Vec::with_capacity(roots.len());
+        for (index, root) in roots.iter().enumerate() {
+            by_distance.clear();
+            let others = roots.iter().enumerate().filter(|&(other, _)| other != index);
+            by_distance.extend(others.map(|(other, position)| (position.distance_squared(*root), other as u32)));
+            if per_guide > 0 {
+                by_distance.select_nth_unstable_by(per_guide - 1, |a, b| a.0.total_cmp(&b.0));
+            }
+            lists.extend(by_distance[..per_guide].iter().map(|&(_, other)| other));
+        }
+        let mut check = Self { neighbours: lists, per_guide, rest_offsets: Vec::new() };
+        check.rest_offsets = check.offsets(head, rest_tips);
+        check
+    }
+
+    /// Each guide's tip less its neighbours' mean tip, head-local (empty if `tips` does not match).
+    fn offsets(&self, head: &Affine3A, tips: &[Vec3]) -> Vec<Vec3> {
+        if self.per_guide == 0 || tips.len() * self.per_guide != self.neighbours.len() {
+            return Vec::new();
+        }
+        let to_local = head.inverse();
+        let chunks = tips.iter().zip(self.neighbours.chunks_exact(self.per_guide));
+        chunks
+            .map(|(tip, neighbours)| {
+                let mean = neighbours.iter().map(|&other| tips[other as usize]).sum::<Vec3>() / self.per_guide as f32;
+                to_local.transform_vector3(*tip - mean)
+            })
+            .collect()
+    }
+
+    /// The fraction (0 to 1) of guides whose tip (world space, the head at `head`, in the order of the
+    /// roots) has moved more than `distance` (m) from where it was at rest relative to its neighbours' mean
+    /// tip; 0 without guides or neighbours.
+    pub fn stray_fraction(&self, head: &Affine3A, tips: &[Vec3], distance: f32) -> f32 {
+        let offsets = self.offsets(head, tips);
+        if offsets.is_empty() || offsets.len() != self.rest_offsets.len() {
+            return 0.0;
+        }
+        let strays = offsets.iter().zip(&self.rest_offsets).filter(|(now, rest)| now.distance(**rest) > distance);
+        strays.count() as f32 / offsets.len() as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Hairs lying on the scalp's surface along circles of latitude, `spacing` (rad) apart, over the part
+    /// of the skull where `keep` holds.
+    fn lying_hairs(scalp: &Scalp, spacing: f32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec<Vec3>> {
+        let mut hairs = Vec::new();
+        let mut latitude = -std::f32::consts::FRAC_PI_2;
+        while latitude <= std::f32::consts::FRAC_PI_2 {
+            let hair: Vec<Vec3> = (0..=400)
+                .map(|step| {
+                    let longitude = step as f32 / 400.0 * std::f32::consts::TAU;
+                    let direction =
+                        Vec3::new(latitude.cos() * longitude.cos(), latitude.sin(), latitude.cos() * longitude.sin());
+                    scalp.centre + direction * scalp.semi_axes * 1.02
+                })
+                .collect();
+            for piece in hair.split(|point| !keep(*point)) {
+                if piece.len() > 1 {
+                    hairs.push(piece.to_vec());
+                }
+            }
+            latitude += spacing;
+        }
+        hairs
+    }
+
+    #[test]
+    fn exposure_is_the_share_of_the_scalp_the_hair_leaves_bare() {
+        let scalp = Scalp::default();
+        let head = Affine3A::from_translation(Vec3::new(0.3, 1.6, -0.1));
+        let world = |hairs: &[Vec<Vec3>]| -> Vec<Vec<Vec3>> {
+            hairs.iter().map(|hair| hair.iter().map(|p| head.transform_point3(*p)).collect()).collect()
+        };
+        let exposure = |hairs: &[Vec<Vec3>], width: f32| {
+            let hairs = world(hairs);
+            scalp_exposure(&scalp, &head, hairs.iter().map(Vec::as_slice), 2000, (0.004, width)).unwrap()
+        };
+        assert_eq!(exposure(&[], 1e-3), 1.0, "no hair: all of it bare");
+        // Circles 2 mm apart along the surface (0.02 rad on a 10 cm skull), 2 mm above it: within 4 mm of
+        // a point, 18 mm of hair or more (a chord of 6.9 mm and two of 5.7): hidden by ribbons 3 mm wide,
+        // not by hairs of 0.1 mm.
+        let everywhere = lying_hairs(&scalp, 0.02, |_| true);
+        assert_eq!(exposure(&everywhere, 3e-3), 0.0);
+        assert_eq!(exposure(&everywhere, 1e-4), 1.0, "too few hairs to hide the scalp");
+        // Only over the skull's right half (x > 0): the left half of the haired scalp bare. The hairline
+        // is symmetric about x = 0, so the bare share is a half, to the sampling's spread and the edge.
+        let right = lying_hairs(&scalp, 0.02, |point| point.x > 0.0);
+        let half = exposure(&right, 3e-3);
+        assert!((half - 0.5).abs() < 0.03, "{half}");
+        // Hair 2 cm above the scalp hides nothing within 4 mm.
+        let far: Vec<Vec<Vec3>> = everywhere
+            .iter()
+            .map(|hair| hair.iter().map(|p| scalp.centre + (*p - scalp.centre) * 1.25).collect())
+            .collect();
+        assert_eq!(exposure(&far, 3e-3), 1.0);
+    }
+
+    #[test]
+    fn a_tip_that_leaves_its_neighbours_strays() {
+        // A 10 × 10 patch of roots 5 mm apart, tips 20 cm below them, a parting down the middle at rest.
+        let head = Affine3A::from_rotation_translation(bevy::math::Quat::from_rotation_y(0.7), Vec3::Y * 1.6);
+        let roots: Vec<Vec3> =
+            (0..100).map(|index| Vec3::new((index % 10) as f32, 0.0, (index / 10) as f32) * 0.005).collect();
+        let parted = |root: &Vec3| *root + Vec3::new(if root.x < 0.024 { -0.1 } else { 0.1 }, -0.2, 0.0);
+        let rest: Vec<Vec3> = roots.iter().map(|root| head.transform_point3(parted(root))).collect();
+        let check = StrayCheck::new(&roots, 6, &head, &rest);
+        assert_eq!(check.stray_fraction(&head, &rest, 0.03), 0.0, "at rest, parting and all");
+        // The head turned: the hair turned with it.
+        let turned = Affine3A::from_rotation_translation(bevy::math::Quat::from_rotation_y(-0.4), Vec3::Y * 1.6);
+        let mut tips: Vec<Vec3> = roots.iter().map(|root| turned.transform_point3(parted(root))).collect();
+        assert_eq!(check.stray_fraction(&turned, &tips, 0.03), 0.0, "moving as one");
+        tips[45] += Vec3::new(0.0, 0.15, 0.05);
+        // The flyaway itself; its neighbours' means move by a sixth of its 16 cm at most, under 3 cm.
+        assert_eq!(check.stray_fraction(&turned, &tips, 0.03), 0.01);
+        let alone = StrayCheck::new(&roots[..1], 6, &head, &rest[..1]);
+        assert_eq!(alone.stray_fraction(&head, &tips[..1], 0.03), 0.0, "no neighbours");
+    }
+}
