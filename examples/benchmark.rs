@@ -453,8 +453,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
             let pose_of = |entity| pose_query.get(entity).ok();
             let unpacked = |entity, pose: &mut PackedStrandPose| {
                 let Ok((strand, nodes, _, frames)) = strand_query.get(entity) else { return false };
-                let snapped = nodes.previous_positions == nodes.positions;
-                pose.write(nodes, frames, strand.collision_thickness(margin), snapped);
+                pose.write_from_components(nodes, frames, strand.collision_thickness(margin));
                 true
             };
             assert!(upload.pack(threads, &[], false, pose_of, unpacked).is_some());

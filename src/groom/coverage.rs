@@ -12,6 +12,7 @@
 //!   relative to them (a groom's parting or layers set tips apart at rest): single strands flying out.
 
 use bevy::math::{Affine3A, IVec3, Vec3};
+use bevy::platform::collections::HashMap;
 
 use super::{GroomError, Scalp};
 
@@ -48,14 +49,14 @@ pub fn scalp_exposure<'a>(
 struct PointGrid {
     cell: f32,
     /// Per cell (by its integer coordinates), the indices of the points in it.
-    cells: bevy::platform::collections::HashMap<IVec3, Vec<u32>>,
+    cells: HashMap<IVec3, Vec<u32>>,
     low: Vec3,
     high: Vec3,
 }
 
 impl PointGrid {
     fn new(points: &[Vec3], reach: f32) -> Self {
-        let mut cells: bevy::platform::collections::HashMap<IVec3, Vec<u32>> = Default::default();
+        let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::default();
         let (mut low, mut high) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
         for (index, point) in points.iter().enumerate() {
             cells.entry((*point / reach).floor().as_ivec3()).or_default().push(index as u32);

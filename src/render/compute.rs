@@ -201,7 +201,7 @@ pub(super) fn extract_gpu_followers(mut main_world: ResMut<MainWorld>, mut gpu: 
             feed.layout = Some(GuideLayoutData {
                 drawn_nodes: std::mem::take(&mut upload.drawn_nodes),
                 guide_of_node: std::mem::take(&mut upload.guide_of_node),
-                guide_starts: std::mem::take(&mut upload.guide_starts),
+                guide_starts: upload.guide_starts(),
             });
         }
         if sent.step {
@@ -403,8 +403,8 @@ fn workgroups(invocations: u32) -> (u32, u32) {
     if groups <= MAX_GROUPS { (groups.max(1), 1) } else { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) }
 }
 
-/// Walks each head's guide frames and places its followers when a step came, and writes every drawn node for this frame (in the
-/// render graph, before the cameras draw).
+/// Walks each head's guide frames and places its followers when a step came, and writes every drawn node
+/// for this frame (in the render graph, before the cameras draw).
 pub(super) fn dispatch_gpu_followers(
     mut render_context: RenderContext,
     mut gpu: ResMut<GpuHeads>,

@@ -86,8 +86,6 @@ pub struct GuideUpload {
     pub drawn_nodes: Vec<[u32; 4]>,
     /// Per guide node: its guide's index.
     pub guide_of_node: Vec<u32>,
-    /// Per guide: its first guide node; and one past the last guide node.
-    pub guide_starts: Vec<u32>,
     /// The guides, in layout order.
     entities: Vec<Entity>,
     /// First guide node of each guide, and one past the last.
@@ -118,7 +116,6 @@ impl GuideUpload {
         self.entities.clear();
         self.drawn_nodes.clear();
         self.guide_of_node.clear();
-        self.guide_starts.clear();
         self.guide_first.clear();
         self.bindings.clear();
         self.max_offset = 0.0;
@@ -143,7 +140,6 @@ impl GuideUpload {
             guide_node += nodes;
         }
         self.guide_first.push(guide_node);
-        self.guide_starts.extend(self.guide_first.iter().map(|&first| first as u32));
         self.positions.clear();
         self.positions.resize(3 * guide_node, 0.0);
         self.frames.clear();
@@ -162,6 +158,11 @@ impl GuideUpload {
             count += 1;
         }
         count != self.bindings.len()
+    }
+
+    /// Per guide: its first guide node; and one past the last guide node.
+    pub fn guide_starts(&self) -> Vec<u32> {
+        self.guide_first.iter().map(|&first| first as u32).collect()
     }
 
     /// Number of drawn nodes.
@@ -237,16 +238,12 @@ impl GuideUpload {
                 let (start, end) = (first_nodes[index] - base, first_nodes[index + 1] - base);
                 let pose = match this {
                     Some(pose) if pose.node_count() == end - start => pose,
-                    _ if unpacked(entities[index], scratch) => &*scratch,
+                    _ if unpacked(entities[index], scratch) && scratch.node_count() == end - start => &*scratch,
                     _ => {
                         guide[1] |= GUIDE_SNAP;
                         continue;
                     }
                 };
-                if pose.node_count() != end - start {
-                    guide[1] |= GUIDE_SNAP;
-                    continue;
-                }
                 positions[3 * start..3 * end].copy_from_slice(bytemuck::cast_slice(pose.positions()));
                 frames[FRAME_CODE_BYTES * start..FRAME_CODE_BYTES * end].copy_from_slice(pose.frame_code_bytes());
                 let flags = pose.flags() | if snap_all { GUIDE_SNAP } else { 0 };

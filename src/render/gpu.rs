@@ -420,8 +420,7 @@ fn send_to_gpu(
         let pose_of = |entity| poses.get(entity).ok();
         let unpacked = |entity, pose: &mut PackedStrandPose| {
             let Ok((strand, nodes, _, _, frames)) = strands.get(entity) else { return false };
-            let snapped = nodes.previous_positions == nodes.positions;
-            pose.write(nodes, frames, strand.collision_thickness(context.margin), snapped);
+            pose.write_from_components(nodes, frames, strand.collision_thickness(context.margin));
             true
         };
         // After more than one step (or none packed yet) there is no step before to interpolate from.

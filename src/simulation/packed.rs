@@ -61,8 +61,8 @@ impl PackedStrandPose {
 
     /// Packs `nodes` and `frames` (as the step wrote them) with the strand's contact thickness (m);
     /// `snapped` says the pose jumped there (spawned, reset or teleported), as whoever wrote `nodes` knows
-    /// (`nodes.previous_positions == nodes.positions` otherwise). A pose whose previous positions do not
-    /// match its nodes in number snaps too.
+    /// ([`PackedStrandPose::write_from_components`] judges it from the nodes). A pose whose previous
+    /// positions do not match its nodes in number snaps too.
     pub fn write(&mut self, nodes: &StrandNodes, frames: &StrandFrames, thickness: f32, snapped: bool) {
         let count = nodes.positions.len();
         self.words.clear();
@@ -83,6 +83,12 @@ impl PackedStrandPose {
         self.words.truncate(codes_at + code_words);
         let snap = snapped || nodes.previous_positions.len() != count;
         self.words[0] = if snap { POSE_SNAP } else { 0 } | if usable { 0 } else { POSE_NO_FRAMES };
+    }
+
+    /// Packs as [`PackedStrandPose::write`] does, for a caller that did not write `nodes` itself: the pose
+    /// snapped where its previous positions are its current ones.
+    pub fn write_from_components(&mut self, nodes: &StrandNodes, frames: &StrandFrames, thickness: f32) {
+        self.write(nodes, frames, thickness, nodes.previous_positions == nodes.positions);
     }
 
     /// The whole array, to ask for it ahead of reading it.

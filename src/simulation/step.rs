@@ -338,6 +338,13 @@ pub(crate) fn step_strands(
             let contacts =
                 Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
             threads.scope(|StepThread { workspace, tally }| {
+                // The strand's components and pose, written while the strand is in this core's cache.
+                let mut write = |strand: &mut SimulatedStrand, stepped: Option<u32>, tally: &mut StepTally| {
+                    let snapped = strand.write_components(stepped, &mut nodes, &mut frames);
+                    if let Some(pose) = pose.as_mut() {
+                        pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
+                    }
+                };
                 let params = match valid {
                     Some(params) if strand.detail.due => params,
                     _ => {
@@ -350,10 +357,7 @@ pub(crate) fn step_strands(
                             let message = StrandFault { strand: entity, error };
                             tally.faults.push(Fault { message, first_of_episode, quarantine });
                         }
-                        let snapped = strand.write_components(None, &mut nodes, &mut frames);
-                        if let Some(pose) = pose.as_mut() {
-                            pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
-                        }
+                        write(&mut strand, None, tally);
                         tally.unstepped += 1;
                         tally.quarantined += usize::from(strand.is_quarantined());
                         return;
@@ -369,11 +373,7 @@ pub(crate) fn step_strands(
                 };
                 let outcome = strand.advance(now, params, &forces, &contacts, workspace);
                 forces.clear();
-                // Written here, while the strand is in this core's cache.
-                let snapped = strand.write_components(Some(steps), &mut nodes, &mut frames);
-                if let Some(pose) = pose.as_mut() {
-                    pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
-                }
+                write(&mut strand, Some(steps), tally);
                 tally.strands += 1;
                 tally.nodes += strand.rod().node_count();
                 tally.quarantined += usize::from(strand.is_quarantined());
