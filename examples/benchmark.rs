@@ -390,9 +390,10 @@ fn render_preparation(threads: usize, frames: usize) {
 /// work per frame for followers and drawing when the CPU places the followers and writes every drawn node
 /// ([`FollowerPlacement::Cpu`]: the placement in the step, the layout check and `HairStrips::fill`),
 /// against what it does when the GPU places and interpolates them ([`FollowerPlacement::Gpu`]: the step's
-/// follower loop, which skips them, the step's packing of each guide's pose, the layout and rebinding
-/// checks and `GuideUpload::pack`), alternating step by step in one run; and the bytes each uploads per
-/// step. Median ms of `steps` steps each.
+/// follower loop, which skips them, the step's packing of each guide's pose, and `GuideUpload::pack`,
+/// which checks each guide against the layout as it copies its pose), alternating step by step in one
+/// run; and the bytes each uploads per step. Median ms of `steps` steps each; in brackets, the part of
+/// the draw preparation spent looking the layout over.
 /// The step's packing is [`HairStatistics::pose_seconds`] (timed strand by strand, the clock's own cost
 /// included) divided by the threads.
 fn followers_on_the_gpu(threads: usize, steps: usize) {
@@ -421,78 +422,92 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         app.world_mut().entity_mut(strand).insert(PackedStrandPose::with_capacity(nodes));
     }
     // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
-    let mut drawn = app.world_mut().query::<(&SimulatedStrand, &StrandNodes, Option<&FollowerNodes>, &StrandFrames)>();
-    let mut poses = app.world_mut().query::<&PackedStrandPose>();
+    type Drawn = (
+        &'static SimulatedStrand,
+        &'static StrandNodes,
+        Option<&'static FollowerNodes>,
+        Option<&'static RepresentedHairs>,
+        &'static StrandFrames,
+        Option<&'static PackedStrandPose>,
+    );
+    let mut drawn = app.world_mut().query::<Drawn>();
     let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
-    let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new(), Vec::new()];
+    let mut samples: [Vec<f64>; 7] = Default::default();
     let (mut cpu_bytes, mut gpu_bytes) = (0, 0);
     for frame in 0..2 * steps {
         let on_gpu = frame % 2 == 1;
         let placement = if on_gpu { FollowerPlacement::Gpu } else { FollowerPlacement::Cpu };
         let (placed, packed) = advance(&mut app, placement);
-        let world = app.world();
-        let (strand_query, pose_query) = (drawn.query(world), poses.query(world));
-        let layout = strands.iter().filter_map(|&entity| {
-            let (strand, nodes, followers, ..) = strand_query.get(entity).ok()?;
+        let strand_query = drawn.query(app.world());
+        let guide_now = |entity| {
+            let (strand, nodes, followers, represented, _, pose) = strand_query.get(entity).ok()?;
             let material = strand.rod().material();
             let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
-            Some(GuideLayout::new(entity, nodes, followers, radius))
-        });
+            let mut guide = GuideLayout::new(entity, nodes, followers, radius);
+            // Widened as the renderer widens a guide that stands for more hairs than it draws.
+            guide.radius *= represented.map_or(1.0, |hairs| (hairs.0 as f32 / (1 + guide.followers) as f32).max(1.0));
+            Some((guide, pose))
+        };
+        let layout = || strands.iter().filter_map(|&entity| Some(guide_now(entity)?.0));
+        let followers_of = |guide: &GuideLayout| strand_query.get(guide.entity).ok().and_then(|strand| strand.2);
         let alpha = (frame % 7) as f32 / 7.0;
-        // As the renderer does every frame: the layout checked, then the nodes written or the guides packed.
+        // As the renderer does each frame: with the CPU's placement, the layout checked and every drawn node
+        // written; with the GPU's, the head looked over only when it has no layout yet (or its strands
+        // changed), and the guides packed, each checked against the layout on the way.
         let started = Instant::now();
-        let relaid = strips.set_layout(layout);
+        let checked;
         if on_gpu {
-            let followers =
-                || strips.guides().iter().map(|guide| strand_query.get(guide.entity).ok().and_then(|s| s.2));
-            if relaid || upload.guide_node_count() == 0 || upload.rebound(followers()) {
-                let guides = strips.guides().iter().zip(followers()).map(|(guide, f)| (guide.entity, guide.nodes, f));
-                upload.set_layout(guides);
+            if upload.guide_node_count() == 0 {
+                strips.set_layout(layout());
+                upload.set_layout(strips.guides().iter().map(|guide| (*guide, followers_of(guide))));
             }
-            let pose_of = |entity| pose_query.get(entity).ok();
+            checked = started.elapsed().as_secs_f64();
             let unpacked = |entity, pose: &mut PackedStrandPose| {
-                let Ok((strand, nodes, _, frames)) = strand_query.get(entity) else { return false };
+                let Ok((strand, nodes, _, _, frames, _)) = strand_query.get(entity) else { return false };
                 pose.write_from_components(nodes, frames, strand.collision_thickness(margin));
                 true
             };
-            assert!(upload.pack(threads, &[], false, pose_of, unpacked).is_some());
+            let bounds = upload.pack(threads, &[], false, guide_now, unpacked).expect("the layout holds");
+            assert!(bounds.is_some());
             gpu_bytes = upload.step_bytes();
         } else {
+            assert!(!strips.set_layout(layout()) || frame == 0, "the layout holds");
+            checked = started.elapsed().as_secs_f64();
             let lookup = |entity| strand_query.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
             assert!(strips.fill(alpha, threads, lookup).is_some());
             cpu_bytes = 4 * strips.positions().len();
         }
         let drawing = started.elapsed().as_secs_f64();
-        let row = 2 * usize::from(on_gpu);
+        let row = 3 * usize::from(on_gpu);
         samples[row].push(placed);
-        samples[row + 1].push(drawing);
+        samples[row + 1].push(checked);
+        samples[row + 2].push(drawing);
         if on_gpu {
-            samples[4].push(packed);
+            samples[6].push(packed);
         }
     }
     let median = |values: &mut Vec<f64>| {
         values.sort_by(f64::total_cmp);
         1e3 * values[values.len() / 2]
     };
-    let [cpu_placed, cpu_drawn, gpu_placed, gpu_drawn, gpu_packed] = &mut samples;
-    let (cpu_placed, cpu_drawn, gpu_placed, gpu_drawn, gpu_packed) =
-        (median(cpu_placed), median(cpu_drawn), median(gpu_placed), median(gpu_drawn), median(gpu_packed));
+    let [cpu_placed, cpu_checked, cpu_drawn, gpu_placed, gpu_checked, gpu_drawn, gpu_packed] =
+        samples.map(|mut values| median(&mut values));
     println!();
     println!(
         "The example's scene, {guides} guides × {edges} edges with {followers} followers each, {threads} threads, one frame per step (interleaved):"
     );
     println!(
-        "| followers placed | followers on the CPU, ms | poses packed in the step, ms | draw preparation, ms | CPU total, ms | bytes uploaded per step |"
+        "| followers placed | followers on the CPU, ms | poses packed in the step, ms | draw preparation (of it the layout check), ms | CPU total, ms | bytes uploaded per step |"
     );
     println!("|---|---:|---:|---:|---:|---:|");
     println!(
-        "| on the CPU (`FollowerPlacement::Cpu`) | {cpu_placed:.2} | – | {cpu_drawn:.2} | {:.2} | {cpu_bytes} |",
+        "| on the CPU (`FollowerPlacement::Cpu`) | {cpu_placed:.2} | – | {cpu_drawn:.2} ({cpu_checked:.2}) | {:.2} | {cpu_bytes} |",
         cpu_placed + cpu_drawn
     );
     let gpu_total = gpu_placed + gpu_packed + gpu_drawn;
     println!(
-        "| on the GPU (`FollowerPlacement::Gpu`) | {gpu_placed:.3} | {gpu_packed:.3} | {gpu_drawn:.2} | {gpu_total:.2} | {gpu_bytes} |"
+        "| on the GPU (`FollowerPlacement::Gpu`) | {gpu_placed:.3} | {gpu_packed:.3} | {gpu_drawn:.2} ({gpu_checked:.3}) | {gpu_total:.2} | {gpu_bytes} |"
     );
     println!(
         "| ratio, CPU / GPU | | | | {:.1} | {:.1} |",

@@ -19,7 +19,7 @@
 use bevy::math::Vec3;
 use bevy::prelude::Entity;
 
-use super::{bounds_of, take_front};
+use super::{GuideLayout, bounds_of, take_front};
 use crate::followers::FollowerNodes;
 use crate::parallel::prefetch;
 use crate::rod::{ColliderShape, MovingCollider};
@@ -86,12 +86,10 @@ pub struct GuideUpload {
     pub drawn_nodes: Vec<[u32; 4]>,
     /// Per guide node: its guide's index.
     pub guide_of_node: Vec<u32>,
-    /// The guides, in layout order.
-    entities: Vec<Entity>,
+    /// The guides as laid out, in layout order.
+    laid_out: Vec<GuideLayout>,
     /// First guide node of each guide, and one past the last.
     guide_first: Vec<usize>,
-    /// Each guide's follower binding when laid out, to see a rebinding.
-    bindings: Vec<u64>,
     /// The longest rest offset, m.
     max_offset: f32,
     /// This step's guide node positions, `x y z` per node, world space, m.
@@ -103,28 +101,24 @@ pub struct GuideUpload {
     pub guides: Vec<[u32; 2]>,
     /// The head's colliders this step.
     pub colliders: Vec<GpuCollider>,
-    /// Bounds of each piece's guide nodes (reused).
-    piece_bounds: Vec<(Vec3, Vec3)>,
-    /// Each piece's pose packed here for a guide the step packed none for (reused).
-    piece_poses: Vec<PackedStrandPose>,
+    /// What each piece of the work of [`GuideUpload::pack`] leaves (reused).
+    pieces: Vec<PackedPiece>,
 }
 
 impl GuideUpload {
-    /// Lays out the drawn nodes of `guides` (entity, node count, followers as bound; in drawing order), as
-    /// [`super::HairStrips::set_layout`] lays them out.
-    pub fn set_layout<'a>(&mut self, guides: impl IntoIterator<Item = (Entity, u32, Option<&'a FollowerNodes>)>) {
-        self.entities.clear();
+    /// Lays out the drawn nodes of `guides` (each guide's layout and its followers as bound, in drawing
+    /// order), as [`super::HairStrips::set_layout`] lays them out.
+    pub fn set_layout<'a>(&mut self, guides: impl IntoIterator<Item = (GuideLayout, Option<&'a FollowerNodes>)>) {
+        self.laid_out.clear();
         self.drawn_nodes.clear();
         self.guide_of_node.clear();
         self.guide_first.clear();
-        self.bindings.clear();
         self.max_offset = 0.0;
         let mut guide_node = 0_usize;
-        for (index, (entity, nodes, followers)) in guides.into_iter().enumerate() {
-            let nodes = nodes as usize;
-            self.entities.push(entity);
+        for (index, (guide, followers)) in guides.into_iter().enumerate() {
+            let nodes = guide.nodes as usize;
+            self.laid_out.push(guide);
             self.guide_first.push(guide_node);
-            self.bindings.push(followers.map_or(0, FollowerNodes::binding));
             for node in 0..nodes {
                 self.drawn_nodes.push([0, 0, 0, DRAWN_GUIDE | node_word(guide_node + node, node)]);
                 self.guide_of_node.push(index as u32);
@@ -148,16 +142,9 @@ impl GuideUpload {
         self.guides.resize(self.guide_first.len() - 1, [0, GUIDE_SNAP]);
     }
 
-    /// Whether any guide's followers were bound again since the layout (their offsets changed).
-    pub fn rebound<'a>(&self, followers: impl IntoIterator<Item = Option<&'a FollowerNodes>>) -> bool {
-        let mut count = 0;
-        for (index, followers) in followers.into_iter().enumerate() {
-            if self.bindings.get(index) != Some(&followers.map_or(0, FollowerNodes::binding)) {
-                return true;
-            }
-            count += 1;
-        }
-        count != self.bindings.len()
+    /// The guides as laid out, in drawing order.
+    pub fn guides(&self) -> &[GuideLayout] {
+        &self.laid_out
     }
 
     /// Per guide: its first guide node; and one past the last guide node.
@@ -183,62 +170,69 @@ impl GuideUpload {
             + std::mem::size_of::<GpuCollider>() * self.colliders.len()
     }
 
-    /// Writes this step's guide data in parallel on up to `threads` threads, with `colliders`: each
-    /// guide's pose as the step packed it (`pose_of`), or, where the step has not (just laid out, or the
-    /// strand changed since), as `unpacked` packs it into the array it is given from the guide's
-    /// components (saying whether the guide was found). `snap_all` draws every guide where it is now (when
-    /// more than one step passed since the last upload, the GPU has no previous step to interpolate
-    /// from). Returns the bounds of what will be drawn (the guides' nodes widened by twice the longest
-    /// offset: a follower node pushed out of a collider stays that close), `None` when nothing is there. A
-    /// guide found neither way, or whose node count no longer matches, keeps its last data and is drawn
-    /// still.
+    /// Writes this step's guide data in parallel on up to `threads` threads, with `colliders`, checking on
+    /// the way that each guide is as laid out: `guide_of` gives a guide's layout as it is now and the pose
+    /// the step packed for it, if any; where there is none (just laid out, or the strand changed since),
+    /// `unpacked` packs one into the array it is given from the guide's components (saying whether the
+    /// guide was found). `snap_all` draws every guide where it is now (when more than one step passed
+    /// since the last upload, the GPU has no previous step to interpolate from).
+    ///
+    /// Returns the bounds of what will be drawn (the guides' nodes widened by twice the longest offset: a
+    /// follower node pushed out of a collider stays that close), `None` when nothing is there; or
+    /// [`LayoutChanged`] when a guide is gone or no longer as laid out (then lay out again and pack
+    /// again). A guide whose pose cannot be had either way keeps its last data and is drawn still.
     pub fn pack<'a>(
         &mut self,
         threads: usize,
         colliders: &[MovingCollider],
         snap_all: bool,
-        pose_of: impl Fn(Entity) -> Option<&'a PackedStrandPose> + Sync,
+        guide_of: impl Fn(Entity) -> Option<(GuideLayout, Option<&'a PackedStrandPose>)> + Sync,
         unpacked: impl Fn(Entity, &mut PackedStrandPose) -> bool + Sync,
-    ) -> Option<(Vec3, Vec3)> {
+    ) -> Result<Option<(Vec3, Vec3)>, LayoutChanged> {
         self.colliders.clear();
         self.colliders.extend(colliders.iter().map(GpuCollider::new));
-        let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        let (entities, first_nodes) = (&self.entities, &self.guide_first);
-        let ranges = super::piece_ranges(entities.len(), threads);
-        self.piece_bounds.clear();
-        self.piece_bounds.resize(ranges.len(), empty);
-        self.piece_poses.resize_with(ranges.len(), PackedStrandPose::default);
+        let (laid_out, first_nodes) = (&self.laid_out, &self.guide_first);
+        let ranges = super::piece_ranges(laid_out.len(), threads);
+        self.pieces.resize_with(ranges.len(), PackedPiece::default);
         let (mut positions, mut frames): (&mut [f32], &mut [u8]) = (&mut self.positions, &mut self.frames);
-        let (mut guides, mut bounds) = (&mut self.guides[..], &mut self.piece_bounds[..]);
-        let mut poses = &mut self.piece_poses[..];
+        let (mut guides, mut pieces) = (&mut self.guides[..], &mut self.pieces[..]);
         let work = ranges.map(|range| {
             let nodes = first_nodes[range.end] - first_nodes[range.start];
             let guide_count = range.len();
             let piece_positions = take_front(&mut positions, 3 * nodes);
             let piece_frames = take_front(&mut frames, FRAME_CODE_BYTES * nodes);
             let piece_guides = take_front(&mut guides, guide_count);
-            let piece_bounds = &mut take_front(&mut bounds, 1)[0];
-            (range, piece_positions, piece_frames, piece_guides, piece_bounds, &mut take_front(&mut poses, 1)[0])
+            (range, piece_positions, piece_frames, piece_guides, &mut take_front(&mut pieces, 1)[0])
         });
-        let (pose_of, unpacked) = (&pose_of, &unpacked);
-        crate::parallel::run_in_parallel(threads, work, |(range, positions, frames, guides, bounds, scratch)| {
+        let (guide_of, unpacked) = (&guide_of, &unpacked);
+        crate::parallel::run_in_parallel(threads, work, |(range, positions, frames, guides, piece)| {
+            piece.layout_changed = false;
             let base = first_nodes[range.start];
-            // Each guide's pose is looked up `AHEAD` guides early and asked for then.
+            // Each guide is looked up `AHEAD` guides early and its pose asked for then.
             let end_of_piece = range.end;
             let look = |index: usize| {
-                let found = if index < end_of_piece { pose_of(entities[index]) } else { None };
-                found.inspect(|pose| prefetch(pose.words()))
+                let found = if index < end_of_piece { guide_of(laid_out[index].entity) } else { None };
+                found.inspect(|(_, pose)| {
+                    if let Some(pose) = pose {
+                        prefetch(pose.words());
+                    }
+                })
             };
-            let mut found: [Option<&PackedStrandPose>; AHEAD] = [None; AHEAD];
+            let mut found: [Option<(GuideLayout, Option<&PackedStrandPose>)>; AHEAD] = [None; AHEAD];
             for index in range.start..range.start + AHEAD {
                 found[index % AHEAD] = look(index);
             }
             for (guide, index) in guides.iter_mut().zip(range) {
                 let this = std::mem::replace(&mut found[index % AHEAD], look(index + AHEAD));
+                let Some((layout, pose)) = this.filter(|(layout, _)| *layout == laid_out[index]) else {
+                    piece.layout_changed = true;
+                    return;
+                };
                 let (start, end) = (first_nodes[index] - base, first_nodes[index + 1] - base);
-                let pose = match this {
+                let scratch = &mut piece.pose;
+                let pose = match pose {
                     Some(pose) if pose.node_count() == end - start => pose,
-                    _ if unpacked(entities[index], scratch) && scratch.node_count() == end - start => &*scratch,
+                    _ if unpacked(layout.entity, scratch) && scratch.node_count() == end - start => &*scratch,
                     _ => {
                         guide[1] |= GUIDE_SNAP;
                         continue;
@@ -250,12 +244,35 @@ impl GuideUpload {
                 *guide = [pose.thickness().to_bits(), flags];
             }
             // What is drawn: a guide not found this step is drawn where it was.
-            *bounds = bounds_of(positions);
+            piece.bounds = bounds_of(positions);
         });
-        let (low, high) = self.piece_bounds.iter().fold(empty, |(low, high), (a, b)| (low.min(*a), high.max(*b)));
+        if self.pieces.iter().any(|piece| piece.layout_changed) {
+            return Err(LayoutChanged);
+        }
+        let empty = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let (low, high) = self.pieces.iter().fold(empty, |(low, high), piece| {
+            let (a, b) = piece.bounds;
+            (low.min(a), high.max(b))
+        });
         let reach = Vec3::splat(2.0 * self.max_offset);
-        (low.cmple(high).all()).then_some((low - reach, high + reach))
+        Ok((low.cmple(high).all()).then_some((low - reach, high + reach)))
     }
+}
+
+/// What [`GuideUpload::pack`] finds when a guide is gone or no longer as laid out (its node count, its
+/// followers, their binding or its drawn radius changed): the hair must be laid out again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LayoutChanged;
+
+/// What one piece of [`GuideUpload::pack`]'s work leaves (reused from step to step).
+#[derive(Debug, Clone, Default)]
+struct PackedPiece {
+    /// Bounds of the piece's guide nodes.
+    bounds: (Vec3, Vec3),
+    /// Whether one of its guides is gone or no longer as laid out.
+    layout_changed: bool,
+    /// A pose packed here for a guide the step packed none for.
+    pose: PackedStrandPose,
 }
 
 /// A drawn node's word without flags but the root's: its guide node, and [`DRAWN_ROOT`] at a root.
@@ -310,19 +327,28 @@ mod tests {
             })
             .collect();
         let index_of = |entity: Entity| entities.iter().position(|&e| e == entity);
-        let layout = || entities.iter().zip(&guides).map(|(&e, (nodes, _))| (e, nodes.positions.len() as u32, None));
+        let layout_of = |index: usize| GuideLayout {
+            entity: entities[index],
+            nodes: guides[index].0.positions.len() as u32,
+            followers: 0,
+            binding: 0,
+            radius: 4e-5,
+        };
+        let layout = || (0..guides.len()).map(|index| (layout_of(index), None));
         let (mut by_step, mut here) = (GuideUpload::default(), GuideUpload::default());
         by_step.set_layout(layout());
         here.set_layout(layout());
         // Two threads' pieces on one side, one on the other.
-        let bounds = by_step.pack(2, &[], false, |entity| index_of(entity).map(|i| &packed[i]), |_, _| false);
+        let packed_by_step = |entity| index_of(entity).map(|i| (layout_of(i), Some(&packed[i])));
+        let bounds = by_step.pack(2, &[], false, packed_by_step, |_, _| false);
         let unpacked = |entity: Entity, pose: &mut PackedStrandPose| {
             let Some(i) = index_of(entity) else { return false };
             pose.write(&guides[i].0, &guides[i].1, 2e-4, false);
             true
         };
-        assert_eq!(here.pack(1, &[], false, |_| None, unpacked), bounds);
-        assert!(bounds.is_some());
+        let none_packed = |entity| index_of(entity).map(|i| (layout_of(i), None));
+        assert_eq!(here.pack(1, &[], false, none_packed, unpacked), bounds);
+        assert!(bounds.is_ok_and(|bounds| bounds.is_some()));
         assert_eq!(
             (&by_step.positions, &by_step.frames, &by_step.guides),
             (&here.positions, &here.frames, &here.guides)
@@ -332,8 +358,41 @@ mod tests {
         assert_eq!(by_step.positions, expected);
         assert!(by_step.guides.iter().all(|&[thickness, flags]| f32::from_bits(thickness) == 2e-4 && flags == 0));
         // A guide found neither way keeps its data and is drawn still.
-        here.pack(1, &[], false, |_| None, |_, _| false);
+        assert!(here.pack(1, &[], false, none_packed, |_, _| false).is_ok());
         assert_eq!(here.positions, expected);
         assert!(here.guides.iter().all(|&[_, flags]| flags & GUIDE_SNAP != 0));
+    }
+
+    #[test]
+    fn a_guide_gone_or_changed_since_the_layout_is_found_while_packing() {
+        let guides: Vec<(StrandNodes, StrandFrames)> =
+            (0..12).map(|index| strand(6, index as f32 * 0.01, |_| 0.0)).collect();
+        let entities: Vec<Entity> = (0..guides.len() as u32).map(Entity::from_raw_u32).map(Option::unwrap).collect();
+        let layout_of =
+            |index: usize| GuideLayout { entity: entities[index], nodes: 7, followers: 0, binding: 0, radius: 4e-5 };
+        let mut upload = GuideUpload::default();
+        upload.set_layout((0..guides.len()).map(|index| (layout_of(index), None)));
+        let index_of = |entity: Entity| entities.iter().position(|&e| e == entity);
+        let unpacked = |entity: Entity, pose: &mut PackedStrandPose| {
+            let Some(i) = index_of(entity) else { return false };
+            pose.write(&guides[i].0, &guides[i].1, 2e-4, false);
+            true
+        };
+        let as_laid_out = |entity| index_of(entity).map(|i| (layout_of(i), None));
+        assert!(upload.pack(2, &[], false, as_laid_out, unpacked).is_ok());
+        for threads in [1, 2, 3] {
+            // The last guide gone; the ninth's followers bound again; the fourth drawn wider.
+            let gone = |entity| index_of(entity).filter(|&i| i != 11).map(|i| (layout_of(i), None));
+            assert_eq!(upload.pack(threads, &[], false, gone, unpacked), Err(LayoutChanged));
+            let rebound =
+                |entity| index_of(entity).map(|i| (GuideLayout { binding: u64::from(i == 8), ..layout_of(i) }, None));
+            assert_eq!(upload.pack(threads, &[], false, rebound, unpacked), Err(LayoutChanged));
+            let wider = |entity| {
+                index_of(entity)
+                    .map(|i| (GuideLayout { radius: if i == 3 { 8e-5 } else { 4e-5 }, ..layout_of(i) }, None))
+            };
+            assert_eq!(upload.pack(threads, &[], false, wider, unpacked), Err(LayoutChanged));
+        }
+        assert!(upload.pack(2, &[], false, as_laid_out, unpacked).is_ok_and(|bounds| bounds.is_some()));
     }
 }

@@ -19,7 +19,7 @@ use bevy::shader::{ShaderDefVal, ShaderRef};
 use bevy::tasks::ComputeTaskPool;
 
 use super::compute::{self, GpuHeads};
-use super::feed::GuideUpload;
+use super::feed::{GuideUpload, LayoutChanged};
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::{FollowerNodes, FollowerPlacement};
 use crate::schedule::HairDrawSystems;
@@ -273,10 +273,28 @@ type DrawnStrand = (
     Option<&'static FollowerNodes>,
     Option<&'static RepresentedHairs>,
     &'static StrandFrames,
+    Option<&'static PackedStrandPose>,
 );
 
+/// The layout of the guide `entity` as it is now, and the pose the step packed for it, if any.
+fn guide_now<'a>(
+    strands: &'a Query<DrawnStrand>,
+    entity: Entity,
+) -> Option<(GuideLayout, Option<&'a PackedStrandPose>)> {
+    let (strand, nodes, followers, represented, _, pose) = strands.get(entity).ok()?;
+    let material = strand.rod().material();
+    let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
+    let mut guide = GuideLayout::new(entity, nodes, followers, radius);
+    guide.radius *= coverage_factor(represented.map(|hairs| hairs.0), guide.followers);
+    Some((guide, pose))
+}
+
 /// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
-/// frame's node positions; keeps the bounds and the material up to date.
+/// frame's node positions (or has the GPU place them); keeps the bounds and the material up to date.
+///
+/// With the GPU's placement, a head whose strands are all laid out is not looked over every frame: the
+/// step's data is checked against the layout guide by guide as it is packed, once per step (a change is
+/// seen at the next step), and the whole head again when its list of strands changes.
 #[allow(clippy::too_many_arguments)]
 fn prepare_hair_meshes(
     mut commands: Commands,
@@ -285,9 +303,8 @@ fn prepare_hair_meshes(
     checked: Res<CheckedSettings>,
     colliders: StrandColliders,
     mut hair_meshes: Query<HairMeshParts>,
-    heads: Query<(&HeadStrands, &GlobalTransform, Option<&HairAppearance>)>,
+    heads: Query<(Ref<HeadStrands>, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
-    poses: Query<&PackedStrandPose>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<HairMaterial>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
@@ -314,15 +331,33 @@ fn prepare_hair_meshes(
             hair_mesh.requested = Some(requested);
         }
         let appearance_changed = hair_mesh.appearance.as_ref() != Some(&appearance);
-        let layout = head_strands.strands().iter().filter_map(|&entity| {
-            let (strand, nodes, followers, represented, ..) = strands.get(entity).ok()?;
-            let material = strand.rod().material();
-            let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
-            let mut guide = GuideLayout::new(entity, nodes, followers, radius);
-            guide.radius *= coverage_factor(represented.map(|hairs| hairs.0), guide.followers);
-            Some(guide)
-        });
-        let relaid = hair_mesh.strips.set_layout(layout);
+        let layout = || head_strands.strands().iter().filter_map(|&entity| Some(guide_now(&strands, entity)?.0));
+        let look_over = !on_gpu
+            || !hair_mesh.upload_laid_out
+            || head_strands.is_changed()
+            || hair_mesh.strips.guides().len() != head_strands.strands().len();
+        let mut relaid = look_over && hair_mesh.strips.set_layout(layout());
+        let bounds = if on_gpu {
+            hair_mesh.fresh = false;
+            let head = StrandOf(child_of.parent());
+            let context =
+                GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin as f32 };
+            let mut send = |hair_mesh: &mut HairMesh, relaid| {
+                send_to_gpu(hair_mesh, relaid, &context, colliders.of(Some(&head)), &strands, &mut commands)
+            };
+            send(&mut hair_mesh, relaid).or_else(|LayoutChanged| {
+                // Laid out again from the same components, the layout holds.
+                relaid = hair_mesh.strips.set_layout(layout());
+                hair_mesh.upload_laid_out = false;
+                send(&mut hair_mesh, relaid)
+            })
+        } else {
+            hair_mesh.upload_laid_out = false;
+            let lookup = |entity| strands.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
+            let bounds = hair_mesh.strips.fill(alpha, threads, lookup);
+            hair_mesh.fresh = bounds.is_some();
+            Ok(bounds)
+        };
         let thickness_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {
             (old.thickness_scale, old.tip_taper) != (appearance.thickness_scale, appearance.tip_taper)
         });
@@ -351,21 +386,7 @@ fn prepare_hair_meshes(
         if appearance_changed {
             hair_mesh.appearance = Some(appearance);
         }
-        let bounds = if on_gpu {
-            hair_mesh.fresh = false;
-            let head = StrandOf(child_of.parent());
-            let context =
-                GpuContext { fixed_time: &fixed_time, alpha, threads, margin: checked.collision_margin as f32 };
-            let strands = (&strands, &poses);
-            send_to_gpu(&mut hair_mesh, relaid, context, colliders.of(Some(&head)), strands, &mut commands)
-        } else {
-            hair_mesh.upload_laid_out = false;
-            let lookup = |entity| strands.get(entity).ok().map(|(_, nodes, followers, ..)| (nodes, followers));
-            let bounds = hair_mesh.strips.fill(alpha, threads, lookup);
-            hair_mesh.fresh = bounds.is_some();
-            bounds
-        };
-        if let Some((low, high)) = bounds {
+        if let Ok(Some((low, high))) = bounds {
             // The ribbons reach a hair's radius (or a pixel) beyond the nodes: a centimetre covers both.
             *aabb = local_bounds(head_transform, low - Vec3::splat(0.01), high + Vec3::splat(0.01));
         }
@@ -381,33 +402,30 @@ struct GpuContext<'a> {
     margin: f32,
 }
 
-/// Prepares what the GPU's follower placement needs this frame (see [`super::feed`]): the layout when it
-/// changed or a guide's followers were bound again, the guides' data when a step came since the last
-/// frame, the interpolation fraction always. Returns the bounds of the last two steps' hair. A new layout
-/// gives its guides a [`PackedStrandPose`] for the step to write.
+/// Prepares what the GPU's follower placement needs this frame (see [`super::feed`]): the layout when the
+/// strips were laid out again (`relaid`) or the upload has none, the guides' data when a step came since
+/// the last frame, the interpolation fraction always. Returns the bounds of the last two steps' hair, or
+/// [`LayoutChanged`] (before anything is sent) when a guide is no longer as laid out. A new layout gives
+/// its guides a [`PackedStrandPose`] for the step to write.
 fn send_to_gpu(
     hair_mesh: &mut HairMesh,
     relaid: bool,
-    context: GpuContext,
+    context: &GpuContext,
     colliders: &[crate::rod::MovingCollider],
-    (strands, poses): (&Query<DrawnStrand>, &Query<&PackedStrandPose>),
+    strands: &Query<DrawnStrand>,
     commands: &mut Commands,
-) -> Option<(Vec3, Vec3)> {
+) -> Result<Option<(Vec3, Vec3)>, LayoutChanged> {
     let HairMesh { strips, upload, .. } = hair_mesh;
-    let followers_of =
-        |layout: &GuideLayout| strands.get(layout.entity).ok().and_then(|(_, _, followers, ..)| followers);
     let now = context.fixed_time.elapsed_secs_f64();
     let step = context.fixed_time.timestep().as_secs_f64();
     let steps_since = |packed_at: Option<f64>| packed_at.map(|packed| ((now - packed) / step).round());
-    // Followers are bound again only in a fixed step: looked at when one came.
-    let due = steps_since(hair_mesh.packed_at).is_none_or(|steps| steps >= 1.0);
-    let layout =
-        relaid || !hair_mesh.upload_laid_out || due && upload.rebound(strips.guides().iter().map(followers_of));
+    let layout = relaid || !hair_mesh.upload_laid_out;
     if layout {
-        upload.set_layout(strips.guides().iter().map(|guide| (guide.entity, guide.nodes, followers_of(guide))));
+        let followers_of = |guide: &GuideLayout| strands.get(guide.entity).ok().and_then(|strand| strand.2);
+        upload.set_layout(strips.guides().iter().map(|guide| (*guide, followers_of(guide))));
         // Made here in drawing order, the poses lie in memory in the order they are read.
         for guide in strips.guides() {
-            if strands.contains(guide.entity) && !poses.contains(guide.entity) {
+            if strands.get(guide.entity).is_ok_and(|strand| strand.5.is_none()) {
                 commands.entity(guide.entity).try_insert(PackedStrandPose::with_capacity(guide.nodes as usize));
             }
         }
@@ -417,24 +435,24 @@ fn send_to_gpu(
     let steps = steps_since(hair_mesh.packed_at);
     let stepped = steps.is_none_or(|steps| steps >= 1.0);
     if stepped {
-        let pose_of = |entity| poses.get(entity).ok();
         let unpacked = |entity, pose: &mut PackedStrandPose| {
-            let Ok((strand, nodes, _, _, frames)) = strands.get(entity) else { return false };
+            let Ok((strand, nodes, _, _, frames, _)) = strands.get(entity) else { return false };
             pose.write_from_components(nodes, frames, strand.collision_thickness(context.margin));
             true
         };
         // After more than one step (or none packed yet) there is no step before to interpolate from.
         let snap_all = steps.is_none_or(|steps| steps > 1.0);
-        let bounds = upload.pack(context.threads, colliders, snap_all, pose_of, unpacked);
+        let guide_of = |entity| guide_now(strands, entity);
+        let bounds = upload.pack(context.threads, colliders, snap_all, guide_of, unpacked)?;
         hair_mesh.step_bounds = [hair_mesh.step_bounds[1], bounds];
         hair_mesh.packed_at = Some(now);
     }
     hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha: context.alpha });
     let [before, last] = hair_mesh.step_bounds;
-    match (before, last) {
+    Ok(match (before, last) {
         (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
         (one, other) => one.or(other),
-    }
+    })
 }
 
 /// How much wider than a real hair each drawn hair of a guide is drawn, so that the hair drawn covers what

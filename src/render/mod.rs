@@ -183,6 +183,7 @@ impl GuideLayout {
             entity,
             nodes: nodes.positions.len() as u32,
             followers: followers.map_or(0, |followers| followers.count() as u32),
+            binding: followers.map_or(0, FollowerNodes::binding),
             radius,
         }
     }
@@ -199,7 +200,7 @@ pub struct DrawnHair {
     pub radius: f32,
 }
 
-/// One guide as the layout saw it: its entity, nodes, followers and radius (m).
+/// One guide as the layout saw it: its entity, nodes, followers (and which binding of them) and radius (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GuideLayout {
     /// The guide strand's entity.
@@ -208,6 +209,9 @@ pub struct GuideLayout {
     pub nodes: u32,
     /// Followers the guide carries.
     pub followers: u32,
+    /// Which binding of the followers their rest offsets come from ([`FollowerNodes::binding`], 0 without
+    /// followers): followers bound again are laid out again, so that the GPU takes their new offsets.
+    pub binding: u64,
     /// The guide's radius, m.
     pub radius: f32,
 }
