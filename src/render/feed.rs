@@ -7,7 +7,9 @@
 //! **What the CPU does per step** is copying: the step packs each guide's pose into one small array while
 //! the strand is in its core's cache ([`PackedStrandPose`]: positions, and the frames as the root edge's
 //! director and each vertex's material twist, no trigonometry per node), and [`GuideUpload::pack`] copies
-//! those arrays, one per guide, into the upload. The GPU walks each guide from its root to make the
+//! those arrays, one per guide, into the upload, checking on the way that each guide is still as laid out
+//! (its node count, its followers and their binding, its drawn radius), so that no other pass over the
+//! guides is needed to see a change ([`LayoutChanged`]). The GPU walks each guide from its root to make the
 //! frames (`frames` in the shader, [`walk_directors`] on the CPU); a follower node is then
 //! `x_g + o_t t + o_1 m1 + o_2 m2` in the material frame of its guide's edge ([`crate::followers`]).
 //!
