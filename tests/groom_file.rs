@@ -1,7 +1,7 @@
 //! Groom files: the shipped TressFX groom reads with the file's exact counts and points, `.hair` files
 //! written here read back exactly with every combination of optional arrays, strands resample keeping
 //! their length, and hundreds of truncated or corrupt files give errors, no panic and no huge
-//! allocation.
+//! allocation; the shipped groom, placed as it comes, keeps its shape at rest.
 
 mod common;
 #[path = "../benches/support/counting_allocator.rs"]
@@ -347,4 +347,56 @@ fn the_fuzz_seeds_read_as_made() {
     }
     assert!(matches!(GroomFile::from_tfx(&read("tfx/truncated")), Err(GroomFileError::Truncated { .. })));
     assert!(matches!(GroomFile::from_hair(&read("hair/truncated")), Err(GroomFileError::Truncated { .. })));
+}
+
+/// The largest RMS distance of the strands' nodes from where they were placed, m, over `seconds` of a
+/// still head, checked every half second; and the strands' largest stiffening to hold.
+fn rest_drift_of_ratboy(placement: GroomPlacement, seconds: f64) -> (f64, f64) {
+    let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
+    let mut app = hair_app_with(());
+    let material = app.world().resource::<HairSettings>().default_material;
+    let (strands, _) = file.placed_strands(&placement, &material);
+    let head = app.world_mut().spawn((HairHead, Transform::default())).id();
+    let placed: Vec<(Entity, Vec<Vec3>)> = strands
+        .into_iter()
+        .map(|strand| {
+            let nodes = strand.nodes.clone();
+            (app.world_mut().spawn((strand, StrandOf(head))).id(), nodes)
+        })
+        .collect();
+    let mut largest = 0.0_f64;
+    for _ in 0..(2.0 * seconds).round() as usize {
+        for _ in 0..30 {
+            app.update();
+        }
+        let (mut squares, mut count) = (0.0, 0);
+        for (entity, nodes) in &placed {
+            for (now, placed) in strand(&app, *entity).rod().positions().iter().zip(nodes) {
+                squares += now.distance_squared(placed.as_dvec3());
+                count += 1;
+            }
+        }
+        largest = largest.max((squares / f64::from(count)).sqrt());
+    }
+    assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+    let stiffening = placed.iter().map(|(entity, _)| strand(&app, *entity).stiffening()).fold(1.0, f64::max);
+    (largest, stiffening)
+}
+
+#[test]
+fn the_shipped_groom_placed_as_it_comes_keeps_its_shape_at_rest() {
+    // Placed as it comes, one unit a metre, the mohawk is 5 to 29 cm long and leaves its 68 cm tall head
+    // upwards and sideways: longer than human hair can hold up (9.5 cm). Every tenth strand, 10 s.
+    let placement = GroomPlacement { max_strands: 223, ..default() };
+    let (held, stiffening) = rest_drift_of_ratboy(placement, 10.0);
+    let (fallen, _) = rest_drift_of_ratboy(GroomPlacement { stiffen_to_hold: false, ..placement }, 10.0);
+    println!(
+        "the Ratboy groom at rest for 10 s: RMS from its shape at most {:.3} mm (stiffened up to ×{stiffening:.0}); {:.1} mm preloaded only",
+        1e3 * held,
+        1e3 * fallen
+    );
+    assert!(held <= 1e-3, "the groom moved {held} m RMS from its shape");
+    assert!(stiffening > 1.0);
+    // Preloaded only, the equilibrium is not a stable one: the strands fall.
+    assert!(fallen > 0.01, "preloaded only, the groom stayed within {fallen} m RMS");
 }

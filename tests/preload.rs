@@ -78,3 +78,123 @@ fn a_strand_held_out_too_far_is_bounded_and_sags() {
     let sag = drift(&mut rod, &params, 3.0);
     assert!(sag > 0.01 && sag.is_finite(), "it sags to where the bounded rest shape holds it: {sag} m");
 }
+
+/// A human hair of `edges` edges, `length` m long, clamped at the root: a root edge of a twentieth of the
+/// length along `root_direction`, then the rest along `direction`.
+fn hair_leaving(root_direction: DVec3, direction: DVec3, length: f64, edges: usize) -> Rod {
+    let edge = length / edges as f64;
+    let mut nodes = vec![DVec3::ZERO, root_direction.normalize() * edge];
+    for _ in 1..edges {
+        let last = *nodes.last().unwrap();
+        nodes.push(last + direction.normalize() * edge);
+    }
+    let mut rod = Rod::new(&nodes, direction.any_orthonormal_vector(), RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    rod
+}
+
+/// RMS distance of the nodes from `shape` over `seconds` of stepping, checked every tenth of a second: the
+/// largest, m.
+fn largest_rms_drift(rod: &mut Rod, params: &StepParams, seconds: f64) -> f64 {
+    let shape = rod.positions().to_vec();
+    let mut workspace = RodWorkspace::default();
+    let mut largest = 0.0_f64;
+    for _ in 0..(seconds * 10.0).round() as usize {
+        run(rod, params, (0.1 / params.dt).round() as usize, &mut workspace);
+        let squares: f64 = rod.positions().iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum();
+        largest = largest.max((squares / shape.len() as f64).sqrt());
+    }
+    largest
+}
+
+#[test]
+fn the_stiffening_to_hold_is_greenhills_number_for_what_does_not_hang() {
+    let gravity = StepParams::default().gravity;
+    let material = RodMaterial::human_hair();
+    let bending = material.youngs_modulus * std::f64::consts::PI * material.semi_axis_1.powi(4) / 4.0;
+    let weight = material.density * std::f64::consts::PI * material.semi_axis_1.powi(2) * gravity.length();
+    let tilted = DVec3::new(0.2, 1.0, 0.0);
+    for (direction, label) in
+        [(DVec3::Y, "up"), (tilted, "tilted"), (DVec3::X, "sideways"), (DVec3::new(1.0, -0.5, 0.0), "down at 27°")]
+    {
+        for length in [0.05, 0.2, 0.4] {
+            let rod = hair_leaving(direction, direction, length, 20);
+            // Past the root edge; Greenhill's 7.837 with a factor of two to spare.
+            let free = length * 19.0 / 20.0;
+            let expected = (2.0 * weight * free.powi(3) / bending / 7.837).max(1.0);
+            let factor = rod.stiffening_to_hold(gravity);
+            assert!((factor / expected - 1.0).abs() < 1e-9, "{label}, {length} m: {factor} against {expected}");
+        }
+    }
+    // 9.5 cm is where human hair buckles upright under its own weight; 5 cm needs nothing.
+    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.05, 20).stiffening_to_hold(gravity), 1.0);
+    // Hanging within 60° of straight down, at any length: held by its tension.
+    for direction in [DVec3::NEG_Y, DVec3::new(1.0, -1.0, 0.3), DVec3::new(1.6, -1.0, 0.0)] {
+        assert_eq!(hair_leaving(DVec3::X, direction, 0.5, 20).stiffening_to_hold(gravity), 1.0, "{direction}");
+    }
+    // Out past 60° from straight down, it is not hanging.
+    assert!(hair_leaving(DVec3::X, DVec3::new(1.8, -1.0, 0.0), 0.5, 20).stiffening_to_hold(gravity) > 1.0);
+    // No gravity: nothing to hold.
+    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.4, 20).stiffening_to_hold(DVec3::ZERO), 1.0);
+}
+
+#[test]
+fn a_preloaded_strand_past_the_buckling_length_falls_unless_stiffened_to_hold() {
+    let params = StepParams::default();
+    // Up and leaning, straight out sideways, and up then curving out: 20 cm of human hair (Greenhill's
+    // length is 9.5 cm), 24 edges.
+    let shapes = [
+        ("leaning up", hair_leaving(DVec3::Y, DVec3::new(0.3, 1.0, 0.1), 0.2, 24)),
+        ("sideways", hair_leaving(DVec3::X, DVec3::new(1.0, 0.0, 0.2), 0.2, 24)),
+        ("up then out", {
+            let nodes: Vec<DVec3> = (0..=24)
+                .map(|node| {
+                    let angle = std::f64::consts::FRAC_PI_2 * node as f64 / 24.0;
+                    DVec3::new(0.127 * (1.0 - angle.cos()), 0.127 * angle.sin(), 0.01 * angle)
+                })
+                .collect();
+            let mut rod = Rod::new(&nodes, DVec3::Z, RodMaterial::human_hair()).unwrap();
+            rod.clamp_root_in_place();
+            rod
+        }),
+    ];
+    for (label, rod) in shapes {
+        let factor = rod.stiffening_to_hold(params.gravity);
+        assert!(factor > 4.0, "{label}: {factor}");
+        let mut alone = rod.clone();
+        alone.preload_for_gravity(params.gravity, &vec![None; rod.node_count()], 1.0).unwrap();
+        let fallen = largest_rms_drift(&mut alone, &params, 4.0);
+        let mut stiffened = rod.clone();
+        stiffened.set_material(stiffened.material().stiffened(factor)).unwrap();
+        stiffened.preload_for_gravity(params.gravity, &vec![None; rod.node_count()], 1.0).unwrap();
+        let shape = stiffened.positions().to_vec();
+        let held = largest_rms_drift(&mut stiffened, &params, 10.0);
+        // Pushed sideways by half its weight for a quarter of a second, then let go: a stable equilibrium
+        // takes it back.
+        let push = 0.5 * stiffened.stiffness().linear_density * params.gravity.length() * 0.2 / 24.0;
+        let forces = vec![DVec3::Z * push; rod.node_count()];
+        let mut workspace = RodWorkspace::default();
+        for _ in 0..15 {
+            stiffened.step(&params, Some(&forces), &mut workspace).unwrap();
+        }
+        let rms = |rod: &Rod| {
+            let squares: f64 = rod.positions().iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum();
+            (squares / shape.len() as f64).sqrt()
+        };
+        let pushed = rms(&stiffened);
+        run(&mut stiffened, &params, 480, &mut workspace);
+        let back = rms(&stiffened);
+        println!(
+            "{label}: stiffened ×{factor:.1}; RMS drift preloaded only {:.1} mm in 4 s, stiffened too {:.4} mm in 10 s; pushed {:.1} mm, 8 s later {:.3} mm",
+            1e3 * fallen,
+            1e3 * held,
+            1e3 * pushed,
+            1e3 * back
+        );
+        // An equilibrium that is not stable: the round-off of the first steps grows until the strand falls.
+        assert!(fallen > 0.01, "{label}: preloaded only, it stayed within {fallen} m");
+        assert!(held < 1e-3, "{label}: stiffened to hold, it moved {held} m RMS");
+        assert!(pushed > 2e-3, "{label}: the push moved it {pushed} m RMS");
+        assert!(back < 0.1 * pushed && back < 1e-3, "{label}: pushed {pushed} m RMS, {back} m 8 s later");
+    }
+}

@@ -432,18 +432,32 @@ pub struct GroomPlacement {
     /// Most strands simulated: when the file has more, this many are picked evenly among them. Default
     /// 2 000.
     pub max_strands: usize,
+    /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1, the default,
+    /// makes the groom's shape the hair's shape at rest instead of sagging from it.
+    pub gravity_preload: f32,
+    /// Whether strands the preload cannot hold (longer than hair of their material can hold up or out)
+    /// are stiffened until they hold (see [`HairStrand::stiffen_to_hold`]). Default `true`: a groom is
+    /// authored as it should look, whether gel, clumping or a scale larger than life holds it.
+    pub stiffen_to_hold: bool,
 }
 
 impl Default for GroomPlacement {
     fn default() -> Self {
-        Self { metres_per_unit: 1.0, up: UpAxis::Y, transform: Transform::IDENTITY, segments: 16, max_strands: 2000 }
+        Self {
+            metres_per_unit: 1.0,
+            up: UpAxis::Y,
+            transform: Transform::IDENTITY,
+            segments: 16,
+            max_strands: 2000,
+            gravity_preload: 1.0,
+            stiffen_to_hold: true,
+        }
     }
 }
 
 impl GroomPlacement {
     /// Checks that the unit is positive and finite, the transform finite (and not flattened by a zero
-    /// scale), and the segments from 2 to
-    /// [`MAX_GROOM_SEGMENTS`].
+    /// scale), the segments from 2 to [`MAX_GROOM_SEGMENTS`] and the gravity preload from 0 to 1.
     pub fn validate(&self) -> Result<(), GroomError> {
         let invalid = |what, value: f64, requirement| Err(GroomError::InvalidPlacement { what, value, requirement });
         if !(self.metres_per_unit.is_finite() && self.metres_per_unit > 0.0) {
@@ -454,6 +468,9 @@ impl GroomPlacement {
         }
         if !(2..=MAX_GROOM_SEGMENTS).contains(&self.segments) {
             return invalid("segments", self.segments as f64, "must be from 2 to MAX_GROOM_SEGMENTS (1024)");
+        }
+        if !(0.0..=1.0).contains(&self.gravity_preload) {
+            return invalid("gravity_preload", self.gravity_preload.into(), "must lie in 0 to 1");
         }
         Ok(())
     }
@@ -518,8 +535,9 @@ impl GroomFile {
     /// [`GroomFile::usable_strands`]), at most `max_strands` picked evenly, each resampled to `segments`
     /// edges. A strand whose mean thickness in metres makes a fibre radius within
     /// [`FIBRE_RADIUS_RANGE`] gets `material` with that radius (so a `.hair` file in real units gives its
-    /// fibres' thickness); others follow the default material. Also returns how many strands were
-    /// skipped as degenerate. An invalid `placement` ([`GroomPlacement::validate`]) places none.
+    /// fibres' thickness); others follow the default material. Each is preloaded against gravity and
+    /// stiffened to hold as `placement` says. Also returns how many strands were skipped as degenerate.
+    /// An invalid `placement` ([`GroomPlacement::validate`]) places none.
     pub fn placed_strands(&self, placement: &GroomPlacement, material: &RodMaterial) -> (Vec<HairStrand>, usize) {
         if placement.validate().is_err() {
             return (Vec::new(), 0);
@@ -536,7 +554,9 @@ impl GroomFile {
                     .map(|point| placement.place(point))
                     .collect();
                 let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
-                let strand = HairStrand::from_nodes(nodes, direction);
+                let strand = HairStrand::from_nodes(nodes, direction)
+                    .with_gravity_preload(placement.gravity_preload)
+                    .with_stiffening_to_hold(placement.stiffen_to_hold);
                 match self.fibre_radius(index, placement.metres_per_unit) {
                     Some(radius) => {
                         strand.with_material(RodMaterial { semi_axis_1: radius, semi_axis_2: radius, ..*material })

@@ -69,6 +69,18 @@ impl RodMaterial {
         Self::round(40e-6, 3.5e9, 0.4, 1300.0)
     }
 
+    /// This material with its Young's and shear moduli `factor` times as large (so its bending, twisting
+    /// and stretching stiffness), at most to the top of [`MATERIAL_RANGES`]: hair held in a style by a
+    /// styling product or bonded into a clump bends as a stiffer fibre of the same weight would.
+    pub fn stiffened(&self, factor: f64) -> Self {
+        let (youngs_max, shear_max) = (MATERIAL_RANGES[2].2, MATERIAL_RANGES[3].2);
+        Self {
+            youngs_modulus: (self.youngs_modulus * factor).min(youngs_max),
+            shear_modulus: (self.shear_modulus * factor).min(shear_max),
+            ..*self
+        }
+    }
+
     /// Checks that every parameter is positive and finite.
     pub fn validate(&self) -> Result<(), RodError> {
         let parameters = [

@@ -33,6 +33,21 @@ use super::error::RodError;
 /// [`MAX_TURNING_ANGLE`], so that a strand preloaded to the bound can still bend further under load.
 pub const MAX_PRELOAD_TURN: f64 = 150.0 * std::f64::consts::PI / 180.0;
 
+/// Greenhill's self-weight buckling number: a straight uniform column clamped upright at its foot and
+/// free at its top buckles under its own weight once `ρ A g L³ / EI` exceeds 7.837 (Greenhill 1881;
+/// Timoshenko & Gere, *Theory of Elastic Stability*, 1961, §2.13). For human hair (r = 40 µm,
+/// E = 3.5 GPa) that is at `L` = 9.5 cm.
+pub const SELF_WEIGHT_BUCKLING: f64 = 7.837;
+
+/// The load a stiffened rod can hold upright, in multiples of its own weight ([`Rod::stiffening_to_hold`]):
+/// at exactly Greenhill's number the upright column has no stiffness left against buckling, and the
+/// smallest push would move it far.
+const HOLDING_MARGIN: f64 = 2.0;
+
+/// How far from straight down every edge of a rod (past its root edge) may point and the rod still hang
+/// in [`Rod::stiffening_to_hold`], as the cosine of the angle: 60°.
+const HANGING_COSINE: f64 = 0.5;
+
 /// What [`Rod::preload_for_gravity`] did.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct PreloadReport {
@@ -119,6 +134,41 @@ impl Rod {
         }
         debug_assert!(largest < 2.0 * (0.5 * MAX_TURNING_ANGLE).tan());
         Ok(report)
+    }
+
+    /// By how much the rod's bending and twisting stiffness must grow (a factor, at least 1) for its
+    /// current shape, once preloaded ([`Rod::preload_for_gravity`]), to be a stable equilibrium under
+    /// `gravity` (m/s²). A rod whose edges past the root edge all point within 60° of straight down
+    /// hangs, held by its tension: 1. Any other must be short enough to hold up twice its weight: twice its
+    /// self-weight number `ρ A |g| L³ / EI` (`L` its length past the root edge, `EI` the smaller bending
+    /// stiffness) over Greenhill's [`SELF_WEIGHT_BUCKLING`], when that is over 1 (human hair leaving the
+    /// scalp upwards or sideways is stiffened past 7.5 cm).
+    ///
+    /// Preloading alone makes any shape an equilibrium, but past that length not a stable one: a strand
+    /// standing up, or held out sideways by the bending stress its rest shape leaves in it, buckles at
+    /// the smallest disturbance and falls. (Takahashi & Batty, "Rest Shape Optimization for Sag-Free
+    /// Discrete Elastic Rods", 2024, bound the rest shape for the same reason; optimising the stiffness
+    /// with the rest shape is the later answer where no bounded rest shape is stable.)
+    pub fn stiffening_to_hold(&self, gravity: DVec3) -> f64 {
+        let weight = gravity.length();
+        if !(weight > 0.0 && weight.is_finite()) {
+            return 1.0;
+        }
+        let down = gravity / weight;
+        let positions = self.positions();
+        let hangs = positions
+            .get(1..)
+            .unwrap_or_default()
+            .windows(2)
+            .all(|ends| (ends[1] - ends[0]).normalize_or_zero().dot(down) >= HANGING_COSINE);
+        if hangs {
+            return 1.0;
+        }
+        let length: f64 = self.rest_lengths().iter().skip(1).sum();
+        let stiffness = self.stiffness();
+        let bending = stiffness.bending_1.min(stiffness.bending_2);
+        let number = stiffness.linear_density * weight * length.powi(3) / bending;
+        (HOLDING_MARGIN * number / SELF_WEIGHT_BUCKLING).max(1.0)
     }
 
     /// The bending and twisting stresses `s_v` (N·m) that hold the rod's current shape against `gravity`,

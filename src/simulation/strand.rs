@@ -44,6 +44,15 @@ pub struct HairStrand {
     /// is baked into the rest shape, so turning the head over or changing gravity later moves the hair.
     /// Needs a head ([`StrandOf`]): a free strand has nothing to hang from.
     pub gravity_preload: f32,
+    /// Whether the gravity preload may stiffen the strand so that its shape holds (default `false`). A
+    /// preloaded shape is an equilibrium, but one that hair standing up or held out sideways keeps only
+    /// up to a length (9.5 cm for human hair, Greenhill's self-weight buckling length; see
+    /// [`crate::rod::Rod::stiffening_to_hold`]): past it the strand buckles at the first disturbance
+    /// and falls. With this set, such a strand's bending and twisting stiffness grow to the least that
+    /// holds its shape, as a styling product or a clump of hairs bonded together hold a style that single
+    /// hairs cannot; strands that hang keep their material. [`SimulatedStrand::stiffening`] says by how
+    /// much (a strand stiffened holds twice its weight upright). Imported grooms set it ([`crate::groom::GroomPlacement::stiffen_to_hold`]).
+    pub stiffen_to_hold: bool,
 }
 
 impl HairStrand {
@@ -57,6 +66,7 @@ impl HairStrand {
             natural_curvature: None,
             collision_thickness: None,
             gravity_preload: 0.0,
+            stiffen_to_hold: false,
         }
     }
 
@@ -84,6 +94,13 @@ impl HairStrand {
     /// Sets the gravity preload (0 to 1), see [`HairStrand::gravity_preload`].
     pub fn with_gravity_preload(mut self, preload: f32) -> Self {
         self.gravity_preload = preload;
+        self
+    }
+
+    /// Lets the gravity preload stiffen the strand so that its shape holds, see
+    /// [`HairStrand::stiffen_to_hold`].
+    pub fn with_stiffening_to_hold(mut self, stiffen: bool) -> Self {
+        self.stiffen_to_hold = stiffen;
         self
     }
 
@@ -235,6 +252,10 @@ pub struct SimulatedStrand {
     /// What the last gravity preload did.
     #[reflect(ignore)]
     preload_report: Option<PreloadReport>,
+    /// Whether the gravity preload may stiffen the strand ([`HairStrand::stiffen_to_hold`]).
+    stiffen_to_hold: bool,
+    /// How many times stiffer than its material the strand bends and twists (1 unless stiffened to hold).
+    stiffening: f64,
     /// The level of detail this step, and the drawn shape while it is kept apart from the simulation.
     #[reflect(ignore)]
     pub(crate) detail: StrandDetail,
@@ -284,6 +305,8 @@ impl SimulatedStrand {
             rod_written: false,
             pending_preload: (head.is_some() && spec.gravity_preload > 0.0).then_some(spec.gravity_preload),
             preload_report: None,
+            stiffen_to_hold: spec.stiffen_to_hold,
+            stiffening: 1.0,
             detail: StrandDetail::default(),
         })
     }
@@ -332,12 +355,26 @@ impl SimulatedStrand {
         self.preload_report.as_ref()
     }
 
+    /// How many times stiffer than its material the strand bends and twists: more than 1 where the gravity
+    /// preload stiffened it to hold its shape ([`HairStrand::stiffen_to_hold`]).
+    pub fn stiffening(&self) -> f64 {
+        self.stiffening
+    }
+
     /// Runs a pending gravity preload under `gravity` (m/s²), with the nodes resting on colliders given
-    /// the outward normals under them in `supports`; returns whether one ran.
+    /// the outward normals under them in `supports`, stiffening the strand first where it is asked to
+    /// hold its shape; returns whether one ran.
     pub(crate) fn run_pending_preload(&mut self, gravity: DVec3, supports: &[Option<DVec3>]) -> Result<bool, RodError> {
         let Some(factor) = self.pending_preload.take() else {
             return Ok(false);
         };
+        if self.stiffen_to_hold && factor > 0.0 {
+            let more = self.rod.stiffening_to_hold(gravity);
+            if more > 1.0 {
+                self.rod.set_material(self.rod.material().stiffened(more))?;
+                self.stiffening *= more;
+            }
+        }
         self.preload_report = Some(self.rod.preload_for_gravity(gravity, supports, f64::from(factor))?);
         Ok(true)
     }
@@ -536,10 +573,12 @@ impl SimulatedStrand {
         StepOutcome::Faulted { error, first_of_episode, quarantine }
     }
 
-    /// Uses `material` if the strand follows the default material.
+    /// Uses `material` (stiffened as the strand was to hold its shape) if the strand follows the default
+    /// material.
     pub(crate) fn follow_default_material(&mut self, material: &RodMaterial) -> Result<(), RodError> {
-        if self.follows_default_material && self.rod.material() != material {
-            self.rod.set_material(*material)?;
+        let material = material.stiffened(self.stiffening);
+        if self.follows_default_material && *self.rod.material() != material {
+            self.rod.set_material(material)?;
         }
         Ok(())
     }
