@@ -29,9 +29,10 @@ pub fn check_groom(groom: &GroomFile, file_length: usize) {
         GroomPlacement { max_strands: 32, ..Default::default() },
         GroomPlacement { metres_per_unit: 0.01, up: UpAxis::Z, segments: 5, max_strands: 32, ..Default::default() },
     ] {
-        let (strands, skipped) = groom.placed_strands(&placement, &RodMaterial::human_hair());
-        assert!(skipped <= groom.strand_count() && strands.len() <= placement.max_strands);
-        for strand in strands {
+        let placed = groom.placed_strands(&placement, &RodMaterial::human_hair());
+        assert!(placed.skipped <= groom.strand_count() && placed.guides.len() <= placement.max_strands);
+        assert!(placed.drawn_strands() + placed.skipped == groom.strand_count());
+        for (strand, _) in placed.guides {
             assert_eq!(strand.nodes.len(), placement.segments + 1);
             let nodes: Vec<DVec3> = strand.nodes.iter().map(|node| node.as_dvec3()).collect();
             let material = strand.material.unwrap_or_else(RodMaterial::human_hair);

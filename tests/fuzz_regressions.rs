@@ -274,10 +274,12 @@ fn groom_sizes_placements_and_followers_are_validated() {
         GroomPlacement { transform: Transform::from_scale(Vec3::ZERO), ..default() },
     ] {
         assert!(matches!(placement.validate(), Err(GroomError::InvalidPlacement { .. })), "{placement:?}");
-        assert_eq!(file.placed_strands(&placement, &RodMaterial::human_hair()).0.len(), 0);
+        assert_eq!(file.placed_strands(&placement, &RodMaterial::human_hair()).guides.len(), 0);
     }
     let mirrored = GroomPlacement { transform: Transform::from_scale(Vec3::new(-0.01, 0.01, 0.01)), ..default() };
-    assert!(mirrored.validate().is_ok() && !file.placed_strands(&mirrored, &RodMaterial::human_hair()).0.is_empty());
+    assert!(
+        mirrored.validate().is_ok() && !file.placed_strands(&mirrored, &RodMaterial::human_hair()).guides.is_empty()
+    );
 
     let _log = logs::serial();
     let mut app = hair_app();

@@ -145,10 +145,10 @@ fn hair_files_read_back_exactly_with_every_combination_of_arrays() {
             assert_eq!(groom.strand(index), &points[..], "{arrays:?}");
         }
         // Thickness 1 to 48 units: at 1e-5 m per unit, radii of 5 to 240 µm, taken as the fibre's radius.
-        let (placed, _) =
+        let placed =
             groom.placed_strands(&GroomPlacement { metres_per_unit: 1e-5, ..default() }, &RodMaterial::default());
-        assert_eq!(placed.len(), groom.usable_strands().count());
-        for (index, strand) in groom.usable_strands().zip(&placed) {
+        assert_eq!(placed.guides.len(), groom.usable_strands().count());
+        for (index, (strand, _)) in groom.usable_strands().zip(&placed.guides) {
             let expected = groom.fibre_radius(index, 1e-5);
             assert_eq!(strand.material.map(|material| material.semi_axis_1), expected, "{arrays:?}");
             assert_eq!(expected.is_some(), arrays.thickness, "{arrays:?}: the default 0.25 is 1.25 µm, too thin");
@@ -249,6 +249,11 @@ fn a_groom_file_loaded_through_the_asset_server_follows_its_moving_head() {
     println!("the groom was loaded and placed in {:?}", started.elapsed());
     assert!(strands.iter().all(|&e| app.world().get::<FileStrand>(e).is_some()));
     assert_eq!(strand(&app, strands[0]).rod().edge_count(), 8);
+    // The strands not simulated follow the guides: all the file's usable strands are there.
+    let usable = GroomFile::from_tfx(RATBOY).unwrap().usable_strands().count();
+    let followers: usize =
+        strands.iter().map(|&e| app.world().get::<HairFollowers>(e).map_or(0, |f| f.curves.len())).sum();
+    assert_eq!(100 + followers, usable);
 
     let mut worst: f64 = 0.0;
     for step in 0..120 {
@@ -355,11 +360,11 @@ fn rest_drift_of_ratboy(placement: GroomPlacement, seconds: f64) -> (f64, f64) {
     let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
     let mut app = hair_app_with(());
     let material = app.world().resource::<HairSettings>().default_material;
-    let (strands, _) = file.placed_strands(&placement, &material);
+    let strands = file.placed_strands(&placement, &material).guides;
     let head = app.world_mut().spawn((HairHead, Transform::default())).id();
     let placed: Vec<(Entity, Vec<Vec3>)> = strands
         .into_iter()
-        .map(|strand| {
+        .map(|(strand, _)| {
             let nodes = strand.nodes.clone();
             (app.world_mut().spawn((strand, StrandOf(head))).id(), nodes)
         })
@@ -399,4 +404,48 @@ fn the_shipped_groom_placed_as_it_comes_keeps_its_shape_at_rest() {
     assert!(stiffening > 1.0);
     // Preloaded only, the equilibrium is not a stable one: the strands fall.
     assert!(fallen > 0.01, "preloaded only, the groom stayed within {fallen} m RMS");
+}
+
+#[test]
+fn every_usable_strand_of_a_file_is_drawn_the_ones_not_simulated_following_the_nearest_guide() {
+    let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
+    let usable: Vec<usize> = file.usable_strands().collect();
+    let placement = GroomPlacement::default();
+    let placed = file.placed_strands(&placement, &RodMaterial::human_hair());
+    println!(
+        "{} strands in the file, {} usable: {} guides drawing {} strands",
+        file.strand_count(),
+        usable.len(),
+        placed.guides.len(),
+        placed.drawn_strands()
+    );
+    assert_eq!(placed.guides.len(), placement.max_strands.min(usable.len()));
+    assert_eq!(placed.drawn_strands(), usable.len());
+    assert_eq!(placed.skipped, file.strand_count() - usable.len());
+    // Every follower is a strand of the file, placed and resampled as the guides are, given to the guide
+    // whose root is nearest its own.
+    let mut curves: Vec<Vec<Vec3>> = usable
+        .iter()
+        .map(|&index| {
+            file.resampled_strand(index, placement.segments).into_iter().map(|p| placement.place(p)).collect()
+        })
+        .collect();
+    let roots: Vec<Vec3> = placed.guides.iter().map(|(guide, _)| guide.nodes[0]).collect();
+    for (guide, followers) in &placed.guides {
+        for curve in &followers.curves {
+            assert_eq!(curve.len(), guide.nodes.len());
+            let own = guide.nodes[0].distance(curve[0]);
+            assert!(roots.iter().all(|root| root.distance(curve[0]) >= own), "a follower went to a farther guide");
+        }
+    }
+    // Guides and followers together are the file's usable strands, each once.
+    let mut drawn: Vec<&Vec<Vec3>> = placed
+        .guides
+        .iter()
+        .flat_map(|(guide, followers)| std::iter::once(&guide.nodes).chain(&followers.curves))
+        .collect();
+    let key = |curve: &Vec<Vec3>| curve.iter().flat_map(|p| p.to_array()).map(f32::to_bits).collect::<Vec<u32>>();
+    drawn.sort_by_key(|curve| key(curve));
+    curves.sort_by_key(key);
+    assert!(drawn.iter().zip(&curves).all(|(a, b)| *a == b));
 }

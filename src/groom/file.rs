@@ -24,6 +24,7 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use super::procedural::{GroomError, MAX_GROOM_SEGMENTS};
+use crate::followers::HairFollowers;
 use crate::rod::RodMaterial;
 use crate::schedule::HairPrepareSystems;
 use crate::simulation::{HairHead, HairSettings, HairStrand, HeadStrands, StrandOf};
@@ -531,41 +532,76 @@ pub struct FileStrand;
 pub struct PlacedGroomFile(AssetId<GroomFile>);
 
 impl GroomFile {
-    /// The strands to simulate for `placement`, head-local (m): the usable strands (see
-    /// [`GroomFile::usable_strands`]), at most `max_strands` picked evenly, each resampled to `segments`
-    /// edges. A strand whose mean thickness in metres makes a fibre radius within
-    /// [`FIBRE_RADIUS_RANGE`] gets `material` with that radius (so a `.hair` file in real units gives its
-    /// fibres' thickness); others follow the default material. Each is preloaded against gravity and
-    /// stiffened to hold as `placement` says. Also returns how many strands were skipped as degenerate.
-    /// An invalid `placement` ([`GroomPlacement::validate`]) places none.
-    pub fn placed_strands(&self, placement: &GroomPlacement, material: &RodMaterial) -> (Vec<HairStrand>, usize) {
+    /// The strands to simulate for `placement`, head-local (m), with their followers: the usable strands
+    /// (see [`GroomFile::usable_strands`]), at most `max_strands` picked evenly as guides, each resampled
+    /// to `segments` edges; every usable strand not picked becomes a follower of the guide whose root is
+    /// nearest its own, resampled alike, so that all the file's hair is drawn. A guide whose mean
+    /// thickness in metres makes a fibre radius within [`FIBRE_RADIUS_RANGE`] gets `material` with that
+    /// radius (so a `.hair` file in real units gives its fibres' thickness); others follow the default
+    /// material. Each guide is preloaded against gravity and stiffened to hold as `placement` says. An
+    /// invalid `placement` ([`GroomPlacement::validate`]) places none.
+    pub fn placed_strands(&self, placement: &GroomPlacement, material: &RodMaterial) -> PlacedStrands {
         if placement.validate().is_err() {
-            return (Vec::new(), 0);
+            return PlacedStrands::default();
         }
         let usable: Vec<usize> = self.usable_strands().collect();
         let skipped = self.strand_count() - usable.len();
         let count = usable.len().min(placement.max_strands);
-        let strands = (0..count)
+        let placed = |index: usize| -> Vec<Vec3> {
+            let points = self.resampled_strand(index, placement.segments.max(2));
+            points.into_iter().map(|point| placement.place(point)).collect()
+        };
+        let mut picked = vec![false; usable.len()];
+        let mut guides: Vec<(HairStrand, HairFollowers)> = (0..count)
             .map(|pick| {
-                let index = usable[pick * usable.len() / count];
-                let nodes: Vec<Vec3> = self
-                    .resampled_strand(index, placement.segments.max(2))
-                    .into_iter()
-                    .map(|point| placement.place(point))
-                    .collect();
+                let which = pick * usable.len() / count;
+                picked[which] = true;
+                let index = usable[which];
+                let nodes = placed(index);
                 let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
                 let strand = HairStrand::from_nodes(nodes, direction)
                     .with_gravity_preload(placement.gravity_preload)
                     .with_stiffening_to_hold(placement.stiffen_to_hold);
-                match self.fibre_radius(index, placement.metres_per_unit) {
+                let strand = match self.fibre_radius(index, placement.metres_per_unit) {
                     Some(radius) => {
                         strand.with_material(RodMaterial { semi_axis_1: radius, semi_axis_2: radius, ..*material })
                     }
                     None => strand,
-                }
+                };
+                (strand, HairFollowers::default())
             })
             .collect();
-        (strands, skipped)
+        // Each follower to the guide with the nearest root: a pass over the guides per follower.
+        let roots: Vec<Vec3> = guides.iter().map(|(strand, _)| strand.nodes[0]).collect();
+        for (&index, _) in usable.iter().zip(&picked).filter(|(_, picked)| !**picked) {
+            let nodes = placed(index);
+            let nearest = roots
+                .iter()
+                .enumerate()
+                .min_by(|(_, a), (_, b)| a.distance_squared(nodes[0]).total_cmp(&b.distance_squared(nodes[0])));
+            if let Some((guide, _)) = nearest {
+                guides[guide].1.curves.push(nodes);
+            }
+        }
+        PlacedStrands { guides, skipped }
+    }
+}
+
+/// A [`GroomFile`] placed on a head ([`GroomFile::placed_strands`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PlacedStrands {
+    /// The strands to simulate (head-local, m), each with its followers: the file's strands that are not
+    /// simulated, each given to the guide whose root is nearest its own.
+    pub guides: Vec<(HairStrand, HairFollowers)>,
+    /// How many of the file's strands were skipped as degenerate (fewer than 3 distinct points, or no
+    /// length).
+    pub skipped: usize,
+}
+
+impl PlacedStrands {
+    /// How many of the file's strands are drawn: the guides and their followers.
+    pub fn drawn_strands(&self) -> usize {
+        self.guides.iter().map(|(_, followers)| 1 + followers.curves.len()).sum()
     }
 }
 
@@ -610,13 +646,15 @@ fn place_groom_files(
             }
             continue;
         }
-        let (grown, skipped) = file.placed_strands(&groom.placement, &settings.default_material);
+        let PlacedStrands { guides, skipped } = file.placed_strands(&groom.placement, &settings.default_material);
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"
             );
         }
-        commands.spawn_batch(grown.into_iter().map(move |strand| (strand, StrandOf(head), FileStrand)));
+        commands.spawn_batch(
+            guides.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), FileStrand)),
+        );
         commands.entity(head).insert(PlacedGroomFile(id));
     }
 }

@@ -35,6 +35,18 @@
 //! fibre radius within [`FIBRE_RADIUS_RANGE`] gets the default material with that radius; others follow
 //! [`HairSettings::default_material`](crate::simulation::HairSettings::default_material).
 //!
+//! A file's groom is preloaded against gravity like a grown one ([`GroomPlacement::gravity_preload`], 1
+//! by default), and, since grooms are authored as they should look, strands that single hairs could not
+//! hold in that shape are stiffened until they hold ([`GroomPlacement::stiffen_to_hold`], on by
+//! default). Preloading makes any shape an equilibrium, but hair leaving the scalp upwards or sideways
+//! longer than it can hold up (Greenhill's self-weight buckling length: 9.5 cm for human hair) stands
+//! there only until the first disturbance, then falls; such a strand bends and twists as many times
+//! stiffer as it takes to hold twice its weight upright, as gel or a clump of hairs bonded together
+//! would ([`Rod::stiffening_to_hold`](crate::rod::Rod::stiffening_to_hold)); strands that hang keep
+//! their material. Measured: the Ratboy mohawk placed as it comes (one unit a metre: 5 to 29 cm strands
+//! on a 68 cm head) stays within 0.001 mm RMS of its shape for 10 s on a still head, stiffened up to
+//! 38 times; preloaded only, it leaves its shape by 69 mm RMS.
+//!
 //! ```no_run
 //! use bevy::prelude::*;
 //! use bevy_hair_sim::prelude::*;
@@ -61,7 +73,7 @@ use bevy::prelude::*;
 
 pub use file::{
     FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
-    MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, UpAxis,
+    MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, UpAxis,
 };
 pub use procedural::{
     Combing, GroomError, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot,
