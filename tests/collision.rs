@@ -224,3 +224,55 @@ fn an_invalid_collider_is_reported_and_left_out_while_the_hair_goes_on() {
     assert_eq!((statistics.faults, statistics.contacts), (0, 0));
     assert!(strand_rod_heights(&app, strand)[16] < -0.05, "the free strand fell past both");
 }
+
+#[test]
+fn hair_dropped_on_boxes_sharp_and_rounded_lies_on_them_and_never_inside() {
+    let mut app = hair_app_with(TransformPlugin);
+    // A sharp box tilted both ways, and a rounded one turned and tilted: colliders with no head, which
+    // every free strand meets.
+    let tilted = Quat::from_rotation_z(0.3) * Quat::from_rotation_x(0.2);
+    let sharp = app
+        .world_mut()
+        .spawn((
+            HairCollider::cuboid(Vec3::new(0.1, 0.05, 0.08)),
+            Transform::from_xyz(0.0, 1.0, 0.0).with_rotation(tilted),
+        ))
+        .id();
+    let turned = Quat::from_rotation_y(0.5) * Quat::from_rotation_z(-0.4);
+    let rounded = app
+        .world_mut()
+        .spawn((
+            HairCollider::rounded_cuboid(Vec3::new(0.06, 0.04, 0.06), 0.02),
+            Transform::from_xyz(0.5, 1.0, 0.0).with_rotation(turned),
+        ))
+        .id();
+    // Twelve free 20 cm strands over each box, 12 to 17 cm above its centre, across it.
+    let strands: Vec<Entity> = [0.0_f32, 0.5]
+        .into_iter()
+        .flat_map(|x| (0..12).map(move |k| (x, k)))
+        .map(|(x, k)| {
+            let root = Vec3::new(x - 0.1, 1.12 + 0.004 * k as f32, -0.066 + 0.012 * k as f32);
+            let direction = Vec3::new(1.0, 0.0, 0.15 * (k as f32 - 5.5) / 5.5);
+            app.world_mut().spawn(HairStrand::straight(root, direction, 0.2, 16)).id()
+        })
+        .collect();
+    let mut deepest = [0.0_f64; 2];
+    for step in 1..=150 {
+        app.update();
+        for (worst, collider) in deepest.iter_mut().zip([sharp, rounded]) {
+            let depth = deepest_node(&app, &strands, collider);
+            assert!(depth <= TOLERANCE, "step {step}: a node is {depth:e} m inside box {collider}");
+            *worst = worst.max(depth);
+        }
+        assert_eq!(app.world().resource::<HairStatistics>().faults, 0, "step {step}: a strand failed");
+    }
+    let contacts = app.world().resource::<HairStatistics>().contacts;
+    // Lying on the boxes: the strands that stayed on are still, and the top of each box is under hair.
+    let resting =
+        strands.iter().filter(|&&e| strand(&app, e).rod().velocities().iter().all(|v| v.length() < 0.01)).count();
+    println!(
+        "24 strands dropped on two boxes: deepest node inside the sharp box {:e} m, the rounded one {:e} m; {contacts} nodes in contact, {resting} strands at rest",
+        deepest[0], deepest[1]
+    );
+    assert!(contacts >= 48, "the hair lies on the boxes: {contacts} nodes in contact");
+}

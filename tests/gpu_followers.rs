@@ -62,6 +62,35 @@ fn rendering_app() -> App {
     app
 }
 
+/// The rounded box on the head (m): wider than the skull's 7.8 cm at the temples.
+const BOX_HALF_EXTENTS: Vec3 = Vec3::new(0.08, 0.03, 0.05);
+const BOX_ROUNDING: f32 = 0.01;
+
+/// How many follower nodes the CPU placed on the surface of the head's rounded box, grown by the
+/// strand's thickness (within 1 µm).
+fn followers_on_the_box(app: &App, head: Entity) -> usize {
+    let pose = *app.world().get::<Transform>(head).unwrap();
+    let margin = app.world().resource::<HairSettings>().collision_margin;
+    let guides = app.world().get::<HeadStrands>(head).unwrap().strands().to_vec();
+    guides
+        .iter()
+        .map(|&guide| {
+            let thickness = app.world().get::<SimulatedStrand>(guide).unwrap().collision_thickness(margin);
+            let followers = app.world().get::<FollowerNodes>(guide).unwrap();
+            followers
+                .positions
+                .iter()
+                .filter(|position| {
+                    let local = pose.rotation.inverse() * (**position - pose.translation);
+                    let q = local.abs() - BOX_HALF_EXTENTS;
+                    let distance = q.max(Vec3::ZERO).length() + q.max_element().min(0.0) - BOX_ROUNDING - thickness;
+                    distance.abs() < 1e-6
+                })
+                .count()
+        })
+        .sum()
+}
+
 /// The pose of the shaking, turning head at `step`.
 fn head_pose(step: usize) -> Transform {
     let t = step as f32 / 60.0;
@@ -81,6 +110,10 @@ fn followers_placed_on_the_gpu_match_the_cpu_placement() {
     let colliders = [
         app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), head_pose(0))).id(),
         app.world_mut().spawn((HairCollider::sphere(0.07), HairColliderOf(head), head_pose(0))).id(),
+        // A rounded box wider than the skull at the temples: hair on the sides lies on it.
+        app.world_mut()
+            .spawn((HairCollider::rounded_cuboid(BOX_HALF_EXTENTS, BOX_ROUNDING), HairColliderOf(head), head_pose(0)))
+            .id(),
     ];
     // Swinging for a second, so that the followers bend, turn and are pushed out of the skull.
     for step in 1..=60 {
@@ -93,6 +126,10 @@ fn followers_placed_on_the_gpu_match_the_cpu_placement() {
     println!(
         "{drawn} drawn nodes of 150 guides and their followers: GPU against CPU, largest difference {largest:.2e} m (node {node})"
     );
+    // Some followers were pushed out of the box onto its surface (and so through the shader's cuboid).
+    let on_box = followers_on_the_box(&app, head);
+    println!("{on_box} follower nodes placed on the rounded box's surface");
+    assert!(on_box > 0, "no follower lies on the box: the test does not reach the cuboid");
     assert!(largest <= 1e-5, "the GPU's drawn node {node} is {largest} m from the CPU's");
 
     // Followers bound again (gathered onto their guides towards the tips): the GPU takes the new offsets.

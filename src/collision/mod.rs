@@ -83,6 +83,18 @@ impl HairCollider {
         Self::new(ColliderShape::Plane)
     }
 
+    /// A box with half extents `half_extents` (m) along the entity's local X, Y and Z: a shoulder, a
+    /// chair back, a hat's crown.
+    pub fn cuboid(half_extents: Vec3) -> Self {
+        Self::new(ColliderShape::cuboid(half_extents.as_dvec3()))
+    }
+
+    /// A box with half extents `half_extents` (m) whose edges and corners are rounded with radius
+    /// `rounding` m (the solid reaches that far beyond the box).
+    pub fn rounded_cuboid(half_extents: Vec3, rounding: f32) -> Self {
+        Self::new(ColliderShape::Cuboid { half_extents: half_extents.as_dvec3(), rounding: f64::from(rounding) })
+    }
+
     /// Uses friction coefficient `friction` (dimensionless, ≥ 0).
     pub fn with_friction(mut self, friction: f32) -> Self {
         self.friction = friction;

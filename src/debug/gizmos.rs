@@ -173,6 +173,12 @@ pub fn draw_colliders(mut gizmos: Gizmos<HairGizmos>, colliders: Query<&Collider
                 let flat = Isometry3d::new(isometry.translation, isometry.rotation * Quat::from_rotation_x(-quarter));
                 gizmos.grid(flat, UVec2::splat(20), Vec2::splat(0.1), color);
             }
+            // The box the rounding grows, as wide as the solid across its faces.
+            ColliderShape::Cuboid { half_extents, rounding } => {
+                let size = 2.0 * (half_extents + bevy::math::DVec3::splat(rounding)).as_vec3();
+                let transform = Transform::from_isometry(isometry).with_scale(size);
+                gizmos.cube(transform, color);
+            }
         }
     }
 }

@@ -222,7 +222,8 @@ impl GrownCollider {
     }
 
     /// `world` moved out to the surface if it lies inside: radially from the centre (a sphere, an
-    /// ellipsoid), from the axis (a capsule), straight up (a plane).
+    /// ellipsoid), from the axis (a capsule), straight up (a plane), through the nearest face or from the
+    /// nearest point of the box (a cuboid).
     fn push_out(&self, world: Vec3) -> Vec3 {
         let offset = world - self.centre;
         if offset.length_squared() > self.reach_squared {
@@ -245,6 +246,10 @@ impl GrownCollider {
                 (scaled < 1.0).then(|| if scaled > 0.0 { local / scaled } else { Vec3::Y * semi_axes.y as f32 })
             }
             ColliderShape::Plane => (local.y < 0.0).then(|| Vec3::new(local.x, 0.0, local.z)),
+            ColliderShape::Cuboid { .. } => {
+                let local = local.as_dvec3();
+                self.shape.contains(local).then(|| self.shape.closest_surface_point(local).point.as_vec3())
+            }
         };
         outside.map_or(world, |local| self.centre + self.rotation * local)
     }

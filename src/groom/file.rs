@@ -430,8 +430,8 @@ pub struct GroomPlacement {
     /// Edges per simulated strand, from 2 to [`MAX_GROOM_SEGMENTS`]: every strand is resampled to this
     /// many edges of equal length, keeping its length. Default 16.
     pub segments: usize,
-    /// Most strands simulated: when the file has more, this many are picked evenly among them. Default
-    /// 2 000.
+    /// Most strands simulated: when the file has more, this many are picked evenly among them, and the
+    /// others follow the one whose root is nearest theirs ([`GroomFile::placed_strands`]). Default 2 000.
     pub max_strands: usize,
     /// Gravity preload of every strand, 0 to 1 (see [`HairStrand::gravity_preload`]): 1, the default,
     /// makes the groom's shape the hair's shape at rest instead of sagging from it.

@@ -30,7 +30,9 @@
 //! A [`HairGroomFile`] on a head puts the file's strands on it once the file is loaded; changing it, or the
 //! file (hot reloading), regrows them, and a file that fails to load leaves the head's hair as it was (the
 //! asset server logs why). Each strand is resampled into [`GroomPlacement::segments`] equal edges, and at
-//! most [`GroomPlacement::max_strands`] are simulated, picked evenly. Strands with fewer than 3 distinct
+//! most [`GroomPlacement::max_strands`] are simulated, picked evenly; every other strand of the file
+//! becomes a follower ([`crate::followers`]) of the simulated strand whose root is nearest its own, so
+//! that the whole groom is drawn at the cost of its guides. Strands with fewer than 3 distinct
 //! points or no length are skipped with one warning that counts them. A strand whose thickness makes a
 //! fibre radius within [`FIBRE_RADIUS_RANGE`] gets the default material with that radius; others follow
 //! [`HairSettings::default_material`](crate::simulation::HairSettings::default_material).

@@ -53,7 +53,8 @@ pub struct GpuCollider {
     /// Orientation, a unit quaternion `x y z w`.
     pub rotation: [f32; 4],
     /// Sphere `(radius, 0, 0, 0)`, capsule `(radius, half length, 0, 1)`, ellipsoid `(semi-axes, 2)`,
-    /// plane `(0, 0, 0, 3)`, m.
+    /// plane `(0, 0, 0, 3)`, cuboid `(half extents, 4)` (its rounding is `centre.w` less the half
+    /// extents' length), m.
     pub shape: [f32; 4],
 }
 
@@ -70,6 +71,11 @@ impl GpuCollider {
                 [axes.x, axes.y, axes.z, 2.0]
             }
             ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
+            // The rounding is the bounding radius less the half extents' length.
+            ColliderShape::Cuboid { half_extents, .. } => {
+                let half = half_extents.as_vec3();
+                [half.x, half.y, half.z, 4.0]
+            }
         };
         Self {
             centre: [centre.x, centre.y, centre.z, collider.shape.bounding_radius() as f32],

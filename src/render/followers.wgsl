@@ -149,7 +149,8 @@ fn decode_director(t: vec3<f32>, code: u32) -> vec3<f32> {
 }
 
 // `world` moved out to the surface of collider `index` grown by `thickness` if it lies inside: radially from
-// the centre (a sphere, an ellipsoid), from the axis (a capsule), straight up (a plane).
+// the centre (a sphere, an ellipsoid), from the axis (a capsule), straight up (a plane), from the box (a
+// cuboid).
 fn push_out(world: vec3<f32>, index: u32, thickness: f32) -> vec3<f32> {
     let centre = colliders[3u * index];
     let rotation = colliders[3u * index + 1u];
@@ -195,9 +196,35 @@ fn push_out(world: vec3<f32>, index: u32, thickness: f32) -> vec3<f32> {
                 outside = vec3<f32>(0.0, axes.y, 0.0);
             }
         }
-    } else if local.y < 0.0 {
-        inside = true;
-        outside = vec3<f32>(local.x, 0.0, local.z);
+    } else if shape.w == 3.0 {
+        if local.y < 0.0 {
+            inside = true;
+            outside = vec3<f32>(local.x, 0.0, local.z);
+        }
+    } else {
+        // A cuboid: the box of half extents `shape.xyz` grown by its rounding (the bounding radius less
+        // the half extents' length) and the thickness; out from the box's nearest point, or through its
+        // nearest face from within the box.
+        let half = shape.xyz;
+        let rounding = max(centre.w - length(half), 0.0) + thickness;
+        let nearest = clamp(local, -half, half);
+        let away = local - nearest;
+        if dot(away, away) > 0.0 {
+            if dot(away, away) < rounding * rounding {
+                inside = true;
+                outside = nearest + normalize(away) * rounding;
+            }
+        } else {
+            inside = true;
+            let q = abs(local) - half;
+            if q.x >= q.y && q.x >= q.z {
+                outside.x = select(1.0, -1.0, local.x < 0.0) * (half.x + rounding);
+            } else if q.y >= q.z {
+                outside.y = select(1.0, -1.0, local.y < 0.0) * (half.y + rounding);
+            } else {
+                outside.z = select(1.0, -1.0, local.z < 0.0) * (half.z + rounding);
+            }
+        }
     }
     if !inside {
         return world;

@@ -31,6 +31,15 @@ pub enum ColliderShape {
     },
     /// The half-space below the plane through the origin with normal local +Y: a floor, a table.
     Plane,
+    /// The points within `rounding` m of the box `|x_i| ≤ h_i` with half extents `h` (m) along local X, Y
+    /// and Z: a box with its edges and corners rounded (sharp at `rounding` 0): a shoulder, a chair back,
+    /// a hat's brim.
+    Cuboid {
+        /// Half the box's size along local X, Y and Z, m.
+        half_extents: DVec3,
+        /// How far the solid reaches beyond the box, rounding its edges and corners, m.
+        rounding: f64,
+    },
 }
 
 /// Where a point meets a shape: a point on the (inflated) surface and the outward unit normal there.
@@ -58,7 +67,13 @@ impl ColliderShape {
         Self::Ellipsoid { semi_axes }
     }
 
-    /// Checks that every dimension is positive and finite (a capsule's half length may be zero).
+    /// A box with half extents `half_extents` (m) along local X, Y, Z, its edges sharp.
+    pub fn cuboid(half_extents: DVec3) -> Self {
+        Self::Cuboid { half_extents, rounding: 0.0 }
+    }
+
+    /// Checks that every dimension is positive and finite (a capsule's half length and a cuboid's rounding
+    /// may be zero).
     pub fn validate(&self) -> Result<(), RodError> {
         let check = |parameter, value: f64, minimum_ok: bool| {
             if value.is_finite() && (value > 0.0 || (minimum_ok && value == 0.0)) {
@@ -79,6 +94,12 @@ impl ColliderShape {
                 check("semi_axes.z", semi_axes.z, false)
             }
             Self::Plane => Ok(()),
+            Self::Cuboid { half_extents, rounding } => {
+                check("half_extents.x", half_extents.x, false)?;
+                check("half_extents.y", half_extents.y, false)?;
+                check("half_extents.z", half_extents.z, false)?;
+                check("rounding", rounding, true)
+            }
         }
     }
 
@@ -94,6 +115,10 @@ impl ColliderShape {
             }
             Self::Ellipsoid { semi_axes } => Self::ellipsoid(semi_axes * scale),
             Self::Plane => Self::Plane,
+            // The rounding as the least scale takes it: exact for an even scale or sharp edges.
+            Self::Cuboid { half_extents, rounding } => {
+                Self::Cuboid { half_extents: half_extents * scale, rounding: rounding * scale.min_element() }
+            }
         }
     }
 
@@ -104,6 +129,7 @@ impl ColliderShape {
             Self::Capsule { radius, half_length } => radius + half_length,
             Self::Ellipsoid { semi_axes } => semi_axes.max_element(),
             Self::Plane => f64::INFINITY,
+            Self::Cuboid { half_extents, rounding } => half_extents.length() + rounding,
         }
     }
 
@@ -114,10 +140,12 @@ impl ColliderShape {
             Self::Sphere { radius } | Self::Capsule { radius, .. } => radius,
             Self::Ellipsoid { semi_axes } => semi_axes.min_element().powi(2) / semi_axes.max_element(),
             Self::Plane => f64::INFINITY,
+            Self::Cuboid { rounding, .. } => rounding,
         }
     }
 
-    /// The shape grown outwards by `thickness` m. Exact for spheres and capsules; an ellipsoid grows its
+    /// The shape grown outwards by `thickness` m. Exact for spheres, capsules and cuboids (whose rounding
+    /// grows); an ellipsoid grows its
     /// semi-axes, which differs from the true offset surface by `O(thickness² / semi-axis)`. A plane is
     /// returned as it is: it grows by moving its frame `thickness` along its normal.
     pub fn inflated(&self, thickness: f64) -> Self {
@@ -126,6 +154,7 @@ impl ColliderShape {
             Self::Capsule { radius, half_length } => Self::capsule(radius + thickness, half_length),
             Self::Ellipsoid { semi_axes } => Self::ellipsoid(semi_axes + DVec3::splat(thickness)),
             Self::Plane => Self::Plane,
+            Self::Cuboid { half_extents, rounding } => Self::Cuboid { half_extents, rounding: rounding + thickness },
         }
     }
 
@@ -144,6 +173,7 @@ impl ColliderShape {
                 (scale - 1.0) * axis
             }
             Self::Plane => point.y,
+            Self::Cuboid { half_extents, rounding } => box_distance(half_extents, point) - rounding,
         }
     }
 
@@ -165,6 +195,7 @@ impl ColliderShape {
             }
             Self::Ellipsoid { semi_axes } => closest_ellipsoid_point(semi_axes, point),
             Self::Plane => SurfacePoint { point: DVec3::new(point.x, 0.0, point.z), normal: DVec3::Y },
+            Self::Cuboid { half_extents, rounding } => closest_cuboid_point(half_extents, rounding, point),
         }
     }
 
@@ -185,7 +216,57 @@ impl ColliderShape {
                 let fraction = start.y / (start.y - end.y);
                 Some(SurfacePoint { point: start.lerp(end, fraction), normal: DVec3::Y })
             }
+            Self::Cuboid { .. } => {
+                // The signed distance along the path is convex (the solid is): if its least value is
+                // inside, the entry is the one root before it.
+                if self.distance_bound(start) < 0.0 {
+                    return None;
+                }
+                let (deepest, depth) = self.deepest_along(start, end);
+                if depth >= 0.0 {
+                    return None;
+                }
+                let (mut outside, mut inside) = (0.0, deepest);
+                for _ in 0..60 {
+                    let middle = 0.5 * (outside + inside);
+                    if self.distance_bound(start.lerp(end, middle)) < 0.0 {
+                        inside = middle;
+                    } else {
+                        outside = middle;
+                    }
+                }
+                let surface = self.closest_surface_point(start.lerp(end, inside));
+                Some(SurfacePoint { point: start.lerp(end, outside), normal: surface.normal })
+            }
         }
+    }
+
+    /// The fraction along `start`–`end` of its point deepest in (or nearest to) a cuboid, and the signed
+    /// distance there: a golden-section search of the convex signed distance along the segment.
+    fn deepest_along(&self, start: DVec3, end: DVec3) -> (f64, f64) {
+        const GOLDEN: f64 = 0.618_033_988_749_895;
+        let distance = |fraction: f64| self.distance_bound(start.lerp(end, fraction));
+        let (mut low, mut high) = (0.0_f64, 1.0_f64);
+        let (mut a, mut b) = (high - GOLDEN * (high - low), low + GOLDEN * (high - low));
+        let (mut at_a, mut at_b) = (distance(a), distance(b));
+        for _ in 0..48 {
+            if at_a <= at_b {
+                high = b;
+                (b, at_b) = (a, at_a);
+                a = high - GOLDEN * (high - low);
+                at_a = distance(a);
+            } else {
+                low = a;
+                (a, at_a) = (b, at_b);
+                b = low + GOLDEN * (high - low);
+                at_b = distance(b);
+            }
+        }
+        // The ends too: the least of a convex function on a segment may sit at either end.
+        [(0.5 * (low + high), distance(0.5 * (low + high))), (0.0, distance(0.0)), (1.0, distance(1.0))]
+            .into_iter()
+            .min_by(|x, y| x.1.total_cmp(&y.1))
+            .unwrap_or((0.0, f64::INFINITY))
     }
 
     /// The point of the segment `start`–`end` deepest inside the shape when it dips in (both ends may be
@@ -200,9 +281,43 @@ impl ColliderShape {
                 (fraction, start.lerp(end, fraction))
             }
             Self::Plane => return None,
+            Self::Cuboid { .. } => {
+                let (fraction, _) = self.deepest_along(start, end);
+                (fraction, start.lerp(end, fraction))
+            }
         };
         self.contains(deepest).then(|| (fraction, self.closest_surface_point(deepest)))
     }
+}
+
+/// The signed distance from `point` to the box `|x_i| ≤ h_i` (negative inside): `|max(q, 0)| +
+/// min(max_i q_i, 0)` with `q = |p| − h` (Quílez, "distance functions").
+fn box_distance(half_extents: DVec3, point: DVec3) -> f64 {
+    let q = point.abs() - half_extents;
+    q.max(DVec3::ZERO).length() + q.max_element().min(0.0)
+}
+
+/// The closest point to `point` on the surface of the box with half extents `h` grown by `rounding`, with
+/// the outward normal: from the nearest point of the box when `point` is outside the box; through the
+/// nearest face (the largest `|p_i| − h_i`) when inside.
+fn closest_cuboid_point(half_extents: DVec3, rounding: f64, point: DVec3) -> SurfacePoint {
+    let nearest = point.clamp(-half_extents, half_extents);
+    if let Some(normal) = (point - nearest).try_normalize() {
+        return SurfacePoint { point: nearest + rounding * normal, normal };
+    }
+    let q = point.abs() - half_extents;
+    let axis = if q.x >= q.y && q.x >= q.z {
+        0
+    } else if q.y >= q.z {
+        1
+    } else {
+        2
+    };
+    let mut normal = DVec3::ZERO;
+    normal[axis] = if point[axis] < 0.0 { -1.0 } else { 1.0 };
+    let mut surface = point;
+    surface[axis] = normal[axis] * (half_extents[axis] + rounding);
+    SurfacePoint { point: surface, normal }
 }
 
 /// The point of the capsule's axis segment closest to `point`.
@@ -416,11 +531,13 @@ impl MovingCollider {
 mod tests {
     use super::*;
 
-    const SHAPES: [ColliderShape; 4] = [
+    const SHAPES: [ColliderShape; 6] = [
         ColliderShape::Sphere { radius: 0.1 },
         ColliderShape::Capsule { radius: 0.05, half_length: 0.08 },
         ColliderShape::Ellipsoid { semi_axes: DVec3::new(0.08, 0.1, 0.12) },
         ColliderShape::Plane,
+        ColliderShape::Cuboid { half_extents: DVec3::new(0.06, 0.1, 0.04), rounding: 0.0 },
+        ColliderShape::Cuboid { half_extents: DVec3::new(0.03, 0.05, 0.08), rounding: 0.02 },
     ];
 
     /// Points spread through a 0.3 m cube around the origin.
@@ -494,6 +611,20 @@ mod tests {
         assert!(surface.point.distance(DVec3::new(0.0, 0.15, 0.0)) < 1e-6);
         assert!(shape.segment_contact(DVec3::new(-0.2, 0.11, 0.0), DVec3::new(0.2, 0.11, 0.0)).is_none());
         assert!(ColliderShape::Plane.segment_contact(DVec3::NEG_Y, DVec3::X).is_none());
+        // A segment across a rounded box's edge (box to x, y = 0.1, rounding 2 cm), 1 cm into the rounding:
+        // deepest over the edge, pushed out along the diagonal.
+        let rounded = ColliderShape::Cuboid { half_extents: DVec3::splat(0.1), rounding: 0.02 };
+        let corner_gap = 0.01 / std::f64::consts::SQRT_2;
+        let (start, end) = (
+            DVec3::new(0.1 + corner_gap - 0.2, 0.1 + corner_gap + 0.2, 0.0),
+            DVec3::new(0.1 + corner_gap + 0.2, 0.1 + corner_gap - 0.2, 0.0),
+        );
+        let (fraction, surface) = rounded.segment_contact(start, end).unwrap();
+        assert!((fraction - 0.5).abs() < 1e-6, "{fraction}");
+        let expected = DVec3::new(0.1, 0.1, 0.0) + 0.02 * DVec3::new(1.0, 1.0, 0.0).normalize();
+        assert!(surface.point.distance(expected) < 1e-6, "{}", surface.point);
+        let shifted = DVec3::new(0.02, 0.02, 0.0);
+        assert!(rounded.segment_contact(start + shifted, end + shifted).is_none());
     }
 
     #[test]
@@ -528,5 +659,18 @@ mod tests {
         assert!(ColliderShape::sphere(-1.0).validate().is_err());
         assert!(ColliderShape::capsule(0.1, 0.0).validate().is_ok());
         assert!(ColliderShape::ellipsoid(DVec3::new(0.1, f64::NAN, 0.1)).validate().is_err());
+        let cuboid = ColliderShape::cuboid(DVec3::new(0.1, 0.2, 0.3));
+        assert_eq!(
+            cuboid.inflated(0.01),
+            ColliderShape::Cuboid { half_extents: DVec3::new(0.1, 0.2, 0.3), rounding: 0.01 }
+        );
+        assert_eq!(
+            cuboid.inflated(0.01).scaled(DVec3::new(2.0, 1.0, 4.0)),
+            ColliderShape::Cuboid { half_extents: DVec3::new(0.2, 0.2, 1.2), rounding: 0.01 }
+        );
+        assert!((cuboid.inflated(0.01).bounding_radius() - (0.14_f64.sqrt() + 0.01)).abs() < 1e-15);
+        assert!(cuboid.validate().is_ok());
+        assert!(ColliderShape::Cuboid { half_extents: DVec3::new(0.1, 0.0, 0.1), rounding: 0.0 }.validate().is_err());
+        assert!(ColliderShape::Cuboid { half_extents: DVec3::splat(0.1), rounding: -0.01 }.validate().is_err());
     }
 }
