@@ -140,6 +140,7 @@
 //! | `render` | the hair renderer, `HairRenderPlugin`, with the followers placed and drawn on the GPU (Bevy's `bevy_render`, `bevy_core_pipeline`, `bevy_pbr`; no window, platform or image format) | **on** |
 //! | `egui` | `render` and `HairPanelPlugin`, the live panel (bevy_egui) | off |
 //! | `examples` | `render` and what the examples need besides: a window (winit, X11), gizmo lines drawn, tonemapping tables, PNG screenshots | off |
+//! | `avian` | avian3d's colliders as hair colliders: `AvianHairCollider` beside a `Collider` (`collision::avian`) | off |
 //!
 //! The simulation needs none of them: with `default-features = false` it uses Bevy's ECS, math, assets
 //! and gizmo API only, and builds no renderer (a server, a tool).
@@ -211,7 +212,9 @@
 //!
 //! **Can I use it with avian or bevy_rapier?** Yes: the names of this crate's prelude do not clash with
 //! theirs (a test glob-imports ours beside stand-ins for both). Put a [`HairCollider`](collision::HairCollider)
-//! on the bodies hair should rest on (next to avian's `Collider` on one entity is fine); the hair does not
+//! on the bodies hair should rest on (next to avian's `Collider` on one entity is fine); or, with the
+//! `avian` feature, put `AvianHairCollider` beside avian's `Collider` and the hair meets that very shape
+//! (balls, capsules, cuboids, half-spaces and compounds of them; `collision::avian`). The hair does not
 //! push those bodies back.
 //!
 //! **How do I save and load hair?** [`StrandSnapshot`](simulation::StrandSnapshot) copies a strand's data out;
@@ -365,6 +368,8 @@ in_fixed_update_by_default!(
 /// The types most users need.
 pub mod prelude {
     pub use crate::HairPlugin;
+    #[cfg(feature = "avian")]
+    pub use crate::collision::AvianHairCollider;
     pub use crate::collision::{
         HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
     };

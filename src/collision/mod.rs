@@ -28,6 +28,11 @@ use crate::schedule::HairPinSystems;
 use crate::simulation::{HairHead, HairSettings, HeadStrands, ScaledPose};
 pub use crate::simulation::{HeadColliderSet, SharedColliderSet};
 
+#[cfg(feature = "avian")]
+pub mod avian;
+#[cfg(feature = "avian")]
+pub use avian::{AvianHairCollider, AvianHairColliderPart};
+
 /// A solid that hair cannot pass through, in the local space of its entity's transform (scale included:
 /// a sphere scaled unevenly becomes an ellipsoid). See the [module documentation](self) for which
 /// strands meet it.
@@ -197,6 +202,8 @@ impl Plugin for HairCollisionPlugin {
             .register_required_components::<HairHead, HeadColliderSet>()
             .register_required_components::<HeadStrands, HeadColliderSet>()
             .add_systems(self.schedule, (track_colliders, gather_colliders).chain().in_set(HairPinSystems::Colliders));
+        #[cfg(feature = "avian")]
+        avian::build(app, self.schedule);
     }
 }
 
