@@ -400,7 +400,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
     use bevy::prelude::Entity;
     use bevy_hair_sim::followers::FollowerPlacement;
     use bevy_hair_sim::render::feed::GuideUpload;
-    use bevy_hair_sim::render::{GuideLayout, HairStrips};
+    use bevy_hair_sim::render::{DrawnStrand, GuideLayout, HairStrips};
     use bevy_hair_sim::simulation::PackedStrandPose;
     let (guides, followers, edges) = (2000, 10, 24);
     let (mut app, head) = groomed_head(threads, guides, followers, edges);
@@ -422,15 +422,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         app.world_mut().entity_mut(strand).insert(PackedStrandPose::with_capacity(nodes));
     }
     // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
-    type Drawn = (
-        &'static SimulatedStrand,
-        &'static StrandNodes,
-        Option<&'static FollowerNodes>,
-        Option<&'static RepresentedHairs>,
-        &'static StrandFrames,
-        Option<&'static PackedStrandPose>,
-    );
-    let mut drawn = app.world_mut().query::<Drawn>();
+    let mut drawn = app.world_mut().query::<DrawnStrand>();
     let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
     let mut samples: [Vec<f64>; 7] = Default::default();
@@ -442,12 +434,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let strand_query = drawn.query(app.world());
         let guide_now = |entity| {
             let (strand, nodes, followers, represented, _, pose) = strand_query.get(entity).ok()?;
-            let material = strand.rod().material();
-            let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
-            let mut guide = GuideLayout::new(entity, nodes, followers, radius);
-            // Widened as the renderer widens a guide that stands for more hairs than it draws.
-            guide.radius *= represented.map_or(1.0, |hairs| (hairs.0 as f32 / (1 + guide.followers) as f32).max(1.0));
-            Some((guide, pose))
+            Some((GuideLayout::drawn(entity, strand, nodes, followers, represented), pose))
         };
         let layout = || strands.iter().filter_map(|&entity| Some(guide_now(entity)?.0));
         let followers_of = |guide: &GuideLayout| strand_query.get(guide.entity).ok().and_then(|strand| strand.2);

@@ -266,8 +266,9 @@ type HairMeshParts = (
     &'static InheritedVisibility,
 );
 
-/// What [`prepare_hair_meshes`] reads of a strand.
-type DrawnStrand = (
+/// What the renderer reads of each guide it draws, in one lookup: its strand, nodes, followers, the hairs it
+/// stands for, its frames and the pose the step packed for it.
+pub type DrawnStrand = (
     &'static SimulatedStrand,
     &'static StrandNodes,
     Option<&'static FollowerNodes>,
@@ -282,11 +283,7 @@ fn guide_now<'a>(
     entity: Entity,
 ) -> Option<(GuideLayout, Option<&'a PackedStrandPose>)> {
     let (strand, nodes, followers, represented, _, pose) = strands.get(entity).ok()?;
-    let material = strand.rod().material();
-    let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
-    let mut guide = GuideLayout::new(entity, nodes, followers, radius);
-    guide.radius *= coverage_factor(represented.map(|hairs| hairs.0), guide.followers);
-    Some((guide, pose))
+    Some((GuideLayout::drawn(entity, strand, nodes, followers, represented), pose))
 }
 
 /// Lays out each head's hair when its strands change, rebuilding the mesh and buffer then; writes this
@@ -453,13 +450,6 @@ fn send_to_gpu(
         (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
         (one, other) => one.or(other),
     })
-}
-
-/// How much wider than a real hair each drawn hair of a guide is drawn, so that the hair drawn covers what
-/// the real hair would: a guide standing for `represented` hairs ([`RepresentedHairs`]) draws itself and
-/// its `followers`, each `represented / (1 + followers)` times as wide as one hair (at least 1).
-fn coverage_factor(represented: Option<u32>, followers: u32) -> f32 {
-    represented.map_or(1.0, |hairs| (hairs as f32 / (1 + followers) as f32).max(1.0))
 }
 
 /// The bounds, in the head's local space, of the world box `low … high`.

@@ -37,7 +37,8 @@ use bevy::math::{Vec3, Vec4};
 use bevy::prelude::*;
 
 use crate::followers::FollowerNodes;
-use crate::simulation::StrandNodes;
+use crate::simulation::{SimulatedStrand, StrandNodes};
+use crate::volume::RepresentedHairs;
 
 #[cfg(feature = "render")]
 mod compute;
@@ -45,7 +46,7 @@ pub mod feed;
 #[cfg(feature = "render")]
 mod gpu;
 #[cfg(feature = "render")]
-pub use gpu::{HairMaterial, HairMesh, HairRenderPlugin, HairShading};
+pub use gpu::{DrawnStrand, HairMaterial, HairMesh, HairRenderPlugin, HairShading};
 
 /// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::simulation::HairHead`]
 /// entity; without one, hair is drawn with [`HairAppearance::default`]. Changes apply the next frame.
@@ -177,6 +178,24 @@ pub fn ribbon_width(diameter: f32, pixel: f32, min_pixels: f32) -> (f32, f32) {
 }
 
 impl GuideLayout {
+    /// The layout of the guide `entity` as the renderer draws it: the radius its material's (the geometric
+    /// mean of its semi-axes), widened so that the hair drawn covers what the real hair would: a guide
+    /// standing for `represented` hairs ([`RepresentedHairs`]) draws itself and its followers, each
+    /// `represented / (1 + followers)` times as wide as one hair (at least 1).
+    pub fn drawn(
+        entity: Entity,
+        strand: &SimulatedStrand,
+        nodes: &StrandNodes,
+        followers: Option<&FollowerNodes>,
+        represented: Option<&RepresentedHairs>,
+    ) -> Self {
+        let material = strand.rod().material();
+        let radius = (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32;
+        let mut guide = Self::new(entity, nodes, followers, radius);
+        guide.radius *= represented.map_or(1.0, |hairs| (hairs.0 as f32 / (1 + guide.followers) as f32).max(1.0));
+        guide
+    }
+
     /// The layout of the guide `entity` with these `nodes` and `followers`, drawn with `radius` (m).
     pub fn new(entity: Entity, nodes: &StrandNodes, followers: Option<&FollowerNodes>, radius: f32) -> Self {
         Self {
