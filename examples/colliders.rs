@@ -1,5 +1,6 @@
-//! Colliders: hair rests on a head's own colliders (`HairColliderOf`), on shared ones (a floor), and on
-//! another head's when a `HairCollisionFilter` includes them. Press C to toggle the wireframes.
+//! Colliders: hair rests on a head's own colliders (`HairColliderOf`: a skull, shoulders, a backpack),
+//! on shared ones (a floor), and on another head's when a `HairCollisionFilter` includes them. Press C to
+//! toggle the wireframes.
 //!
 //! ```sh
 //! cargo run --release --features examples --example colliders
@@ -31,6 +32,10 @@ fn setup(mut commands: Commands, mut gizmos: ResMut<GizmoConfigStore>) {
     commands.spawn((HairCollider::ellipsoid(Vec3::new(0.078, 0.095, 0.1)), HairColliderOf(head), ChildOf(head)));
     let shoulders = Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(Quat::from_rotation_z(FRAC_PI_2));
     commands.spawn((HairCollider::capsule(0.06, 0.12), shoulders, HairColliderOf(head)));
+    // A backpack's top behind the shoulders, a box with rounded edges: the long hair lies on it and
+    // drapes over its far edge.
+    let backpack = Transform::from_xyz(0.0, 1.29, 0.13);
+    commands.spawn((HairCollider::rounded_cuboid(Vec3::new(0.17, 0.05, 0.06), 0.01), backpack, HairColliderOf(head)));
 
     // A floor with no head: every strand meets it.
     commands.spawn(HairCollider::plane().with_friction(0.6));
