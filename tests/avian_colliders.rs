@@ -200,3 +200,106 @@ fn hair_dropped_on_avian_colliders_lies_on_them() {
     assert!(deepest <= 1e-4, "a node is {deepest} m inside");
     assert!(contacts >= 20, "the hair lies on the collider: {contacts} nodes in contact");
 }
+
+/// Every name of this crate's prelude, used beside avian's real prelude (both glob-imported): a name in
+/// both would be ambiguous here and fail to compile. (`tests/names_beside_avian.rs` checks stand-ins of
+/// avian's and bevy_rapier's names without the feature.)
+mod beside_avians_prelude {
+    use avian3d::prelude::*;
+    use bevy::prelude::*;
+    use bevy_hair_sim::prelude::*;
+    use std::any::type_name;
+
+    #[test]
+    fn every_name_of_ours_can_be_used_beside_avians_prelude() {
+        let ours = [
+            type_name::<HairPlugin>(),
+            type_name::<AvianHairCollider>(),
+            type_name::<HairCollider>(),
+            type_name::<HairColliderOf>(),
+            type_name::<HairCollisionFilter>(),
+            type_name::<HairCollisionPlugin>(),
+            type_name::<HeadColliders>(),
+            type_name::<SharedHairCollider>(),
+            type_name::<HairGizmoPlugin>(),
+            type_name::<HairGizmos>(),
+            type_name::<HairDetail>(),
+            type_name::<HairDetailLevel>(),
+            type_name::<HairDetailPlugin>(),
+            type_name::<HairDetailSettings>(),
+            type_name::<FollowerNodes>(),
+            type_name::<FollowerPlacement>(),
+            type_name::<HairFollowers>(),
+            type_name::<HairFollowersPlugin>(),
+            type_name::<PlaceFollowersOnCpu>(),
+            type_name::<Combing>(),
+            type_name::<FileStrand>(),
+            type_name::<GroomFile>(),
+            type_name::<GroomFileError>(),
+            type_name::<GroomPlacement>(),
+            type_name::<GroomedStrand>(),
+            type_name::<HairGroom>(),
+            type_name::<HairGroomFile>(),
+            type_name::<HairGroomPlugin>(),
+            type_name::<HairStyle>(),
+            type_name::<PlacedGroomFile>(),
+            type_name::<Scalp>(),
+            type_name::<UpAxis>(),
+            type_name::<HairAppearance>(),
+            type_name::<HairMesh>(),
+            type_name::<HairRenderPlugin>(),
+            type_name::<ColliderShape>(),
+            type_name::<Rod>(),
+            type_name::<RodError>(),
+            type_name::<RodMaterial>(),
+            type_name::<RodWorkspace>(),
+            type_name::<StepError>(),
+            type_name::<StepParams>(),
+            type_name::<HairDrawSystems>(),
+            type_name::<HairPinSystems>(),
+            type_name::<HairPrepareSystems>(),
+            type_name::<HairStepSystems>(),
+            type_name::<HairSystems>(),
+            type_name::<EdgeFrame>(),
+            type_name::<HairHead>(),
+            type_name::<HairPause>(),
+            type_name::<HairSettings>(),
+            type_name::<HairSimulationPlugin>(),
+            type_name::<HairStatistics>(),
+            type_name::<HairStrand>(),
+            type_name::<HeadStrands>(),
+            type_name::<SimulatedStrand>(),
+            type_name::<StrandFault>(),
+            type_name::<StrandForces>(),
+            type_name::<StrandFrames>(),
+            type_name::<StrandHealth>(),
+            type_name::<StrandNodes>(),
+            type_name::<StrandOf>(),
+            type_name::<StrandRejected>(),
+            type_name::<StrandRestShape>(),
+            type_name::<StrandSnapshot>(),
+            type_name::<StrandSnapshotData>(),
+            type_name::<HairVolume>(),
+            type_name::<HairVolumeGrids>(),
+            type_name::<HairVolumePlugin>(),
+            type_name::<RepresentedHairs>(),
+            type_name::<HairWind>(),
+            type_name::<HairWindPlugin>(),
+            type_name::<HairWindSource>(),
+        ];
+        assert!(ours.iter().all(|name| name.starts_with("bevy_hair_sim::")), "{ours:?}");
+        // And avian's most used names, from the same glob imports.
+        let theirs = [
+            type_name::<Collider>(),
+            type_name::<ColliderOf>(),
+            type_name::<RigidBody>(),
+            type_name::<Position>(),
+            type_name::<Rotation>(),
+            type_name::<Friction>(),
+            type_name::<LinearVelocity>(),
+            type_name::<Gravity>(),
+            type_name::<Sensor>(),
+        ];
+        assert!(theirs.iter().all(|name| name.starts_with("avian3d::")), "{theirs:?}");
+    }
+}
