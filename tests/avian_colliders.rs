@@ -206,7 +206,6 @@ fn hair_dropped_on_avian_colliders_lies_on_them() {
 /// avian's and bevy_rapier's names without the feature.)
 mod beside_avians_prelude {
     use avian3d::prelude::*;
-    use bevy::prelude::*;
     use bevy_hair_sim::prelude::*;
     use std::any::type_name;
 
