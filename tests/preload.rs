@@ -93,16 +93,21 @@ fn hair_leaving(root_direction: DVec3, direction: DVec3, length: f64, edges: usi
     rod
 }
 
-/// RMS distance of the nodes from `shape` over `seconds` of stepping, checked every tenth of a second: the
-/// largest, m.
+/// RMS distance of the rod's nodes from `shape`, m.
+fn rms_distance(rod: &Rod, shape: &[DVec3]) -> f64 {
+    let squares: f64 = rod.positions().iter().zip(shape).map(|(a, b)| a.distance_squared(*b)).sum();
+    (squares / shape.len() as f64).sqrt()
+}
+
+/// RMS distance of the nodes from where they start over `seconds` of stepping, checked every tenth of a
+/// second: the largest, m.
 fn largest_rms_drift(rod: &mut Rod, params: &StepParams, seconds: f64) -> f64 {
     let shape = rod.positions().to_vec();
     let mut workspace = RodWorkspace::default();
     let mut largest = 0.0_f64;
     for _ in 0..(seconds * 10.0).round() as usize {
         run(rod, params, (0.1 / params.dt).round() as usize, &mut workspace);
-        let squares: f64 = rod.positions().iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum();
-        largest = largest.max((squares / shape.len() as f64).sqrt());
+        largest = largest.max(rms_distance(rod, &shape));
     }
     largest
 }
@@ -177,13 +182,9 @@ fn a_preloaded_strand_past_the_buckling_length_falls_unless_stiffened_to_hold() 
         for _ in 0..15 {
             stiffened.step(&params, Some(&forces), &mut workspace).unwrap();
         }
-        let rms = |rod: &Rod| {
-            let squares: f64 = rod.positions().iter().zip(&shape).map(|(a, b)| a.distance_squared(*b)).sum();
-            (squares / shape.len() as f64).sqrt()
-        };
-        let pushed = rms(&stiffened);
+        let pushed = rms_distance(&stiffened, &shape);
         run(&mut stiffened, &params, 480, &mut workspace);
-        let back = rms(&stiffened);
+        let back = rms_distance(&stiffened, &shape);
         println!(
             "{label}: stiffened ×{factor:.1}; RMS drift preloaded only {:.1} mm in 4 s, stiffened too {:.4} mm in 10 s; pushed {:.1} mm, 8 s later {:.3} mm",
             1e3 * fallen,

@@ -71,6 +71,9 @@ type AvianColliders<'w, 's> = Query<
     ),
 >;
 
+/// An entity whose [`AvianHairCollider`] or [`Collider`] is gone.
+type NoLongerAvianHairCollider = Or<(Without<AvianHairCollider>, Without<Collider>)>;
+
 /// Makes the hair colliders of every new or changed [`AvianHairCollider`], and removes those of removed
 /// ones.
 fn make_avian_hair_colliders(
@@ -78,11 +81,10 @@ fn make_avian_hair_colliders(
     colliders: AvianColliders,
     mut removed_markers: RemovedComponents<AvianHairCollider>,
     mut removed_colliders: RemovedComponents<Collider>,
-    orphans: Query<&AvianHairColliderParts, Without<AvianHairCollider>>,
-    no_collider: Query<&AvianHairColliderParts, Without<Collider>>,
+    stale: Query<&AvianHairColliderParts, NoLongerAvianHairCollider>,
 ) {
     for entity in removed_markers.read().chain(removed_colliders.read()) {
-        if let Ok(parts) = orphans.get(entity).or_else(|_| no_collider.get(entity)) {
+        if let Ok(parts) = stale.get(entity) {
             for &part in &parts.0 {
                 commands.entity(part).try_despawn();
             }
