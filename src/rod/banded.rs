@@ -8,20 +8,26 @@
 //! rows after the last, so every loop over a band has a fixed length with no clamping at the ends: the
 //! compiler unrolls and vectorises them (a strand's matrix is small, ~130 rows, where loop overhead
 //! would otherwise cost more than the arithmetic).
+//!
+//! The entries are `f64` for one strand, or [`Lanes`] for a batch of strands stepped in lockstep
+//! ([`super::lockstep`]): one entry holds the same entry of every strand's matrix, and the
+//! factorisation and solves run on all of them at once with the same operations in the same order.
+
+use super::lanes::{LaneMask, Lanes, Real};
 
 /// Lower band of a symmetric matrix, stored row by row: row `i` holds columns `i − HALF_BANDWIDTH ..= i`
 /// (entries left of column 0 are zero).
 #[derive(Debug, Clone, Default)]
-pub struct BandedMatrix<const HALF_BANDWIDTH: usize> {
+pub struct BandedMatrix<const HALF_BANDWIDTH: usize, T = f64> {
     size: usize,
     /// `(size + HALF_BANDWIDTH) × (HALF_BANDWIDTH + 1)` entries: the rows, then the identity padding.
-    values: Vec<f64>,
+    values: Vec<T>,
     /// `1 / D(i)` after [`BandedMatrix::factorize`].
-    inverse_diagonal: Vec<f64>,
+    inverse_diagonal: Vec<T>,
     /// Scratch for products and solves: a vector with `HALF_BANDWIDTH` zeros on each side.
-    padded: Vec<f64>,
+    padded: Vec<T>,
     /// Scratch: the result of a product, padded like `padded`.
-    product: Vec<f64>,
+    product: Vec<T>,
 }
 
 /// The factorisation met a non-positive pivot: the matrix is not positive definite.
@@ -31,7 +37,8 @@ pub struct NotPositiveDefinite {
     pub row: usize,
 }
 
-impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
+#[allow(private_bounds)]
+impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
     /// Entries stored per row.
     const WIDTH: usize = HALF_BANDWIDTH + 1;
 
@@ -40,14 +47,14 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
         self.size = size;
         self.values.clear();
-        self.values.resize((size + band) * width, 0.0);
+        self.values.resize((size + band) * width, T::default());
         for row in size..size + band {
-            self.values[row * width + band] = 1.0;
+            self.values[row * width + band] = T::splat(1.0);
         }
         // The scratch vectors get their size here, so that products and solves never allocate.
-        self.padded.resize(size + 2 * band, 0.0);
-        self.product.resize(size + 2 * band, 0.0);
-        self.inverse_diagonal.resize(size, 0.0);
+        self.padded.resize(size + 2 * band, T::default());
+        self.product.resize(size + 2 * band, T::default());
+        self.inverse_diagonal.resize(size, T::default());
     }
 
     /// Number of rows.
@@ -61,6 +68,136 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         row * Self::WIDTH + HALF_BANDWIDTH + column - row
     }
 
+    /// The stored bands of `rows`, one after another, `HALF_BANDWIDTH + 1` entries each: entry
+    /// `HALF_BANDWIDTH − (row − column)` of a row's band is `(row, column)`, for the columns
+    /// `row − HALF_BANDWIDTH ..= row` (those left of column 0 must stay zero).
+    #[inline]
+    pub fn band_rows_mut(&mut self, rows: std::ops::Range<usize>) -> &mut [T] {
+        assert!(rows.end <= self.size, "rows {rows:?} of a {} × {} matrix", self.size, self.size);
+        &mut self.values[rows.start * Self::WIDTH..rows.end * Self::WIDTH]
+    }
+
+    /// `out = A x` for the symmetric matrix.
+    pub fn multiply(&mut self, x: &[T], out: &mut [T]) {
+        self.multiply_columns(0..self.size, x, out);
+    }
+
+    /// `out = A x` where only `x[columns]` may be non-zero: costs `O(columns · bandwidth)`, so a few
+    /// prescribed unknowns do not pay for the whole matrix.
+    #[inline(always)]
+    pub fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[T], out: &mut [T]) {
+        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
+        let columns = columns.start..columns.end.min(size);
+        let Self { values, padded, product, .. } = self;
+        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around (sized in `reset`).
+        padded.fill(T::default());
+        padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
+        product.fill(T::default());
+        // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
+        // The rows that meet the columns: `columns.start ..< columns.end + band`.
+        for row in columns.start..(columns.end + band).min(size) {
+            let lower = &values[row * width..(row + 1) * width];
+            let near = &padded[row..row + width];
+            let x_row = near[band];
+            let mut sum = T::default();
+            for ((&entry, &x), out) in lower.iter().zip(near).zip(&mut product[row..row + width]) {
+                sum += entry * x;
+                // The transposed entry `(column, row)`, above the diagonal.
+                *out += entry * x_row;
+            }
+            // The diagonal was counted twice.
+            product[row + band] += sum - lower[band] * x_row;
+        }
+        out[..size].copy_from_slice(&product[band..band + size]);
+    }
+
+    /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
+    /// band then holds `L` below the diagonal and `D` on it, and the reciprocals of `D` are kept so that
+    /// [`BandedMatrix::solve_factorized`] does not divide. Returns the lanes (bit `k` for lane `k`)
+    /// that met a pivot that is not positive, with the first such row of each in `failed_rows`; it stops
+    /// early only when every lane has failed. A lane's failure never changes another lane's result.
+    ///
+    /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) D(j) L(k, j)`.
+    /// These updates are independent of each other (no chain of dependent additions) and run along
+    /// contiguous row segments of fixed length; the only chain from one column to the next is one
+    /// division, one multiplication and one update.
+    #[inline(always)]
+    pub(crate) fn factorize_lanes(&mut self, failed_rows: &mut [usize]) -> LaneMask {
+        let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
+        let all: LaneMask = (1 << T::LANES) - 1;
+        let mut failed: LaneMask = 0;
+        let Self { values, inverse_diagonal, .. } = self;
+        // One entry per row (sized in `reset`).
+        for (j, inverse) in inverse_diagonal.iter_mut().enumerate() {
+            // Rows `j ..= j + band`, padding included: one bounds check for the whole column.
+            let rows = &mut values[j * width..(j + 1 + band) * width];
+            let pivot = rows[band];
+            let new_failures = pivot.not_positive_finite() & !failed;
+            if new_failures != 0 {
+                for (lane, row) in failed_rows.iter_mut().enumerate() {
+                    if new_failures & (1 << lane) != 0 {
+                        *row = j;
+                    }
+                }
+                failed |= new_failures;
+                if failed == all {
+                    return failed;
+                }
+            }
+            *inverse = T::splat(1.0) / pivot;
+            // `D(j) L(j + 1 + t, j)` is the entry at position `band − 1 − t` of row `j + 1 + t` (zero in the
+            // padding); it becomes `L(j + 1 + t, j)`.
+            let mut scaled = [T::default(); HALF_BANDWIDTH];
+            let mut column = [T::default(); HALF_BANDWIDTH];
+            for (t, (scaled, entry)) in scaled.iter_mut().zip(&mut column).enumerate() {
+                let index = (1 + t) * width + band - 1 - t;
+                *scaled = rows[index];
+                *entry = *scaled * *inverse;
+                rows[index] = *entry;
+            }
+            for (t, &factor) in column.iter().enumerate() {
+                // A(j + 1 + t, j + 1 ..= j + 1 + t): positions `band − t ..= band` of row `j + 1 + t`.
+                let start = (1 + t) * width + band - t;
+                for (value, &other) in rows[start..=start + t].iter_mut().zip(&scaled[..=t]) {
+                    *value -= factor * other;
+                }
+            }
+        }
+        failed
+    }
+
+    /// Solves `L D Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
+    #[inline(always)]
+    pub fn solve_factorized(&mut self, rhs: &mut [T]) {
+        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
+        let Self { values, inverse_diagonal, padded, .. } = self;
+        padded.fill(T::default());
+        padded[band..band + size].copy_from_slice(&rhs[..size]);
+        // `L y = b`, column by column: each solved entry is removed from the rows below it.
+        for j in 0..size {
+            let solved = padded[band + j];
+            let below = &mut padded[band + j + 1..band + j + 1 + band];
+            for (t, value) in below.iter_mut().enumerate() {
+                *value -= values[(j + 1 + t) * width + band - 1 - t] * solved;
+            }
+        }
+        // `Lᵀ x = D⁻¹ y`, from the last row up: each solved entry is removed from the rows above it,
+        // along its own row of `L`.
+        for (value, &inverse) in padded[band..band + size].iter_mut().zip(inverse_diagonal.iter()) {
+            *value *= inverse;
+        }
+        for j in (0..size).rev() {
+            let solved = padded[band + j];
+            let row = &values[j * width..j * width + band];
+            for (value, &entry) in padded[j..j + band].iter_mut().zip(row) {
+                *value -= entry * solved;
+            }
+        }
+        rhs[..size].copy_from_slice(&padded[band..band + size]);
+    }
+}
+
+impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// Entry `(row, column)` of the lower band (`column ≤ row`).
     #[inline]
     pub fn get(&self, row: usize, column: usize) -> f64 {
@@ -73,15 +210,6 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         let (row, column) = if row >= column { (row, column) } else { (column, row) };
         let index = self.index(row, column);
         self.values[index] += value;
-    }
-
-    /// The stored bands of `rows`, one after another, `HALF_BANDWIDTH + 1` entries each: entry
-    /// `HALF_BANDWIDTH − (row − column)` of a row's band is `(row, column)`, for the columns
-    /// `row − HALF_BANDWIDTH ..= row` (those left of column 0 must stay zero).
-    #[inline]
-    pub fn band_rows_mut(&mut self, rows: std::ops::Range<usize>) -> &mut [f64] {
-        assert!(rows.end <= self.size, "rows {rows:?} of a {} × {} matrix", self.size, self.size);
-        &mut self.values[rows.start * Self::WIDTH..rows.end * Self::WIDTH]
     }
 
     /// Multiplies every diagonal entry by `factor` (a Levenberg–Marquardt shift `λ diag(A)` with
@@ -108,107 +236,24 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
         self.values[index] = 1.0;
     }
 
-    /// `out = A x` for the symmetric matrix.
-    pub fn multiply(&mut self, x: &[f64], out: &mut [f64]) {
-        self.multiply_columns(0..self.size, x, out);
-    }
-
-    /// `out = A x` where only `x[columns]` may be non-zero: costs `O(columns · bandwidth)`, so a few
-    /// prescribed unknowns do not pay for the whole matrix.
-    pub fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
-        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
-        let columns = columns.start..columns.end.min(size);
-        let Self { values, padded, product, .. } = self;
-        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around (sized in `reset`).
-        padded.fill(0.0);
-        padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
-        product.fill(0.0);
-        // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
-        // The rows that meet the columns: `columns.start ..< columns.end + band`.
-        for row in columns.start..(columns.end + band).min(size) {
-            let lower = &values[row * width..(row + 1) * width];
-            let near = &padded[row..row + width];
-            let x_row = near[band];
-            let mut sum = 0.0;
-            for ((entry, x), out) in lower.iter().zip(near).zip(&mut product[row..row + width]) {
-                sum += entry * x;
-                // The transposed entry `(column, row)`, above the diagonal.
-                *out += entry * x_row;
-            }
-            // The diagonal was counted twice.
-            product[row + band] += sum - lower[band] * x_row;
-        }
-        out[..size].copy_from_slice(&product[band..band + size]);
-    }
-
-    /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
-    /// band then holds `L` below the diagonal and `D` on it, and the reciprocals of `D` are kept so that
-    /// [`BandedMatrix::solve_factorized`] does not divide.
-    ///
-    /// Right-looking: each finished column updates the rows below it, `A(i, k) −= L(i, j) D(j) L(k, j)`.
-    /// These updates are independent of each other (no chain of dependent additions) and run along
-    /// contiguous row segments of fixed length; the only chain from one column to the next is one
-    /// division, one multiplication and one update.
+    /// Factorises in place into `L D Lᵀ` (see [`BandedMatrix::factorize_lanes`]), or says at which row
+    /// the matrix showed it is not positive definite.
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
-        let (width, band) = (Self::WIDTH, HALF_BANDWIDTH);
-        let Self { values, inverse_diagonal, .. } = self;
-        // One entry per row (sized in `reset`).
-        for (j, inverse) in inverse_diagonal.iter_mut().enumerate() {
-            // Rows `j ..= j + band`, padding included: one bounds check for the whole column.
-            let rows = &mut values[j * width..(j + 1 + band) * width];
-            let pivot = rows[band];
-            if !(pivot > 0.0 && pivot.is_finite()) {
-                return Err(NotPositiveDefinite { row: j });
-            }
-            *inverse = 1.0 / pivot;
-            // `D(j) L(j + 1 + t, j)` is the entry at position `band − 1 − t` of row `j + 1 + t` (zero in the
-            // padding); it becomes `L(j + 1 + t, j)`.
-            let mut scaled = [0.0; HALF_BANDWIDTH];
-            let mut column = [0.0; HALF_BANDWIDTH];
-            for (t, (scaled, entry)) in scaled.iter_mut().zip(&mut column).enumerate() {
-                let index = (1 + t) * width + band - 1 - t;
-                *scaled = rows[index];
-                *entry = *scaled * *inverse;
-                rows[index] = *entry;
-            }
-            for (t, &factor) in column.iter().enumerate() {
-                // A(j + 1 + t, j + 1 ..= j + 1 + t): positions `band − t ..= band` of row `j + 1 + t`.
-                let start = (1 + t) * width + band - t;
-                for (value, other) in rows[start..=start + t].iter_mut().zip(&scaled[..=t]) {
-                    *value -= factor * other;
-                }
-            }
+        let mut row = [0];
+        match self.factorize_lanes(&mut row) {
+            0 => Ok(()),
+            _ => Err(NotPositiveDefinite { row: row[0] }),
         }
-        Ok(())
     }
+}
 
-    /// Solves `L D Lᵀ x = b` in place (`rhs` becomes `x`), after [`BandedMatrix::factorize`].
-    pub fn solve_factorized(&mut self, rhs: &mut [f64]) {
-        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
-        let Self { values, inverse_diagonal, padded, .. } = self;
-        padded.fill(0.0);
-        padded[band..band + size].copy_from_slice(&rhs[..size]);
-        // `L y = b`, column by column: each solved entry is removed from the rows below it.
-        for j in 0..size {
-            let solved = padded[band + j];
-            let below = &mut padded[band + j + 1..band + j + 1 + band];
-            for (t, value) in below.iter_mut().enumerate() {
-                *value -= values[(j + 1 + t) * width + band - 1 - t] * solved;
-            }
+impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH, Lanes> {
+    /// Makes `lane` of every entry that of `matrix`, which has this matrix's size.
+    pub(crate) fn set_lane(&mut self, lane: usize, matrix: &BandedMatrix<HALF_BANDWIDTH>) {
+        debug_assert_eq!(self.size, matrix.size);
+        for (entry, &value) in self.values.iter_mut().zip(&matrix.values) {
+            entry.0[lane] = value;
         }
-        // `Lᵀ x = D⁻¹ y`, from the last row up: each solved entry is removed from the rows above it,
-        // along its own row of `L`.
-        for (value, inverse) in padded[band..band + size].iter_mut().zip(inverse_diagonal.iter()) {
-            *value *= inverse;
-        }
-        for j in (0..size).rev() {
-            let solved = padded[band + j];
-            let row = &values[j * width..j * width + band];
-            for (value, entry) in padded[j..j + band].iter_mut().zip(row) {
-                *value -= entry * solved;
-            }
-        }
-        rhs[..size].copy_from_slice(&padded[band..band + size]);
     }
 }
 

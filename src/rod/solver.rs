@@ -114,6 +114,24 @@ where
     (now * 4.0 - before) * (1.0 / 3.0)
 }
 
+/// The Levenberg–Marquardt shift to assemble with after a factorisation with `regularisation` met a
+/// non-positive pivot at `row` (see [`Rod::assemble_and_factorize`]), or the error when the largest
+/// has been tried.
+pub(super) fn next_regularisation(regularisation: f64, row: usize) -> Result<f64, StepError> {
+    if regularisation < MAX_REGULARISATION {
+        Ok((100.0 * regularisation).max(FIRST_REGULARISATION))
+    } else {
+        Err(StepError::NotPositiveDefinite { dof: row })
+    }
+}
+
+/// How far a step's Newton iterations have gone.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct NewtonProgress {
+    newton_iterations: u32,
+    projection_iterations: u32,
+}
+
 /// The elastic Hessian's factor `1 + β/dt` with internal damping.
 fn damped_scale(params: &StepParams) -> f64 {
     1.0 + params.internal_damping / params.dt
@@ -176,6 +194,22 @@ impl RodWorkspace {
         self.stopwatch.set_enabled(enabled);
     }
 
+    /// The matrix of the last Newton system assembled.
+    pub(super) fn hessian(&self) -> &RodMatrix {
+        &self.hessian
+    }
+
+    /// The residual of the last Newton system assembled (its right-hand side negated), or its
+    /// solution once solved.
+    pub(super) fn residual(&self) -> &[f64] {
+        &self.residual
+    }
+
+    /// See [`RodWorkspace::residual`].
+    pub(super) fn residual_mut(&mut self) -> &mut [f64] {
+        &mut self.residual
+    }
+
     /// The time spent in each part of the steps since [`RodWorkspace::time_parts`] turned timing on.
     pub fn part_timings(&self) -> Option<&StepTimings> {
         self.stopwatch.timings()
@@ -235,6 +269,21 @@ impl Rod {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
+        self.check_step_input(params, loads, contacts)?;
+        self.begin_step(workspace);
+        let result = self.integrate(params, loads, contacts, workspace);
+        self.end_step(result, workspace)
+    }
+
+    /// Checks what a step is given (and the rod's own state, which may have been written from outside),
+    /// and applies the loads' velocity changes: nothing else changes on an error (a state that cannot
+    /// start a step is put back in its rest pose, carried onto its clamp).
+    pub(super) fn check_step_input(
+        &mut self,
+        params: &StepParams,
+        loads: &StepLoads,
+        contacts: &Contacts,
+    ) -> Result<(), StepError> {
         if let Some((node, reason)) = self.unusable_state() {
             self.reset();
             self.carry_with_first_clamp();
@@ -267,11 +316,23 @@ impl Rod {
             }
             self.change_velocities(changes);
         }
+        Ok(())
+    }
+
+    /// Saves what a step starts from, for a roll-back, once its input is known to be valid.
+    pub(super) fn begin_step(&mut self, workspace: &mut RodWorkspace) {
         workspace.stopwatch.start_step();
         self.save_into(&mut workspace.saved);
         // The rod's lagged normal forces stand in the contact scratch for the step (a swap of buffers).
         std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
-        let result = self.integrate(params, loads, contacts, workspace);
+    }
+
+    /// Ends a step begun with [`Rod::begin_step`]: puts the rod back where it was, at rest, if it failed.
+    pub(super) fn end_step(
+        &mut self,
+        result: Result<StepReport, StepError>,
+        workspace: &mut RodWorkspace,
+    ) -> Result<StepReport, StepError> {
         std::mem::swap(&mut self.state.contact_normal_forces, &mut workspace.contacts.normal_forces);
         if result.is_err() {
             self.restore_at_rest(&workspace.saved);
@@ -301,6 +362,24 @@ impl Rod {
         contacts: &Contacts,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
+        self.begin_integration(params, contacts, workspace);
+        let mut progress = NewtonProgress::default();
+        loop {
+            self.assemble_and_factorize(params, loads, workspace)?;
+            let RodWorkspace { hessian, residual, .. } = workspace;
+            residual.iter_mut().for_each(|r| *r = -*r);
+            hessian.solve_factorized(residual);
+            let update = self.apply_newton_update(params, workspace)?;
+            if self.end_newton_iteration(update, params, &mut progress, workspace) {
+                break;
+            }
+        }
+        self.finish_integration(params, contacts, progress, workspace)
+    }
+
+    /// What a step does before its Newton iterations: the first guess (the rod carried with its
+    /// root), the scheme's prediction, the projection's masses, the colliders near the strand.
+    pub(super) fn begin_integration(&mut self, params: &StepParams, contacts: &Contacts, workspace: &mut RodWorkspace) {
         self.carry_with_first_clamp();
         workspace.stopwatch.lap(Part::Frames);
         copy_into(&mut workspace.carried_positions, &self.state.positions);
@@ -310,26 +389,44 @@ impl Rod {
         workspace.stopwatch.lap(Part::Forces);
         self.begin_contacts(contacts, params, &workspace.saved.state.positions, &mut workspace.contacts);
         workspace.stopwatch.lap(Part::Collisions);
-        let mut projection_iterations = 0;
-        let mut newton_iterations = 0;
-        loop {
-            newton_iterations += 1;
-            let (fraction, contacts_changed) = self.newton_iteration(params, loads, workspace)?;
-            let linearisation_error = length_error(self, &workspace.projection.target_lengths);
-            let converged =
-                fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance && !contacts_changed;
-            let last = converged || newton_iterations == params.max_newton_iterations;
-            if last {
-                self.snap_to_targets();
-            }
-            projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
-            workspace.stopwatch.lap(Part::Constraints);
-            if last {
-                break;
-            }
+    }
+
+    /// After a Newton update that applied `fraction` of itself and changed the contacts or not
+    /// (`update`): counts the iteration, projects onto the edge lengths and refreshes the frames.
+    /// Returns whether the iterations are over (converged, or out of iterations).
+    pub(super) fn end_newton_iteration(
+        &mut self,
+        (fraction, contacts_changed): (f64, bool),
+        params: &StepParams,
+        progress: &mut NewtonProgress,
+        workspace: &mut RodWorkspace,
+    ) -> bool {
+        progress.newton_iterations += 1;
+        let linearisation_error = length_error(self, &workspace.projection.target_lengths);
+        let converged = fraction == 1.0 && linearisation_error <= params.newton_strain_tolerance && !contacts_changed;
+        let last = converged || progress.newton_iterations == params.max_newton_iterations;
+        if last {
+            self.snap_to_targets();
+        }
+        progress.projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
+        workspace.stopwatch.lap(Part::Constraints);
+        if !last {
             self.refresh_frames();
             workspace.stopwatch.lap(Part::Frames);
         }
+        last
+    }
+
+    /// What a step does after its Newton iterations: contacts resolved, the strain bound kept, frames,
+    /// velocities, and the checks that the result is finite and within the bound.
+    pub(super) fn finish_integration(
+        &mut self,
+        params: &StepParams,
+        contacts: &Contacts,
+        progress: NewtonProgress,
+        workspace: &mut RodWorkspace,
+    ) -> Result<StepReport, StepError> {
+        let NewtonProgress { newton_iterations, mut projection_iterations } = progress;
         let mut contact_count = 0;
         if !contacts.colliders.is_empty() {
             let (in_contact, iterations) = self.resolve_contacts(
@@ -476,40 +573,35 @@ impl Rod {
         }
     }
 
-    /// One Newton iteration of the implicit Euler step (see the module documentation). Returns the
-    /// fraction of the Newton update that was applied (below 1 when the trust region limited it), and
-    /// whether the update changes which nodes touch a collider.
+    /// Assembles the Newton system of the current iterate (see the module documentation) and
+    /// factorises its matrix.
     ///
-    /// The system's matrix is positive definite in exact arithmetic, but a rod folded nearly back on
-    /// itself, or with edges much shorter than its thickness, has bending terms so much larger than its
-    /// inertia that rounding can break the factorisation. It is then assembled again with its diagonal
-    /// scaled by `1 + λ` (Levenberg–Marquardt), λ from [`FIRST_REGULARISATION`] up a hundredfold at a
-    /// time to [`MAX_REGULARISATION`]: a shorter step in a descent direction instead of a failure.
-    fn newton_iteration(
+    /// The matrix is positive definite in exact arithmetic, but a rod folded nearly back on itself, or
+    /// with edges much shorter than its thickness, has bending terms so much larger than its inertia
+    /// that rounding can break the factorisation. It is then assembled again with its diagonal scaled
+    /// by `1 + λ` (Levenberg–Marquardt), λ from [`FIRST_REGULARISATION`] up a hundredfold at a time to
+    /// [`MAX_REGULARISATION`]: a shorter step in a descent direction instead of a failure.
+    fn assemble_and_factorize(
         &mut self,
         params: &StepParams,
         loads: &StepLoads,
         workspace: &mut RodWorkspace,
-    ) -> Result<(f64, bool), StepError> {
+    ) -> Result<(), StepError> {
         let mut regularisation = 0.0;
         loop {
             self.assemble_newton_system(params, loads, workspace, regularisation);
             match workspace.hessian.factorize() {
-                Ok(()) => break,
-                Err(_) if regularisation < MAX_REGULARISATION => {
-                    regularisation = (100.0 * regularisation).max(FIRST_REGULARISATION);
-                }
-                Err(failure) => return Err(StepError::NotPositiveDefinite { dof: failure.row }),
+                Ok(()) => return Ok(()),
+                Err(failure) => regularisation = next_regularisation(regularisation, failure.row)?,
             }
         }
-        self.solve_newton_update(params, workspace)
     }
 
     /// Assembles the Newton system at the current iterate into the workspace's matrix and residual, one
     /// term at a time (see the module documentation): elastic forces, internal damping, inertia with
     /// gravity and external forces, contact, the diagonal scaled by `1 + regularisation`, prescribed
     /// unknowns.
-    fn assemble_newton_system(
+    pub(super) fn assemble_newton_system(
         &mut self,
         params: &StepParams,
         loads: &StepLoads,
@@ -693,18 +785,16 @@ impl Rod {
         }
     }
 
-    /// Solves the factorised Newton system and applies the update within the trust region (see
-    /// [`Rod::newton_iteration`]).
-    fn solve_newton_update(
+    /// Applies the Newton update the workspace's residual now holds (the solution of the system)
+    /// within the trust region. Returns the fraction of the update that was applied (below 1 when
+    /// the trust region limited it), and whether the update changes which nodes touch a collider.
+    pub(super) fn apply_newton_update(
         &mut self,
         params: &StepParams,
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
-        let RodWorkspace { hessian, residual, saved, projection, contacts, stopwatch, scheme, .. } = workspace;
+        let RodWorkspace { residual, saved, projection, contacts, stopwatch, scheme, .. } = workspace;
         let inertia_scale = scheme.inertia_scale(params);
-
-        residual.iter_mut().for_each(|r| *r = -*r);
-        hessian.solve_factorized(residual);
         stopwatch.lap(Part::Solve);
         let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
         let contacts_changed =

@@ -1,0 +1,283 @@
+//! Several strands stepped in lockstep, one per SIMD lane ([`LockstepWorkspace::step`]).
+//!
+//! A strand's step is a chain of short dependent operations: the banded `L D Lᵀ` eliminates one pivot
+//! after another, each waiting on the last. One core runs such a chain far below its arithmetic peak.
+//! Strands are independent, so [`LANES`] of them with the same node count go through the chain side by
+//! side: entry `(i, j)` of the batch's matrix holds entry `(i, j)` of every strand's matrix
+//! ([`Lanes`]), and one SIMD instruction does for all of them what a scalar one does for one.
+//!
+//! The instruction set is chosen when the program runs (`multiversion`): AVX2 with FMA where the CPU
+//! has it, AVX elsewhere on x86-64, and plain `f64` code on any other CPU, from the same source and
+//! with no `RUSTFLAGS`. Every lane does exactly the scalar step's operations in the same order (no fused
+//! multiply-adds are formed), so a strand stepped in a batch ends bit for bit where [`Rod::step_with_loads`]
+//! would put it, whatever strands share its batch. A strand that fails rolls back and reports alone;
+//! one whose iterations end early is left out of its batch's later iterations.
+
+use multiversion::multiversion;
+
+use super::banded::BandedMatrix;
+use super::contact::Contacts;
+use super::curve::Rod;
+use super::energy::{BANDWIDTH, dof_count};
+use super::error::StepError;
+use super::lanes::{LaneMask, Lanes};
+use super::params::StepParams;
+use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, next_regularisation};
+
+pub use super::lanes::LANES;
+
+/// The banded matrix of a batch's Newton systems, one strand per lane.
+type BatchMatrix = BandedMatrix<BANDWIDTH, Lanes>;
+
+/// One strand of a lockstep batch: its rod, what acts on it from outside, its colliders.
+#[derive(Debug)]
+pub struct LockstepStrand<'r, 'l> {
+    /// The strand.
+    pub rod: &'r mut Rod,
+    /// Forces, wind and velocity changes on it during the step (see [`StepLoads`]).
+    pub loads: StepLoads<'l>,
+    /// The colliders it meets and its collision thickness.
+    pub contacts: Contacts<'l>,
+}
+
+/// Scratch memory for stepping strands [`LANES`] at a time: one [`RodWorkspace`] per lane and the
+/// batch's matrix. Grows to the largest strands, then never allocates; one per thread.
+#[derive(Debug, Clone, Default)]
+pub struct LockstepWorkspace {
+    lanes: [RodWorkspace; LANES],
+    matrix: BatchMatrix,
+    solution: Vec<Lanes>,
+}
+
+/// The result of each strand of a batch, in the batch's order (`None` past its end).
+pub type LockstepResults = [Option<Result<StepReport, StepError>>; LANES];
+
+impl LockstepWorkspace {
+    /// Advances up to [`LANES`] strands by `params.dt` together, each exactly as
+    /// [`Rod::step_with_loads`] would (same result, bit for bit; the same roll-back on failure), and
+    /// returns their results in order. Strands whose node count differs from the first's are stepped
+    /// alone.
+    ///
+    /// # Panics
+    /// With more than [`LANES`] strands.
+    pub fn step(&mut self, params: &StepParams, strands: &mut [LockstepStrand]) -> LockstepResults {
+        assert!(strands.len() <= LANES, "{} strands in a lockstep batch of {LANES}", strands.len());
+        let mut results = LockstepResults::default();
+        let Some(first) = strands.first() else {
+            return results;
+        };
+        let nodes = first.rod.node_count();
+        let mut active: LaneMask = 0;
+        for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
+            let LockstepStrand { rod, loads, contacts } = strand;
+            if rod.node_count() != nodes {
+                results[lane] = Some(rod.step_with_loads(params, loads, contacts, workspace));
+                continue;
+            }
+            if let Err(error) = rod.check_step_input(params, loads, contacts) {
+                results[lane] = Some(Err(error));
+                continue;
+            }
+            rod.begin_step(workspace);
+            rod.begin_integration(params, contacts, workspace);
+            active |= 1 << lane;
+        }
+        let size = dof_count(nodes);
+        let mut progress = [NewtonProgress::default(); LANES];
+        while active != 0 {
+            active = self.assemble_and_factorize(params, strands, active, size, &mut results);
+            if active == 0 {
+                break;
+            }
+            self.solve(active, size);
+            let solved = active;
+            for (lane, strand) in strands.iter_mut().enumerate().filter(|(lane, _)| solved & (1 << lane) != 0) {
+                let workspace = &mut self.lanes[lane];
+                let rod = &mut *strand.rod;
+                let finished = match rod.apply_newton_update(params, workspace) {
+                    Err(error) => Some(Err(error)),
+                    Ok(update) => rod
+                        .end_newton_iteration(update, params, &mut progress[lane], workspace)
+                        .then(|| rod.finish_integration(params, &strand.contacts, progress[lane], workspace)),
+                };
+                if let Some(result) = finished {
+                    results[lane] = Some(rod.end_step(result, workspace));
+                    active &= !(1 << lane);
+                }
+            }
+        }
+        results
+    }
+
+    /// Assembles the Newton system of each `active` lane's strand and factorises them together, each
+    /// lane with its own Levenberg–Marquardt shift (see [`Rod::step_with_loads`]). Returns the lanes
+    /// still going: a lane whose system does not factorise even with the largest shift ends with
+    /// its error in `results`.
+    fn assemble_and_factorize(
+        &mut self,
+        params: &StepParams,
+        strands: &mut [LockstepStrand],
+        mut active: LaneMask,
+        size: usize,
+        results: &mut LockstepResults,
+    ) -> LaneMask {
+        let mut regularisation = [0.0; LANES];
+        let mut assemble = active;
+        self.matrix.reset(size);
+        loop {
+            for (lane, strand) in strands.iter_mut().enumerate().filter(|(lane, _)| assemble & (1 << lane) != 0) {
+                strand.rod.assemble_newton_system(params, &strand.loads, &mut self.lanes[lane], regularisation[lane]);
+            }
+            // Every going lane again: the factorisation wrote over the last attempt.
+            for (lane, workspace) in self.lanes.iter().enumerate().filter(|(lane, _)| active & (1 << lane) != 0) {
+                self.matrix.set_lane(lane, workspace.hessian());
+            }
+            let mut rows = [0; LANES];
+            let failed = factorize(&mut self.matrix, &mut rows) & active;
+            if failed == 0 {
+                return active;
+            }
+            assemble = 0;
+            for lane in (0..LANES).filter(|lane| failed & (1 << lane) != 0) {
+                match next_regularisation(regularisation[lane], rows[lane]) {
+                    Ok(shift) => {
+                        regularisation[lane] = shift;
+                        assemble |= 1 << lane;
+                    }
+                    Err(error) => {
+                        results[lane] = Some(strands[lane].rod.end_step(Err(error), &mut self.lanes[lane]));
+                        active &= !(1 << lane);
+                    }
+                }
+            }
+            if active == 0 {
+                return 0;
+            }
+        }
+    }
+
+    /// Solves each `active` lane's factorised system for its Newton update, left in the lane's
+    /// workspace (where [`Rod::apply_newton_update`] reads it).
+    fn solve(&mut self, active: LaneMask, size: usize) {
+        self.solution.clear();
+        self.solution.resize(size, Lanes::default());
+        let going = |lane: &usize| active & (1 << lane) != 0;
+        for lane in (0..LANES).filter(going) {
+            for (entry, residual) in self.solution.iter_mut().zip(self.lanes[lane].residual()) {
+                entry.0[lane] = -residual;
+            }
+        }
+        solve(&mut self.matrix, &mut self.solution);
+        for lane in (0..LANES).filter(going) {
+            for (residual, entry) in self.lanes[lane].residual_mut().iter_mut().zip(&self.solution) {
+                *residual = entry.0[lane];
+            }
+        }
+    }
+}
+
+/// [`BandedMatrix::factorize_lanes`] compiled for the best instruction set the CPU has.
+#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn factorize(matrix: &mut BatchMatrix, failed_rows: &mut [usize; LANES]) -> LaneMask {
+    matrix.factorize_lanes(failed_rows)
+}
+
+/// [`BandedMatrix::solve_factorized`] compiled for the best instruction set the CPU has.
+#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn solve(matrix: &mut BatchMatrix, rhs: &mut [Lanes]) {
+    matrix.solve_factorized(rhs);
+}
+
+#[cfg(test)]
+mod tests {
+    use bevy::math::{DQuat, DVec3};
+
+    use super::*;
+    use crate::rod::test_support::Lcg;
+    use crate::rod::{ColliderShape, MovingCollider, RigidPose, RodMaterial};
+
+    /// A 20 cm hair of `edges` edges leaving its root at `angle` from the horizontal, root clamped.
+    fn hair(edges: usize, angle: f64) -> Rod {
+        let direction = DVec3::new(angle.cos(), angle.sin(), 0.0);
+        let nodes: Vec<DVec3> = (0..=edges).map(|i| 0.2 * i as f64 / edges as f64 * direction).collect();
+        let mut rod = Rod::new(&nodes, DVec3::Z, RodMaterial::human_hair()).unwrap();
+        rod.clamp_root_in_place();
+        rod
+    }
+
+    /// Moves a root clamp by a shake and a turn at time `t` (s), as a head would.
+    fn shake(rod: &mut Rod, root: [DVec3; 2], t: f64) {
+        let turn = DQuat::from_rotation_y(3.0 * (7.0 * t).sin());
+        let shift = DVec3::new(0.05 * (25.0 * t).sin(), 0.03 * (11.0 * t).cos(), 0.0);
+        rod.clamp_edge(0, turn * root[0] + shift, turn * root[1] + shift, turn * DVec3::Z).unwrap();
+    }
+
+    /// Everything a step changes, for comparing two rods bit for bit.
+    fn same_state(a: &Rod, b: &Rod) -> bool {
+        a.state == b.state && a.frames == b.frames
+    }
+
+    #[test]
+    fn a_batch_steps_each_strand_exactly_as_alone() {
+        // Five hairs in a batch of four and one: different shapes, one with another node count (stepped
+        // alone), a ball under two of them, wind on one, a force that is not finite on one at one step.
+        let angles = [0.0, 0.4, -0.7, 1.2, -0.2];
+        let edge_counts = [24, 24, 24, 16, 24];
+        let make = || -> Vec<Rod> { angles.iter().zip(edge_counts).map(|(&a, e)| hair(e, a)).collect() };
+        let (mut alone, mut batched) = (make(), make());
+        let roots: Vec<[DVec3; 2]> = alone.iter().map(|rod| [rod.positions()[0], rod.positions()[1]]).collect();
+        let ball = MovingCollider::fixed(
+            ColliderShape::sphere(0.08),
+            0.3,
+            RigidPose::new(DQuat::IDENTITY, DVec3::new(0.1, -0.1, 0.0)),
+        );
+        let colliders = [ball];
+        let contacts =
+            |strand: usize| Contacts { colliders: if strand % 2 == 0 { &colliders } else { &[] }, thickness: 1e-4 };
+        let mut random = Lcg(3);
+        let wind: Vec<DVec3> = (0..=24).map(|_| 3.0 * random.vector()).collect();
+        let bad_forces = vec![DVec3::new(f64::NAN, 0.0, 0.0); 25];
+        let loads = |strand: usize, step: usize| StepLoads {
+            air_velocities: (strand == 1).then_some(&wind[..]),
+            forces: (strand == 2 && step == 7).then_some(&bad_forces[..]),
+            ..StepLoads::default()
+        };
+        let params = StepParams::default();
+        let (mut scalar, mut lockstep) = (RodWorkspace::default(), LockstepWorkspace::default());
+        let (mut failures, mut iterations) = (0, 0);
+        for step in 0..90 {
+            let t = step as f64 * params.dt;
+            for (index, rod) in alone.iter_mut().chain(batched.iter_mut()).enumerate() {
+                shake(rod, roots[index % angles.len()], t);
+            }
+            let expected: Vec<_> = alone
+                .iter_mut()
+                .enumerate()
+                .map(|(strand, rod)| rod.step_with_loads(&params, &loads(strand, step), &contacts(strand), &mut scalar))
+                .collect();
+            let mut results = Vec::new();
+            for (chunk, rods) in batched.chunks_mut(LANES).enumerate() {
+                let mut strands: Vec<LockstepStrand> = rods
+                    .iter_mut()
+                    .enumerate()
+                    .map(|(lane, rod)| {
+                        let strand = chunk * LANES + lane;
+                        LockstepStrand { rod, loads: loads(strand, step), contacts: contacts(strand) }
+                    })
+                    .collect();
+                let stepped = lockstep.step(&params, &mut strands);
+                results.extend(stepped.into_iter().take(strands.len()).map(Option::unwrap));
+            }
+            // Compared as printed: the reported force that is not finite is NaN, which is not equal to itself.
+            assert_eq!(format!("{results:?}"), format!("{expected:?}"), "step {step}");
+            for (strand, (a, b)) in alone.iter().zip(&batched).enumerate() {
+                assert!(same_state(a, b), "strand {strand} differs after step {step}");
+            }
+            failures += expected.iter().filter(|result| result.is_err()).count();
+            iterations += expected.iter().filter_map(|r| r.as_ref().ok()).map(|r| r.newton_iterations).sum::<u32>();
+        }
+        assert_eq!(failures, 1, "the one step with a force that is not finite fails, alone");
+        // The shaking makes strands take different numbers of Newton iterations, so that lanes end apart.
+        assert!(iterations > 90 * 5, "{iterations} Newton iterations in 90 steps of 5 strands");
+    }
+}
