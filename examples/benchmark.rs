@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
+//! `lockstep`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -23,8 +23,11 @@ use std::time::Instant;
 use bevy::math::{DVec3, Vec3};
 use bevy::tasks::available_parallelism;
 use bevy_hair_sim::detail::HeadsByDetail;
+use bevy_hair_sim::groom::ScalpRoot;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose, StepTimings};
+use bevy_hair_sim::rod::{
+    Contacts, Integrator, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, RigidPose, StepLoads, StepTimings,
+};
 use counting_allocator::BYTES_IN_USE;
 use scene::{Crowd, HAIR_LENGTH, Scene, WARM_UP_STEPS};
 
@@ -97,6 +100,9 @@ fn main() {
     }
     if wanted("parts") {
         parts_of_a_step(if quick { 100 } else { 600 });
+    }
+    if wanted("lockstep") {
+        lockstep(threads, steps);
     }
     if wanted("collisions") {
         collisions(threads, steps);
@@ -728,18 +734,7 @@ fn parts_of_a_step(steps: usize) {
     let runs = [false, true].map(|with_skull| {
         let mut workspace = RodWorkspace::default();
         let (mut newton_iterations, mut projection_iterations) = (0u64, 0u64);
-        let mut rods: Vec<Rod> = roots
-            .iter()
-            .map(|root| {
-                let (root, normal) = (root.position.as_dvec3(), root.normal.as_dvec3());
-                let nodes: Vec<DVec3> = (0..=edges)
-                    .map(|node| root + normal * f64::from(HAIR_LENGTH) * node as f64 / edges as f64)
-                    .collect();
-                Rod::new(&nodes, normal.any_orthonormal_vector(), RodMaterial::human_hair()).expect("a valid strand")
-            })
-            .collect();
-        let anchors: Vec<[DVec3; 2]> = rods.iter().map(|rod| [rod.positions()[0], rod.positions()[1]]).collect();
-        let material_directions: Vec<DVec3> = rods.iter().map(|rod| rod.material_frame(0).m1).collect();
+        let (mut rods, anchors, material_directions) = scene_strands(&roots, edges);
         let mut skull = skull;
         for step in 0..WARM_UP_STEPS + steps {
             if step == WARM_UP_STEPS {
@@ -754,8 +749,7 @@ fn parts_of_a_step(steps: usize) {
             let contacts = Contacts { colliders: if with_skull { &colliders } else { &[] }, thickness: 1e-3 };
             let head = skull.end;
             for ((rod, anchor), direction) in rods.iter_mut().zip(&anchors).zip(&material_directions) {
-                let [root, next] = anchor.map(|point| head.to_world(point));
-                rod.clamp_edge(0, root, next, head.rotation * *direction).expect("a valid clamp");
+                clamp_on_head(rod, head, anchor, *direction);
                 let report = rod
                     .step_with_contacts(&StepParams::default(), None, &contacts, &mut workspace)
                     .expect("a stable step");
@@ -791,6 +785,97 @@ fn parts_of_a_step(steps: usize) {
     let [(_, without), (_, with)] = runs;
     println!("| Newton iterations per step | {:.2} | | {:.2} | |", without[0], with[0]);
     println!("| projection iterations per step | {:.2} | | {:.2} | |", without[1], with[1]);
+}
+
+/// The scene's straight strands of `edges` edges on `roots`, in the mechanics core, with each one's
+/// root edge and material direction on the head at rest (to clamp them with [`clamp_on_head`]).
+#[allow(clippy::type_complexity)]
+fn scene_strands(roots: &[ScalpRoot], edges: usize) -> (Vec<Rod>, Vec<[DVec3; 2]>, Vec<DVec3>) {
+    let rods: Vec<Rod> = roots
+        .iter()
+        .map(|root| {
+            let (root, normal) = (root.position.as_dvec3(), root.normal.as_dvec3());
+            let nodes: Vec<DVec3> =
+                (0..=edges).map(|node| root + normal * f64::from(HAIR_LENGTH) * node as f64 / edges as f64).collect();
+            Rod::new(&nodes, normal.any_orthonormal_vector(), RodMaterial::human_hair()).expect("a valid strand")
+        })
+        .collect();
+    let anchors = rods.iter().map(|rod| [rod.positions()[0], rod.positions()[1]]).collect();
+    let material_directions = rods.iter().map(|rod| rod.material_frame(0).m1).collect();
+    (rods, anchors, material_directions)
+}
+
+/// Clamps a strand's root edge (`anchor`, on the head at rest) and material direction to the head at `head`.
+fn clamp_on_head(rod: &mut Rod, head: RigidPose, anchor: &[DVec3; 2], material_direction: DVec3) {
+    let [root, next] = anchor.map(|point| head.to_world(point));
+    rod.clamp_edge(0, root, next, head.rotation * material_direction).expect("a valid clamp");
+}
+
+/// The mechanics core's step of the scene's 2 000 strands × 32 edges (no collider) on `threads`
+/// threads, one strand at a time and [`LANES`] at a time in lockstep ([`LockstepWorkspace`]), stepped
+/// in turn on copies of the same hair: the median wall time per step of each, and their ratio. The
+/// two end bit for bit in the same place, which this checks.
+fn lockstep(threads: usize, steps: usize) {
+    let (strands, edges) = (2000, 32);
+    let roots = Scalp::default().roots(strands).expect("the default scalp holds 2 000 roots");
+    let (rods, anchors, material_directions) = scene_strands(&roots, edges);
+    let mut copies = [rods.clone(), rods];
+    let chunk = strands.div_ceil(threads).next_multiple_of(LANES);
+    let params = StepParams::default();
+    let mut times = [Vec::new(), Vec::new()];
+    let mut workspaces: Vec<(RodWorkspace, LockstepWorkspace)> = (0..threads).map(|_| Default::default()).collect();
+    for step in 0..WARM_UP_STEPS + steps {
+        let (translation, rotation) = Scene::head_pose(step + 1);
+        let head = RigidPose::new(rotation.as_dquat(), translation.as_dvec3());
+        for (path, rods) in copies.iter_mut().enumerate() {
+            let started = Instant::now();
+            std::thread::scope(|scope| {
+                let parts = rods.chunks_mut(chunk).zip(anchors.chunks(chunk)).zip(material_directions.chunks(chunk));
+                for (((rods, anchors), directions), (workspace, lockstep_workspace)) in parts.zip(&mut workspaces) {
+                    scope.spawn(move || {
+                        for ((rod, anchor), direction) in rods.iter_mut().zip(anchors).zip(directions) {
+                            clamp_on_head(rod, head, anchor, *direction);
+                        }
+                        if path == 0 {
+                            for rod in rods {
+                                rod.step(&params, None, workspace).expect("a stable step");
+                            }
+                        } else {
+                            for batch in rods.chunks_mut(LANES) {
+                                let mut strands = batch.iter_mut().map(|rod| LockstepStrand {
+                                    rod,
+                                    loads: StepLoads::default(),
+                                    contacts: Contacts::NONE,
+                                });
+                                let mut strands: [LockstepStrand; LANES] =
+                                    std::array::from_fn(|_| strands.next().expect("whole batches"));
+                                for result in lockstep_workspace.step(&params, &mut strands).into_iter().flatten() {
+                                    result.expect("a stable step");
+                                }
+                            }
+                        }
+                    });
+                }
+            });
+            if step >= WARM_UP_STEPS {
+                times[path].push(started.elapsed().as_secs_f64());
+            }
+        }
+    }
+    let same = copies[0].iter().zip(&copies[1]).all(|(a, b)| a.positions() == b.positions());
+    assert!(same, "the lockstep batches ended where the strands alone did");
+    let [alone, batched] = times.map(|mut times| {
+        times.sort_by(f64::total_cmp);
+        times[times.len() / 2]
+    });
+    println!();
+    println!(
+        "The core's step of {strands} strands × {edges} edges on {threads} threads, alone and in lockstep, stepped in turn:"
+    );
+    println!("| path | ms / step | time × alone |");
+    println!("|---|---:|---:|");
+    println!("| one strand at a time | {:.3} | 1.00 |", 1e3 * alone);
+    println!("| {LANES} strands in lockstep | {:.3} | {:.2} |", 1e3 * batched, batched / alone);
 }
 
 /// Cost against strands and colliders (skull, face, neck, shoulders, torso), 32 edges: the collision

@@ -232,8 +232,10 @@ mod tests {
             RigidPose::new(DQuat::IDENTITY, DVec3::new(0.1, -0.1, 0.0)),
         );
         let colliders = [ball];
-        let contacts =
-            |strand: usize| Contacts { colliders: if strand % 2 == 0 { &colliders } else { &[] }, thickness: 1e-4 };
+        let contacts = |strand: usize| Contacts {
+            colliders: if strand.is_multiple_of(2) { &colliders } else { &[] },
+            thickness: 1e-4,
+        };
         let mut random = Lcg(3);
         let wind: Vec<DVec3> = (0..=24).map(|_| 3.0 * random.vector()).collect();
         let bad_forces = vec![DVec3::new(f64::NAN, 0.0, 0.0); 25];
