@@ -12,6 +12,12 @@
 //! multiply-adds are formed), so a strand stepped in a batch ends bit for bit where [`Rod::step_with_loads`]
 //! would put it, whatever strands share its batch. A strand that fails rolls back and reports alone;
 //! one whose iterations end early is left out of its batch's later iterations.
+//!
+//! Where it stands: only the factorisation and the substitutions run in lanes. The systems are
+//! assembled strand by strand and copied in, and the projection and the frames run strand by strand.
+//! So a batch is not faster yet than its strands stepped one at a time (`benchmark lockstep`: 1.09–1.14×
+//! the time), and the plugin steps strands one at a time. `docs/performance.md` (issue 32) says why, and
+//! what the lanes still need to pay.
 
 use multiversion::multiversion;
 
@@ -56,7 +62,7 @@ impl LockstepWorkspace {
     /// Advances up to [`LANES`] strands by `params.dt` together, each exactly as
     /// [`Rod::step_with_loads`] would (same result, bit for bit; the same roll-back on failure), and
     /// returns their results in order. Strands whose node count differs from the first's are stepped
-    /// alone.
+    /// alone. Not faster yet than stepping them one at a time (see the module documentation).
     ///
     /// # Panics
     /// With more than [`LANES`] strands.

@@ -49,7 +49,7 @@ use super::timing::{Part, StepTimings, Stopwatch};
 pub const EXTRA_PROJECTION_ITERATIONS: u32 = 64;
 
 /// The first Levenberg–Marquardt shift λ tried when a Newton system does not factorise (see
-/// [`Rod::newton_iteration`]), dimensionless.
+/// [`Rod::assemble_and_factorize`]), dimensionless.
 const FIRST_REGULARISATION: f64 = 1e-8;
 
 /// The largest Levenberg–Marquardt shift λ tried, dimensionless: the diagonal doubled.
