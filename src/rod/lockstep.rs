@@ -62,7 +62,8 @@ impl LockstepWorkspace {
     /// Advances up to [`LANES`] strands by `params.dt` together, each exactly as
     /// [`Rod::step_with_loads`] would (same result, bit for bit; the same roll-back on failure), and
     /// returns their results in order. Strands whose node count differs from the first's are stepped
-    /// alone. Not faster yet than stepping them one at a time (see the module documentation).
+    /// alone. Not faster yet than stepping them one at a time: only the factorisation and the
+    /// substitutions run in SIMD lanes so far (`docs/performance.md`, issue 32).
     ///
     /// # Panics
     /// With more than [`LANES`] strands.
