@@ -15,6 +15,11 @@ pub const LANES: usize = 4;
 /// A bit per lane, bit `k` for lane `k`.
 pub(crate) type LaneMask = u32;
 
+/// The lanes whose bit is set in `mask`, in order.
+pub(crate) fn lanes_in(mask: LaneMask) -> impl Iterator<Item = usize> {
+    (0..LANES).filter(move |lane| mask & (1 << lane) != 0)
+}
+
 /// The numbers the banded factorisation works on: `f64`, or [`Lanes`] of them.
 pub(crate) trait Real:
     Copy

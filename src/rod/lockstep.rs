@@ -26,7 +26,7 @@ use super::contact::Contacts;
 use super::curve::Rod;
 use super::energy::{BANDWIDTH, dof_count};
 use super::error::StepError;
-use super::lanes::{LaneMask, Lanes};
+use super::lanes::{LaneMask, Lanes, lanes_in};
 use super::params::StepParams;
 use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, next_regularisation};
 
@@ -97,8 +97,8 @@ impl LockstepWorkspace {
                 break;
             }
             self.solve(active, size);
-            let solved = active;
-            for (lane, strand) in strands.iter_mut().enumerate().filter(|(lane, _)| solved & (1 << lane) != 0) {
+            for lane in lanes_in(active) {
+                let strand = &mut strands[lane];
                 let workspace = &mut self.lanes[lane];
                 let rod = &mut *strand.rod;
                 let finished = match rod.apply_newton_update(params, workspace) {
@@ -130,14 +130,19 @@ impl LockstepWorkspace {
     ) -> LaneMask {
         let mut regularisation = [0.0; LANES];
         let mut assemble = active;
-        self.matrix.reset(size);
+        // Sized once per node count: every going lane is written whole below, and the others are
+        // never read.
+        if self.matrix.size() != size {
+            self.matrix.reset(size);
+        }
         loop {
-            for (lane, strand) in strands.iter_mut().enumerate().filter(|(lane, _)| assemble & (1 << lane) != 0) {
+            for lane in lanes_in(assemble) {
+                let strand = &mut strands[lane];
                 strand.rod.assemble_newton_system(params, &strand.loads, &mut self.lanes[lane], regularisation[lane]);
             }
             // Every going lane again: the factorisation wrote over the last attempt.
-            for (lane, workspace) in self.lanes.iter().enumerate().filter(|(lane, _)| active & (1 << lane) != 0) {
-                self.matrix.set_lane(lane, workspace.hessian());
+            for lane in lanes_in(active) {
+                self.matrix.set_lane(lane, self.lanes[lane].hessian());
             }
             let mut rows = [0; LANES];
             let failed = factorize(&mut self.matrix, &mut rows) & active;
@@ -145,7 +150,7 @@ impl LockstepWorkspace {
                 return active;
             }
             assemble = 0;
-            for lane in (0..LANES).filter(|lane| failed & (1 << lane) != 0) {
+            for lane in lanes_in(failed) {
                 match next_regularisation(regularisation[lane], rows[lane]) {
                     Ok(shift) => {
                         regularisation[lane] = shift;
@@ -168,14 +173,13 @@ impl LockstepWorkspace {
     fn solve(&mut self, active: LaneMask, size: usize) {
         self.solution.clear();
         self.solution.resize(size, Lanes::default());
-        let going = |lane: &usize| active & (1 << lane) != 0;
-        for lane in (0..LANES).filter(going) {
+        for lane in lanes_in(active) {
             for (entry, residual) in self.solution.iter_mut().zip(self.lanes[lane].residual()) {
                 entry.0[lane] = -residual;
             }
         }
         solve(&mut self.matrix, &mut self.solution);
-        for lane in (0..LANES).filter(going) {
+        for lane in lanes_in(active) {
             for (residual, entry) in self.lanes[lane].residual_mut().iter_mut().zip(&self.solution) {
                 *residual = entry.0[lane];
             }
