@@ -735,7 +735,7 @@ fn parts_of_a_step(steps: usize) {
         let mut workspace = RodWorkspace::default();
         let (mut newton_iterations, mut projection_iterations) = (0u64, 0u64);
         let (mut rods, anchors, material_directions) = scene_strands(&roots, edges);
-        let mut skull = skull;
+        let mut skull = skull.clone();
         for step in 0..WARM_UP_STEPS + steps {
             if step == WARM_UP_STEPS {
                 workspace.time_parts(true);
@@ -745,9 +745,9 @@ fn parts_of_a_step(steps: usize) {
                 RigidPose::new(rotation.as_dquat(), translation.as_dvec3())
             };
             (skull.start, skull.end) = (pose(step), pose(step + 1));
-            let colliders = [skull];
-            let contacts = Contacts { colliders: if with_skull { &colliders } else { &[] }, thickness: 1e-3 };
             let head = skull.end;
+            let colliders = std::slice::from_ref(&skull);
+            let contacts = Contacts { colliders: if with_skull { colliders } else { &[] }, thickness: 1e-3 };
             for ((rod, anchor), direction) in rods.iter_mut().zip(&anchors).zip(&material_directions) {
                 clamp_on_head(rod, head, anchor, *direction);
                 let report = rod

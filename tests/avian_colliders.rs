@@ -23,7 +23,7 @@ fn parts(app: &mut App, entity: Entity) -> Vec<Entity> {
 /// step.
 fn inside_hair(app: &App, parts: &[Entity], point: Vec3) -> bool {
     parts.iter().any(|&part| {
-        let collider = app.world().get::<ColliderMotion>(part).unwrap().collider.expect("the part is used");
+        let collider = app.world().get::<ColliderMotion>(part).unwrap().collider.clone().expect("the part is used");
         collider.shape.contains(collider.end.to_local(point.as_dvec3()))
     })
 }
@@ -128,7 +128,7 @@ fn a_half_space_becomes_a_floor_and_parts_follow_changes_and_removal() {
     app.update();
     let [part] = parts(&mut app, floor)[..] else { panic!("one part") };
     assert!(app.world().get::<HairColliderOf>(part).is_none());
-    let motion = app.world().get::<ColliderMotion>(part).unwrap().collider.unwrap();
+    let motion = app.world().get::<ColliderMotion>(part).unwrap().collider.clone().unwrap();
     assert_eq!(motion.shape, ColliderShape::Plane);
     assert!((motion.friction - 0.7).abs() < 1e-6);
     // The plane's normal is the half-space's, turned with its entity.
@@ -186,7 +186,7 @@ fn hair_dropped_on_avian_colliders_lies_on_them() {
         let thickness = f64::from(strand.collision_thickness(margin));
         for position in strand.rod().positions() {
             for &part in &parts {
-                let collider = app.world().get::<ColliderMotion>(part).unwrap().collider.unwrap();
+                let collider = app.world().get::<ColliderMotion>(part).unwrap().collider.clone().unwrap();
                 let grown = collider.shape.inflated(thickness);
                 let local = collider.end.to_local(*position);
                 if grown.contains(local) {

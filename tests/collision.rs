@@ -21,7 +21,7 @@ const TOLERANCE: f64 = 1e-4;
 /// from the entity's `GlobalTransform` as Bevy's transform propagation computes it (not from what the
 /// plugin recorded).
 fn depth(app: &App, entity: Entity, thickness: f64, point: DVec3) -> f64 {
-    let shape = app.world().get::<HairCollider>(entity).unwrap().shape;
+    let shape = app.world().get::<HairCollider>(entity).unwrap().shape.clone();
     let (_, rotation, translation) =
         app.world().get::<GlobalTransform>(entity).unwrap().to_scale_rotation_translation();
     let local = RigidPose::new(rotation.as_dquat(), translation.as_dvec3()).to_local(point);

@@ -176,7 +176,7 @@ fn a_fast_moving_collider_pushes_a_hanging_strand_without_tunnelling() {
             start: RigidPose::new(DQuat::IDENTITY, path(step as f64)),
             end: RigidPose::new(DQuat::IDENTITY, path(step as f64 + 1.0)),
         };
-        let contacts = Contacts { colliders: &[collider], thickness: THICKNESS };
+        let contacts = Contacts { colliders: std::slice::from_ref(&collider), thickness: THICKNESS };
         let before: Vec<DVec3> = rod.positions().to_vec();
         rod.step_with_contacts(&params, None, &contacts, &mut workspace).unwrap();
         let centre = collider.end.translation;

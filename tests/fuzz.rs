@@ -236,7 +236,7 @@ fn core_case(seed: u64, tally: &mut CoreTally) {
             if rng.f64() < 0.03 {
                 pose.translation = nodes[rng.usize(..nodes.len())] + 0.02 * unit_vector(&mut rng);
             }
-            moving.push(MovingCollider { shape: *shape, friction: *friction, start, end: *pose });
+            moving.push(MovingCollider { shape: shape.clone(), friction: *friction, start, end: *pose });
         }
         // Forces: mostly none, sometimes huge or not finite.
         let mut forces = vec![DVec3::ZERO; rod.node_count()];

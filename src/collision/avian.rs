@@ -112,8 +112,8 @@ fn make_avian_hair_colliders(
         let friction =
             friction.map_or(HairCollider::DEFAULT_FRICTION, |friction| friction.dynamic_coefficient.max(0.0));
         let made = shapes
-            .iter()
-            .map(|&(shape, transform)| {
+            .drain(..)
+            .map(|(shape, transform)| {
                 let mut part = commands.spawn((
                     Name::new("Hair collider from avian"),
                     HairCollider::new(shape).with_friction(friction),

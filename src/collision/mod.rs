@@ -46,7 +46,7 @@ pub use avian::{AvianHairCollider, AvianHairColliderPart};
 /// world.spawn((HairCollider::ellipsoid(Vec3::new(0.078, 0.095, 0.1)), HairColliderOf(head), ChildOf(head)));
 /// world.spawn(HairCollider::plane().with_friction(0.6));
 /// ```
-#[derive(Component, Reflect, Debug, Clone, Copy, PartialEq)]
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Clone, PartialEq)]
 #[require(Transform, ColliderMotion)]
 pub struct HairCollider {
@@ -164,7 +164,7 @@ impl ColliderMotion {
     /// Records the pose for this step: the collider sweeps from its last pose, unless it moved farther
     /// than `teleport_distance` m, which puts it at `pose` directly.
     fn advance(&mut self, shape: ColliderShape, friction: f64, pose: RigidPose, teleport_distance: f64) {
-        let start = match self.collider {
+        let start = match &self.collider {
             Some(last) if last.end.translation.distance(pose.translation) <= teleport_distance => last.end,
             _ => pose,
         };
@@ -233,7 +233,7 @@ pub(crate) fn track_colliders(
         let moving = MovingCollider::fixed(shape, friction, RigidPose::new(rotation, translation));
         match moving.validate() {
             Ok(()) => {
-                motion.advance(shape, friction, moving.end, f64::from(settings.teleport_distance));
+                motion.advance(moving.shape, friction, moving.end, f64::from(settings.teleport_distance));
             }
             Err(error) => motion.reject(entity, error.to_string()),
         }
@@ -251,7 +251,7 @@ pub(crate) fn gather_colliders(
     shared_set.0.clear();
     for (entity, motion, of, shared) in &colliders {
         if of.is_none() || shared {
-            shared_set.0.add(entity, motion.collider);
+            shared_set.0.add(entity, motion.collider.as_ref());
         }
     }
     for (head, mut set, filter) in &mut heads {
@@ -266,7 +266,7 @@ pub(crate) fn gather_colliders(
             if let Ok((entity, motion, of, _)) = colliders.get(entity)
                 && !excluded(entity, of)
             {
-                set.add(entity, motion.collider);
+                set.add(entity, motion.collider.as_ref());
             }
         };
         let own = head_colliders.get(head).map(HeadColliders::colliders).unwrap_or_default();

@@ -148,7 +148,7 @@ pub fn draw_colliders(mut gizmos: Gizmos<HairGizmos>, colliders: Query<&Collider
     }
     let color = gizmos.config_ext.collider_color;
     let quarter = std::f32::consts::FRAC_PI_2;
-    for collider in colliders.iter().filter_map(|motion| motion.collider) {
+    for collider in colliders.iter().filter_map(|motion| motion.collider.as_ref()) {
         let pose = collider.end;
         let isometry = Isometry3d::new(pose.translation.as_vec3(), pose.rotation.as_quat());
         match collider.shape {
@@ -177,6 +177,15 @@ pub fn draw_colliders(mut gizmos: Gizmos<HairGizmos>, colliders: Query<&Collider
             ColliderShape::Cuboid { half_extents, rounding } => {
                 let size = 2.0 * (half_extents + bevy::math::DVec3::splat(rounding)).as_vec3();
                 let transform = Transform::from_isometry(isometry).with_scale(size);
+                gizmos.cube(transform, color);
+            }
+            // The box the field was baked in.
+            ColliderShape::Mesh { ref field, scale, .. } => {
+                let (low, high) = field.bounds();
+                let centre = isometry.translation + isometry.rotation * (0.5 * (low + high) * scale).as_vec3a();
+                let transform = Transform::from_translation(centre.into())
+                    .with_rotation(isometry.rotation)
+                    .with_scale(((high - low) * scale).as_vec3());
                 gizmos.cube(transform, color);
             }
         }

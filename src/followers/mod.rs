@@ -202,7 +202,7 @@ impl FollowerNodes {
 
 /// A collider grown by a strand's thickness, in single precision: followers are placed, not simulated, so
 /// their push-out is a cheap projection rather than the step's exact contact.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 struct GrownCollider {
     shape: ColliderShape,
     centre: Vec3,
@@ -246,7 +246,7 @@ impl GrownCollider {
                 (scaled < 1.0).then(|| if scaled > 0.0 { local / scaled } else { Vec3::Y * semi_axes.y as f32 })
             }
             ColliderShape::Plane => (local.y < 0.0).then(|| Vec3::new(local.x, 0.0, local.z)),
-            ColliderShape::Cuboid { .. } => {
+            ColliderShape::Cuboid { .. } | ColliderShape::Mesh { .. } => {
                 let local = local.as_dvec3();
                 self.shape.contains(local).then(|| self.shape.closest_surface_point(local).point.as_vec3())
             }

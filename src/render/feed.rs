@@ -59,8 +59,9 @@ pub struct GpuCollider {
 }
 
 impl GpuCollider {
-    /// The collider at the end of its step's motion, as the CPU placement takes it.
-    pub fn new(collider: &MovingCollider) -> Self {
+    /// The collider at the end of its step's motion, as the CPU placement takes it; `None` for a mesh,
+    /// which the GPU placement does not push followers out of (the guides still meet it).
+    pub fn new(collider: &MovingCollider) -> Option<Self> {
         let centre = collider.end.translation.as_vec3();
         let rotation = collider.end.rotation.as_quat();
         let shape = match collider.shape {
@@ -76,12 +77,13 @@ impl GpuCollider {
                 let half = half_extents.as_vec3();
                 [half.x, half.y, half.z, 4.0]
             }
+            ColliderShape::Mesh { .. } => return None,
         };
-        Self {
+        Some(Self {
             centre: [centre.x, centre.y, centre.z, collider.shape.bounding_radius() as f32],
             rotation: rotation.to_array(),
             shape,
-        }
+        })
     }
 }
 
@@ -198,7 +200,7 @@ impl GuideUpload {
         unpacked: impl Fn(Entity, &mut PackedStrandPose) -> bool + Sync,
     ) -> Result<Option<(Vec3, Vec3)>, LayoutChanged> {
         self.colliders.clear();
-        self.colliders.extend(colliders.iter().map(GpuCollider::new));
+        self.colliders.extend(colliders.iter().filter_map(GpuCollider::new));
         let (laid_out, first_nodes) = (&self.laid_out, &self.guide_first);
         let ranges = super::piece_ranges(laid_out.len(), threads);
         self.pieces.resize_with(ranges.len(), PackedPiece::default);

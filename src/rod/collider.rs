@@ -3,12 +3,14 @@
 //! frame, on the shape *inflated* by a strand's collision thickness.
 
 use bevy::math::{DQuat, DVec3};
+use bevy::platform::sync::Arc;
 use bevy::reflect::Reflect;
 
+use super::distance_field::DistanceField;
 use super::error::RodError;
 
 /// The solid shape of a collider, in its own frame (m).
-#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+#[derive(Debug, Clone, PartialEq, Reflect)]
 pub enum ColliderShape {
     /// A ball of `radius` m around the origin.
     Sphere {
@@ -39,6 +41,18 @@ pub enum ColliderShape {
         half_extents: DVec3,
         /// How far the solid reaches beyond the box, rounding its edges and corners, m.
         rounding: f64,
+    },
+    /// A closed triangle mesh (a face with its ears, shoulders, a body), as the zero level set of a signed
+    /// distance field baked from it ([`DistanceField`]): the field's frame scaled by `scale` per axis
+    /// (exact under an even scale; under an uneven one, distances are taken at the least scale) and grown
+    /// by `inflation` m. Shared, so cloning it is cheap.
+    Mesh {
+        /// The baked distances, in the mesh's own units before `scale`.
+        field: Arc<DistanceField>,
+        /// The scale of the field's frame along local X, Y and Z (positive).
+        scale: DVec3,
+        /// How far the solid reaches beyond the mesh, m.
+        inflation: f64,
     },
 }
 
@@ -72,6 +86,11 @@ impl ColliderShape {
         Self::Cuboid { half_extents, rounding: 0.0 }
     }
 
+    /// The mesh whose signed distance field is `field`, unscaled.
+    pub fn mesh(field: Arc<DistanceField>) -> Self {
+        Self::Mesh { field, scale: DVec3::ONE, inflation: 0.0 }
+    }
+
     /// Checks that every dimension is positive and finite (a capsule's half length and a cuboid's rounding
     /// may be zero).
     pub fn validate(&self) -> Result<(), RodError> {
@@ -100,6 +119,12 @@ impl ColliderShape {
                 check("half_extents.z", half_extents.z, false)?;
                 check("rounding", rounding, true)
             }
+            Self::Mesh { scale, inflation, .. } => {
+                check("scale.x", scale.x, false)?;
+                check("scale.y", scale.y, false)?;
+                check("scale.z", scale.z, false)?;
+                check("inflation", inflation, true)
+            }
         }
     }
 
@@ -119,6 +144,9 @@ impl ColliderShape {
             Self::Cuboid { half_extents, rounding } => {
                 Self::Cuboid { half_extents: half_extents * scale, rounding: rounding * scale.min_element() }
             }
+            Self::Mesh { ref field, scale: own, inflation } => {
+                Self::Mesh { field: field.clone(), scale: own * scale, inflation: inflation * scale.min_element() }
+            }
         }
     }
 
@@ -130,6 +158,10 @@ impl ColliderShape {
             Self::Ellipsoid { semi_axes } => semi_axes.max_element(),
             Self::Plane => f64::INFINITY,
             Self::Cuboid { half_extents, rounding } => half_extents.length() + rounding,
+            Self::Mesh { ref field, scale, inflation } => {
+                let (low, high) = field.bounds();
+                (low.abs().max(high.abs()) * scale).length() + inflation
+            }
         }
     }
 
@@ -141,6 +173,8 @@ impl ColliderShape {
             Self::Ellipsoid { semi_axes } => semi_axes.min_element().powi(2) / semi_axes.max_element(),
             Self::Plane => f64::INFINITY,
             Self::Cuboid { rounding, .. } => rounding,
+            // The interpolated surface bends within a cell.
+            Self::Mesh { ref field, scale, inflation } => field.cell_size() * scale.min_element() + inflation,
         }
     }
 
@@ -155,11 +189,15 @@ impl ColliderShape {
             Self::Ellipsoid { semi_axes } => Self::ellipsoid(semi_axes + DVec3::splat(thickness)),
             Self::Plane => Self::Plane,
             Self::Cuboid { half_extents, rounding } => Self::Cuboid { half_extents, rounding: rounding + thickness },
+            Self::Mesh { ref field, scale, inflation } => {
+                Self::Mesh { field: field.clone(), scale, inflation: inflation + thickness }
+            }
         }
     }
 
     /// A lower bound on the signed distance from `point` to the surface, m (negative inside); exact but
-    /// for ellipsoids. Cheap: used to skip points that cannot touch the shape this step.
+    /// for ellipsoids, and for meshes the interpolated distance. Cheap: used to skip points that cannot
+    /// touch the shape this step.
     pub fn distance_bound(&self, point: DVec3) -> f64 {
         match *self {
             Self::Sphere { radius } => point.length() - radius,
@@ -174,6 +212,7 @@ impl ColliderShape {
             }
             Self::Plane => point.y,
             Self::Cuboid { half_extents, rounding } => box_distance(half_extents, point) - rounding,
+            Self::Mesh { ref field, scale, inflation } => mesh_distance(field, scale, inflation, point).0,
         }
     }
 
@@ -196,6 +235,7 @@ impl ColliderShape {
             Self::Ellipsoid { semi_axes } => closest_ellipsoid_point(semi_axes, point),
             Self::Plane => SurfacePoint { point: DVec3::new(point.x, 0.0, point.z), normal: DVec3::Y },
             Self::Cuboid { half_extents, rounding } => closest_cuboid_point(half_extents, rounding, point),
+            Self::Mesh { ref field, scale, inflation } => closest_mesh_point(field, scale, inflation, point),
         }
     }
 
@@ -223,30 +263,71 @@ impl ColliderShape {
                     return None;
                 }
                 let (deepest, depth) = self.deepest_along(start, end);
-                if depth >= 0.0 {
+                (depth < 0.0).then(|| self.entry_between(start, end, 0.0, deepest))
+            }
+            // Not convex: the first stretch between samples half a cell apart that reaches inside.
+            Self::Mesh { .. } => {
+                if self.contains(start) {
                     return None;
                 }
-                let (mut outside, mut inside) = (0.0, deepest);
-                for _ in 0..60 {
-                    let middle = 0.5 * (outside + inside);
-                    if self.distance_bound(start.lerp(end, middle)) < 0.0 {
-                        inside = middle;
-                    } else {
-                        outside = middle;
-                    }
-                }
-                let surface = self.closest_surface_point(start.lerp(end, inside));
-                Some(SurfacePoint { point: start.lerp(end, outside), normal: surface.normal })
+                let (low, deepest, _) = self.mesh_dips(start, end).find(|&(_, _, depth)| depth < 0.0)?;
+                Some(self.entry_between(start, end, low, deepest))
             }
         }
     }
 
+    /// The stretches of `start`–`end`, between samples at most half a cell of a mesh's field apart (at
+    /// most 256), that can reach inside the mesh, in order: their start, and the fraction and signed
+    /// distance of their deepest point. A stretch whose ends lie `d₀` and `d₁` from the surface stays
+    /// outside if `d₀ + d₁` exceeds its length (the distance changes no faster than the point moves).
+    fn mesh_dips(&self, start: DVec3, end: DVec3) -> impl Iterator<Item = (f64, f64, f64)> {
+        let spacing = match self {
+            Self::Mesh { field, scale, .. } => 0.5 * field.cell_size() * scale.min_element(),
+            _ => f64::INFINITY,
+        };
+        let length = start.distance(end);
+        let intervals = (length / spacing).ceil().clamp(1.0, 256.0) as usize;
+        let stretch = length / intervals as f64;
+        let distance = move |k: usize| self.distance_bound(start.lerp(end, k as f64 / intervals as f64));
+        (0..intervals).filter_map(move |k| {
+            // A margin for the interpolation, whose slope may exceed one slightly.
+            if distance(k) + distance(k + 1) > 1.1 * stretch {
+                return None;
+            }
+            let (low, high) = (k as f64 / intervals as f64, (k + 1) as f64 / intervals as f64);
+            let (deepest, depth) = self.deepest_between(start, end, low, high);
+            Some((low, deepest, depth))
+        })
+    }
+
+    /// Where the path from `start` to `end` crosses the surface between the fractions `outside` and
+    /// `inside` along it, by bisection; the normal from the point just inside.
+    fn entry_between(&self, start: DVec3, end: DVec3, mut outside: f64, mut inside: f64) -> SurfacePoint {
+        for _ in 0..60 {
+            let middle = 0.5 * (outside + inside);
+            if self.contains(start.lerp(end, middle)) {
+                inside = middle;
+            } else {
+                outside = middle;
+            }
+        }
+        let surface = self.closest_surface_point(start.lerp(end, inside));
+        SurfacePoint { point: start.lerp(end, outside), normal: surface.normal }
+    }
+
     /// The fraction along `start`–`end` of its point deepest in (or nearest to) a cuboid, and the signed
-    /// distance there: a golden-section search of the convex signed distance along the segment.
+    /// distance there.
     fn deepest_along(&self, start: DVec3, end: DVec3) -> (f64, f64) {
+        self.deepest_between(start, end, 0.0, 1.0)
+    }
+
+    /// The fraction between `low` and `high` along `start`–`end` of the point deepest in the shape, and
+    /// the signed distance there: a golden-section search, exact where the distance is convex along the
+    /// segment (a convex solid).
+    fn deepest_between(&self, start: DVec3, end: DVec3, mut low: f64, mut high: f64) -> (f64, f64) {
         const GOLDEN: f64 = 0.618_033_988_749_895;
         let distance = |fraction: f64| self.distance_bound(start.lerp(end, fraction));
-        let (mut low, mut high) = (0.0_f64, 1.0_f64);
+        let (first, last) = (low, high);
         let (mut a, mut b) = (high - GOLDEN * (high - low), low + GOLDEN * (high - low));
         let (mut at_a, mut at_b) = (distance(a), distance(b));
         for _ in 0..48 {
@@ -263,10 +344,10 @@ impl ColliderShape {
             }
         }
         // The ends too: the least of a convex function on a segment may sit at either end.
-        [(0.5 * (low + high), distance(0.5 * (low + high))), (0.0, distance(0.0)), (1.0, distance(1.0))]
+        [(0.5 * (low + high), distance(0.5 * (low + high))), (first, distance(first)), (last, distance(last))]
             .into_iter()
             .min_by(|x, y| x.1.total_cmp(&y.1))
-            .unwrap_or((0.0, f64::INFINITY))
+            .unwrap_or((first, f64::INFINITY))
     }
 
     /// The point of the segment `start`–`end` deepest inside the shape when it dips in (both ends may be
@@ -283,6 +364,12 @@ impl ColliderShape {
             Self::Plane => return None,
             Self::Cuboid { .. } => {
                 let (fraction, _) = self.deepest_along(start, end);
+                (fraction, start.lerp(end, fraction))
+            }
+            // The deepest of the stretches that can reach inside.
+            Self::Mesh { .. } => {
+                let (_, fraction, _) =
+                    self.mesh_dips(start, end).min_by(|x, y| x.2.total_cmp(&y.2)).unwrap_or((0.0, 0.0, f64::INFINITY));
                 (fraction, start.lerp(end, fraction))
             }
         };
@@ -451,6 +538,30 @@ fn closest_ellipsoid_point(semi_axes: DVec3, point: DVec3) -> SurfacePoint {
     }
 }
 
+/// The signed distance from `point` to a mesh's surface and its gradient: the field at `point / scale`,
+/// taken at the least scale, less the inflation.
+fn mesh_distance(field: &DistanceField, scale: DVec3, inflation: f64, point: DVec3) -> (f64, DVec3) {
+    let least = scale.min_element();
+    let (distance, gradient) = field.distance_and_gradient(point / scale);
+    (distance * least - inflation, gradient / scale * least)
+}
+
+/// The point of a mesh's surface (the field's zero level set) nearest to `point`, by Newton steps along
+/// the gradient, `p ← p − d ∇d / |∇d|²`, with the outward normal there.
+fn closest_mesh_point(field: &DistanceField, scale: DVec3, inflation: f64, point: DVec3) -> SurfacePoint {
+    let mut surface = point;
+    for _ in 0..32 {
+        let (distance, gradient) = mesh_distance(field, scale, inflation, surface);
+        let squared = gradient.length_squared();
+        if distance.abs() < 1e-13 || squared < 1e-12 {
+            break;
+        }
+        surface -= gradient * (distance / squared);
+    }
+    let (_, gradient) = mesh_distance(field, scale, inflation, surface);
+    SurfacePoint { point: surface, normal: gradient.try_normalize().unwrap_or(DVec3::Y) }
+}
+
 /// A rigid placement of a collider: `x ↦ rotation · x + translation`.
 #[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct RigidPose {
@@ -485,7 +596,7 @@ impl RigidPose {
 
 /// A collider during one step: its shape, friction and where it is at the start and at the end of the
 /// step (so contact follows a collider that moves or turns fast, without tunnelling).
-#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+#[derive(Debug, Clone, PartialEq, Reflect)]
 pub struct MovingCollider {
     /// The solid shape, in the collider's frame.
     pub shape: ColliderShape,
@@ -672,5 +783,65 @@ mod tests {
         assert!(cuboid.validate().is_ok());
         assert!(ColliderShape::Cuboid { half_extents: DVec3::new(0.1, 0.0, 0.1), rounding: 0.0 }.validate().is_err());
         assert!(ColliderShape::Cuboid { half_extents: DVec3::splat(0.1), rounding: -0.01 }.validate().is_err());
+    }
+
+    /// Meshes as colliders: a baked ball, a baked head with ears (not convex), scaled and grown.
+    fn mesh_shapes() -> Vec<ColliderShape> {
+        use crate::rod::distance_field::tests::{head_with_ears, uv_sphere};
+        let bake = |(positions, triangles): (Vec<DVec3>, Vec<[u32; 3]>), cell| {
+            ColliderShape::mesh(Arc::new(DistanceField::bake(&positions, &triangles, cell).unwrap()))
+        };
+        let ball = bake(uv_sphere(0.1, 32), 0.005);
+        let head = bake(head_with_ears(40), 0.004);
+        vec![ball.clone(), ball.scaled(DVec3::splat(1.2)).inflated(0.005), head.clone(), head.inflated(0.002)]
+    }
+
+    #[test]
+    fn a_mesh_is_met_on_its_fields_surface() {
+        for shape in mesh_shapes() {
+            let (mut closest, mut entries, mut dips) = (0, 0, 0);
+            for point in probe_points() {
+                assert_eq!(shape.contains(point), shape.distance_bound(point) < 0.0);
+                if !shape.contains(point) {
+                    continue;
+                }
+                closest += 1;
+                let surface = shape.closest_surface_point(point);
+                assert!(shape.distance_bound(surface.point).abs() < 1e-12, "{point}: {surface:?}");
+                assert!(!shape.contains(surface.point + 1e-9 * surface.normal), "{point}");
+                assert!(shape.contains(surface.point - 1e-9 * surface.normal), "{point}");
+                // Near the closest: the field is a distance, within a few per cent where it is smooth.
+                let depth = -shape.distance_bound(point);
+                assert!(surface.point.distance(point) <= 1.1 * depth + 1e-4, "{point}: {depth}");
+            }
+            for (start, end) in probe_points().zip(probe_points().skip(7)) {
+                if shape.contains(start) {
+                    assert!(shape.entry(start, end).is_none());
+                    continue;
+                }
+                let first_inside = (1..=4000).map(|k| k as f64 / 4000.0).find(|s| shape.contains(start.lerp(end, *s)));
+                match (shape.entry(start, end), first_inside) {
+                    (Some(hit), Some(fraction)) => {
+                        entries += 1;
+                        let sampled = start.lerp(end, fraction);
+                        assert!(hit.point.distance(sampled) <= start.distance(end) / 4000.0 + 1e-12, "{shape:?}");
+                        assert!(hit.normal.dot(end - start) < 0.0, "the path enters against the normal");
+                    }
+                    (None, None) => {}
+                    (hit, sampled) => panic!("{start} → {end}: entry {hit:?}, sampled {sampled:?}"),
+                }
+                // A segment's deepest point: no sample of it lies deeper.
+                if let Some((fraction, surface)) = shape.segment_contact(start, end) {
+                    dips += 1;
+                    let deepest = shape.distance_bound(start.lerp(end, fraction));
+                    let sampled = (0..=400)
+                        .map(|k| shape.distance_bound(start.lerp(end, k as f64 / 400.0)))
+                        .fold(f64::INFINITY, f64::min);
+                    assert!(deepest <= sampled + 1e-9, "{start} → {end}: {deepest} > {sampled}");
+                    assert!(shape.distance_bound(surface.point).abs() < 1e-12);
+                }
+            }
+            assert!(closest > 50 && entries > 50 && dips > 50, "{closest} {entries} {dips}");
+        }
     }
 }

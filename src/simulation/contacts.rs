@@ -33,11 +33,11 @@ impl HeadColliderSet {
     }
 
     /// Adds `entity`'s collider if it is in use and not in the set yet.
-    pub(crate) fn add(&mut self, entity: Entity, collider: Option<MovingCollider>) {
+    pub(crate) fn add(&mut self, entity: Entity, collider: Option<&MovingCollider>) {
         if let Some(collider) = collider
             && !self.entities.contains(&entity)
         {
-            self.colliders.push(collider);
+            self.colliders.push(collider.clone());
             self.entities.push(entity);
         }
     }
