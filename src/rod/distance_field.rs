@@ -226,11 +226,11 @@ impl<'a> Baker<'a> {
     }
 
     /// The samples within a range of cells along each axis, clamped to the grid.
-    fn sample_range(&self, low: DVec3, high: DVec3, axis: usize) -> std::ops::RangeInclusive<usize> {
-        let last = self.counts[axis] - 1;
-        let first = (((low[axis] - self.min[axis]) / self.cell).ceil().max(0.0) as usize).min(last + 1);
-        let end = (((high[axis] - self.min[axis]) / self.cell).floor().max(-1.0) as isize).min(last as isize);
-        if end < first as isize { 1..=0 } else { first..=end as usize }
+    fn sample_range(&self, low: DVec3, high: DVec3, axis: usize) -> std::ops::Range<usize> {
+        let count = self.counts[axis] as f64;
+        let first = ((low[axis] - self.min[axis]) / self.cell).ceil().clamp(0.0, count) as usize;
+        let past = (((high[axis] - self.min[axis]) / self.cell).floor() + 1.0).clamp(0.0, count) as usize;
+        first.min(past)..past
     }
 
     /// Exact distances to each triangle at the samples within [`EXACT_BAND_CELLS`] of its bounding box.
