@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `lockstep`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
+//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -115,6 +115,9 @@ fn main() {
     }
     if wanted("preload") {
         preload_cost();
+    }
+    if wanted("mesh-collider") {
+        mesh_collider_cost(threads, steps);
     }
     if wanted("followers") {
         followers_cost(threads, steps);
@@ -603,6 +606,54 @@ fn integrators(threads: usize, steps: usize) {
             let median = times[index][steps / 2];
             println!("| {colliders} | {name} | {:.2} | {:.2} |", 1e3 * median, iterations[index] / steps as f64);
         }
+    }
+}
+
+/// Colliders baked from meshes: the baking time of icospheres of 2 000 to 40 500 triangles at 64 and
+/// 128 cells along their side (fastest of three), then what a baked 10 cm ball costs a step against the
+/// analytic sphere it stands for (1 000 strands × 32 edges on the moving head, scenes stepped in turn).
+fn mesh_collider_cost(threads: usize, steps: usize) {
+    use bevy::prelude::{Meshable, Sphere, Transform};
+    println!();
+    println!("Colliders baked from meshes (icospheres, r = 10 cm):");
+    println!("| triangles | cells along a side | samples | ms per bake |");
+    println!("|---:|---:|---:|---:|");
+    for subdivisions in [9, 21, 44] {
+        let mesh = Sphere::new(0.1).mesh().ico(subdivisions).expect("a few subdivisions");
+        let triangles = mesh.indices().map_or(0, |indices| indices.len() / 3);
+        for resolution in [64, 128] {
+            let settings = MeshColliderSettings { resolution, ..MeshColliderSettings::default() };
+            let mut samples = 0;
+            let fastest = (0..3)
+                .map(|_| {
+                    let started = Instant::now();
+                    let collider = HairCollider::from_mesh(&mesh, settings).expect("an icosphere bakes");
+                    let seconds = started.elapsed().as_secs_f64();
+                    if let ColliderShape::Mesh { field, .. } = &collider.shape {
+                        samples = field.sample_counts().iter().product::<usize>();
+                    }
+                    seconds
+                })
+                .fold(f64::INFINITY, f64::min);
+            println!("| {triangles} | {resolution} | {samples} | {:.0} |", 1e3 * fastest);
+        }
+    }
+    let ball = Sphere::new(0.1).mesh().ico(21).expect("21 subdivisions");
+    let baked = HairCollider::from_mesh(&ball, MeshColliderSettings::default()).expect("an icosphere bakes");
+    let mut scenes = [
+        Scene::new(1000, 32, Some(threads)),
+        Scene::new(1000, 32, Some(threads)).with_collider(HairCollider::sphere(0.1), Transform::default()),
+        Scene::new(1000, 32, Some(threads)).with_collider(baked, Transform::default()),
+    ];
+    let seconds = interleaved_median_step_seconds(&mut scenes, steps);
+    println!();
+    println!("| 1 000 strands × 32 edges, collider | ms / step | the collider's share, ms |");
+    println!("|---|---:|---:|");
+    let without = seconds[0];
+    for (name, seconds) in
+        ["none", "sphere, r = 10 cm", "baked icosphere, 9 680 triangles, 64 cells"].iter().zip(seconds)
+    {
+        println!("| {name} | {:.2} | {:.2} |", 1e3 * seconds, 1e3 * (seconds - without));
     }
 }
 

@@ -371,7 +371,8 @@ pub mod prelude {
     #[cfg(feature = "avian")]
     pub use crate::collision::AvianHairCollider;
     pub use crate::collision::{
-        HairCollider, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders, SharedHairCollider,
+        HairCollider, HairColliderFromMesh, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders,
+        MeshColliderError, MeshColliderSettings, SharedHairCollider,
     };
     #[cfg(feature = "egui")]
     pub use crate::debug::HairPanelPlugin;

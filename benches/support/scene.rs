@@ -92,6 +92,13 @@ impl Scene {
         self
     }
 
+    /// The scene with `collider` on the head, at `transform` from it.
+    pub fn with_collider(mut self, collider: HairCollider, transform: Transform) -> Self {
+        let head = self.head;
+        self.app.world_mut().spawn((collider, transform, HairColliderOf(head), ChildOf(head)));
+        self
+    }
+
     /// The head's position and orientation at step `step`: a sway of 5 cm and a turn of ±0.4 rad, about
     /// once a second, at 1.6 m.
     pub fn head_pose(step: usize) -> (Vec3, Quat) {

@@ -30,8 +30,10 @@ pub use crate::simulation::{HeadColliderSet, SharedColliderSet};
 
 #[cfg(feature = "avian")]
 pub mod avian;
+pub mod mesh;
 #[cfg(feature = "avian")]
 pub use avian::{AvianHairCollider, AvianHairColliderPart};
+pub use mesh::{HairColliderFromMesh, MeshColliderBaking, MeshColliderError, MeshColliderSettings};
 
 /// A solid that hair cannot pass through, in the local space of its entity's transform (scale included:
 /// a sphere scaled unevenly becomes an ellipsoid). See the [module documentation](self) for which
@@ -203,7 +205,9 @@ impl Plugin for HairCollisionPlugin {
             .init_resource::<SharedColliderSet>()
             .register_required_components::<HairHead, HeadColliderSet>()
             .register_required_components::<HeadStrands, HeadColliderSet>()
-            .add_systems(self.schedule, (track_colliders, gather_colliders).chain().in_set(HairPinSystems::Colliders));
+            .register_type::<HairColliderFromMesh>()
+            .add_systems(self.schedule, (track_colliders, gather_colliders).chain().in_set(HairPinSystems::Colliders))
+            .add_systems(Update, (mesh::start_mesh_bakes, mesh::finish_mesh_bakes).chain());
         #[cfg(feature = "avian")]
         avian::build(app, self.schedule);
     }
