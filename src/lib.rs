@@ -107,6 +107,7 @@
 //! |---|---|---|
 //! | [`HairSimulationPlugin`] | heads, strands, their data, [`HairSettings`](simulation::HairSettings), [`HairStatistics`](simulation::HairStatistics), the step; configures the [sets](schedule) | no hair |
 //! | [`HairCollisionPlugin`] | tracks [`HairCollider`](collision::HairCollider)s and gathers each head's set | hair passes through everything |
+//! | [`HairScalpPlugin`] | roots bound to a scalp mesh, rigid or skinned ([`HairScalpMesh`](scalp::HairScalpMesh)) | roots follow their head only |
 //! | [`HairDetailPlugin`] | levels of detail from the cameras | every head at full detail |
 //! | [`HairFollowersPlugin`] | binds and places follower hairs | followers ignored |
 //! | [`HairVolumePlugin`] | hair–hair interaction through a grid, when [`HairVolume::enabled`](simulation::HairVolume::enabled) | strands meet only colliders |
@@ -246,6 +247,7 @@ pub mod groom;
 mod parallel;
 pub mod render;
 pub mod rod;
+pub mod scalp;
 pub mod schedule;
 pub mod simulation;
 pub mod volume;
@@ -263,6 +265,7 @@ use debug::HairGizmoPlugin;
 use detail::HairDetailPlugin;
 use followers::HairFollowersPlugin;
 use groom::HairGroomPlugin;
+use scalp::HairScalpPlugin;
 use volume::HairVolumePlugin;
 use wind::HairWindPlugin;
 
@@ -332,6 +335,7 @@ impl PluginGroup for HairPlugin {
         let group = PluginGroupBuilder::start::<Self>()
             .add(HairSimulationPlugin { schedule })
             .add(HairCollisionPlugin { schedule })
+            .add(HairScalpPlugin { schedule })
             .add(HairDetailPlugin { schedule })
             .add(HairFollowersPlugin { schedule })
             .add(HairVolumePlugin { schedule })
@@ -358,6 +362,7 @@ macro_rules! in_fixed_update_by_default {
 in_fixed_update_by_default!(
     HairSimulationPlugin,
     HairCollisionPlugin,
+    HairScalpPlugin,
     HairDetailPlugin,
     HairFollowersPlugin,
     HairVolumePlugin,
@@ -391,6 +396,7 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
+    pub use crate::scalp::{HairScalpMesh, HairScalpPlugin, ScalpRootBinding};
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
     pub use crate::simulation::{
         EdgeFrame, HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HeadStrands,

@@ -8,10 +8,10 @@
 //! [`HairSettings::max_steps_per_frame`](crate::simulation::HairSettings::max_steps_per_frame)).
 //!
 //! ```text
-//! HairSystems::Prepare         Grow → Build → Bind → Apply → Budget        (HairPrepareSystems)
-//! HairSystems::PinRoots        Track → ChooseDetail → Pin, and Colliders   (HairPinSystems)
+//! HairSystems::Prepare         Grow → Build → Bind → Apply → Budget                    (HairPrepareSystems)
+//! HairSystems::PinRoots        Track → FollowScalp → ChooseDetail → Pin, and Colliders (HairPinSystems)
 //! HairSystems::ExternalForces  wind, hair–hair grid, your forces
-//! HairSystems::Step            Integrate → Follow                          (HairStepSystems)
+//! HairSystems::Step            Integrate → Follow                                      (HairStepSystems)
 //! HairSystems::PostStep        your checks and constraints
 //! PostUpdate: HairDrawSystems  after transform propagation
 //! ```
@@ -60,12 +60,14 @@ pub enum HairPrepareSystems {
     Budget,
 }
 
-/// The parts of [`HairSystems::PinRoots`]: `Track`, `ChooseDetail` and `Pin` chained, `Colliders`
+/// The parts of [`HairSystems::PinRoots`]: `Track`, `FollowScalp`, `ChooseDetail` and `Pin` chained, `Colliders`
 /// beside them.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairPinSystems {
     /// Every head's pose at this step is recorded.
     Track,
+    /// Roots bound to a scalp mesh are moved with its triangles, skinned by its joints ([`crate::scalp`]).
+    FollowScalp,
     /// Every head's level of detail is chosen ([`crate::detail`]), and with it which strands step now.
     ChooseDetail,
     /// Every strand's root edge is moved to its anchor on its head.

@@ -93,6 +93,7 @@ impl Scene {
     }
 
     /// The scene with `collider` on the head, at `transform` from it.
+    #[allow(dead_code)] // The benchmark example's; the Criterion benches do not use it.
     pub fn with_collider(mut self, collider: HairCollider, transform: Transform) -> Self {
         let head = self.head;
         self.app.world_mut().spawn((collider, transform, HairColliderOf(head), ChildOf(head)));

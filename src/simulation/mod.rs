@@ -197,7 +197,7 @@ impl Plugin for HairSimulationPlugin {
         )
         .configure_sets(
             schedule,
-            (HairPinSystems::Track, HairPinSystems::ChooseDetail, HairPinSystems::Pin)
+            (HairPinSystems::Track, HairPinSystems::FollowScalp, HairPinSystems::ChooseDetail, HairPinSystems::Pin)
                 .chain()
                 .in_set(HairSystems::PinRoots),
         )

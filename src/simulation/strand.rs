@@ -325,6 +325,22 @@ impl SimulatedStrand {
         &mut self.rod
     }
 
+    /// Where the root edge is held on the head (`None` for a free strand).
+    pub(crate) fn root_anchor(&self) -> Option<&RootAnchor> {
+        self.anchor.as_ref()
+    }
+
+    /// Moves the root edge's anchor on the head (a root bound to a moving scalp triangle): the root node
+    /// to `position` (head-local, m), the edge along the unit `direction` at its length, the material
+    /// director along `material_direction`. The next clamp holds the root there. A free strand has none.
+    pub(crate) fn move_root_anchor(&mut self, position: DVec3, direction: DVec3, material_direction: DVec3) {
+        if let Some(anchor) = &mut self.anchor {
+            anchor.position = position;
+            anchor.edge = direction * anchor.edge.length();
+            anchor.material_direction = material_direction;
+        }
+    }
+
     /// Gives the rod the rest shape `lengths`, `curvatures`, `twists` (see [`Rod::set_rest_shape`]); the
     /// root edge's anchor on the head takes the new length of the root edge.
     pub(crate) fn set_rest_shape(

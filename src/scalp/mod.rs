@@ -1,0 +1,388 @@
+//! Roots bound to a scalp mesh: hair that grows from a character's skin, rigid or skinned.
+//!
+//! Put [`HairScalpMesh`]`(mesh_entity)` on a head: every strand of that head ([`StrandOf`]) is bound, once
+//! the mesh has loaded, to the triangle of the mesh nearest its root (a [`ScalpRootBinding`]: the triangle
+//! and the root's barycentric coordinates in it). From then on, every fixed step, the root follows that
+//! point of the triangle as the mesh is drawn, and the root edge keeps its direction in the triangle's
+//! frame (its first edge, its normal):
+//!
+//! - a **skinned** mesh ([`SkinnedMesh`]) is skinned on the CPU as Bevy's shaders skin it (each corner by
+//!   its joints' `GlobalTransform` × inverse bind pose, blended by its weights), and only the corners of
+//!   bound triangles are;
+//! - a mesh without a skin moves with its entity's `GlobalTransform`.
+//!
+//! The head should be the entity that moves most like the scalp (the head joint of a skeleton): the
+//! head's pose still carries the whole strand when it teleports, chooses its level of detail and places
+//! a quarantined strand, and the roots' anchors are kept in its local space.
+//!
+//! ```
+//! # use bevy::prelude::*;
+//! # use bevy_hair_sim::prelude::*;
+//! # let mut world = World::new();
+//! # let scalp = world.spawn_empty().id();
+//! // Once the character is spawned: its head joint becomes the hair's head, its scalp mesh the binding.
+//! let head_joint = world.spawn((Transform::default(), HairHead, HairScalpMesh(scalp))).id();
+//! world.entity_mut(head_joint).insert(HairGroom::default());
+//! ```
+//!
+//! Strands are bound in the pose the mesh has when they are first stepped, so spawn the hair with the
+//! roots on the scalp as it is then. A root is bound to the nearest point of the mesh wherever it is;
+//! what it needs is a triangle list with positions in the main world (and, skinned, joint indices and
+//! weights). A mesh that cannot be used is reported once and its head's roots follow the head until it
+//! is fixed.
+
+use bevy::math::{Affine3A, DAffine3, DMat3, DVec3};
+use bevy::mesh::VertexAttributeValues;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
+use thiserror::Error;
+
+use crate::collision::mesh::{MeshColliderError, mesh_triangles};
+use crate::rod::closest_point_on_triangle;
+use crate::schedule::HairPinSystems;
+use crate::simulation::{HairStrand, HeadMotion, SimulatedStrand, StrandOf};
+
+/// On a [`HairHead`](crate::simulation::HairHead): its strands' roots are bound to the triangles of this
+/// entity's [`Mesh3d`] (skinned by its [`SkinnedMesh`] if it has one). See the [module documentation](self).
+#[derive(Component, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+#[reflect(Component, Debug, PartialEq, Clone)]
+#[require(ScalpPose)]
+pub struct HairScalpMesh(pub Entity);
+
+/// Where a strand's root is bound on its head's scalp mesh; added by the plugin.
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Component, Debug, PartialEq, Clone)]
+pub struct ScalpRootBinding {
+    /// The scalp mesh entity bound to.
+    pub mesh: Entity,
+    /// The triangle's index in the mesh (its corners are indices `3 · triangle` to `3 · triangle + 2`).
+    pub triangle: u32,
+    /// The root's barycentric coordinates in the triangle (weights of its three corners, summing to 1).
+    pub barycentric: DVec3,
+    /// The triangle's corners as the mesh has them, with their joints.
+    pub corners: [BoundVertex; 3],
+    /// The root edge's direction in the triangle's frame (first edge, second, normal).
+    edge_direction: DVec3,
+    /// The root edge's material direction in the triangle's frame.
+    material_direction: DVec3,
+}
+
+/// A corner of a bound triangle: its position in the mesh's space, m, and the joints that skin it.
+#[derive(Reflect, Debug, Clone, Copy, PartialEq)]
+#[reflect(Debug, PartialEq, Clone)]
+pub struct BoundVertex {
+    /// Position in the mesh's (bind) space, m.
+    pub position: Vec3,
+    /// Indices into the [`SkinnedMesh::joints`] (all 0 for a mesh without a skin).
+    pub joints: [u16; 4],
+    /// Weights of those joints, summing to 1.
+    pub weights: [f32; 4],
+}
+
+/// Where a head's scalp mesh is at this step: each joint's map from the mesh's space to the head's local
+/// space (one map, the mesh entity's, for a mesh without a skin). Kept by the plugin.
+#[derive(Component, Debug, Default, Clone)]
+pub struct ScalpPose {
+    /// The maps, or `None` while the scalp cannot be posed (not loaded, or faulty).
+    joints: Option<Vec<DAffine3>>,
+    /// Why it cannot be, when it is faulty (reported once).
+    problem: Option<ScalpError>,
+}
+
+impl ScalpPose {
+    /// Where the mesh-space `vertex` is, in the head's local space, m: the blend of its joints' maps.
+    fn skin(joints: &[DAffine3], vertex: &BoundVertex) -> Option<DVec3> {
+        let position = vertex.position.as_dvec3();
+        vertex.joints.iter().zip(vertex.weights).try_fold(DVec3::ZERO, |sum, (&joint, weight)| {
+            if weight == 0.0 {
+                return Some(sum);
+            }
+            Some(sum + f64::from(weight) * joints.get(usize::from(joint))?.transform_point3(position))
+        })
+    }
+}
+
+/// Why a scalp mesh cannot hold roots.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum ScalpError {
+    /// The scalp entity has no `Mesh3d`.
+    #[error("the scalp entity {0} has no Mesh3d")]
+    NoMesh(Entity),
+    /// A transform of the mesh or a joint is missing or not finite.
+    #[error("the scalp mesh or one of its joints has no usable transform")]
+    NoTransform,
+    /// The skin's joints and inverse bind poses do not match.
+    #[error("the skin has {joints} joints but {bindposes} inverse bind poses")]
+    SkinMismatch {
+        /// Joints in the [`SkinnedMesh`].
+        joints: usize,
+        /// Inverse bind poses in its asset.
+        bindposes: usize,
+    },
+    /// A skinned mesh without `u16 × 4` joint indices and `f32 × 4` weights for every vertex.
+    #[error("the skinned scalp mesh has no joint indices and weights for every vertex")]
+    NoJointWeights,
+    /// A vertex's weights do not sum to a positive number, or name a joint the skin does not have.
+    #[error("vertex {0} of the scalp mesh has no joint weight, or a joint the skin does not have")]
+    BadWeights(u32),
+    /// Every triangle is degenerate.
+    #[error("the scalp mesh has no triangle with an area")]
+    NoTriangle,
+    /// The mesh's data.
+    #[error(transparent)]
+    Mesh(#[from] MeshColliderError),
+}
+
+/// Roots bound to scalp meshes (see the [module documentation](self)); part of [`crate::HairPlugin`].
+#[derive(Debug, Clone)]
+pub struct HairScalpPlugin {
+    /// The fixed-timestep schedule the simulation runs in (that of [`crate::HairSimulationPlugin`]).
+    pub schedule: bevy::ecs::schedule::InternedScheduleLabel,
+}
+
+impl Plugin for HairScalpPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<HairScalpMesh>().register_type::<ScalpRootBinding>().add_systems(
+            self.schedule,
+            (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),
+        );
+    }
+}
+
+/// Every scalp's joint maps for this step, from the joints' transforms now (computed through their
+/// parents, as the heads' are) and the head's pose.
+fn pose_scalps(
+    transforms: TransformHelper,
+    meshes: Query<(Has<Mesh3d>, Option<&SkinnedMesh>)>,
+    bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
+    mut heads: Query<(Entity, &HairScalpMesh, &HeadMotion, &mut ScalpPose)>,
+    mut unbound: Query<&mut ScalpPose, Without<HairScalpMesh>>,
+) {
+    // A head whose scalp was taken away: its roots stay where they were on it.
+    for mut pose in &mut unbound {
+        if pose.joints.is_some() {
+            pose.joints = None;
+        }
+    }
+    for (head, &HairScalpMesh(scalp), motion, mut pose) in &mut heads {
+        let head_pose = motion.current;
+        let to_head =
+            DAffine3::from_scale_rotation_translation(head_pose.scale, head_pose.rotation, head_pose.translation)
+                .inverse();
+        let global = |entity: Entity| {
+            transforms
+                .compute_global_transform(entity)
+                .ok()
+                .map(|transform| affine_f64(transform.affine()))
+                .filter(|affine| affine.is_finite())
+                .ok_or(ScalpError::NoTransform)
+        };
+        let joints = match meshes.get(scalp) {
+            Ok((false, _)) | Err(_) => Err(Some(ScalpError::NoMesh(scalp))),
+            Ok((true, None)) => global(scalp).map(|mesh| vec![to_head * mesh]).map_err(Some),
+            Ok((true, Some(skin))) => match bindposes.as_ref().and_then(|assets| assets.get(&skin.inverse_bindposes)) {
+                None => Err(None), // Not loaded yet.
+                Some(inverse) if inverse.len() != skin.joints.len() => {
+                    Err(Some(ScalpError::SkinMismatch { joints: skin.joints.len(), bindposes: inverse.len() }))
+                }
+                Some(inverse) => skin
+                    .joints
+                    .iter()
+                    .zip(inverse.iter())
+                    .map(|(&joint, bindpose)| Ok(to_head * global(joint)? * affine_f64(Affine3A::from_mat4(*bindpose))))
+                    .collect::<Result<Vec<_>, _>>()
+                    .map_err(Some),
+            },
+        };
+        match joints {
+            Ok(joints) => {
+                pose.joints = Some(joints);
+                pose.problem = None;
+            }
+            Err(problem) => {
+                pose.joints = None;
+                report(head, &mut pose, problem);
+            }
+        }
+    }
+}
+
+/// Records `problem` on the head's scalp, logging it when it is new.
+fn report(head: Entity, pose: &mut ScalpPose, problem: Option<ScalpError>) {
+    if problem.is_some() && pose.problem != problem {
+        if let Some(problem) = &problem {
+            error!("hair head {head}: its scalp mesh cannot hold roots, which follow the head meanwhile: {problem}");
+        }
+        pose.problem = problem;
+    }
+}
+
+/// A single-precision affine map in double precision.
+fn affine_f64(affine: Affine3A) -> DAffine3 {
+    DAffine3::from_mat4(Mat4::from(affine).as_dmat4())
+}
+
+/// A scalp's triangles, posed in the head's local space, with their corners.
+struct PosedScalp {
+    corners: Vec<BoundVertex>,
+    triangles: Vec<[u32; 3]>,
+    posed: Vec<DVec3>,
+}
+
+impl PosedScalp {
+    /// Reads `mesh` (skinned when `skinned`) and poses it with `joints`.
+    fn new(mesh: &Mesh, skinned: bool, joints: &[DAffine3]) -> Result<Self, ScalpError> {
+        let (positions, triangles) = mesh_triangles(mesh, Affine3A::IDENTITY)?;
+        let count = positions.len();
+        let (indices, weights) = if skinned {
+            match (mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_INDEX), mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT)) {
+                (Ok(VertexAttributeValues::Uint16x4(indices)), Ok(VertexAttributeValues::Float32x4(weights)))
+                    if indices.len() == count && weights.len() == count =>
+                {
+                    (indices.clone(), weights.clone())
+                }
+                _ => return Err(ScalpError::NoJointWeights),
+            }
+        } else {
+            (vec![[0; 4]; count], vec![[1.0, 0.0, 0.0, 0.0]; count])
+        };
+        let corners = positions
+            .iter()
+            .zip(indices.into_iter().zip(weights))
+            .enumerate()
+            .map(|(vertex, (position, (joints, weights)))| {
+                let sum: f32 = weights.iter().sum();
+                if !(sum > 0.0 && sum.is_finite() && weights.iter().all(|&weight| weight >= 0.0)) {
+                    return Err(ScalpError::BadWeights(vertex as u32));
+                }
+                Ok(BoundVertex { position: position.as_vec3(), joints, weights: weights.map(|weight| weight / sum) })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let posed = corners
+            .iter()
+            .enumerate()
+            .map(|(vertex, corner)| ScalpPose::skin(joints, corner).ok_or(ScalpError::BadWeights(vertex as u32)))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self { corners, triangles, posed })
+    }
+
+    /// The triangle nearest `point` (head-local, m) with an area, and the nearest point's barycentric
+    /// coordinates in it.
+    fn nearest(&self, point: DVec3) -> Option<(u32, DVec3)> {
+        let mut best: Option<(f64, u32, DVec3)> = None;
+        for (index, triangle) in self.triangles.iter().enumerate() {
+            let [a, b, c] = triangle.map(|corner| self.posed[corner as usize]);
+            if triangle_frame(a, b, c).is_none() {
+                continue;
+            }
+            let nearest = closest_point_on_triangle(point, a, b, c);
+            let distance = nearest.distance_squared(point);
+            if best.is_none_or(|(least, ..)| distance < least) {
+                best = Some((distance, index as u32, barycentric(nearest, a, b, c)));
+            }
+        }
+        best.map(|(_, triangle, weights)| (triangle, weights))
+    }
+}
+
+/// The barycentric coordinates of `point` (in the triangle's plane) in the triangle `a`, `b`, `c`.
+fn barycentric(point: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, point - a);
+    let (d00, d01, d11) = (ab.dot(ab), ab.dot(ac), ac.dot(ac));
+    let (d20, d21) = (ap.dot(ab), ap.dot(ac));
+    let denominator = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denominator;
+    let w = (d00 * d21 - d01 * d20) / denominator;
+    DVec3::new(1.0 - v - w, v, w)
+}
+
+/// The orthonormal frame of the triangle `a`, `b`, `c`: its first edge, the second axis in its plane, its
+/// normal (right-handed, by the corners' order); `None` for a triangle without area.
+fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<DMat3> {
+    let tangent = (b - a).try_normalize()?;
+    let normal = (b - a).cross(c - a).try_normalize()?;
+    Some(DMat3::from_cols(tangent, normal.cross(tangent), normal))
+}
+
+/// Strands whose head has a scalp mesh, what they are bound to, and whether they changed.
+type ScalpStrands<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, Ref<'static, HairStrand>, &'static StrandOf, &'static SimulatedStrand, Option<&'static ScalpRootBinding>),
+>;
+
+/// Binds the roots of new or changed strands, and of heads given a new scalp, to their nearest scalp
+/// triangle, in the scalp's pose now.
+fn bind_roots(
+    mut commands: Commands,
+    meshes: Option<Res<Assets<Mesh>>>,
+    scalp_meshes: Query<(&Mesh3d, Has<SkinnedMesh>)>,
+    mut heads: Query<(Ref<HairScalpMesh>, &mut ScalpPose)>,
+    strands: ScalpStrands,
+    mut posed: Local<HashMap<Entity, Option<PosedScalp>>>,
+) {
+    posed.clear();
+    for (entity, spec, &StrandOf(head), strand, binding) in &strands {
+        let Ok((scalp, mut pose)) = heads.get_mut(head) else {
+            continue;
+        };
+        let fresh = binding.is_some_and(|binding| binding.mesh == scalp.0) && !spec.is_changed() && !scalp.is_changed();
+        if fresh {
+            continue;
+        }
+        let Some(anchor) = strand.root_anchor() else {
+            continue;
+        };
+        let scalp_mesh = scalp.0;
+        let posed = posed.entry(head).or_insert_with(|| {
+            let (mesh3d, skinned) = scalp_meshes.get(scalp_mesh).ok()?;
+            let mesh = meshes.as_ref()?.get(&mesh3d.0)?; // Not loaded yet: tried again next step.
+            let read = PosedScalp::new(mesh, skinned, pose.joints.as_deref()?);
+            read.map_err(|problem| report(head, &mut pose, Some(problem))).ok()
+        });
+        let Some(posed) = posed else {
+            continue;
+        };
+        let Some((triangle, weights)) = posed.nearest(anchor.position) else {
+            report(head, &mut pose, Some(ScalpError::NoTriangle));
+            continue;
+        };
+        let corners = posed.triangles[triangle as usize];
+        let [a, b, c] = corners.map(|corner| posed.posed[corner as usize]);
+        let Some(frame) = triangle_frame(a, b, c) else {
+            continue;
+        };
+        let to_frame = frame.transpose();
+        commands.entity(entity).insert(ScalpRootBinding {
+            mesh: scalp_mesh,
+            triangle,
+            barycentric: weights,
+            corners: corners.map(|corner| posed.corners[corner as usize]),
+            edge_direction: to_frame * anchor.edge.normalize(),
+            material_direction: to_frame * anchor.material_direction,
+        });
+    }
+}
+
+/// Moves every bound root's anchor to its triangle's point as the scalp is posed now, its edge and
+/// material direction turned with the triangle's frame.
+fn follow_scalps(heads: Query<&ScalpPose>, mut strands: Query<(&ScalpRootBinding, &StrandOf, &mut SimulatedStrand)>) {
+    strands.par_iter_mut().for_each(|(binding, &StrandOf(head), mut strand)| {
+        let Some(joints) = heads.get(head).ok().and_then(|pose| pose.joints.as_deref()) else {
+            return;
+        };
+        let corners = binding.corners.map(|corner| ScalpPose::skin(joints, &corner));
+        let [Some(a), Some(b), Some(c)] = corners else {
+            return;
+        };
+        // A triangle skinned flat keeps the root where it last was.
+        let Some(frame) = triangle_frame(a, b, c) else {
+            return;
+        };
+        let weights = binding.barycentric;
+        let root = weights.x * a + weights.y * b + weights.z * c;
+        strand.move_root_anchor(root, frame * binding.edge_direction, frame * binding.material_direction);
+    });
+}
