@@ -396,7 +396,9 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
-    pub use crate::scalp::{HairScalpMesh, HairScalpPlugin, ScalpRootBinding};
+    pub use crate::scalp::{
+        CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin, ScalpRootBinding,
+    };
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
     pub use crate::simulation::{
         EdgeFrame, HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HeadStrands,

@@ -273,3 +273,68 @@ fn a_rigid_scalp_binds_once_loaded_and_a_skin_without_weights_is_refused() {
     let root = strand(&app, strands[0]).rod().positions()[0];
     assert!(root.x > 0.04, "the roots follow the head: {root}");
 }
+
+#[test]
+fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
+    let mut app = app_with_assets();
+    // The scene's root first, as a glTF's scene root is, its nodes spawned later.
+    let groom = HairGroom { strand_count: 40, ..default() };
+    let character = app
+        .world_mut()
+        .spawn((
+            Transform::default(),
+            HairOnCharacter::new("Head", CharacterHair::Groom(groom))
+                .with_scalp_mesh("Scalp")
+                .with_collider_meshes(["Face"]),
+        ))
+        .id();
+    app.update();
+    match app.world().get::<HairOnCharacterStatus>(character) {
+        Some(HairOnCharacterStatus::Waiting { missing }) => assert_eq!(missing, &["Head", "Scalp", "Face"]),
+        other => panic!("waiting for the scene, got {other:?}"),
+    }
+    // The scene: neck and head joints, the skinned scalp as the primitive under a node named "Scalp", and a
+    // face (a skinned ball in front of the head) under "Face".
+    let (neck, head, _) = spawn_character(&mut app, scalp_mesh(true), usize::MAX);
+    let world = app.world_mut();
+    world.entity_mut(neck).insert((Name::new("Neck"), ChildOf(character)));
+    world.entity_mut(head).insert(Name::new("Head")).remove::<(HairHead, HairScalpMesh)>();
+    let scalp = world.query_filtered::<Entity, With<SkinnedMesh>>().single(world).unwrap();
+    let skin = world.get::<SkinnedMesh>(scalp).unwrap().clone();
+    world.spawn((Name::new("Scalp"), ChildOf(character))).add_child(scalp);
+    let ball =
+        Sphere::new(0.04).mesh().ico(8).unwrap().translated_by(NECK + HEAD_ABOVE_NECK + Vec3::new(0.0, -0.05, -0.1));
+    let count = ball.count_vertices();
+    let ball = ball
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_JOINT_INDEX,
+            VertexAttributeValues::Uint16x4(vec![[1, 0, 0, 0]; count]),
+        )
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; count]);
+    let ball = world.resource_mut::<Assets<Mesh>>().add(ball);
+    let face = world.spawn((Name::new("Face"), ChildOf(character))).id();
+    world.spawn((Mesh3d(ball), skin, Transform::default(), ChildOf(face)));
+    for _ in 0..30 {
+        app.update();
+    }
+    assert_eq!(app.world().get::<HairOnCharacterStatus>(character), Some(&HairOnCharacterStatus::Attached { head }));
+    assert_eq!(app.world().get::<HairScalpMesh>(head), Some(&HairScalpMesh(scalp)));
+    let strands = app.world().get::<HeadStrands>(head).expect("the groom grew on the head joint").strands().to_vec();
+    assert!(strands.len() >= 40, "{} strands", strands.len());
+    assert!(strands.iter().all(|&strand| app.world().get::<ScalpRootBinding>(strand).is_some()), "every root bound");
+    // The face's collider: baked (on the async pool) in the head joint's space, a child of the joint, met
+    // by this head's hair.
+    for _ in 0..500 {
+        if app.world_mut().query::<&HairCollider>().iter(app.world()).next().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        app.update();
+    }
+    let mut colliders = app.world_mut().query::<(&HairCollider, &HairColliderOf, &ChildOf)>();
+    let (collider, of, parent) = colliders.single(app.world()).expect("one collider, the face's");
+    assert_eq!((of.0, parent.parent()), (head, head));
+    // The ball's centre is 5 cm below and 10 cm in front of the head joint, in its space.
+    assert!(collider.shape.contains(DVec3::new(0.0, -0.05, -0.1)));
+    assert!(!collider.shape.contains(DVec3::new(0.0, -0.05, -0.05)));
+}

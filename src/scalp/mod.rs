@@ -25,6 +25,9 @@
 //! world.entity_mut(head_joint).insert(HairGroom::default());
 //! ```
 //!
+//! **A character from a glTF file**: [`HairOnCharacter`] on its scene's root finds the head joint, the
+//! scalp and the collider meshes by name once the scene has spawned, and puts the hair on them.
+//!
 //! Strands are bound in the pose the mesh has when they are first stepped, so spawn the hair with the
 //! roots on the scalp as it is then. A root is bound to the nearest point of the mesh wherever it is;
 //! what it needs is a triangle list with positions in the main world (and, skinned, joint indices and
@@ -38,6 +41,10 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 use thiserror::Error;
+
+mod character;
+
+pub use character::{CharacterHair, HairOnCharacter, HairOnCharacterStatus};
 
 use crate::collision::mesh::{MeshColliderError, mesh_triangles};
 use crate::rod::closest_point_on_triangle;
@@ -144,10 +151,13 @@ pub struct HairScalpPlugin {
 
 impl Plugin for HairScalpPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<HairScalpMesh>().register_type::<ScalpRootBinding>().add_systems(
-            self.schedule,
-            (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),
-        );
+        app.register_type::<HairScalpMesh>()
+            .register_type::<ScalpRootBinding>()
+            .add_systems(
+                self.schedule,
+                (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),
+            )
+            .add_systems(Update, character::attach_hair_to_characters);
     }
 }
 

@@ -1,0 +1,183 @@
+//! Hair put on a character by the names in its scene: [`HairOnCharacter`].
+
+use bevy::math::Affine3A;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use bevy::prelude::*;
+
+use super::HairScalpMesh;
+use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSettings};
+use crate::groom::{HairGroom, HairGroomFile};
+use crate::simulation::HairHead;
+
+/// Puts hair on a character once its scene has spawned (a glTF's `SceneRoot`, or entities of your
+/// own): put it on the scene's root entity. Among the root's descendants, the entity named
+/// [`head_joint`](Self::head_joint) becomes the [`HairHead`], bound to the scalp mesh named
+/// [`scalp_mesh`](Self::scalp_mesh) ([`HairScalpMesh`]) and given the [`hair`](Self::hair); each mesh
+/// named in [`collider_meshes`](Self::collider_meshes) is baked into a collider of that head
+/// ([`HairColliderFromMesh`]). A name may be that of the mesh's entity or of a node above it (a glTF
+/// node's primitives are its children). Until every name is found, the search is tried again each frame;
+/// [`HairOnCharacterStatus`] says how it stands.
+///
+/// A skinned collider mesh is baked in the head joint's space (through the joint's inverse bind pose)
+/// and follows that joint rigidly: a face and ears do; a body that bends away from the head is better
+/// held by capsules on its own joints.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// # fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
+/// commands.spawn((
+///     SceneRoot(assets.load("character.glb#Scene0")),
+///     HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
+///         .with_scalp_mesh("Scalp")
+///         .with_collider_meshes(["Face"]),
+/// ));
+/// # }
+/// ```
+#[derive(Component, Debug, Clone)]
+pub struct HairOnCharacter {
+    /// `Name` of the joint the hair grows on (the head bone): its local space is the hair's.
+    pub head_joint: String,
+    /// `Name` of the scalp mesh the roots are bound to; `None`: the roots follow the joint.
+    pub scalp_mesh: Option<String>,
+    /// `Name`s of meshes baked into colliders for this hair (a face, ears).
+    pub collider_meshes: Vec<String>,
+    /// The hair put on the joint.
+    pub hair: CharacterHair,
+}
+
+/// The hair [`HairOnCharacter`] puts on a character's head joint.
+#[derive(Debug, Clone)]
+pub enum CharacterHair {
+    /// A procedural groom, in the joint's space.
+    Groom(HairGroom),
+    /// A groom file, placed in the joint's space.
+    File(HairGroomFile),
+    /// None: strands of your own, spawned on the head once it is there.
+    Nothing,
+}
+
+/// How a [`HairOnCharacter`] stands; on its entity.
+#[derive(Component, Debug, Clone, PartialEq, Eq)]
+pub enum HairOnCharacterStatus {
+    /// Some names are not among the descendants yet (the scene may still be loading).
+    Waiting {
+        /// The names not found.
+        missing: Vec<String>,
+    },
+    /// The hair is on this head joint.
+    Attached {
+        /// The head joint, now a [`HairHead`].
+        head: Entity,
+    },
+}
+
+impl HairOnCharacter {
+    /// Hair `hair` on the joint named `head_joint`, following the joint, with no colliders.
+    pub fn new(head_joint: impl Into<String>, hair: CharacterHair) -> Self {
+        Self { head_joint: head_joint.into(), scalp_mesh: None, collider_meshes: Vec::new(), hair }
+    }
+
+    /// The roots bound to the mesh named `name`.
+    pub fn with_scalp_mesh(mut self, name: impl Into<String>) -> Self {
+        self.scalp_mesh = Some(name.into());
+        self
+    }
+
+    /// Colliders baked from the meshes of these names.
+    pub fn with_collider_meshes(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
+        self.collider_meshes = names.into_iter().map(Into::into).collect();
+        self
+    }
+}
+
+/// Frames a [`HairOnCharacter`] waits before saying which names it has not found.
+const FRAMES_BEFORE_WARNING: u32 = 600;
+
+/// Attaches waiting [`HairOnCharacter`]s whose names are all found.
+pub(crate) fn attach_hair_to_characters(
+    mut commands: Commands,
+    mut characters: Query<(Entity, &HairOnCharacter, Option<&mut HairOnCharacterStatus>)>,
+    children: Query<&Children>,
+    names: Query<&Name>,
+    meshes: Query<(&Mesh3d, Option<&SkinnedMesh>)>,
+    bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
+    mut waited: Local<u32>,
+) {
+    for (root, character, status) in &mut characters {
+        if matches!(status.as_deref(), Some(HairOnCharacterStatus::Attached { .. })) {
+            continue;
+        }
+        let named = |wanted: &str| {
+            children.iter_descendants(root).find(|&entity| names.get(entity).is_ok_and(|name| name.as_str() == wanted))
+        };
+        // The entity named, or its first descendant, with a mesh.
+        let mesh_named = |wanted: &str| {
+            let entity = named(wanted)?;
+            std::iter::once(entity).chain(children.iter_descendants(entity)).find(|&entity| meshes.contains(entity))
+        };
+        let head = named(&character.head_joint);
+        let scalp = character.scalp_mesh.as_deref().map(|name| (name, mesh_named(name)));
+        let colliders: Vec<(&str, Option<Entity>)> =
+            character.collider_meshes.iter().map(|name| (name.as_str(), mesh_named(name))).collect();
+        let missing: Vec<String> = std::iter::once((character.head_joint.as_str(), head))
+            .chain(scalp)
+            .chain(colliders.iter().copied())
+            .filter(|(_, found)| found.is_none())
+            .map(|(name, _)| name.to_owned())
+            .collect();
+        let Some(head) = head.filter(|_| missing.is_empty()) else {
+            *waited += 1;
+            if *waited == FRAMES_BEFORE_WARNING {
+                warn!("hair on character {root}: no descendant named {missing:?} after {FRAMES_BEFORE_WARNING} frames");
+            }
+            commands.entity(root).insert(HairOnCharacterStatus::Waiting { missing });
+            continue;
+        };
+        let mut joint = commands.entity(head);
+        joint.insert(HairHead);
+        if let Some((_, Some(scalp))) = scalp {
+            joint.insert(HairScalpMesh(scalp));
+        }
+        match &character.hair {
+            CharacterHair::Groom(groom) => {
+                joint.insert(groom.clone());
+            }
+            CharacterHair::File(file) => {
+                joint.insert(file.clone());
+            }
+            CharacterHair::Nothing => {}
+        }
+        for (name, mesh) in colliders {
+            let Some((mesh, (mesh3d, skin))) = mesh.and_then(|mesh| Some((mesh, meshes.get(mesh).ok()?))) else {
+                continue;
+            };
+            // A skinned mesh is baked in the head joint's space; one without a skin moves with its entity.
+            let Some(skin) = skin else {
+                commands.entity(mesh).insert((HairColliderFromMesh::default(), HairColliderOf(head)));
+                continue;
+            };
+            let bindpose = skin.joints.iter().position(|&joint| joint == head).and_then(|index| {
+                bindposes
+                    .as_ref()
+                    .and_then(|assets| assets.get(&skin.inverse_bindposes))
+                    .and_then(|poses| poses.get(index))
+            });
+            let Some(bindpose) = bindpose else {
+                warn!(
+                    "hair on character {root}: collider mesh {name:?} is skinned, but not to the head joint; left out"
+                );
+                continue;
+            };
+            let settings = MeshColliderSettings { transform: Affine3A::from_mat4(*bindpose), ..default() };
+            commands.spawn((
+                Mesh3d(mesh3d.0.clone()),
+                HairColliderFromMesh { settings, ..default() },
+                HairColliderOf(head),
+                ChildOf(head),
+                Visibility::Hidden,
+            ));
+        }
+        commands.entity(root).insert(HairOnCharacterStatus::Attached { head });
+    }
+}
