@@ -91,6 +91,9 @@
 //! | [`HairGroom`](groom::HairGroom) or [`HairGroomFile`](groom::HairGroomFile) on a head | the groom's strands, regrown when it changes | [`groom`] |
 //! | [`HairFollowers`](followers::HairFollowers) beside a strand | [`FollowerNodes`](followers::FollowerNodes) | [`followers`] |
 //! | [`HairCollider`](collision::HairCollider), with [`HairColliderOf`](collision::HairColliderOf)`(head)` or none | [`ColliderMotion`](collision::ColliderMotion) | [`collision`] |
+//! | [`HairColliderFromMesh`](collision::HairColliderFromMesh) beside a `Mesh3d` | its [`HairCollider`](collision::HairCollider), baked | [`collision::mesh`] |
+//! | [`HairScalpMesh`](scalp::HairScalpMesh)`(mesh)` on a head | [`ScalpRootBinding`](scalp::ScalpRootBinding) on its strands | [`scalp`] |
+//! | [`HairOnCharacter`](scalp::HairOnCharacter) on a character's scene root | [`HairHead`](simulation::HairHead), [`HairScalpMesh`](scalp::HairScalpMesh), the groom and colliders on its head joint | [`scalp`] |
 //! | [`StrandForces`](simulation::StrandForces) on a strand, [`HairWind`](wind::HairWind), [`HairWindSource`](wind::HairWindSource) | (cleared after each step) | [`simulation`], [`wind`] |
 //! | [`HairSettings::volume`](simulation::HairSettings::volume), [`RepresentedHairs`](volume::RepresentedHairs) | [`HairVolumeGrids`](volume::HairVolumeGrids) | [`volume`] |
 //! | [`HairDetailSettings`](detail::HairDetailSettings), [`HairDetail::fixed`](detail::HairDetail::fixed) | each head's level of detail | [`detail`] |
@@ -164,6 +167,7 @@
 //! | [`collision`], [`detail`], [`followers`], [`wind`] | one concern each | `rod`, `schedule`, `simulation` |
 //! | [`volume`] | the hair–hair grid | the above, and `followers` |
 //! | [`groom`] | procedural grooms and groom files | the above |
+//! | [`scalp`] | roots bound to a scalp mesh, hair put on a character | the above |
 //! | [`render`] | the hair renderer | the above |
 //! | [`debug`](mod@debug) | gizmo lines, the panel | the above |
 //! | `lib.rs` | [`HairPlugin`], the [`prelude`] | everything |

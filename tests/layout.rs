@@ -17,9 +17,10 @@ const LAYERS: &[(&str, u32)] = &[
     ("wind", 3),
     ("volume", 4),
     ("groom", 5),
-    ("render", 6),
-    ("debug", 7),
-    ("lib", 8),
+    ("scalp", 6),
+    ("render", 7),
+    ("debug", 8),
+    ("lib", 9),
 ];
 
 /// The sideways imports the guide allows between modules of one layer: none.

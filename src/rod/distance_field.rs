@@ -48,7 +48,7 @@ pub enum DistanceFieldError {
     /// The cell size is not a positive finite length.
     #[error("the cell size must be a positive finite length in metres, got {0}")]
     InvalidCellSize(f64),
-    /// The grid would have more than [`MAX_SAMPLES`] samples.
+    /// The grid would have more than [`MAX_SAMPLES`](super::MAX_DISTANCE_FIELD_SAMPLES) samples.
     #[error("a grid of {samples} samples was asked for, more than the {MAX_SAMPLES} allowed: use larger cells")]
     TooManySamples {
         /// The samples the mesh and the cell size need.

@@ -25,9 +25,9 @@ use crate::simulation::HairHead;
 /// ```
 /// # use bevy::prelude::*;
 /// # use bevy_hair_sim::prelude::*;
-/// # fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
+/// # fn spawn(mut commands: Commands) {
 /// commands.spawn((
-///     SceneRoot(assets.load("character.glb#Scene0")),
+///     Transform::default(), // beside SceneRoot(assets.load("character.glb#Scene0"))
 ///     HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
 ///         .with_scalp_mesh("Scalp")
 ///         .with_collider_meshes(["Face"]),
