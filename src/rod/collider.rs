@@ -686,6 +686,23 @@ mod tests {
         }
     }
 
+    /// Checks `shape`'s entry on the path `start` (outside) to `end` against 4 000 samples of it: the
+    /// first inside sample is just past the entry, and the path enters against the normal. Whether it
+    /// entered.
+    fn entry_matches_sampling(shape: &ColliderShape, start: DVec3, end: DVec3) -> bool {
+        let first_inside = (1..=4000).map(|k| k as f64 / 4000.0).find(|s| shape.contains(start.lerp(end, *s)));
+        match (shape.entry(start, end), first_inside) {
+            (Some(hit), Some(fraction)) => {
+                let sampled = start.lerp(end, fraction);
+                assert!(hit.point.distance(sampled) <= start.distance(end) / 4000.0 + 1e-12, "{shape:?}");
+                assert!(hit.normal.dot(end - start) < 0.0, "{shape:?}: the path enters against the normal");
+                true
+            }
+            (None, None) => false,
+            (hit, sampled) => panic!("{shape:?} {start} → {end}: entry {hit:?}, sampled {sampled:?}"),
+        }
+    }
+
     #[test]
     fn entry_points_are_where_a_path_first_crosses_the_surface() {
         for shape in SHAPES {
@@ -694,18 +711,7 @@ mod tests {
                 if shape.contains(start) {
                     continue;
                 }
-                // Sample the path finely: the first inside sample must be just past the entry.
-                let first_inside = (1..=4000).map(|k| k as f64 / 4000.0).find(|s| shape.contains(start.lerp(end, *s)));
-                match (shape.entry(start, end), first_inside) {
-                    (Some(hit), Some(fraction)) => {
-                        entries += 1;
-                        let sampled = start.lerp(end, fraction);
-                        assert!(hit.point.distance(sampled) <= start.distance(end) / 4000.0 + 1e-12, "{shape:?}");
-                        assert!(hit.normal.dot(end - start) < 0.0, "{shape:?}: the path enters against the normal");
-                    }
-                    (None, None) => {}
-                    (hit, sampled) => panic!("{shape:?} {start} → {end}: entry {hit:?}, sampled {sampled:?}"),
-                }
+                entries += usize::from(entry_matches_sampling(&shape, start, end));
             }
             assert!(entries > 50, "{shape:?}: only {entries} paths entered");
         }
@@ -824,17 +830,7 @@ mod tests {
                     assert!(shape.entry(start, end).is_none());
                     continue;
                 }
-                let first_inside = (1..=4000).map(|k| k as f64 / 4000.0).find(|s| shape.contains(start.lerp(end, *s)));
-                match (shape.entry(start, end), first_inside) {
-                    (Some(hit), Some(fraction)) => {
-                        entries += 1;
-                        let sampled = start.lerp(end, fraction);
-                        assert!(hit.point.distance(sampled) <= start.distance(end) / 4000.0 + 1e-12, "{shape:?}");
-                        assert!(hit.normal.dot(end - start) < 0.0, "the path enters against the normal");
-                    }
-                    (None, None) => {}
-                    (hit, sampled) => panic!("{start} → {end}: entry {hit:?}, sampled {sampled:?}"),
-                }
+                entries += usize::from(entry_matches_sampling(&shape, start, end));
                 // A segment's deepest point: no sample of it lies deeper.
                 if let Some((fraction, surface)) = shape.segment_contact(start, end) {
                     dips += 1;
