@@ -60,8 +60,8 @@ pub enum HairPrepareSystems {
     Budget,
 }
 
-/// The parts of [`HairSystems::PinRoots`]: `Track`, `FollowScalp`, `ChooseDetail` and `Pin` chained, `Colliders`
-/// beside them.
+/// The parts of [`HairSystems::PinRoots`]: `Track`, `FollowScalp`, `ChooseDetail` and `Pin` chained,
+/// `Colliders` beside them.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairPinSystems {
     /// Every head's pose at this step is recorded.

@@ -290,7 +290,10 @@ fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
         .id();
     app.update();
     match app.world().get::<HairOnCharacterStatus>(character) {
-        Some(HairOnCharacterStatus::Waiting { missing }) => assert_eq!(missing, &["Head", "Scalp", "Face"]),
+        Some(HairOnCharacterStatus::Waiting { missing, frames }) => {
+            assert_eq!(missing, &["Head", "Scalp", "Face"]);
+            assert_eq!(*frames, 1);
+        }
         other => panic!("waiting for the scene, got {other:?}"),
     }
     // The scene: neck and head joints, the skinned scalp as the primitive under a node named "Scalp", and a

@@ -64,6 +64,8 @@ pub enum HairOnCharacterStatus {
     Waiting {
         /// The names not found.
         missing: Vec<String>,
+        /// Frames waited so far.
+        frames: u32,
     },
     /// The hair is on this head joint.
     Attached {
@@ -102,7 +104,6 @@ pub(crate) fn attach_hair_to_characters(
     names: Query<&Name>,
     meshes: Query<(&Mesh3d, Option<&SkinnedMesh>)>,
     bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
-    mut waited: Local<u32>,
 ) {
     for (root, character, status) in &mut characters {
         if matches!(status.as_deref(), Some(HairOnCharacterStatus::Attached { .. })) {
@@ -127,11 +128,20 @@ pub(crate) fn attach_hair_to_characters(
             .map(|(name, _)| name.to_owned())
             .collect();
         let Some(head) = head.filter(|_| missing.is_empty()) else {
-            *waited += 1;
-            if *waited == FRAMES_BEFORE_WARNING {
+            let frames = match status.as_deref() {
+                Some(HairOnCharacterStatus::Waiting { frames, .. }) => frames + 1,
+                _ => 1,
+            };
+            if frames == FRAMES_BEFORE_WARNING {
                 warn!("hair on character {root}: no descendant named {missing:?} after {FRAMES_BEFORE_WARNING} frames");
             }
-            commands.entity(root).insert(HairOnCharacterStatus::Waiting { missing });
+            let waiting = HairOnCharacterStatus::Waiting { missing, frames };
+            match status {
+                Some(mut status) => *status = waiting,
+                None => {
+                    commands.entity(root).insert(waiting);
+                }
+            }
             continue;
         };
         let mut joint = commands.entity(head);
