@@ -393,8 +393,8 @@ pub mod prelude {
     #[allow(deprecated)]
     pub use crate::groom::GroomFilePlugin;
     pub use crate::groom::{
-        Combing, FileStrand, GroomFile, GroomFileError, GroomPlacement, GroomedStrand, HairGroom, HairGroomFile,
-        HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, UpAxis,
+        Combing, FileStrand, GroomFile, GroomFileError, GroomPlacement, GroomSurface, GroomedStrand, HairGroom,
+        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, UpAxis,
     };
     pub use crate::render::HairAppearance;
     #[cfg(feature = "render")]

@@ -24,6 +24,7 @@ use bevy::prelude::*;
 use thiserror::Error;
 
 use super::procedural::{GroomError, MAX_GROOM_SEGMENTS};
+use super::surface::{GroomSurface, ScalpSurface};
 use crate::followers::HairFollowers;
 use crate::rod::RodMaterial;
 use crate::schedule::HairPrepareSystems;
@@ -440,6 +441,10 @@ pub struct GroomPlacement {
     /// are stiffened until they hold (see [`HairStrand::stiffen_to_hold`]). Default `true`: a groom is
     /// authored as it should look, whether gel, clumping or a scale larger than life holds it.
     pub stiffen_to_hold: bool,
+    /// Whether the groom is fitted to its head's scalp mesh ([`GroomSurface`], from
+    /// [`HairScalpMesh`](crate::scalp::HairScalpMesh)) before it is placed: scaled and moved so that its
+    /// roots lie on the scalp ([`GroomPlacement::fitted_to`]). Default `false`: placed as given.
+    pub fit_to_scalp: bool,
 }
 
 impl Default for GroomPlacement {
@@ -452,6 +457,7 @@ impl Default for GroomPlacement {
             max_strands: 2000,
             gravity_preload: 1.0,
             stiffen_to_hold: true,
+            fit_to_scalp: false,
         }
     }
 }
@@ -483,6 +489,85 @@ impl GroomPlacement {
             UpAxis::Z => Vec3::new(point.x, point.z, -point.y),
         };
         self.transform.transform_point(point * self.metres_per_unit)
+    }
+
+    /// This placement scaled and moved so that `file`'s roots lie on `surface` (head-local), keeping its
+    /// turn and up axis:
+    ///
+    /// - **scale**: the largest by which the roots' extent along each axis over which they spread (at
+    ///   least half as far as along their widest) still fits the surface's, so that a groom with roots
+    ///   all over its head fills a scalp and a crest of roots runs the scalp's length;
+    /// - **offset**: the roots' bounds centred on the surface's, then moved by their mean distance to the
+    ///   surface's nearest points until that is below a micrometre (at most 64 times; iterative closest
+    ///   points with translation only);
+    /// - then both, by least squares onto the nearest points (at most 64 times), while that brings the
+    ///   roots nearer the surface and keeps the scale within a factor of two of the first.
+    ///
+    /// The fibres' radius scales with the unit. A file without usable strands keeps this placement.
+    pub fn fitted_to(&self, file: &GroomFile, surface: &ScalpSurface) -> Self {
+        let roots: Vec<Vec3> = file.usable_strands().map(|index| self.place(file.strand(index)[0])).collect();
+        let bounds = |points: &mut dyn Iterator<Item = Vec3>| {
+            points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), point| (low.min(point), high.max(point)))
+        };
+        let (low, high) = bounds(&mut roots.iter().copied());
+        let (scalp_low, scalp_high) = surface.bounds();
+        let (extent, scalp_extent) = (high - low, scalp_high - scalp_low);
+        let widest = extent.max_element();
+        let mut scale = (0..3)
+            .filter(|&axis| extent[axis] >= 0.5 * widest && extent[axis] > 0.0)
+            .map(|axis| scalp_extent[axis] / extent[axis])
+            .fold(f32::INFINITY, f32::min);
+        if roots.is_empty() || !scale.is_finite() || scale <= 0.0 {
+            return *self;
+        }
+        let centre = 0.5 * (low + high);
+        let count = roots.len() as f32;
+        let mut offset = 0.5 * (scalp_low + scalp_high) - centre;
+        let placed =
+            |scale: f32, offset: Vec3| roots.iter().map(move |&root| centre + scale * (root - centre) + offset);
+        for _ in 0..64 {
+            let moved = placed(scale, offset).map(|point| surface.nearest(point).0 - point).sum::<Vec3>() / count;
+            offset += moved;
+            if moved.length() < 1e-6 {
+                break;
+            }
+        }
+        // Then scale and offset together, by least squares onto the nearest points, while that brings the
+        // roots nearer and keeps the scale within a factor of two of the extents'.
+        let rms = |scale: f32, offset: Vec3| {
+            (placed(scale, offset).map(|point| surface.nearest(point).0.distance_squared(point)).sum::<f32>() / count)
+                .sqrt()
+        };
+        let from_extents = scale;
+        let mut distance = rms(scale, offset);
+        for _ in 0..64 {
+            let (points, nearest): (Vec<Vec3>, Vec<Vec3>) =
+                placed(scale, offset).map(|point| (point, surface.nearest(point).0)).unzip();
+            let (mean, mean_nearest) = (points.iter().sum::<Vec3>() / count, nearest.iter().sum::<Vec3>() / count);
+            let spread: f32 = points.iter().map(|point| (*point - mean).length_squared()).sum();
+            let along: f32 = points.iter().zip(&nearest).map(|(p, q)| (*p - mean).dot(*q - mean_nearest)).sum();
+            let factor = along / spread;
+            if !(factor.is_finite() && factor > 0.0) {
+                break;
+            }
+            // The roots (about `centre`, by `scale`, then `offset`) scaled by `factor` about their mean and
+            // moved onto the nearest points' mean.
+            let (next_scale, next_offset) = (scale * factor, mean_nearest + factor * (centre + offset - mean) - centre);
+            let next_distance = rms(next_scale, next_offset);
+            if next_distance.partial_cmp(&distance) != Some(std::cmp::Ordering::Less)
+                || !(0.5..=2.0).contains(&(next_scale / from_extents))
+            {
+                break;
+            }
+            (scale, offset, distance) = (next_scale, next_offset, next_distance);
+        }
+        // place'(p) = t' + s (place(p) − t) = s (place(p) − centre) + centre + offset.
+        let translation = scale * (self.transform.translation - centre) + centre + offset;
+        Self {
+            metres_per_unit: self.metres_per_unit * scale,
+            transform: self.transform.with_translation(translation),
+            ..*self
+        }
     }
 }
 
@@ -609,7 +694,13 @@ impl PlacedStrands {
 type GroomFileHeads<'w, 's> = Query<
     'w,
     's,
-    (Entity, Ref<'static, HairGroomFile>, Option<&'static PlacedGroomFile>, Option<&'static HeadStrands>),
+    (
+        Entity,
+        Ref<'static, HairGroomFile>,
+        Option<&'static PlacedGroomFile>,
+        Option<&'static HeadStrands>,
+        Option<Ref<'static, GroomSurface>>,
+    ),
 >;
 
 /// Places the strands of every head whose [`HairGroomFile`] is new, changed, newly loaded or reloaded,
@@ -629,24 +720,42 @@ fn place_groom_files(
             _ => None,
         })
         .collect();
-    for (head, groom, placed_from, strands) in &heads {
+    for (head, groom, placed_from, strands, surface) in &heads {
         let id = groom.file.id();
-        let stale = groom.is_changed() || placed_from != Some(&PlacedGroomFile(id)) || reloaded.contains(&id);
+        let fit = groom.placement.fit_to_scalp;
+        let refit = fit && surface.as_ref().is_some_and(|surface| surface.is_changed());
+        let stale = groom.is_changed() || placed_from != Some(&PlacedGroomFile(id)) || reloaded.contains(&id) || refit;
         let Some(file) = files.get(id).filter(|_| stale) else {
             continue;
+        };
+        // Fitted to a scalp that is not known yet: wait for it.
+        let scalp = surface.as_deref().map(GroomSurface::surface);
+        if fit && matches!(scalp, Some(None)) {
+            continue;
+        }
+        let placement = match scalp.flatten() {
+            Some(scalp) if fit => groom.placement.fitted_to(file, scalp),
+            _ => {
+                if fit && groom.is_changed() {
+                    warn!(
+                        "hair groom file of head {head}: fit_to_scalp, but the head has no HairScalpMesh; placed as given"
+                    );
+                }
+                groom.placement
+            }
         };
         for &strand in strands.map_or(&[][..], HeadStrands::strands) {
             if placed.contains(strand) {
                 commands.entity(strand).despawn();
             }
         }
-        if let Err(error) = groom.placement.validate() {
+        if let Err(error) = placement.validate() {
             if groom.is_changed() {
                 error!("hair groom file of head {head}: {error}; no strands are placed until it is fixed");
             }
             continue;
         }
-        let PlacedStrands { guides, skipped } = file.placed_strands(&groom.placement, &settings.default_material);
+        let PlacedStrands { guides, skipped } = file.placed_strands(&placement, &settings.default_material);
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"

@@ -69,6 +69,7 @@
 pub mod coverage;
 mod file;
 mod procedural;
+mod surface;
 
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
@@ -80,6 +81,7 @@ pub use file::{
 pub use procedural::{
     Combing, GroomError, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot,
 };
+pub use surface::{GroomSurface, ScalpSurface};
 
 use crate::schedule::HairPrepareSystems;
 

@@ -9,6 +9,8 @@ use std::f32::consts::{FRAC_PI_3, TAU};
 use bevy::prelude::*;
 use thiserror::Error;
 
+use super::surface::{GroomSurface, ScalpSurface};
+use crate::collision::mesh::MeshColliderError;
 use crate::followers::HairFollowers;
 use crate::simulation::{HairStrand, HeadStrands, StrandOf};
 use crate::volume::RepresentedHairs;
@@ -93,7 +95,7 @@ impl Scalp {
 
     /// The hairline's height in the direction of `normal`: the brow's over the face, blending into the
     /// nape's over the temples.
-    fn hairline_height(&self, normal: Vec3) -> f32 {
+    pub(super) fn hairline_height(&self, normal: Vec3) -> f32 {
         let horizontal = Vec2::new(normal.x, -normal.z);
         let facing_front = if horizontal.length_squared() > 1e-12 { horizontal.normalize().y } else { 0.0 };
         let face = ((facing_front - 0.3) / 0.4).clamp(0.0, 1.0);
@@ -259,10 +261,14 @@ impl HairGroom {
     /// The strands of this groom, in the head's local space: combed along the scalp (see [`Combing`]), or,
     /// without combing, each growing out along the scalp's normal.
     pub fn grow(&self) -> Result<Vec<HairStrand>, GroomError> {
-        self.validate()?;
-        let mut random = fastrand::Rng::with_seed(self.seed);
-        let strands = self.scalp.roots(self.strand_count)?.into_iter().map(|root| self.grow_strand(root, &mut random));
-        Ok(strands.collect())
+        self.grow_on(None)
+    }
+
+    /// The strands of this groom grown on `surface` (a scalp mesh) if given, else on the [`Scalp`]'s
+    /// ellipsoid: see [`HairGroom::grow_with_followers_on`].
+    pub fn grow_on(&self, surface: Option<&ScalpSurface>) -> Result<Vec<HairStrand>, GroomError> {
+        let without_followers = Self { followers_per_guide: 0, ..self.clone() };
+        Ok(without_followers.grow_with_followers_on(surface)?.into_iter().map(|(strand, _)| strand).collect())
     }
 
     /// How many hairs each strand stands for: its share of [`HairGroom::hair_count`], at least itself
@@ -277,29 +283,50 @@ impl HairGroom {
     /// `1 + followers_per_guide`-th of them a guide, the others each following the guide whose root is
     /// nearest.
     pub fn grow_with_followers(&self) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
-        if self.followers_per_guide == 0 {
-            return Ok(self.grow()?.into_iter().map(|strand| (strand, HairFollowers::default())).collect());
-        }
+        self.grow_with_followers_on(None)
+    }
+
+    /// The guide strands of this groom with their followers, grown on `surface` if given: the roots of
+    /// `strand_count × (1 + followers_per_guide)` hairs spread evenly over it by area times its density,
+    /// inside the [`Scalp`]'s hairline (judged by the surface's normal), `strand_count` of them, spread
+    /// evenly too, guides; the hair leaves the surface along its normal, or combed along it, measuring the
+    /// parting from [`Scalp::centre`]. Without a surface, as [`HairGroom::grow_with_followers`].
+    pub fn grow_with_followers_on(
+        &self,
+        surface: Option<&ScalpSurface>,
+    ) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
         self.validate()?;
         let every = 1 + self.followers_per_guide;
-        let roots = self.scalp.roots(self.strand_count.saturating_mul(every))?;
         let mut random = fastrand::Rng::with_seed(self.seed);
-        let mut grown: Vec<(HairStrand, HairFollowers)> = Vec::with_capacity(self.strand_count);
-        let mut guide_roots = Vec::with_capacity(self.strand_count);
-        let (guides, followers): (Vec<_>, Vec<_>) =
-            roots.into_iter().enumerate().partition(|(index, _)| index % every == 0);
-        for (_, root) in guides {
-            guide_roots.push(root.position);
+        let (guide_roots, follower_roots) = match surface {
+            Some(surface) => surface.guide_and_follower_roots(self.strand_count, every, &self.scalp, &mut random)?,
+            None => {
+                let roots = self.scalp.roots(self.strand_count.saturating_mul(every))?;
+                let (guides, followers): (Vec<_>, Vec<_>) =
+                    roots.into_iter().enumerate().partition(|(index, _)| index % every == 0);
+                (
+                    guides.into_iter().map(|(_, root)| root).collect(),
+                    followers.into_iter().map(|(_, root)| root).collect(),
+                )
+            }
+        };
+        let mut random = fastrand::Rng::with_seed(self.seed);
+        let mut grown: Vec<(HairStrand, HairFollowers)> = Vec::with_capacity(guide_roots.len());
+        for &root in &guide_roots {
             let followers = HairFollowers { clumping: self.follower_clumping, ..HairFollowers::default() };
-            grown.push((self.grow_strand(root, &mut random), followers));
+            grown.push((self.grow_strand(root, surface, &mut random), followers));
         }
-        for (_, root) in followers {
+        for root in follower_roots {
             let nearest = guide_roots
                 .iter()
                 .enumerate()
-                .min_by(|a, b| a.1.distance_squared(root.position).total_cmp(&b.1.distance_squared(root.position)))
+                .min_by(|a, b| {
+                    a.1.position
+                        .distance_squared(root.position)
+                        .total_cmp(&b.1.position.distance_squared(root.position))
+                })
                 .map(|(index, _)| index);
-            let follower = self.grow_strand(root, &mut random);
+            let follower = self.grow_strand(root, surface, &mut random);
             if let Some(guide) = nearest {
                 grown[guide].1.curves.push(follower.nodes);
             }
@@ -333,15 +360,16 @@ impl HairGroom {
         Ok(())
     }
 
-    /// One strand of this groom from `root`, in the head's local space.
-    fn grow_strand(&self, root: ScalpRoot, random: &mut fastrand::Rng) -> HairStrand {
+    /// One strand of this groom from `root`, in the head's local space, combed along `surface` if given,
+    /// else along the scalp's ellipsoid.
+    fn grow_strand(&self, root: ScalpRoot, surface: Option<&ScalpSurface>, random: &mut fastrand::Rng) -> HairStrand {
         let (shortest, longest) = self.style.length_range();
         let length = shortest + (longest - shortest) * random.f32();
         let edge_length = length / self.segments as f32;
         let strand = match &self.combing {
             Some(combing) => {
                 let lift = combing.lift + combing.layer_spread * random.f32();
-                let path = CombedPath { scalp: &self.scalp, combing, lift };
+                let path = CombedPath { scalp: &self.scalp, surface, combing, lift };
                 let (nodes, material_direction) = path.grow(root, self.style, length, self.segments, random);
                 HairStrand::from_nodes(nodes, material_direction)
             }
@@ -389,6 +417,8 @@ impl Combing {
 /// A strand combed along the scalp, then falling.
 struct CombedPath<'a> {
     scalp: &'a Scalp,
+    /// The surface combed along, if not the scalp's ellipsoid.
+    surface: Option<&'a ScalpSurface>,
     combing: &'a Combing,
     /// Height of this strand over the skull where it lies on it, m.
     lift: f32,
@@ -400,8 +430,12 @@ impl CombedPath<'_> {
     /// Arc length over which a falling strand turns from the scalp's direction to its style's, m.
     const TURN: f32 = 0.03;
 
-    /// The point of the skull's surface radially under `point`, with the outward normal there.
+    /// The point of the skull's surface radially under `point` (the nearest point of the scalp mesh, if
+    /// combed along one), with the outward normal there.
     fn on_skull(&self, point: Vec3) -> (Vec3, Vec3) {
+        if let Some(surface) = self.surface {
+            return surface.nearest(point);
+        }
         let local = (point - self.scalp.centre) / self.scalp.semi_axes;
         let unit = local.normalize_or(Vec3::Y);
         let surface = self.scalp.centre + unit * self.scalp.semi_axes;
@@ -429,7 +463,12 @@ impl CombedPath<'_> {
         let lies_everywhere = style == HairStyle::Short;
         while arc < length && (normal.y > 0.0 || lies_everywhere) {
             tangent = self.combing.direction(self.scalp, surface, normal);
-            (surface, normal) = self.on_skull(surface + Self::STEP * tangent);
+            let (next, next_normal) = self.on_skull(surface + Self::STEP * tangent);
+            // At the edge of a scalp mesh the hair leaves it.
+            if next.distance(surface) < 0.25 * Self::STEP {
+                break;
+            }
+            (surface, normal) = (next, next_normal);
             arc += Self::STEP;
             let height = self.lift * (arc / edge_length).min(1.0);
             path.push(surface + height * normal);
@@ -607,6 +646,28 @@ pub enum GroomError {
     /// A combing parameter is negative or not finite.
     #[error("the groom's combing needs finite values, with sweep_back, lift and layer_spread not negative: {0:?}")]
     Combing(Combing),
+    /// A scalp mesh has no triangle with an area (and some hair density).
+    #[error("the scalp mesh has no triangle with an area and hair to grow")]
+    NoScalpTriangles,
+    /// A scalp mesh's data cannot be read.
+    #[error("the scalp mesh cannot be read: {0}")]
+    ScalpMesh(MeshColliderError),
+    /// A scalp mesh's hair density has a count other than its vertices'.
+    #[error("the scalp mesh has {vertices} vertices but {densities} hair densities")]
+    ScalpDensity {
+        /// The mesh's vertices.
+        vertices: usize,
+        /// The densities given.
+        densities: usize,
+    },
+    /// A scalp mesh's hair density outside 0 to 1.
+    #[error("the hair density of scalp vertex {vertex} must lie between 0 and 1, got {value}")]
+    ScalpDensityValue {
+        /// The vertex.
+        vertex: usize,
+        /// Its density.
+        value: f32,
+    },
     /// The hairline leaves less than 0.1 % of the skull to grow hair on.
     #[error("the scalp's hairline (nape height {nape_height}, brow height {brow_height}) leaves no room for hair")]
     EmptyScalp {
@@ -622,14 +683,22 @@ pub enum GroomError {
 #[reflect(Component, Debug, Default, Clone)]
 pub struct GroomedStrand;
 
-/// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands.
-pub(super) fn grow_groomed_hair(
-    mut commands: Commands,
-    heads: Query<(Entity, &HairGroom, Option<&HeadStrands>), Changed<HairGroom>>,
-    groomed: Query<(), With<GroomedStrand>>,
-) {
-    for (head, groom, strands) in &heads {
-        let grown = match groom.grow_with_followers() {
+/// Heads whose groom or groom surface is new or changed.
+type GroomHeads<'w, 's> = Query<
+    'w,
+    's,
+    (Entity, &'static HairGroom, Option<&'static GroomSurface>, Option<&'static HeadStrands>),
+    Or<(Changed<HairGroom>, Changed<GroomSurface>)>,
+>;
+
+/// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands; a
+/// head with a [`GroomSurface`] grows on it once it is known, and again when it changes.
+pub(super) fn grow_groomed_hair(mut commands: Commands, heads: GroomHeads, groomed: Query<(), With<GroomedStrand>>) {
+    for (head, groom, surface, strands) in &heads {
+        if matches!(surface, Some(GroomSurface::Waiting)) {
+            continue;
+        }
+        let grown = match groom.grow_with_followers_on(surface.and_then(GroomSurface::surface)) {
             Ok(grown) => grown,
             Err(error) => {
                 error!("hair groom of head {head} rejected, it keeps its hair: {error}");

@@ -374,6 +374,17 @@ fn orient(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> f64 {
     (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
 }
 
+/// The barycentric coordinates of `point` (in the triangle's plane) in the triangle `a`, `b`, `c`.
+pub fn barycentric(point: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    let (ab, ac, ap) = (b - a, c - a, point - a);
+    let (d00, d01, d11) = (ab.dot(ab), ab.dot(ac), ac.dot(ac));
+    let (d20, d21) = (ap.dot(ab), ap.dot(ac));
+    let denominator = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denominator;
+    let w = (d00 * d21 - d01 * d20) / denominator;
+    DVec3::new(1.0 - v - w, v, w)
+}
+
 /// The point of triangle `a`, `b`, `c` closest to `point` (Ericson, "Real-Time Collision Detection",
 /// 5.1.5: the Voronoi region of `point` among the corners, edges and face).
 pub fn closest_point_on_triangle(point: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {

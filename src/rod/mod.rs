@@ -56,7 +56,8 @@ pub(crate) use contact::held_reach;
 pub use contact::{Contacts, STICKING_SLIP_SPEED};
 pub use curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE, MaterialFrame, Rod};
 pub use distance_field::{
-    DistanceField, DistanceFieldError, MAX_SAMPLES as MAX_DISTANCE_FIELD_SAMPLES, closest_point_on_triangle,
+    DistanceField, DistanceFieldError, MAX_SAMPLES as MAX_DISTANCE_FIELD_SAMPLES, barycentric,
+    closest_point_on_triangle,
 };
 pub use energy::ElasticEnergy;
 pub use error::{RodError, StepError};

@@ -37,6 +37,8 @@
 use bevy::math::{Affine3A, DAffine3, DMat3, DVec3};
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+use std::sync::Arc;
+
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
@@ -47,15 +49,16 @@ mod character;
 pub use character::{CharacterHair, HairOnCharacter, HairOnCharacterStatus};
 
 use crate::collision::mesh::{MeshColliderError, mesh_triangles};
-use crate::rod::closest_point_on_triangle;
-use crate::schedule::HairPinSystems;
+use crate::groom::{GroomError, GroomSurface, HairGroom, HairGroomFile, ScalpSurface};
+use crate::rod::{barycentric, closest_point_on_triangle};
+use crate::schedule::{HairPinSystems, HairPrepareSystems, HairSystems};
 use crate::simulation::{HairStrand, HeadMotion, SimulatedStrand, StrandOf};
 
 /// On a [`HairHead`](crate::simulation::HairHead): its strands' roots are bound to the triangles of this
 /// entity's [`Mesh3d`] (skinned by its [`SkinnedMesh`] if it has one). See the [module documentation](self).
 #[derive(Component, Reflect, Debug, Clone, Copy, PartialEq, Eq)]
 #[reflect(Component, Debug, PartialEq, Clone)]
-#[require(ScalpPose)]
+#[require(ScalpPose, GroomSurface)]
 pub struct HairScalpMesh(pub Entity);
 
 /// Where a strand's root is bound on its head's scalp mesh; added by the plugin.
@@ -96,6 +99,8 @@ pub struct ScalpPose {
     joints: Option<Vec<DAffine3>>,
     /// Why it cannot be, when it is faulty (reported once).
     problem: Option<ScalpError>,
+    /// Why the scalp cannot grow a groom, when it cannot (reported once).
+    surface_problem: Option<ScalpError>,
 }
 
 impl ScalpPose {
@@ -140,6 +145,9 @@ pub enum ScalpError {
     /// The mesh's data.
     #[error(transparent)]
     Mesh(#[from] MeshColliderError),
+    /// The mesh cannot grow a groom.
+    #[error(transparent)]
+    Surface(#[from] GroomError),
 }
 
 /// Roots bound to scalp meshes (see the [module documentation](self)); part of [`crate::HairPlugin`].
@@ -156,6 +164,10 @@ impl Plugin for HairScalpPlugin {
             .add_systems(
                 self.schedule,
                 (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),
+            )
+            .add_systems(
+                self.schedule,
+                shape_groom_surfaces.in_set(HairSystems::Prepare).before(HairPrepareSystems::Grow),
             )
             .add_systems(Update, character::attach_hair_to_characters);
     }
@@ -181,51 +193,130 @@ fn pose_scalps(
         let to_head =
             DAffine3::from_scale_rotation_translation(head_pose.scale, head_pose.rotation, head_pose.translation)
                 .inverse();
-        let global = |entity: Entity| {
-            transforms
-                .compute_global_transform(entity)
-                .ok()
-                .map(|transform| affine_f64(transform.affine()))
-                .filter(|affine| affine.is_finite())
-                .ok_or(ScalpError::NoTransform)
-        };
-        let joints = match meshes.get(scalp) {
-            Ok((false, _)) | Err(_) => Err(Some(ScalpError::NoMesh(scalp))),
-            Ok((true, None)) => global(scalp).map(|mesh| vec![to_head * mesh]).map_err(Some),
-            Ok((true, Some(skin))) => match bindposes.as_ref().and_then(|assets| assets.get(&skin.inverse_bindposes)) {
-                None => Err(None), // Not loaded yet.
-                Some(inverse) if inverse.len() != skin.joints.len() => {
-                    Err(Some(ScalpError::SkinMismatch { joints: skin.joints.len(), bindposes: inverse.len() }))
-                }
-                Some(inverse) => skin
-                    .joints
-                    .iter()
-                    .zip(inverse.iter())
-                    .map(|(&joint, bindpose)| Ok(to_head * global(joint)? * affine_f64(Affine3A::from_mat4(*bindpose))))
-                    .collect::<Result<Vec<_>, _>>()
-                    .map_err(Some),
-            },
-        };
-        match joints {
+        match scalp_joints(scalp, to_head, &transforms, &meshes, bindposes.as_deref()) {
             Ok(joints) => {
                 pose.joints = Some(joints);
                 pose.problem = None;
             }
             Err(problem) => {
                 pose.joints = None;
-                report(head, &mut pose, problem);
+                report(head, &mut pose.problem, problem);
             }
         }
     }
 }
 
-/// Records `problem` on the head's scalp, logging it when it is new.
-fn report(head: Entity, pose: &mut ScalpPose, problem: Option<ScalpError>) {
-    if problem.is_some() && pose.problem != problem {
-        if let Some(problem) = &problem {
-            error!("hair head {head}: its scalp mesh cannot hold roots, which follow the head meanwhile: {problem}");
+/// The maps from the mesh space of `scalp` into the space `to_head` maps the world into: one per joint
+/// (the joint's `GlobalTransform` × its inverse bind pose), or the mesh entity's own without a skin. Err
+/// `None` while the skin is loading.
+fn scalp_joints(
+    scalp: Entity,
+    to_head: DAffine3,
+    transforms: &TransformHelper,
+    meshes: &Query<(Has<Mesh3d>, Option<&SkinnedMesh>)>,
+    bindposes: Option<&Assets<SkinnedMeshInverseBindposes>>,
+) -> Result<Vec<DAffine3>, Option<ScalpError>> {
+    let global = |entity: Entity| {
+        transforms
+            .compute_global_transform(entity)
+            .ok()
+            .map(|transform| affine_f64(transform.affine()))
+            .filter(|affine| affine.is_finite())
+            .ok_or(ScalpError::NoTransform)
+    };
+    match meshes.get(scalp) {
+        Ok((false, _)) | Err(_) => Err(Some(ScalpError::NoMesh(scalp))),
+        Ok((true, None)) => global(scalp).map(|mesh| vec![to_head * mesh]).map_err(Some),
+        Ok((true, Some(skin))) => match bindposes.and_then(|assets| assets.get(&skin.inverse_bindposes)) {
+            None => Err(None), // Not loaded yet.
+            Some(inverse) if inverse.len() != skin.joints.len() => {
+                Err(Some(ScalpError::SkinMismatch { joints: skin.joints.len(), bindposes: inverse.len() }))
+            }
+            Some(inverse) => skin
+                .joints
+                .iter()
+                .zip(inverse.iter())
+                .map(|(&joint, bindpose)| Ok(to_head * global(joint)? * affine_f64(Affine3A::from_mat4(*bindpose))))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(Some),
+        },
+    }
+}
+
+/// Heads with a scalp mesh, and what may need their groom surface anew.
+type SurfaceHeads<'w, 's> = Query<
+    'w,
+    's,
+    (
+        Entity,
+        Ref<'static, HairScalpMesh>,
+        &'static mut GroomSurface,
+        &'static mut ScalpPose,
+        Option<Ref<'static, HairGroom>>,
+        Option<Ref<'static, HairGroomFile>>,
+    ),
+>;
+
+/// Gives every head with a scalp mesh whose surface is still waiting, or whose groom or groom file is
+/// new or changed, its [`GroomSurface`]: the scalp mesh as it is posed now, in the head's local space,
+/// with the hair density painted in its vertex colours.
+fn shape_groom_surfaces(
+    transforms: TransformHelper,
+    meshes: Option<Res<Assets<Mesh>>>,
+    scalp_meshes: Query<(Has<Mesh3d>, Option<&SkinnedMesh>)>,
+    handles: Query<(&Mesh3d, Has<SkinnedMesh>)>,
+    bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
+    mut heads: SurfaceHeads,
+) {
+    for (head, scalp, mut surface, mut pose, groom, file) in &mut heads {
+        let regrow = groom.is_some_and(|groom| groom.is_changed()) || file.is_some_and(|file| file.is_changed());
+        if !(matches!(*surface, GroomSurface::Waiting) || scalp.is_changed() || regrow) {
+            continue;
         }
-        pose.problem = problem;
+        let Some(to_head) = transforms
+            .compute_global_transform(head)
+            .ok()
+            .map(|transform| affine_f64(transform.affine()))
+            .filter(|affine| affine.is_finite() && affine.matrix3.determinant() != 0.0)
+        else {
+            report(head, &mut pose.surface_problem, Some(ScalpError::NoTransform));
+            continue;
+        };
+        let shaped = scalp_joints(scalp.0, to_head.inverse(), &transforms, &scalp_meshes, bindposes.as_deref())
+            .and_then(|joints| {
+                let (mesh3d, skinned) = handles.get(scalp.0).map_err(|_| Some(ScalpError::NoMesh(scalp.0)))?;
+                let mesh = meshes.as_ref().and_then(|meshes| meshes.get(&mesh3d.0)).ok_or(None)?;
+                let posed = PosedScalp::new(mesh, skinned, &joints).map_err(Some)?;
+                let positions = posed.posed.iter().map(|position| position.as_vec3()).collect();
+                let shaped = ScalpSurface::new(positions, posed.triangles).map_err(|error| Some(error.into()))?;
+                match ScalpSurface::vertex_density(mesh) {
+                    Some(density) => shaped.with_density(density).map_err(|error| Some(error.into())),
+                    None => Ok(shaped),
+                }
+            });
+        match shaped {
+            Ok(shaped) => {
+                *surface = GroomSurface::Ready(Arc::new(shaped));
+                pose.surface_problem = None;
+            }
+            // Waiting (and the groom with it) until the mesh has loaded, or is fixed.
+            Err(problem) => {
+                if !matches!(*surface, GroomSurface::Waiting) {
+                    *surface = GroomSurface::Waiting;
+                }
+                report(head, &mut pose.surface_problem, problem);
+            }
+        }
+    }
+}
+
+/// Records `problem` on the head's scalp in `slot`, logging it when it is new.
+fn report(head: Entity, slot: &mut Option<ScalpError>, problem: Option<ScalpError>) {
+    if problem.is_some() && *slot != problem {
+        if let Some(problem) = &problem {
+            error!("hair head {head}: its scalp mesh cannot hold roots or grow hair, and waits: {problem}");
+        }
+        *slot = problem;
     }
 }
 
@@ -297,17 +388,6 @@ impl PosedScalp {
     }
 }
 
-/// The barycentric coordinates of `point` (in the triangle's plane) in the triangle `a`, `b`, `c`.
-fn barycentric(point: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let (ab, ac, ap) = (b - a, c - a, point - a);
-    let (d00, d01, d11) = (ab.dot(ab), ab.dot(ac), ac.dot(ac));
-    let (d20, d21) = (ap.dot(ab), ap.dot(ac));
-    let denominator = d00 * d11 - d01 * d01;
-    let v = (d11 * d20 - d01 * d21) / denominator;
-    let w = (d00 * d21 - d01 * d20) / denominator;
-    DVec3::new(1.0 - v - w, v, w)
-}
-
 /// The orthonormal frame of the triangle `a`, `b`, `c`: its first edge, the second axis in its plane, its
 /// normal (right-handed, by the corners' order); `None` for a triangle without area.
 fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<DMat3> {
@@ -350,13 +430,13 @@ fn bind_roots(
             let (mesh3d, skinned) = scalp_meshes.get(scalp_mesh).ok()?;
             let mesh = meshes.as_ref()?.get(&mesh3d.0)?; // Not loaded yet: tried again next step.
             let read = PosedScalp::new(mesh, skinned, pose.joints.as_deref()?);
-            read.map_err(|problem| report(head, &mut pose, Some(problem))).ok()
+            read.map_err(|problem| report(head, &mut pose.problem, Some(problem))).ok()
         });
         let Some(posed) = posed else {
             continue;
         };
         let Some((triangle, weights)) = posed.nearest(anchor.position) else {
-            report(head, &mut pose, Some(ScalpError::NoTriangle));
+            report(head, &mut pose.problem, Some(ScalpError::NoTriangle));
             continue;
         };
         let corners = posed.triangles[triangle as usize];
