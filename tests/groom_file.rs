@@ -355,13 +355,21 @@ fn the_fuzz_seeds_read_as_made() {
 }
 
 /// The largest RMS distance of the strands' nodes from where they were placed, m, over `seconds` of a
-/// still head, checked every half second; and the strands' largest stiffening to hold.
-fn rest_drift_of_ratboy(placement: GroomPlacement, seconds: f64) -> (f64, f64) {
-    let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
+/// still head (with `collider` on it, if given), checked every half second; the strands' largest
+/// stiffening to hold; and the nodes in contact at the end.
+fn rest_drift(
+    file: &GroomFile,
+    placement: GroomPlacement,
+    collider: Option<HairCollider>,
+    seconds: f64,
+) -> (f64, f64, usize) {
     let mut app = hair_app_with(());
     let material = app.world().resource::<HairSettings>().default_material;
     let strands = file.placed_strands(&placement, &material).guides;
     let head = app.world_mut().spawn((HairHead, Transform::default())).id();
+    if let Some(collider) = collider {
+        app.world_mut().spawn((collider, HairColliderOf(head), Transform::default()));
+    }
     let placed: Vec<(Entity, Vec<Vec3>)> = strands
         .into_iter()
         .map(|(strand, _)| {
@@ -385,7 +393,14 @@ fn rest_drift_of_ratboy(placement: GroomPlacement, seconds: f64) -> (f64, f64) {
     }
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
     let stiffening = placed.iter().map(|(entity, _)| strand(&app, *entity).stiffening()).fold(1.0, f64::max);
-    (largest, stiffening)
+    (largest, stiffening, app.world().resource::<HairStatistics>().contacts)
+}
+
+/// [`rest_drift`] of the Ratboy groom without colliders.
+fn rest_drift_of_ratboy(placement: GroomPlacement, seconds: f64) -> (f64, f64) {
+    let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
+    let (drift, stiffening, _) = rest_drift(&file, placement, None, seconds);
+    (drift, stiffening)
 }
 
 #[test]
@@ -448,4 +463,58 @@ fn every_usable_strand_of_a_file_is_drawn_the_ones_not_simulated_following_the_n
     drawn.sort_by_key(|curve| key(curve));
     curves.sort_by_key(key);
     assert!(drawn.iter().zip(&curves).all(|(a, b)| *a == b));
+}
+
+/// The skull of our own groom: a ball of 9 cm about the head's origin.
+const SKULL: f32 = 0.09;
+
+/// A groom of our own making on a [`SKULL`]-sized head, written as a `.hair` file (m, +Y up): long hair
+/// (45 to 60 cm) combed over the skull and hanging down the back, curls and waves combed over it, and
+/// strands leaving the crown upwards and curving out over 15 to 25 cm, as a fountain of gelled hair.
+fn own_groom() -> Vec<u8> {
+    let scalp = Scalp { semi_axes: Vec3::splat(SKULL), ..default() };
+    let mut strands: Vec<Vec<Vec3>> = Vec::new();
+    for (style, seed) in [(HairStyle::Long, 1), (HairStyle::Curly, 2), (HairStyle::Wavy, 3)] {
+        let groom = HairGroom { scalp, style, seed, strand_count: 24, segments: 24, ..default() };
+        strands.extend(groom.grow().expect("the groom grows").into_iter().map(|strand| strand.nodes));
+    }
+    // Upwards from the crown, each bending outwards along an arc of 12 cm radius.
+    for index in 0..24 {
+        let around = std::f32::consts::TAU * index as f32 / 24.0;
+        let tilt = 0.15 + 0.25 * (index % 3) as f32;
+        let out = Vec3::new(around.cos(), 0.0, around.sin());
+        let normal = (Vec3::Y * tilt.cos() + out * tilt.sin()).normalize();
+        let length = 0.15 + 0.1 * (index % 4) as f32 / 3.0;
+        let strand = (0..=24)
+            .map(|node| {
+                let arc = length * node as f32 / 24.0;
+                let angle = arc / 0.12;
+                SKULL * normal + 0.12 * (angle.sin() * normal + (1.0 - angle.cos()) * out)
+            })
+            .collect();
+        strands.push(strand);
+    }
+    let arrays = Arrays { segments: true, thickness: false, transparency: false, colors: false };
+    write_hair(&strands, arrays, 0)
+}
+
+#[test]
+fn a_groom_of_our_own_with_long_curved_and_upward_hair_keeps_its_shape_at_rest_with_and_without_its_skull() {
+    let file = GroomFile::from_hair(&own_groom()).expect("our groom reads");
+    assert_eq!(file.usable_strands().count(), 96);
+    let placement = GroomPlacement::default();
+    let skull = HairCollider::sphere(SKULL);
+    let (free, stiffening, _) = rest_drift(&file, placement, None, 10.0);
+    let (on_skull, _, contacts) = rest_drift(&file, placement, Some(skull), 10.0);
+    println!(
+        "our groom at rest for 10 s: RMS from its shape at most {:.3} mm alone, {:.3} mm on its skull ({contacts} nodes in contact); stiffened up to ×{stiffening:.0}",
+        1e3 * free,
+        1e3 * on_skull
+    );
+    assert!(free <= 1e-3, "alone, the groom moved {free} m RMS from its shape");
+    assert!(on_skull <= 1e-3, "on its skull, the groom moved {on_skull} m RMS from its shape");
+    // The skull holds hair up: the combed hair lies on it.
+    assert!(contacts >= 100, "{contacts} nodes in contact");
+    // The fountain is stiffened to stand.
+    assert!(stiffening > 1.0);
 }

@@ -113,7 +113,7 @@ fn largest_rms_drift(rod: &mut Rod, params: &StepParams, seconds: f64) -> f64 {
 }
 
 #[test]
-fn the_stiffening_to_hold_is_greenhills_number_for_what_does_not_hang() {
+fn the_stiffening_to_hold_is_greenhills_number_for_what_does_not_hang_and_more_for_what_is_held_out() {
     let gravity = StepParams::default().gravity;
     let material = RodMaterial::human_hair();
     let bending = material.youngs_modulus * std::f64::consts::PI * material.semi_axis_1.powi(4) / 4.0;
@@ -127,20 +127,25 @@ fn the_stiffening_to_hold_is_greenhills_number_for_what_does_not_hang() {
             // Past the root edge; Greenhill's 7.837 with a factor of two to spare.
             let free = length * 19.0 / 20.0;
             let expected = (2.0 * weight * free.powi(3) / bending / 7.837).max(1.0);
-            let factor = rod.stiffening_to_hold(gravity);
+            let factor = rod.stiffening_to_hold(gravity, &[]);
             assert!((factor / expected - 1.0).abs() < 1e-9, "{label}, {length} m: {factor} against {expected}");
         }
     }
     // 9.5 cm is where human hair buckles upright under its own weight; 5 cm needs nothing.
-    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.05, 20).stiffening_to_hold(gravity), 1.0);
-    // Hanging within 60° of straight down, at any length: held by its tension.
-    for direction in [DVec3::NEG_Y, DVec3::new(1.0, -1.0, 0.3), DVec3::new(1.6, -1.0, 0.0)] {
-        assert_eq!(hair_leaving(DVec3::X, direction, 0.5, 20).stiffening_to_hold(gravity), 1.0, "{direction}");
+    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.05, 20).stiffening_to_hold(gravity, &[]), 1.0);
+    // Hanging straight down from a sideways root edge, at any length: held by its tension.
+    for length in [0.2, 0.5] {
+        assert_eq!(hair_leaving(DVec3::X, DVec3::NEG_Y, length, 20).stiffening_to_hold(gravity, &[]), 1.0);
+    }
+    // Hanging within 60° of straight down but held out there by its bend at the root, 50 cm: the preload
+    // bends the root's rest curl the other way, and unstiffened the strand falls (the next test).
+    for direction in [DVec3::new(1.0, -1.0, 0.3), DVec3::new(1.6, -1.0, 0.0)] {
+        assert!(hair_leaving(DVec3::X, direction, 0.5, 20).stiffening_to_hold(gravity, &[]) > 4.0, "{direction}");
     }
     // Out past 60° from straight down, it is not hanging.
-    assert!(hair_leaving(DVec3::X, DVec3::new(1.8, -1.0, 0.0), 0.5, 20).stiffening_to_hold(gravity) > 1.0);
+    assert!(hair_leaving(DVec3::X, DVec3::new(1.8, -1.0, 0.0), 0.5, 20).stiffening_to_hold(gravity, &[]) > 1.0);
     // No gravity: nothing to hold.
-    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.4, 20).stiffening_to_hold(DVec3::ZERO), 1.0);
+    assert_eq!(hair_leaving(DVec3::Y, DVec3::Y, 0.4, 20).stiffening_to_hold(DVec3::ZERO, &[]), 1.0);
 }
 
 #[test]
@@ -164,7 +169,7 @@ fn a_preloaded_strand_past_the_buckling_length_falls_unless_stiffened_to_hold() 
         }),
     ];
     for (label, rod) in shapes {
-        let factor = rod.stiffening_to_hold(params.gravity);
+        let factor = rod.stiffening_to_hold(params.gravity, &[]);
         assert!(factor > 4.0, "{label}: {factor}");
         let mut alone = rod.clone();
         alone.preload_for_gravity(params.gravity, &vec![None; rod.node_count()], 1.0).unwrap();
@@ -198,4 +203,28 @@ fn a_preloaded_strand_past_the_buckling_length_falls_unless_stiffened_to_hold() 
         assert!(pushed > 2e-3, "{label}: the push moved it {pushed} m RMS");
         assert!(back < 0.1 * pushed && back < 1e-3, "{label}: pushed {pushed} m RMS, {back} m 8 s later");
     }
+}
+
+#[test]
+fn a_preloaded_strand_held_out_by_its_root_bend_falls_unless_stiffened_to_hold() {
+    // Hanging within 60° of the vertical, but held out 58° from it by its bend at the root, 50 cm: the
+    // preload bends the root's rest curl the other way, and the strand turns over and falls.
+    let params = StepParams::default();
+    let rod = hair_leaving(DVec3::X, DVec3::new(1.6, -1.0, 0.0), 0.5, 24);
+    let supports = vec![None; rod.node_count()];
+    let factor = rod.stiffening_to_hold(params.gravity, &supports);
+    let mut alone = rod.clone();
+    alone.preload_for_gravity(params.gravity, &supports, 1.0).unwrap();
+    let fallen = largest_rms_drift(&mut alone, &params, 4.0);
+    let mut stiffened = rod.clone();
+    stiffened.set_material(stiffened.material().stiffened(factor)).unwrap();
+    stiffened.preload_for_gravity(params.gravity, &supports, 1.0).unwrap();
+    let held = largest_rms_drift(&mut stiffened, &params, 10.0);
+    println!(
+        "held out: stiffened ×{factor:.1}; RMS drift preloaded only {:.1} mm in 4 s, stiffened {:.4} mm in 10 s",
+        1e3 * fallen,
+        1e3 * held
+    );
+    assert!(fallen > 0.01, "preloaded only, it stayed within {fallen} m");
+    assert!(held < 1e-3, "stiffened to hold, it moved {held} m RMS");
 }

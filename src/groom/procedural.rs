@@ -429,6 +429,9 @@ impl CombedPath<'_> {
     const STEP: f32 = 0.0005;
     /// Arc length over which a falling strand turns from the scalp's direction to its style's, m.
     const TURN: f32 = 0.03;
+    /// How near the skull a falling strand's point must be to be kept out of it, m (farther, the skull's
+    /// nearest point says nothing of which side it is on).
+    const NEAR: f32 = 0.02;
 
     /// The point of the skull's surface radially under `point` (the nearest point of the scalp mesh, if
     /// combed along one), with the outward normal there.
@@ -488,7 +491,14 @@ impl CombedPath<'_> {
                 arc += Self::STEP;
                 // A strand that falls from its root still rises to its lift over the first edge.
                 let rise = self.lift * (arc / edge_length).min(1.0) - lifted;
-                path.push(point + rise * normal);
+                // Curls and waves swing round the line they fall along: none of that into the skull.
+                let mut placed = point + rise * normal;
+                let (under, outward) = self.on_skull(placed);
+                let height = (placed - under).dot(outward);
+                if height < self.lift && placed.distance(under) < Self::NEAR {
+                    placed += (self.lift - height) * outward;
+                }
+                path.push(placed);
             }
         }
         let nodes = resample(&path, edge_length, segments);

@@ -44,6 +44,17 @@ pub const SELF_WEIGHT_BUCKLING: f64 = 7.837;
 /// smallest push would move it far.
 const HOLDING_MARGIN: f64 = 2.0;
 
+/// How far the preload's rest curvature may point against the current curvature at a vertex
+/// ([`Rod::stiffening_to_hold`]): `κ · κ̄ ≥ −FLIP_MARGIN · GJ / EI` (integrated curvatures). Measured on
+/// 40 cm hair combed round a 9 cm skull that is not there (24 edges): strands fell from `−0.43 GJ / EI`
+/// and held from `−0.17 GJ / EI`; 0.1 leaves a margin of about two.
+pub const FLIP_MARGIN: f64 = 0.1;
+
+/// The largest twisting moment a preloaded rod may carry, as `M_t L / GJ` ([`Rod::stiffening_to_hold`]):
+/// Greenhill's twisted shaft buckles at `2π EI / GJ` (8.6 for human hair); the same strands fell from
+/// 12.3 and held up to 14.2 alongside little bending; 7.5 leaves a margin.
+pub const TWIST_HOLDING: f64 = 7.5;
+
 /// How far from straight down every edge of a rod (past its root edge) may point and the rod still hang
 /// in [`Rod::stiffening_to_hold`], as the cosine of the angle: 60°.
 const HANGING_COSINE: f64 = 0.5;
@@ -137,19 +148,30 @@ impl Rod {
     }
 
     /// By how much the rod's bending and twisting stiffness must grow (a factor, at least 1) for its
-    /// current shape, once preloaded ([`Rod::preload_for_gravity`]), to be a stable equilibrium under
-    /// `gravity` (m/s²). A rod whose edges past the root edge all point within 60° of straight down
-    /// hangs, held by its tension: 1. Any other must be short enough to hold up twice its weight: twice its
-    /// self-weight number `ρ A |g| L³ / EI` (`L` its length past the root edge, `EI` the smaller bending
-    /// stiffness) over Greenhill's [`SELF_WEIGHT_BUCKLING`], when that is over 1 (human hair leaving the
-    /// scalp upwards or sideways is stiffened past 7.5 cm).
+    /// current shape, once preloaded ([`Rod::preload_for_gravity`], with the same `supports`), to be a
+    /// stable equilibrium under `gravity` (m/s²): the largest of three factors.
     ///
-    /// Preloading alone makes any shape an equilibrium, but past that length not a stable one: a strand
-    /// standing up, or held out sideways by the bending stress its rest shape leaves in it, buckles at
-    /// the smallest disturbance and falls. (Takahashi & Batty, "Rest Shape Optimization for Sag-Free
-    /// Discrete Elastic Rods", 2024, bound the rest shape for the same reason; optimising the stiffness
-    /// with the rest shape is the later answer where no bounded rest shape is stable.)
-    pub fn stiffening_to_hold(&self, gravity: DVec3) -> f64 {
+    /// - **Held up or out** (Greenhill): a rod whose edges past the root edge all point within 60° of
+    ///   straight down hangs, held by its tension: 1. Any other must be short enough to hold up twice its
+    ///   weight: twice its self-weight number `ρ A |g| L³ / EI` (`L` its length past the root edge, `EI`
+    ///   the smaller bending stiffness) over Greenhill's [`SELF_WEIGHT_BUCKLING`] (human hair leaving the
+    ///   scalp upwards or sideways is stiffened past 7.5 cm).
+    /// - **Bent against its rest curl**: where the preload's rest curvature `κ̄` points against the
+    ///   current curvature `κ` (integrated, `κ · κ̄ < 0`), turning the cross-section over releases
+    ///   bending energy `EI κ · κ̄ / l` faster than twisting it costs (about `GJ / l`), and the strand
+    ///   flips over and falls: hair combed round a skull that is not there. Stiffening by `k` leaves
+    ///   `κ̄ = κ − Δκ / k`; `k` is the least that keeps `κ · κ̄ ≥ −`[`FLIP_MARGIN`]` · GJ / EI` at every
+    ///   vertex.
+    /// - **Twisted**: a twisting moment `M_t` buckles a rod of length `L` once `M_t L / GJ` passes a few
+    ///   (Greenhill's twisted shaft: `2π EI / GJ`); `k` keeps it at most [`TWIST_HOLDING`].
+    ///
+    /// Preloading alone makes any shape an equilibrium, but not a stable one: a strand standing up, held
+    /// out sideways, or combed round a head it does not lie on, buckles at the smallest disturbance and
+    /// falls. (Takahashi & Batty, "Rest Shape Optimization for Sag-Free Discrete Elastic Rods", 2024, box
+    /// the rest shape for the same reason; stiffening until the needed rest shape fits the box keeps the
+    /// groom's shape, which bounding it would not.) `supports` as for the preload; one of the wrong
+    /// length counts no support.
+    pub fn stiffening_to_hold(&self, gravity: DVec3, supports: &[Option<DVec3>]) -> f64 {
         let weight = gravity.length();
         if !(weight > 0.0 && weight.is_finite()) {
             return 1.0;
@@ -161,14 +183,45 @@ impl Rod {
             .unwrap_or_default()
             .windows(2)
             .all(|ends| (ends[1] - ends[0]).normalize_or_zero().dot(down) >= HANGING_COSINE);
-        if hangs {
-            return 1.0;
-        }
         let length: f64 = self.rest_lengths().iter().skip(1).sum();
-        let stiffness = self.stiffness();
+        let stiffness = *self.stiffness();
         let bending = stiffness.bending_1.min(stiffness.bending_2);
-        let number = stiffness.linear_density * weight * length.powi(3) / bending;
-        (HOLDING_MARGIN * number / SELF_WEIGHT_BUCKLING).max(1.0)
+        let held = if hangs {
+            1.0
+        } else {
+            let number = stiffness.linear_density * weight * length.powi(3) / bending;
+            HOLDING_MARGIN * number / SELF_WEIGHT_BUCKLING
+        };
+        let unsupported;
+        let supports = if supports.len() == self.node_count() {
+            supports
+        } else {
+            unsupported = vec![None; self.node_count()];
+            &unsupported
+        };
+        let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
+        edge_geometry(self, &mut edges);
+        let stresses = self.equilibrium_stresses(&edges, gravity, supports);
+        let flip_margin = FLIP_MARGIN * stiffness.twisting / bending;
+        let mut needed = held.max(1.0);
+        for (vertex, stress) in stresses.iter().enumerate() {
+            let Some(stress) = *stress else {
+                continue;
+            };
+            let (kappa, _) = self.vertex_curvature_and_twist(vertex);
+            let voronoi = self.rest.voronoi_lengths[vertex];
+            let change = bevy::math::DVec2::new(
+                stress.x * voronoi / stiffness.bending_1,
+                stress.y * voronoi / stiffness.bending_2,
+            );
+            // κ · (κ − Δκ / k) ≥ −m  ⇔  k ≥ κ · Δκ / (|κ|² + m).
+            let against = kappa.dot(change);
+            if against > 0.0 {
+                needed = needed.max(against / (kappa.length_squared() + flip_margin));
+            }
+            needed = needed.max(stress.z.abs() * length / stiffness.twisting / TWIST_HOLDING);
+        }
+        if needed.is_finite() { needed } else { 1.0 }
     }
 
     /// The bending and twisting stresses `s_v` (N·m) that hold the rod's current shape against `gravity`,

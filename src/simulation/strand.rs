@@ -385,7 +385,7 @@ impl SimulatedStrand {
             return Ok(false);
         };
         if self.stiffen_to_hold && factor > 0.0 {
-            let more = self.rod.stiffening_to_hold(gravity);
+            let more = self.rod.stiffening_to_hold(gravity, supports);
             if more > 1.0 {
                 self.rod.set_material(self.rod.material().stiffened(more))?;
                 self.stiffening *= more;
