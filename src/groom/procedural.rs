@@ -482,7 +482,9 @@ impl CombedPath<'_> {
             let shape = StrandShape::new(style, Vec3::NEG_Y, edge_length, random).facing(outward);
             let mut point = *path.last().unwrap_or(&root.position);
             let (start, lifted) = (arc, self.lift * (arc / edge_length).min(1.0));
-            while arc < length {
+            // The path's own length (a curl pushed out of the skull may lie longer or shorter than its arc).
+            let mut walked: f32 = path.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+            while walked < length && arc < 4.0 * length {
                 let fallen = arc - start;
                 let blend = (fallen / Self::TURN).min(1.0);
                 let blend = blend * blend * (3.0 - 2.0 * blend);
@@ -496,8 +498,12 @@ impl CombedPath<'_> {
                 let (under, outward) = self.on_skull(placed);
                 let height = (placed - under).dot(outward);
                 if height < self.lift && placed.distance(under) < Self::NEAR {
-                    placed += (self.lift - height) * outward;
+                    // Pushed out, and falling on from there.
+                    let push = (self.lift - height) * outward;
+                    placed += push;
+                    point += push;
                 }
+                walked += path.last().map_or(0.0, |last| last.distance(placed));
                 path.push(placed);
             }
         }
