@@ -119,10 +119,12 @@ fn spawn_character(
     let root = commands.spawn((Transform::default(), Visibility::default(), Name::new("Character"))).id();
     let neck_pose = Transform::from_translation(NECK);
     let head_pose = Transform::from_translation(HEAD_ABOVE_NECK);
-    let neck =
-        commands.spawn((neck_pose, Name::new("Neck"), Joint { bind: neck_pose, is_head: false }, ChildOf(root))).id();
-    let head =
-        commands.spawn((head_pose, Name::new("Head"), Joint { bind: head_pose, is_head: true }, ChildOf(neck))).id();
+    // Joints are visible nodes, as a glTF importer spawns them (what hangs under them inherits that).
+    let joint = |pose: Transform, name: &str, is_head: bool| {
+        (pose, Visibility::default(), Name::new(name.to_owned()), Joint { bind: pose, is_head })
+    };
+    let neck = commands.spawn((joint(neck_pose, "Neck", false), ChildOf(root))).id();
+    let head = commands.spawn((joint(head_pose, "Head", true), ChildOf(neck))).id();
     let bind_neck = neck_pose.to_matrix();
     let bind_head = bind_neck * head_pose.to_matrix();
     let inverse_bindposes = bindposes.add(vec![bind_neck.inverse(), bind_head.inverse()]);
@@ -295,9 +297,24 @@ fn report_attachment(characters: Query<&HairOnCharacterStatus, Changed<HairOnCha
     }
 }
 
+/// Frames at the start (while the renderer compiles its pipelines) and before the picture in which the
+/// rendered hair is drawn; in between it is hidden, so that a software renderer spends its time on the
+/// frames that count. The simulation runs all along.
+const DRAWN_PICTURE_FRAMES: u32 = 8;
+
 /// Picture mode: after the asked number of frames, saves a screenshot and exits once it is written.
-fn take_picture(mut commands: Commands, options: Res<Options>, mut frames: Local<u32>) {
+fn take_picture(
+    mut commands: Commands,
+    options: Res<Options>,
+    mut frames: Local<u32>,
+    mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
+) {
     *frames += 1;
+    let drawn = *frames <= DRAWN_PICTURE_FRAMES || *frames + DRAWN_PICTURE_FRAMES >= options.frames;
+    let shown = if drawn { Visibility::Inherited } else { Visibility::Hidden };
+    hair_meshes.iter_mut().for_each(|mut visibility| {
+        visibility.set_if_neq(shown);
+    });
     if *frames != options.frames {
         return;
     }

@@ -241,3 +241,47 @@ fn meshes_that_cannot_be_baked_say_why() {
         Err(MeshColliderError::ResolutionTooLow(3))
     );
 }
+
+#[test]
+fn a_preloaded_strand_waits_for_its_heads_mesh_collider_and_then_rests_on_it() {
+    let mut app = app_with_meshes();
+    // A ball head whose collider is baked from a mesh that is not there yet.
+    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().reserve_handle();
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.0, 0.0))).id();
+    app.world_mut().spawn((Mesh3d(mesh.clone()), HairColliderFromMesh::default(), HairColliderOf(head), ChildOf(head)));
+    // A strand combed over the ball's top, 1.5 mm above it (within its contact thickness and the preload's
+    // support distance), then hanging down its side.
+    let radius = 0.1015;
+    let nodes: Vec<Vec3> = (0..=24)
+        .map(|node| {
+            let angle = 0.1 + 1.6 * node as f32 / 24.0;
+            Vec3::new(radius * angle.sin(), radius * angle.cos(), 0.0)
+        })
+        .collect();
+    let hair = app
+        .world_mut()
+        .spawn((HairStrand::from_nodes(nodes.clone(), Vec3::Z).with_gravity_preload(1.0), StrandOf(head)))
+        .id();
+    for _ in 0..20 {
+        app.update();
+    }
+    // Waiting: not preloaded, not stepped.
+    let waiting = strand(&app, hair);
+    assert!(waiting.preload_report().is_none(), "preloaded before its collider was there");
+    let world = |node: Vec3| (node + Vec3::Y).as_dvec3();
+    let moved = waiting.rod().positions().iter().zip(&nodes).map(|(p, n)| p.distance(world(*n))).fold(0.0, f64::max);
+    // As placed, to single precision (a step would have sagged it by millimetres).
+    assert!(moved < 1e-6, "stepped while waiting: moved {moved} m");
+    // The mesh arrives and is baked: the preload rests the strand on it.
+    app.world_mut().resource_mut::<Assets<Mesh>>().insert(mesh.id(), Sphere::new(0.1).mesh().ico(5).unwrap()).unwrap();
+    for _ in 0..500 {
+        app.update();
+        if strand(&app, hair).preload_report().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let report = *strand(&app, hair).preload_report().expect("preloaded once baked");
+    assert!(report.supported_nodes >= 10, "{report:?}");
+}
+

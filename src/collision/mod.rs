@@ -251,6 +251,7 @@ pub(crate) fn gather_colliders(
     mut shared_set: ResMut<SharedColliderSet>,
     colliders: Query<(Entity, &ColliderMotion, Option<&HairColliderOf>, Has<SharedHairCollider>)>,
     head_colliders: Query<&HeadColliders>,
+    being_made: Query<Option<&MeshColliderBaking>, With<HairColliderFromMesh>>,
 ) {
     shared_set.0.clear();
     for (entity, motion, of, shared) in &colliders {
@@ -282,5 +283,10 @@ pub(crate) fn gather_colliders(
                 Err(_) => add(included),
             }
         }
+        // A mesh collider not baked yet (its mesh loading, or the bake running).
+        let waiting = own.iter().any(|&entity| {
+            being_made.get(entity).is_ok_and(|baking| matches!(baking, None | Some(MeshColliderBaking::Baking(_))))
+        });
+        set.set_waiting(waiting);
     }
 }

@@ -175,6 +175,43 @@ impl GroomFile {
         FIBRE_RADIUS_RANGE.contains(&radius).then_some(radius)
     }
 
+    /// The file's colours of strand `index` at `edges + 1` nodes spread evenly along its length (as
+    /// [`GroomFile::resampled_strand`] spreads them), blended between the file's points; `None` when the
+    /// file has no colours. The file's colours are taken as linear RGB, 0 to 1.
+    pub fn resampled_colors(&self, index: usize, edges: usize) -> Option<Vec<LinearRgba>> {
+        let colors = self.colors.as_ref()?;
+        let range = self.strand_starts[index]..self.strand_starts[index + 1];
+        let (points, colors) = (&self.points[range.clone()], colors.get(range)?);
+        let mut along = Vec::with_capacity(points.len());
+        let mut walked = 0.0;
+        for (index, pair) in
+            std::iter::once(0.0).chain(points.windows(2).map(|pair| pair[0].distance(pair[1]))).enumerate()
+        {
+            walked += pair;
+            along.push((walked, index));
+        }
+        let length = walked.max(f32::MIN_POSITIVE);
+        let edges = edges.max(1);
+        let color = |point: usize| {
+            let [r, g, b] = colors[point].clamp(Vec3::ZERO, Vec3::ONE).to_array();
+            LinearRgba::rgb(r, g, b)
+        };
+        Some(
+            (0..=edges)
+                .map(|node| {
+                    let at = length * node as f32 / edges as f32;
+                    let after = along.partition_point(|&(walked, _)| walked < at).min(points.len() - 1);
+                    if after == 0 {
+                        return color(0);
+                    }
+                    let ((from, a), (to, b)) = (along[after - 1], along[after]);
+                    let t = if to > from { ((at - from) / (to - from)).clamp(0.0, 1.0) } else { 1.0 };
+                    color(a).mix(&color(b), t)
+                })
+                .collect(),
+        )
+    }
+
     /// Strand `index` resampled into `edges` edges of equal length, its length over `edges`, root
     /// first: each node is where the strand leaves the ball of that radius around the node before
     /// (chords along the curve). The length is kept exactly; since chords cut the bends, the tip reaches
@@ -612,6 +649,18 @@ impl HairGroomFile {
 #[reflect(Component, Debug, Default, Clone)]
 pub struct FileStrand;
 
+/// The colours a strand is drawn in, hair by hair and node by node (root first), linear RGB: the
+/// guide's, then each of its followers' in the order of its [`HairFollowers::curves`]. A placed groom
+/// file gives it to its strands when the file has colours; give it to strands of your own to colour
+/// them hair by hair. The renderer reads it when it lays the head's hair out (when the strands are
+/// spawned or change); a hair it names no colours for, or with another number of colours than nodes, is
+/// drawn in its head's [`HairAppearance`](crate::render::HairAppearance) colours.
+#[derive(Component, Debug, Clone, Default, PartialEq)]
+pub struct StrandColors {
+    /// Per drawn hair (the guide first), per node: its colour.
+    pub hairs: Vec<Vec<LinearRgba>>,
+}
+
 /// On a head whose [`HairGroomFile`] has been placed: which file version it was placed from.
 #[derive(Component, Debug, Clone, Copy, PartialEq)]
 pub struct PlacedGroomFile(AssetId<GroomFile>);
@@ -636,12 +685,17 @@ impl GroomFile {
             let points = self.resampled_strand(index, placement.segments.max(2));
             points.into_iter().map(|point| placement.place(point)).collect()
         };
+        let edges = placement.segments.max(2);
+        let mut colors: Vec<StrandColors> = Vec::new();
         let mut picked = vec![false; usable.len()];
         let mut guides: Vec<(HairStrand, HairFollowers)> = (0..count)
             .map(|pick| {
                 let which = pick * usable.len() / count;
                 picked[which] = true;
                 let index = usable[which];
+                if let Some(guide_colors) = self.resampled_colors(index, edges) {
+                    colors.push(StrandColors { hairs: vec![guide_colors] });
+                }
                 let nodes = placed(index);
                 let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
                 let strand = HairStrand::from_nodes(nodes, direction)
@@ -666,9 +720,12 @@ impl GroomFile {
                 .min_by(|(_, a), (_, b)| a.distance_squared(nodes[0]).total_cmp(&b.distance_squared(nodes[0])));
             if let Some((guide, _)) = nearest {
                 guides[guide].1.curves.push(nodes);
+                if let (Some(colors), Some(follower)) = (colors.get_mut(guide), self.resampled_colors(index, edges)) {
+                    colors.hairs.push(follower);
+                }
             }
         }
-        PlacedStrands { guides, skipped }
+        PlacedStrands { guides, colors, skipped }
     }
 }
 
@@ -678,6 +735,9 @@ pub struct PlacedStrands {
     /// The strands to simulate (head-local, m), each with its followers: the file's strands that are not
     /// simulated, each given to the guide whose root is nearest its own.
     pub guides: Vec<(HairStrand, HairFollowers)>,
+    /// The file's colours of each guide and its followers, one per guide in the same order; empty when
+    /// the file has no colours.
+    pub colors: Vec<StrandColors>,
     /// How many of the file's strands were skipped as degenerate (fewer than 3 distinct points, or no
     /// length).
     pub skipped: usize,
@@ -755,15 +815,18 @@ fn place_groom_files(
             }
             continue;
         }
-        let PlacedStrands { guides, skipped } = file.placed_strands(&placement, &settings.default_material);
+        let PlacedStrands { guides, colors, skipped } = file.placed_strands(&placement, &settings.default_material);
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"
             );
         }
-        commands.spawn_batch(
-            guides.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), FileStrand)),
-        );
+        let placed = guides.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), FileStrand));
+        if colors.len() == placed.len() {
+            commands.spawn_batch(placed.zip(colors).map(|(placed, colors)| (placed, colors)));
+        } else {
+            commands.spawn_batch(placed);
+        }
         commands.entity(head).insert(PlacedGroomFile(id));
     }
 }

@@ -76,7 +76,7 @@ use bevy::prelude::*;
 
 pub use file::{
     FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
-    MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, UpAxis,
+    MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, StrandColors, UpAxis,
 };
 pub use procedural::{
     Combing, GroomError, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot,

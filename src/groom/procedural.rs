@@ -495,9 +495,15 @@ impl CombedPath<'_> {
                 let rise = self.lift * (arc / edge_length).min(1.0) - lifted;
                 // Curls and waves swing round the line they fall along: none of that into the skull.
                 let mut placed = point + rise * normal;
-                let (under, outward) = self.on_skull(placed);
-                let height = (placed - under).dot(outward);
-                if height < self.lift && placed.distance(under) < Self::NEAR {
+                let skull = match self.surface {
+                    Some(surface) => surface.nearest_near(placed),
+                    None => Some(self.on_skull(placed)),
+                };
+                if let Some((under, outward)) = skull
+                    && (placed - under).dot(outward) < self.lift
+                    && placed.distance(under) < Self::NEAR
+                {
+                    let height = (placed - under).dot(outward);
                     // Pushed out, and falling on from there.
                     let push = (self.lift - height) * outward;
                     placed += push;

@@ -187,6 +187,14 @@ impl ScalpSurface {
         (nearest, self.normal_at(triangle, nearest))
     }
 
+    /// The point of the surface nearest `point` with the normal there, if the surface passes within a
+    /// grid cell of it (a few of its edges); `None` farther away. Cheap: one cell's triangles.
+    pub(super) fn nearest_near(&self, point: Vec3) -> Option<(Vec3, Vec3)> {
+        let near = self.cells.get(&self.cell_of(point))?;
+        let (triangle, nearest) = self.nearest_among(point, near.iter().copied())?;
+        (nearest.distance(point) <= self.cell).then(|| (nearest, self.normal_at(triangle, nearest)))
+    }
+
     fn nearest_among(&self, point: Vec3, triangles: impl Iterator<Item = u32>) -> Option<(u32, Vec3)> {
         let point_f64 = point.as_dvec3();
         triangles

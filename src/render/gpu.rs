@@ -22,6 +22,7 @@ use super::compute::{self, GpuHeads};
 use super::feed::{GuideUpload, LayoutChanged};
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::{FollowerNodes, FollowerPlacement};
+use crate::groom::StrandColors;
 use crate::schedule::HairDrawSystems;
 use crate::simulation::{
     CheckedSettings, HairHead, HeadStrands, PackedStrandPose, SimulatedStrand, StrandColliders, StrandFrames,
@@ -35,6 +36,9 @@ const SHADER: &str = "embedded://bevy_hair_sim/render/hair.wgsl";
 /// The template mesh's one vertex attribute (see [`HairStrips::vertices`]).
 const ATTRIBUTE_HAIR_VERTEX: MeshVertexAttribute =
     MeshVertexAttribute::new("HairVertex", 0x4841_4952, VertexFormat::Uint32x4);
+/// A hair's own colour at the vertex's node, sRGB bytes with alpha 255, or 0 ([`HairStrips::colors`]).
+const ATTRIBUTE_HAIR_COLOR: MeshVertexAttribute =
+    MeshVertexAttribute::new("HairColor", 0x4841_4943, VertexFormat::Uint32);
 
 /// Draws the hair of every [`HairHead`] as lit, shadowed strands (see the [module documentation](super)).
 /// Needs Bevy's renderer and PBR (`DefaultPlugins`); part of [`crate::HairPlugin`] with the crate's
@@ -141,7 +145,12 @@ impl Material for HairMaterial {
         layout: &MeshVertexBufferLayoutRef,
         key: MaterialPipelineKey<Self>,
     ) -> Result<(), SpecializedMeshPipelineError> {
-        descriptor.vertex.buffers = vec![layout.0.get_layout(&[ATTRIBUTE_HAIR_VERTEX.at_shader_location(0)])?];
+        // Both attributes in every pass; the prepasses' shader reads only the first.
+        descriptor.vertex.buffers =
+            vec![layout.0.get_layout(&[
+                ATTRIBUTE_HAIR_VERTEX.at_shader_location(0),
+                ATTRIBUTE_HAIR_COLOR.at_shader_location(1),
+            ])?];
         // The fragment stage writes its coverage as a sample mask: it needs the sample count (and both
         // stages compile the whole file).
         let samples = ShaderDefVal::UInt("HAIR_MSAA_SAMPLES".into(), key.mesh_key.msaa_samples());
@@ -302,6 +311,7 @@ fn prepare_hair_meshes(
     mut hair_meshes: Query<HairMeshParts>,
     heads: Query<(Ref<HeadStrands>, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
+    colors: Query<&StrandColors>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<HairMaterial>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
@@ -365,6 +375,7 @@ fn prepare_hair_meshes(
                 ATTRIBUTE_HAIR_VERTEX,
                 strips.vertices(appearance.thickness_scale, appearance.tip_taper),
             );
+            template.insert_attribute(ATTRIBUTE_HAIR_COLOR, strips.colors(|entity| colors.get(entity).ok()));
             template.insert_indices(Indices::U32(strips.indices()));
             mesh.0 = meshes.add(template);
         }

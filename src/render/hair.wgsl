@@ -35,6 +35,10 @@ struct HairShading {
 struct Vertex {
     // node, hair, side | along << 1 | (nodes − 1) << 16, radius (f32 bits)
     @location(0) hair: vec4<u32>,
+#ifndef PREPASS_PIPELINE
+    // The hair's own colour at this node, sRGB bytes with alpha 255, or 0: the appearance's colours.
+    @location(1) color: u32,
+#endif
 }
 
 fn node_position(node: u32) -> vec3<f32> {
@@ -135,6 +139,8 @@ struct HairVertexOutput {
     @location(4) along: f32,
     @location(5) coverage: f32,
     @location(6) @interpolate(flat) hair: u32,
+    // The hair's own colour (sRGB, alpha 1), or alpha 0: the appearance's colours.
+    @location(7) color: vec4<f32>,
 }
 
 @vertex
@@ -149,7 +155,13 @@ fn vertex(vertex: Vertex) -> HairVertexOutput {
     out.along = ribbon.along;
     out.coverage = ribbon.coverage;
     out.hair = vertex.hair.y;
+    out.color = unpack4x8unorm(vertex.color);
     return out;
+}
+
+// sRGB's transfer function, decoded: an sRGB value 0 … 1 to linear.
+fn srgb_to_linear(color: vec3<f32>) -> vec3<f32> {
+    return select(pow((color + 0.055) / 1.055, vec3(2.4)), color / 12.92, color <= vec3(0.04045));
 }
 
 // A well-mixed hash of a hair's index to 0 … 1 (PCG, Jarzynski and Olano 2020).
@@ -210,7 +222,11 @@ fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
     var surface: HairSurface;
     // Each hair's own shade: its brightness, and where along it the colour turns from root to tip.
     let blend = saturate(in.along + variation * (hash01(in.hair ^ 0x68e31da4u) - 0.5));
-    surface.color = mix(shading.root_color.rgb, shading.tip_color.rgb, blend) * brightness;
+    var base = mix(shading.root_color.rgb, shading.tip_color.rgb, blend);
+    if in.color.a > 0.5 {
+        base = srgb_to_linear(in.color.rgb);
+    }
+    surface.color = base * brightness;
     surface.tangent = tangent;
     surface.normal = normal;
     surface.eye = eye;

@@ -37,6 +37,7 @@ use bevy::math::{Vec3, Vec4};
 use bevy::prelude::*;
 
 use crate::followers::FollowerNodes;
+use crate::groom::StrandColors;
 use crate::simulation::{SimulatedStrand, StrandNodes};
 use crate::volume::RepresentedHairs;
 
@@ -356,6 +357,29 @@ impl HairStrips {
             }
         }
         vertices
+    }
+
+    /// The template mesh's colours, one per vertex as [`HairStrips::vertices`] lays them out: the
+    /// colour `colors` gives a guide's hairs ([`StrandColors`]) at each node, as sRGB bytes
+    /// `r | g << 8 | b << 16 | 255 << 24`, or 0 for a hair it gives none for (drawn in the appearance's
+    /// colours).
+    pub fn colors<'a>(&self, colors: impl Fn(Entity) -> Option<&'a StrandColors>) -> Vec<u32> {
+        let mut packed = Vec::with_capacity(2 * self.node_count());
+        for guide in &self.guides {
+            let given = colors(guide.entity);
+            for hair in 0..=guide.followers as usize {
+                let own = given.and_then(|given| given.hairs.get(hair)).filter(|own| own.len() == guide.nodes as usize);
+                match own {
+                    Some(own) => packed.extend(own.iter().flat_map(|&color| {
+                        let [r, g, b, _] = Srgba::from(color).to_u8_array();
+                        let word = u32::from_le_bytes([r, g, b, 255]);
+                        [word, word]
+                    })),
+                    None => packed.extend(std::iter::repeat_n(0, 2 * guide.nodes as usize)),
+                }
+            }
+        }
+        packed
     }
 
     /// The template mesh's triangles: two per segment, `(2k, 2k+1, 2k+2)` and `(2k+1, 2k+3, 2k+2)` for the

@@ -435,11 +435,18 @@ pub fn closest_point_on_triangle(point: DVec3, a: DVec3, b: DVec3, c: DVec3) -> 
     a + ab * (vb / denominator) + ac * (vc / denominator)
 }
 
-/// Edges used by other than two triangles, with vertices welded by exact position.
+/// Edges used by other than two triangles, with vertices welded by position to a millionth of the mesh's
+/// extent (a UV seam's twin vertices, computed at angles 0 and 2π, differ in their last bits).
 fn open_edges(positions: &[DVec3], triangles: &[[u32; 3]]) -> usize {
     use std::collections::HashMap;
-    let key = |vertex: u32| positions[vertex as usize].to_array().map(f64::to_bits);
-    let mut uses: HashMap<([u64; 3], [u64; 3]), u32> = HashMap::new();
+    let (low, high) = triangles
+        .iter()
+        .flatten()
+        .map(|&vertex| positions[vertex as usize])
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), p| (low.min(p), high.max(p)));
+    let weld = ((high - low).max_element() * 1e-6).max(f64::MIN_POSITIVE);
+    let key = |vertex: u32| ((positions[vertex as usize] - low) / weld).round().to_array().map(|v| v as i64);
+    let mut uses: HashMap<([i64; 3], [i64; 3]), u32> = HashMap::new();
     for triangle in triangles {
         for i in 0..3 {
             let (from, to) = (key(triangle[i]), key(triangle[(i + 1) % 3]));

@@ -14,6 +14,8 @@ use crate::rod::MovingCollider;
 pub struct HeadColliderSet {
     colliders: Vec<MovingCollider>,
     entities: Vec<Entity>,
+    /// Whether a collider of the head is still being made (a mesh collider's mesh loading or baking).
+    waiting: bool,
 }
 
 impl HeadColliderSet {
@@ -27,9 +29,20 @@ impl HeadColliderSet {
         &self.entities
     }
 
+    /// Whether a collider of the head is still being made (a mesh collider whose mesh is loading or
+    /// baking): its strands' gravity preloads, which rest hair on the colliders, wait for it.
+    pub fn waiting(&self) -> bool {
+        self.waiting
+    }
+
+    pub(crate) fn set_waiting(&mut self, waiting: bool) {
+        self.waiting = waiting;
+    }
+
     pub(crate) fn clear(&mut self) {
         self.colliders.clear();
         self.entities.clear();
+        self.waiting = false;
     }
 
     /// Adds `entity`'s collider if it is in use and not in the set yet.
@@ -69,5 +82,10 @@ impl StrandColliders<'_, '_> {
             Some(&StrandOf(head)) => self.head_sets.get(head).map(HeadColliderSet::colliders).unwrap_or_default(),
             None => self.shared.as_deref().map(SharedColliderSet::colliders).unwrap_or_default(),
         }
+    }
+
+    /// Whether a collider of the head of a strand rooted on `strand_of` is still being made.
+    pub(crate) fn waiting(&self, strand_of: Option<&StrandOf>) -> bool {
+        strand_of.is_some_and(|&StrandOf(head)| self.head_sets.get(head).is_ok_and(HeadColliderSet::waiting))
     }
 }

@@ -113,7 +113,8 @@ pub(crate) fn apply_default_material(settings: Res<HairSettings>, mut strands: Q
 /// with [`SimulatedStrand::preload_gravity`]): from each strand's shape now, the gravity of
 /// [`HairSettings`] and the colliders of its head, the nodes within [`PRELOAD_SUPPORT_DISTANCE`] of one
 /// resting on it. Writes the new rest shape into [`StrandRestShape`]. While the settings are invalid
-/// (reported once by [`check_settings`]) the preloads wait.
+/// (reported once by [`check_settings`]), or a collider of the strand's head is still being made (a mesh
+/// collider loading or baking), the preloads wait, and the strands with them.
 ///
 /// [`HairStrand::gravity_preload`]: crate::simulation::HairStrand::gravity_preload
 pub(crate) fn preload_rest_shapes(
@@ -126,7 +127,8 @@ pub(crate) fn preload_rest_shapes(
     };
     let (gravity, margin) = (params.gravity, checked.collision_margin);
     strands.par_iter_mut().for_each(|(entity, mut strand, mut rest_shape, strand_of)| {
-        if !strand.preload_pending() {
+        // Hair rests on its colliders: the preload waits for any still being made.
+        if !strand.preload_pending() || colliders.waiting(strand_of) {
             return;
         }
         let supports = preload_supports(strand.rod(), colliders.of(strand_of), strand.contact_thickness(margin));
@@ -346,10 +348,11 @@ pub(crate) fn step_strands(
                     }
                 };
                 let params = match valid {
-                    Some(params) if strand.detail.due => params,
+                    Some(params) if strand.detail.due && !strand.preload_pending() => params,
                     _ => {
-                        // A coarser level of detail, or invalid settings: not stepped now, drawn carried
-                        // with its head, once its state is known to be drawable.
+                        // A coarser level of detail, invalid settings, or a preload waiting for a
+                        // collider: not stepped now, drawn carried with its head, once its state is known
+                        // to be drawable.
                         forces.clear();
                         if let Some(StepOutcome::Faulted { error, first_of_episode, quarantine }) =
                             strand.check_unstepped(now)
