@@ -394,7 +394,7 @@ pub mod prelude {
     pub use crate::groom::GroomFilePlugin;
     pub use crate::groom::{
         Combing, FileStrand, GroomFile, GroomFileError, GroomPlacement, GroomSurface, GroomedStrand, HairGroom,
-        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, UpAxis,
+        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, StrandColors, UpAxis,
     };
     pub use crate::render::HairAppearance;
     #[cfg(feature = "render")]

@@ -518,3 +518,30 @@ fn a_groom_of_our_own_with_long_curved_and_upward_hair_keeps_its_shape_at_rest_w
     // The fountain is stiffened to stand.
     assert!(stiffening > 1.0);
 }
+
+#[test]
+fn a_files_colours_reach_its_strands_resampled_along_them() {
+    // Two strands, one red turning green along its length, one blue; the second follows the first.
+    let strands = vec![
+        (0..=8).map(|k| Vec3::new(0.0, -0.02 * k as f32, 0.0)).collect::<Vec<_>>(),
+        (0..=4).map(|k| Vec3::new(0.001, -0.04 * k as f32, 0.0)).collect::<Vec<_>>(),
+    ];
+    let arrays = Arrays { segments: true, thickness: false, transparency: false, colors: true };
+    let mut file = GroomFile::from_hair(&write_hair(&strands, arrays, 0)).expect("it reads");
+    let first: Vec<Vec3> = (0..=8).map(|k| Vec3::new(1.0 - k as f32 / 8.0, k as f32 / 8.0, 0.0)).collect();
+    file.colors = Some(first.iter().copied().chain(std::iter::repeat_n(Vec3::Z, 5)).collect());
+    let placement = GroomPlacement { segments: 4, max_strands: 1, ..default() };
+    let placed = file.placed_strands(&placement, &RodMaterial::human_hair());
+    assert_eq!(placed.colors.len(), 1);
+    let hairs = &placed.colors[0].hairs;
+    assert_eq!(hairs.len(), 2, "the guide's colours, then its follower's");
+    // Five nodes along 16 cm: every other file point, red to green.
+    for (node, color) in hairs[0].iter().enumerate() {
+        let t = node as f32 / 4.0;
+        assert!((color.red - (1.0 - t)).abs() < 1e-6 && (color.green - t).abs() < 1e-6, "{node}: {color:?}");
+    }
+    assert!(hairs[1].iter().all(|color| *color == LinearRgba::BLUE));
+    // No colours in the file: none given.
+    file.colors = None;
+    assert!(file.placed_strands(&placement, &RodMaterial::human_hair()).colors.is_empty());
+}

@@ -284,4 +284,3 @@ fn a_preloaded_strand_waits_for_its_heads_mesh_collider_and_then_rests_on_it() {
     let report = *strand(&app, hair).preload_report().expect("preloaded once baked");
     assert!(report.supported_nodes >= 10, "{report:?}");
 }
-

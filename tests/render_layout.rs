@@ -114,6 +114,63 @@ fn the_template_mesh_has_two_tapered_sides_per_node_and_two_triangles_per_segmen
 }
 
 #[test]
+fn hairs_given_their_own_colours_carry_them_node_by_node_and_the_others_none() {
+    let (app, head) = moving_head();
+    let guides = layout(&app, head);
+    let mut strips = HairStrips::default();
+    strips.set_layout(guides.iter().copied());
+    // Guide 0: every hair coloured, red at the root blending to blue at the tip. Guide 1: its follower 1
+    // given one colour too few (drawn in the appearance's colours). The rest: none.
+    let blend = |nodes: u32| {
+        (0..nodes)
+            .map(|node| LinearRgba::rgb(1.0 - node as f32 / (nodes - 1) as f32, 0.0, node as f32 / (nodes - 1) as f32))
+            .collect::<Vec<_>>()
+    };
+    let first = StrandColors { hairs: vec![blend(guides[0].nodes); 1 + guides[0].followers as usize] };
+    let mut second = StrandColors { hairs: vec![blend(guides[1].nodes); 1 + guides[1].followers as usize] };
+    second.hairs[1].pop();
+    let colors = strips.colors(|entity| {
+        if entity == guides[0].entity {
+            Some(&first)
+        } else if entity == guides[1].entity {
+            Some(&second)
+        } else {
+            None
+        }
+    });
+    assert_eq!(colors.len(), 2 * strips.node_count());
+    let srgb = |color: LinearRgba| {
+        let [r, g, b, _] = Srgba::from(color).to_u8_array();
+        u32::from_le_bytes([r, g, b, 255])
+    };
+    let mut hair = 0;
+    for (index, guide) in guides.iter().enumerate() {
+        for follower in 0..=guide.followers {
+            let drawn = strips.hairs()[hair];
+            for along in 0..drawn.nodes {
+                let expected = match (index, follower) {
+                    (0, _) => srgb(blend(drawn.nodes)[along as usize]),
+                    (1, 1) => 0,
+                    (1, _) => srgb(blend(drawn.nodes)[along as usize]),
+                    _ => 0,
+                };
+                for side in 0..2 {
+                    assert_eq!(
+                        colors[(2 * (drawn.first_node + along) + side) as usize],
+                        expected,
+                        "hair {hair} node {along}"
+                    );
+                }
+            }
+            hair += 1;
+        }
+    }
+    // Pure red at a root, pure blue at a tip, as sRGB bytes.
+    assert_eq!(colors[0], 0xff00_00ff);
+    assert_eq!(colors[2 * (guides[0].nodes as usize - 1)], 0xffff_0000);
+}
+
+#[test]
 fn positions_are_interpolated_between_the_last_two_steps_in_parallel() {
     let (app, head) = moving_head();
     let world = app.world();
