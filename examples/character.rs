@@ -10,7 +10,7 @@
 //! cargo run --release --features examples --example character -- --groom ratboy
 //! ```
 //!
-//! Options: `--groom long|curly|ratboy` (Ratboy: TressFX's mohawk, fitted to the scalp),
+//! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at a quarter of its size),
 //! `--animate sway|still`, and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
 //! then a PNG, then exit). Press C to show the colliders.
 
@@ -62,21 +62,21 @@ struct Options {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Groom {
-    Long,
+    Straight,
     Curly,
     Ratboy,
 }
 
 impl Options {
     const USAGE: &str =
-        "usage: character [--groom long|curly|ratboy] [--animate sway|still] [--screenshot PATH] [--frames N]";
+        "usage: character [--groom straight|curly|ratboy] [--animate sway|still] [--screenshot PATH] [--frames N]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut options = Self { groom: Groom::Long, animate: true, screenshot: None, frames: 240 };
+        let mut options = Self { groom: Groom::Straight, animate: true, screenshot: None, frames: 240 };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             match (flag.as_str(), value.as_str()) {
-                ("--groom", "long") => options.groom = Groom::Long,
+                ("--groom", "straight") => options.groom = Groom::Straight,
                 ("--groom", "curly") => options.groom = Groom::Curly,
                 ("--groom", "ratboy") => options.groom = Groom::Ratboy,
                 ("--animate", "sway") => options.animate = true,
@@ -179,18 +179,23 @@ fn spawn_character(
     skinned("Body", body, &cloth, &|_| 0.0);
 
     // The shoulders hold hair falling down the back: a capsule across them, this head's collider.
-    let shoulders = Transform::from_translation(NECK - Vec3::Y * 0.1).with_rotation(Quat::from_rotation_z(FRAC_PI_2));
-    commands.spawn((HairCollider::capsule(0.07, 0.13), HairColliderOf(head), shoulders));
+    let shoulders = Transform::from_translation(NECK - Vec3::Y * 0.15).with_rotation(Quat::from_rotation_z(FRAC_PI_2));
+    commands.spawn((HairCollider::capsule(0.07, 0.12), HairColliderOf(head), shoulders));
 
     // The hair, put on by name once the character is there.
     let hair = match options.groom {
-        Groom::Long | Groom::Curly => {
-            let style = if options.groom == Groom::Long { HairStyle::Long } else { HairStyle::Curly };
+        Groom::Straight | Groom::Curly => {
+            let style = if options.groom == Groom::Straight { HairStyle::Straight } else { HairStyle::Curly };
             let scalp = Scalp { centre: SKULL_CENTRE, semi_axes: SKULL, ..default() };
             CharacterHair::Groom(HairGroom { style, scalp, strand_count: 1200, followers_per_guide: 8, ..default() })
         }
         Groom::Ratboy => {
-            let placement = GroomPlacement { fit_to_scalp: true, ..default() };
+            // TressFX's mohawk grows on a rat's head 69 cm tall (roots from its neck to its crown): at a
+            // quarter of its size its roots cover this head's back and crown, and bind to the scalp's
+            // nearest triangles. (Fitting it to the scalp, `fit_to_scalp`, squeezes that tall layout
+            // into a strip.)
+            let placement =
+                GroomPlacement { metres_per_unit: 0.25, transform: Transform::from_xyz(0.0, -0.03, 0.0), ..default() };
             CharacterHair::File(HairGroomFile::new(assets.load("grooms/Ratboy_mohawk.tfx")).with_placement(placement))
         }
     };
