@@ -92,7 +92,8 @@
 //! | [`HairFollowers`](followers::HairFollowers) beside a strand | [`FollowerNodes`](followers::FollowerNodes) | [`followers`] |
 //! | [`HairCollider`](collision::HairCollider), with [`HairColliderOf`](collision::HairColliderOf)`(head)` or none | [`ColliderMotion`](collision::ColliderMotion) | [`collision`] |
 //! | [`HairColliderFromMesh`](collision::HairColliderFromMesh) beside a `Mesh3d` | its [`HairCollider`](collision::HairCollider), baked | [`collision::mesh`] |
-//! | [`HairScalpMesh`](scalp::HairScalpMesh)`(mesh)` on a head | [`ScalpRootBinding`](scalp::ScalpRootBinding) on its strands | [`scalp`] |
+//! | [`HairScalpMesh`](scalp::HairScalpMesh)`(mesh)` on a head | [`ScalpRootBinding`](scalp::ScalpRootBinding) on its strands; [`GroomSurface`](groom::GroomSurface) on the head, which its groom grows on | [`scalp`], [`groom`] |
+//! | [`StrandColors`](groom::StrandColors) on a strand (a groom file's colours) | its hairs drawn in them | [`groom`], [`render`] |
 //! | [`HairOnCharacter`](scalp::HairOnCharacter) on a character's scene root | [`HairHead`](simulation::HairHead), [`HairScalpMesh`](scalp::HairScalpMesh), the groom and colliders on its head joint | [`scalp`] |
 //! | [`StrandForces`](simulation::StrandForces) on a strand, [`HairWind`](wind::HairWind), [`HairWindSource`](wind::HairWindSource) | (cleared after each step) | [`simulation`], [`wind`] |
 //! | [`HairSettings::volume`](simulation::HairSettings::volume), [`RepresentedHairs`](volume::RepresentedHairs) | [`HairVolumeGrids`](volume::HairVolumeGrids) | [`volume`] |

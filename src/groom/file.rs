@@ -823,7 +823,7 @@ fn place_groom_files(
         }
         let placed = guides.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), FileStrand));
         if colors.len() == placed.len() {
-            commands.spawn_batch(placed.zip(colors).map(|(placed, colors)| (placed, colors)));
+            commands.spawn_batch(placed.zip(colors));
         } else {
             commands.spawn_batch(placed);
         }
