@@ -10,7 +10,7 @@
 //! cargo run --release --features examples --example character -- --groom ratboy
 //! ```
 //!
-//! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at a quarter of its size),
+//! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at 0.3 of its size),
 //! `--animate sway|still`, and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
 //! then a PNG, then exit). Press C to show the colliders.
 
@@ -190,12 +190,11 @@ fn spawn_character(
             CharacterHair::Groom(HairGroom { style, scalp, strand_count: 1200, followers_per_guide: 8, ..default() })
         }
         Groom::Ratboy => {
-            // TressFX's mohawk grows on a rat's head 69 cm tall (roots from its neck to its crown): at a
-            // quarter of its size its roots cover this head's back and crown, and bind to the scalp's
-            // nearest triangles. (Fitting it to the scalp, `fit_to_scalp`, squeezes that tall layout
-            // into a strip.)
+            // TressFX's mohawk grows on a rat's head 69 cm tall (roots from its neck to its crown): at
+            // 0.3 of its size, lowered to this head, each strand moved onto the scalp's nearest point.
+            // (Fitting it to the scalp, `fit_to_scalp`, squeezes that tall layout into a strip.)
             let placement =
-                GroomPlacement { metres_per_unit: 0.25, transform: Transform::from_xyz(0.0, -0.03, 0.0), ..default() };
+                GroomPlacement { metres_per_unit: 0.3, transform: Transform::from_xyz(0.0, -0.07, 0.0), ..default() };
             CharacterHair::File(HairGroomFile::new(assets.load("grooms/Ratboy_mohawk.tfx")).with_placement(placement))
         }
     };

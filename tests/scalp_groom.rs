@@ -267,3 +267,48 @@ fn a_groom_file_in_other_units_off_its_head_is_fitted_back_onto_the_scalp() {
     assert!(off < 2e-3, "a crest root {off} m off the scalp");
     assert!((fitted.metres_per_unit / 0.01 - 1.0).abs() < 0.1, "{} m per unit", fitted.metres_per_unit);
 }
+
+#[test]
+fn a_groom_file_on_a_head_with_a_scalp_mesh_is_moved_strand_by_strand_onto_it() {
+    let mut app = app_with_meshes();
+    let mesh = app.world_mut().resource_mut::<Assets<Mesh>>().add(scalp_cap(16, |_| [1.0; 4]));
+    // Strands authored 5 mm inside the scalp (another head's shape), each straight out and down.
+    let authored: Vec<HairStrand> = (0..40)
+        .map(|index| {
+            let around = std::f32::consts::TAU * index as f32 / 40.0;
+            let out = Vec3::new(0.6 * around.cos(), 0.8, 0.6 * around.sin());
+            HairStrand::straight((RADIUS - 0.005) * out, out + Vec3::NEG_Y, 0.12, 8)
+        })
+        .collect();
+    let file = app.world_mut().resource_mut::<Assets<GroomFile>>().add(groom_file(&authored, |node| node));
+    let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.5, 0.0))).id();
+    let scalp = app.world_mut().spawn((Mesh3d(mesh), Transform::default(), ChildOf(head))).id();
+    app.world_mut().entity_mut(head).insert((HairScalpMesh(scalp), HairGroomFile::new(file)));
+    for _ in 0..4 {
+        app.update();
+    }
+    let surface = match app.world().get::<GroomSurface>(head) {
+        Some(GroomSurface::Ready(surface)) => surface.clone(),
+        _ => panic!("the surface is known"),
+    };
+    let strands = app.world().get::<HeadStrands>(head).expect("placed").strands().to_vec();
+    assert_eq!(strands.len(), 40);
+    for entity in strands {
+        let nodes = &app.world().get::<HairStrand>(entity).unwrap().nodes;
+        let root = nodes[0];
+        assert!(surface.nearest(root).0.distance(root) < 1e-6, "a root {root} off the scalp");
+        // Moved whole: the same shape as authored, from a root on the scalp.
+        let own = authored.iter().min_by(|a, b| {
+            (a.nodes[1] - a.nodes[0])
+                .angle_between(nodes[1] - root)
+                .total_cmp(&(b.nodes[1] - b.nodes[0]).angle_between(nodes[1] - root))
+        });
+        let own = own.unwrap();
+        let offset = root - own.nodes[0];
+        assert!((offset.length() - 0.005).abs() < 1e-3, "moved {offset}");
+        // (Resampled to the placement's edges: every node on the authored straight strand.)
+        let (from, along) = (own.nodes[0], (own.nodes[8] - own.nodes[0]).normalize());
+        let off_line = |node: Vec3| (node - offset - from).reject_from_normalized(along).length();
+        assert!(nodes.iter().all(|&node| off_line(node) < 1e-5), "the strand's shape changed");
+    }
+}

@@ -609,7 +609,9 @@ impl GroomPlacement {
 }
 
 /// A groom from a file on a head ([`HairHead`]): its strands, placed by [`GroomPlacement`], become the
-/// head's simulated strands once the file is loaded. Changing the component, or the file (hot
+/// head's simulated strands once the file is loaded. On a head with a scalp mesh
+/// ([`HairScalpMesh`](crate::scalp::HairScalpMesh)) each strand is moved, whole, until its root lies on
+/// the scalp's nearest point (where the root is then bound), once the scalp's shape is known. Changing the component, or the file (hot
 /// reloading), regrows them; a file that fails to load leaves the head's hair as it was (the asset
 /// server logs why).
 ///
@@ -788,9 +790,9 @@ fn place_groom_files(
         let Some(file) = files.get(id).filter(|_| stale) else {
             continue;
         };
-        // Fitted to a scalp that is not known yet: wait for it.
+        // On a scalp that is not known yet: wait for it.
         let scalp = surface.as_deref().map(GroomSurface::surface);
-        if fit && matches!(scalp, Some(None)) {
+        if matches!(scalp, Some(None)) {
             continue;
         }
         let placement = match scalp.flatten() {
@@ -815,7 +817,13 @@ fn place_groom_files(
             }
             continue;
         }
-        let PlacedStrands { guides, colors, skipped } = file.placed_strands(&placement, &settings.default_material);
+        let PlacedStrands { mut guides, colors, skipped } = file.placed_strands(&placement, &settings.default_material);
+        if let Some(scalp) = scalp.flatten() {
+            for (guide, followers) in &mut guides {
+                scalp.move_onto(&mut guide.nodes);
+                followers.curves.iter_mut().for_each(|curve| scalp.move_onto(curve));
+            }
+        }
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"

@@ -175,6 +175,14 @@ impl ScalpSurface {
         (point / self.cell).floor().as_ivec3()
     }
 
+    /// Moves the strand `nodes` (head-local, m), whole, so that its root lies on the surface's nearest
+    /// point.
+    pub fn move_onto(&self, nodes: &mut [Vec3]) {
+        let Some(&root) = nodes.first() else { return };
+        let offset = self.nearest(root).0 - root;
+        nodes.iter_mut().for_each(|node| *node += offset);
+    }
+
     /// The point of the surface nearest `point`, with the surface's blended normal there.
     pub fn nearest(&self, point: Vec3) -> (Vec3, Vec3) {
         let candidates = self.cells.get(&self.cell_of(point));
