@@ -360,15 +360,15 @@ fn the_fuzz_seeds_read_as_made() {
 fn rest_drift(
     file: &GroomFile,
     placement: GroomPlacement,
-    collider: Option<HairCollider>,
+    collider: Option<(HairCollider, Transform)>,
     seconds: f64,
 ) -> (f64, f64, usize) {
     let mut app = hair_app_with(());
     let material = app.world().resource::<HairSettings>().default_material;
     let strands = file.placed_strands(&placement, &material).guides;
     let head = app.world_mut().spawn((HairHead, Transform::default())).id();
-    if let Some(collider) = collider {
-        app.world_mut().spawn((collider, HairColliderOf(head), Transform::default()));
+    if let Some((collider, pose)) = collider {
+        app.world_mut().spawn((collider, HairColliderOf(head), pose));
     }
     let placed: Vec<(Entity, Vec<Vec3>)> = strands
         .into_iter()
@@ -417,6 +417,16 @@ fn the_shipped_groom_placed_as_it_comes_keeps_its_shape_at_rest() {
     );
     assert!(held <= 1e-3, "the groom moved {held} m RMS from its shape");
     assert!(stiffening > 1.0);
+    // On a floor its lowest strands rest on (a millimetre under them: within their contact thickness of
+    // 1.04 mm, their radius and the default collision margin).
+    let file = GroomFile::from_tfx(RATBOY).expect("the shipped groom reads");
+    let strands = file.placed_strands(&placement, &RodMaterial::human_hair()).guides;
+    let lowest = strands.iter().flat_map(|(strand, _)| strand.nodes.iter().map(|node| node.y)).fold(f32::MAX, f32::min);
+    let floor = (HairCollider::plane(), Transform::from_xyz(0.0, lowest - 0.001, 0.0));
+    let (on_floor, _, contacts) = rest_drift(&file, placement, Some(floor), 10.0);
+    println!("on a floor under it: {:.3} mm ({contacts} nodes in contact)", 1e3 * on_floor);
+    assert!(on_floor <= 1e-3, "on a floor, the groom moved {on_floor} m RMS from its shape");
+    assert!(contacts > 0, "nothing rests on the floor");
     // Preloaded only, the equilibrium is not a stable one: the strands fall.
     assert!(fallen > 0.01, "preloaded only, the groom stayed within {fallen} m RMS");
 }
@@ -505,7 +515,7 @@ fn a_groom_of_our_own_with_long_curved_and_upward_hair_keeps_its_shape_at_rest_w
     let placement = GroomPlacement::default();
     let skull = HairCollider::sphere(SKULL);
     let (free, stiffening, _) = rest_drift(&file, placement, None, 10.0);
-    let (on_skull, _, contacts) = rest_drift(&file, placement, Some(skull), 10.0);
+    let (on_skull, _, contacts) = rest_drift(&file, placement, Some((skull, Transform::default())), 10.0);
     println!(
         "our groom at rest for 10 s: RMS from its shape at most {:.3} mm alone, {:.3} mm on its skull ({contacts} nodes in contact); stiffened up to ×{stiffening:.0}",
         1e3 * free,
