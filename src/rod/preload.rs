@@ -23,7 +23,7 @@
 //! report counts the vertices that were bounded. Gravity is baked into the rest shape, not applied as a
 //! force: turned upside down or under another gravity, the hair responds physically.
 
-use bevy::math::{DMat4, DVec3, DVec4};
+use bevy::math::{DMat4, DVec2, DVec3, DVec4};
 
 use super::curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, Rod};
 use super::energy::{EdgeGeometry, edge_geometry, vertex_strain};
@@ -109,24 +109,16 @@ impl Rod {
                 requirement: "must be finite",
             });
         }
-        let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
-        edge_geometry(self, &mut edges);
-        let stresses = self.equilibrium_stresses(&edges, gravity, supports);
-
-        let stiffness = *self.stiffness();
+        let changes = self.sag_free_changes(gravity, supports);
         let mut report =
             PreloadReport { supported_nodes: supports.iter().flatten().count(), ..PreloadReport::default() };
         let largest = 2.0 * (0.5 * MAX_PRELOAD_TURN).tan();
-        for (vertex, stress) in stresses.iter().enumerate() {
-            let Some(stress) = *stress else {
+        for (vertex, change) in changes.iter().enumerate() {
+            let Some((bend, turn)) = *change else {
                 continue;
             };
             let (kappa, twist) = self.vertex_curvature_and_twist(vertex);
-            let length = self.rest.voronoi_lengths[vertex];
-            let sag_free = bevy::math::DVec2::new(
-                kappa.x - stress.x * length / stiffness.bending_1,
-                kappa.y - stress.y * length / stiffness.bending_2,
-            );
+            let sag_free = kappa - bend;
             let old = self.rest.curvatures[vertex];
             let mut curvature = old + factor * (sag_free - old);
             if curvature.length() > largest {
@@ -134,7 +126,7 @@ impl Rod {
                 report.bounded_vertices += 1;
             }
             report.max_curvature_change = report.max_curvature_change.max((curvature - old).length());
-            let sag_free_twist = twist - stress.z * length / stiffness.twisting;
+            let sag_free_twist = twist - turn;
             let old_twist = self.rest.twists[vertex];
             let rest_twist = old_twist + factor * (sag_free_twist - old_twist);
             if rest_twist.abs() > MAX_REST_TWIST {
@@ -199,29 +191,43 @@ impl Rod {
             unsupported = vec![None; self.node_count()];
             &unsupported
         };
-        let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
-        edge_geometry(self, &mut edges);
-        let stresses = self.equilibrium_stresses(&edges, gravity, supports);
         let flip_margin = FLIP_MARGIN * stiffness.twisting / bending;
         let mut needed = held.max(1.0);
-        for (vertex, stress) in stresses.iter().enumerate() {
-            let Some(stress) = *stress else {
+        for (vertex, change) in self.sag_free_changes(gravity, supports).iter().enumerate() {
+            let Some((bend, turn)) = *change else {
                 continue;
             };
             let (kappa, _) = self.vertex_curvature_and_twist(vertex);
-            let voronoi = self.rest.voronoi_lengths[vertex];
-            let change = bevy::math::DVec2::new(
-                stress.x * voronoi / stiffness.bending_1,
-                stress.y * voronoi / stiffness.bending_2,
-            );
             // κ · (κ − Δκ / k) ≥ −m  ⇔  k ≥ κ · Δκ / (|κ|² + m).
-            let against = kappa.dot(change);
+            let against = kappa.dot(bend);
             if against > 0.0 {
                 needed = needed.max(against / (kappa.length_squared() + flip_margin));
             }
-            needed = needed.max(stress.z.abs() * length / stiffness.twisting / TWIST_HOLDING);
+            // The twisting moment M_t = GJ Δτ / l.
+            let twisting_number = turn.abs() * length / self.rest.voronoi_lengths[vertex];
+            needed = needed.max(twisting_number / TWIST_HOLDING);
         }
         if needed.is_finite() { needed } else { 1.0 }
+    }
+
+    /// Per interior vertex, how far the rest curvature and twist must move from the current ones
+    /// (integrated: `Δκ = s l / EI`, `Δτ = s_τ l / GJ`) for the current shape to hold under `gravity` with
+    /// `supports`; `None` at the ends and where the shape is singular.
+    fn sag_free_changes(&self, gravity: DVec3, supports: &[Option<DVec3>]) -> Vec<Option<(DVec2, f64)>> {
+        let mut edges: Vec<EdgeGeometry> = Vec::with_capacity(self.edge_count());
+        edge_geometry(self, &mut edges);
+        let stiffness = *self.stiffness();
+        let stresses = self.equilibrium_stresses(&edges, gravity, supports);
+        stresses
+            .iter()
+            .enumerate()
+            .map(|(vertex, stress)| {
+                let stress = (*stress)?;
+                let length = self.rest.voronoi_lengths[vertex];
+                let bend = DVec2::new(stress.x * length / stiffness.bending_1, stress.y * length / stiffness.bending_2);
+                Some((bend, stress.z * length / stiffness.twisting))
+            })
+            .collect()
     }
 
     /// The bending and twisting stresses `s_v` (N·m) that hold the rod's current shape against `gravity`,
