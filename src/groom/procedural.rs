@@ -468,7 +468,7 @@ impl CombedPath<'_> {
             tangent = self.combing.direction(self.scalp, surface, normal);
             let (next, next_normal) = self.on_skull(surface + Self::STEP * tangent);
             // At the edge of a scalp mesh the hair leaves it.
-            if next.distance(surface) < 0.25 * Self::STEP {
+            if self.surface.is_some() && next.distance(surface) < 0.25 * Self::STEP {
                 break;
             }
             (surface, normal) = (next, next_normal);
