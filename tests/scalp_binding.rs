@@ -13,6 +13,7 @@ use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
 use common::headless::{DT, hair_app_with, strand};
+use common::logs;
 
 /// How far a velocity differenced from single-precision transforms can be off, m/s: positions near
 /// 1.7 m are known to an ulp (1.2e-7 m), and BDF2's difference weighs three of them by 3 + 4 + 1 over 2dt.
@@ -260,13 +261,16 @@ fn a_rigid_scalp_binds_once_loaded_and_a_skin_without_weights_is_refused() {
     let root = strand(&app, top).rod().positions()[0];
     assert!((root - DVec3::new(0.01, 1.7, 0.0)).length() < 1e-5, "the root moved with the mesh: {root}");
 
-    // A skinned scalp whose mesh has no joint weights: refused, its strands follow the head.
+    // A skinned scalp whose mesh has no joint weights: refused (said once), its strands follow the head.
+    let _log = logs::serial();
     let mut app = app_with_assets();
     let (neck, _, strands) = spawn_character(&mut app, scalp_mesh(false), 7);
     for _ in 0..5 {
         app.update();
     }
     assert!(strands.iter().all(|&entity| app.world().get::<ScalpRootBinding>(entity).is_none()));
+    let refusals = logs::take().iter().filter(|(_, line)| line.contains("no joint indices and weights")).count();
+    assert_eq!(refusals, 1, "the refusal is said once");
     app.world_mut().get_mut::<Transform>(neck).unwrap().translation.x += 0.05;
     app.update();
     assert_eq!(app.world().resource::<HairStatistics>().faults, 0);

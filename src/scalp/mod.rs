@@ -34,11 +34,11 @@
 //! weights). A mesh that cannot be used is reported once and its head's roots follow the head until it
 //! is fixed.
 
+use std::sync::Arc;
+
 use bevy::math::{Affine3A, DAffine3, DMat3, DVec3};
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
-use std::sync::Arc;
-
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
@@ -99,8 +99,10 @@ pub struct ScalpPose {
     joints: Option<Vec<DAffine3>>,
     /// Why it cannot be, when it is faulty (reported once).
     problem: Option<ScalpError>,
-    /// Why the scalp cannot grow a groom, when it cannot (reported once).
-    surface_problem: Option<ScalpError>,
+    /// Why the posed mesh cannot bind roots or grow a groom, when it cannot (reported once; the pose's
+    /// problem is cleared each step it can be posed, this one when the scalp changes or grows a groom).
+    /// Binding and growing read the same mesh, so they share it.
+    mesh_problem: Option<ScalpError>,
 }
 
 impl ScalpPose {
@@ -257,8 +259,8 @@ type SurfaceHeads<'w, 's> = Query<
     ),
 >;
 
-/// Gives every head with a scalp mesh whose surface is still waiting, or whose groom or groom file is
-/// new or changed, its [`GroomSurface`]: the scalp mesh as it is posed now, in the head's local space,
+/// Gives every head with a scalp mesh and a groom or groom file whose surface is still waiting, or whose
+/// scalp, groom or groom file is new or changed, its [`GroomSurface`]: the scalp mesh as it is posed now, in the head's local space,
 /// with the hair density painted in its vertex colours.
 fn shape_groom_surfaces(
     transforms: TransformHelper,
@@ -269,6 +271,15 @@ fn shape_groom_surfaces(
     mut heads: SurfaceHeads,
 ) {
     for (head, scalp, mut surface, mut pose, groom, file) in &mut heads {
+        // A new scalp may do what the last could not: its problems are said anew (this runs first of
+        // the scalp's systems in a step).
+        if scalp.is_changed() && pose.mesh_problem.is_some() {
+            pose.mesh_problem = None;
+        }
+        // Only a groom grows on it.
+        if groom.is_none() && file.is_none() {
+            continue;
+        }
         let regrow = groom.is_some_and(|groom| groom.is_changed()) || file.is_some_and(|file| file.is_changed());
         if !(matches!(*surface, GroomSurface::Waiting) || scalp.is_changed() || regrow) {
             continue;
@@ -279,7 +290,7 @@ fn shape_groom_surfaces(
             .map(|transform| affine_f64(transform.affine()))
             .filter(|affine| affine.is_finite() && affine.matrix3.determinant() != 0.0)
         else {
-            report(head, &mut pose.surface_problem, Some(ScalpError::NoTransform));
+            report(head, &mut pose.mesh_problem, Some(ScalpError::NoTransform));
             continue;
         };
         let shaped = scalp_joints(scalp.0, to_head.inverse(), &transforms, &scalp_meshes, bindposes.as_deref())
@@ -297,14 +308,14 @@ fn shape_groom_surfaces(
         match shaped {
             Ok(shaped) => {
                 *surface = GroomSurface::Ready(Arc::new(shaped));
-                pose.surface_problem = None;
+                pose.mesh_problem = None;
             }
             // Waiting (and the groom with it) until the mesh has loaded, or is fixed.
             Err(problem) => {
                 if !matches!(*surface, GroomSurface::Waiting) {
                     *surface = GroomSurface::Waiting;
                 }
-                report(head, &mut pose.surface_problem, problem);
+                report(head, &mut pose.mesh_problem, problem);
             }
         }
     }
@@ -430,13 +441,13 @@ fn bind_roots(
             let (mesh3d, skinned) = scalp_meshes.get(scalp_mesh).ok()?;
             let mesh = meshes.as_ref()?.get(&mesh3d.0)?; // Not loaded yet: tried again next step.
             let read = PosedScalp::new(mesh, skinned, pose.joints.as_deref()?);
-            read.map_err(|problem| report(head, &mut pose.problem, Some(problem))).ok()
+            read.map_err(|problem| report(head, &mut pose.mesh_problem, Some(problem))).ok()
         });
         let Some(posed) = posed else {
             continue;
         };
         let Some((triangle, weights)) = posed.nearest(anchor.position) else {
-            report(head, &mut pose.problem, Some(ScalpError::NoTriangle));
+            report(head, &mut pose.mesh_problem, Some(ScalpError::NoTriangle));
             continue;
         };
         let corners = posed.triangles[triangle as usize];
