@@ -182,14 +182,15 @@ impl GroomFile {
         let colors = self.colors.as_ref()?;
         let range = self.strand_starts[index]..self.strand_starts[index + 1];
         let (points, colors) = (&self.points[range.clone()], colors.get(range)?);
-        let mut along = Vec::with_capacity(points.len());
+        // How far along the strand each point is (file units).
         let mut walked = 0.0;
-        for (index, pair) in
-            std::iter::once(0.0).chain(points.windows(2).map(|pair| pair[0].distance(pair[1]))).enumerate()
-        {
-            walked += pair;
-            along.push((walked, index));
-        }
+        let along: Vec<f32> = std::iter::once(0.0)
+            .chain(points.windows(2).map(|pair| pair[0].distance(pair[1])))
+            .map(|step| {
+                walked += step;
+                walked
+            })
+            .collect();
         let length = walked.max(f32::MIN_POSITIVE);
         let edges = edges.max(1);
         let color = |point: usize| {
@@ -200,13 +201,13 @@ impl GroomFile {
             (0..=edges)
                 .map(|node| {
                     let at = length * node as f32 / edges as f32;
-                    let after = along.partition_point(|&(walked, _)| walked < at).min(points.len() - 1);
+                    let after = along.partition_point(|&walked| walked < at).min(points.len() - 1);
                     if after == 0 {
                         return color(0);
                     }
-                    let ((from, a), (to, b)) = (along[after - 1], along[after]);
+                    let (from, to) = (along[after - 1], along[after]);
                     let t = if to > from { ((at - from) / (to - from)).clamp(0.0, 1.0) } else { 1.0 };
-                    color(a).mix(&color(b), t)
+                    color(after - 1).mix(&color(after), t)
                 })
                 .collect(),
         )
@@ -543,10 +544,9 @@ impl GroomPlacement {
     /// The fibres' radius scales with the unit. A file without usable strands keeps this placement.
     pub fn fitted_to(&self, file: &GroomFile, surface: &ScalpSurface) -> Self {
         let roots: Vec<Vec3> = file.usable_strands().map(|index| self.place(file.strand(index)[0])).collect();
-        let bounds = |points: &mut dyn Iterator<Item = Vec3>| {
-            points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), point| (low.min(point), high.max(point)))
-        };
-        let (low, high) = bounds(&mut roots.iter().copied());
+        let (low, high) = roots
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(low, high), &root| (low.min(root), high.max(root)));
         let (scalp_low, scalp_high) = surface.bounds();
         let (extent, scalp_extent) = (high - low, scalp_high - scalp_low);
         let widest = extent.max_element();
@@ -571,18 +571,22 @@ impl GroomPlacement {
         }
         // Then scale and offset together, by least squares onto the nearest points, while that brings the
         // roots nearer and keeps the scale within a factor of two of the extents'.
-        let rms = |scale: f32, offset: Vec3| {
-            (placed(scale, offset).map(|point| surface.nearest(point).0.distance_squared(point)).sum::<f32>() / count)
-                .sqrt()
+        // The roots placed by a scale and offset, each with its nearest point of the surface, and their
+        // RMS distance.
+        let paired = |scale: f32, offset: Vec3| -> (Vec<Vec3>, Vec<Vec3>) {
+            placed(scale, offset).map(|point| (point, surface.nearest(point).0)).unzip()
+        };
+        let rms = |(points, nearest): &(Vec<Vec3>, Vec<Vec3>)| {
+            (points.iter().zip(nearest).map(|(p, q)| p.distance_squared(*q)).sum::<f32>() / count).sqrt()
         };
         let from_extents = scale;
-        let mut distance = rms(scale, offset);
+        let mut pairs = paired(scale, offset);
+        let mut distance = rms(&pairs);
         for _ in 0..64 {
-            let (points, nearest): (Vec<Vec3>, Vec<Vec3>) =
-                placed(scale, offset).map(|point| (point, surface.nearest(point).0)).unzip();
+            let (points, nearest) = &pairs;
             let (mean, mean_nearest) = (points.iter().sum::<Vec3>() / count, nearest.iter().sum::<Vec3>() / count);
             let spread: f32 = points.iter().map(|point| (*point - mean).length_squared()).sum();
-            let along: f32 = points.iter().zip(&nearest).map(|(p, q)| (*p - mean).dot(*q - mean_nearest)).sum();
+            let along: f32 = points.iter().zip(nearest).map(|(p, q)| (*p - mean).dot(*q - mean_nearest)).sum();
             let factor = along / spread;
             if !(factor.is_finite() && factor > 0.0) {
                 break;
@@ -590,13 +594,14 @@ impl GroomPlacement {
             // The roots (about `centre`, by `scale`, then `offset`) scaled by `factor` about their mean and
             // moved onto the nearest points' mean.
             let (next_scale, next_offset) = (scale * factor, mean_nearest + factor * (centre + offset - mean) - centre);
-            let next_distance = rms(next_scale, next_offset);
+            let next_pairs = paired(next_scale, next_offset);
+            let next_distance = rms(&next_pairs);
             if next_distance.partial_cmp(&distance) != Some(std::cmp::Ordering::Less)
                 || !(0.5..=2.0).contains(&(next_scale / from_extents))
             {
                 break;
             }
-            (scale, offset, distance) = (next_scale, next_offset, next_distance);
+            (scale, offset, distance, pairs) = (next_scale, next_offset, next_distance, next_pairs);
         }
         // place'(p) = t' + s (place(p) − t) = s (place(p) − centre) + centre + offset.
         let translation = scale * (self.transform.translation - centre) + centre + offset;
@@ -683,11 +688,15 @@ impl GroomFile {
         let usable: Vec<usize> = self.usable_strands().collect();
         let skipped = self.strand_count() - usable.len();
         let count = usable.len().min(placement.max_strands);
+        let edges = placement.segments.max(2);
         let placed = |index: usize| -> Vec<Vec3> {
-            let points = self.resampled_strand(index, placement.segments.max(2));
+            let points = self.resampled_strand(index, edges);
             points.into_iter().map(|point| placement.place(point)).collect()
         };
-        let edges = placement.segments.max(2);
+        // One per guide when the file has colours (a strand it has none for gets an empty list: drawn in
+        // the appearance's colours), so that they stay in step with the guides.
+        let colored = self.colors.is_some();
+        let strand_colors = |index: usize| self.resampled_colors(index, edges).unwrap_or_default();
         let mut colors: Vec<StrandColors> = Vec::new();
         let mut picked = vec![false; usable.len()];
         let mut guides: Vec<(HairStrand, HairFollowers)> = (0..count)
@@ -695,8 +704,8 @@ impl GroomFile {
                 let which = pick * usable.len() / count;
                 picked[which] = true;
                 let index = usable[which];
-                if let Some(guide_colors) = self.resampled_colors(index, edges) {
-                    colors.push(StrandColors { hairs: vec![guide_colors] });
+                if colored {
+                    colors.push(StrandColors { hairs: vec![strand_colors(index)] });
                 }
                 let nodes = placed(index);
                 let direction = (nodes[1] - nodes[0]).any_orthonormal_vector();
@@ -722,8 +731,8 @@ impl GroomFile {
                 .min_by(|(_, a), (_, b)| a.distance_squared(nodes[0]).total_cmp(&b.distance_squared(nodes[0])));
             if let Some((guide, _)) = nearest {
                 guides[guide].1.curves.push(nodes);
-                if let (Some(colors), Some(follower)) = (colors.get_mut(guide), self.resampled_colors(index, edges)) {
-                    colors.hairs.push(follower);
+                if colored {
+                    colors[guide].hairs.push(strand_colors(index));
                 }
             }
         }
@@ -785,8 +794,10 @@ fn place_groom_files(
     for (head, groom, placed_from, strands, surface) in &heads {
         let id = groom.file.id();
         let fit = groom.placement.fit_to_scalp;
-        let refit = fit && surface.as_ref().is_some_and(|surface| surface.is_changed());
-        let stale = groom.is_changed() || placed_from != Some(&PlacedGroomFile(id)) || reloaded.contains(&id) || refit;
+        // Placed onto its scalp (and fitted to it, if asked): a new shape of the scalp places it again.
+        let reshaped = surface.as_ref().is_some_and(|surface| surface.is_changed());
+        let stale =
+            groom.is_changed() || placed_from != Some(&PlacedGroomFile(id)) || reloaded.contains(&id) || reshaped;
         let Some(file) = files.get(id).filter(|_| stale) else {
             continue;
         };
