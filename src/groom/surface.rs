@@ -128,10 +128,15 @@ impl ScalpSurface {
     /// local space, with the density painted in its vertex colours ([`ScalpSurface::vertex_density`]).
     pub fn from_mesh(mesh: &Mesh, transform: Affine3A) -> Result<Self, GroomError> {
         let (positions, triangles) = mesh_triangles(mesh, transform).map_err(GroomError::ScalpMesh)?;
-        let surface = Self::new(positions.iter().map(|position| position.as_vec3()).collect(), triangles)?;
+        Self::new(positions.iter().map(|position| position.as_vec3()).collect(), triangles)?.painted_by(mesh)
+    }
+
+    /// This surface (made of `mesh`'s vertices, in their order) with the density painted in `mesh`'s
+    /// vertex colours, if it has them ([`ScalpSurface::vertex_density`]).
+    pub fn painted_by(self, mesh: &Mesh) -> Result<Self, GroomError> {
         match Self::vertex_density(mesh) {
-            Some(density) => surface.with_density(density),
-            None => Ok(surface),
+            Some(density) => self.with_density(density),
+            None => Ok(self),
         }
     }
 
@@ -185,18 +190,16 @@ impl ScalpSurface {
 
     /// The point of the surface nearest `point`, with the surface's blended normal there.
     pub fn nearest(&self, point: Vec3) -> (Vec3, Vec3) {
-        let candidates = self.cells.get(&self.cell_of(point));
-        let best = candidates.and_then(|near| self.nearest_among(point, near.iter().copied()));
-        // Within a cell of the surface, its triangles are all in the point's cell.
-        let (triangle, nearest) = match best {
-            Some((triangle, nearest)) if nearest.distance(point) <= self.cell => (triangle, nearest),
-            _ => self.nearest_among(point, 0..self.triangles.len() as u32).expect("a surface has a triangle"),
-        };
-        (nearest, self.normal_at(triangle, nearest))
+        self.nearest_near(point).unwrap_or_else(|| {
+            let all = 0..self.triangles.len() as u32;
+            let (triangle, nearest) = self.nearest_among(point, all).expect("a surface has a triangle");
+            (nearest, self.normal_at(triangle, nearest))
+        })
     }
 
     /// The point of the surface nearest `point` with the normal there, if the surface passes within a
-    /// grid cell of it (a few of its edges); `None` farther away. Cheap: one cell's triangles.
+    /// grid cell of it (a few of its edges); `None` farther away. Cheap: one cell's triangles (within a
+    /// cell of the surface, the nearest triangles are all in the point's cell).
     pub(super) fn nearest_near(&self, point: Vec3) -> Option<(Vec3, Vec3)> {
         let near = self.cells.get(&self.cell_of(point))?;
         let (triangle, nearest) = self.nearest_among(point, near.iter().copied())?;

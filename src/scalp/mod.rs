@@ -299,11 +299,8 @@ fn shape_groom_surfaces(
                 let mesh = meshes.as_ref().and_then(|meshes| meshes.get(&mesh3d.0)).ok_or(None)?;
                 let posed = PosedScalp::new(mesh, skinned, &joints).map_err(Some)?;
                 let positions = posed.posed.iter().map(|position| position.as_vec3()).collect();
-                let shaped = ScalpSurface::new(positions, posed.triangles).map_err(|error| Some(error.into()))?;
-                match ScalpSurface::vertex_density(mesh) {
-                    Some(density) => shaped.with_density(density).map_err(|error| Some(error.into())),
-                    None => Ok(shaped),
-                }
+                let shaped = ScalpSurface::new(positions, posed.triangles).and_then(|shaped| shaped.painted_by(mesh));
+                shaped.map_err(|error| Some(error.into()))
             });
         match shaped {
             Ok(shaped) => {
