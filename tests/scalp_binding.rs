@@ -5,15 +5,16 @@
 
 mod common;
 
-use bevy::asset::{AssetPlugin, RenderAssetUsages};
+use bevy::asset::AssetPlugin;
 use bevy::math::{DMat4, DVec3};
+use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
-use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
 use common::headless::{DT, hair_app_with, strand};
 use common::logs;
+use common::sphere_cap;
 
 /// How far a velocity differenced from single-precision transforms can be off, m/s: positions near
 /// 1.7 m are known to an ulp (1.2e-7 m), and BDF2's difference weighs three of them by 3 + 4 + 1 over 2dt.
@@ -30,38 +31,20 @@ const HEAD_ABOVE_NECK: Vec3 = Vec3::new(0.0, 0.12, 0.0);
 /// from 1 at the crown to 0.3 at the rim, so the scalp stretches as the neck bends under a turned head.
 fn scalp_mesh(skinned: bool) -> Mesh {
     let (rings, segments) = (8u32, 16u32);
-    let centre = NECK + HEAD_ABOVE_NECK;
-    let mut positions = Vec::new();
-    let mut weights = Vec::new();
-    for ring in 0..=rings {
-        let polar = 100f32.to_radians() * ring as f32 / rings as f32;
-        for segment in 0..segments {
-            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
-            let direction = Vec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
-            positions.push(centre + RADIUS * direction);
-            let head = 1.0 - 0.7 * ring as f32 / rings as f32;
-            weights.push([1.0 - head, head, 0.0, 0.0]);
-        }
-    }
-    let at = |ring: u32, segment: u32| ring * segments + segment % segments;
-    let mut indices = Vec::new();
-    for ring in 0..rings {
-        for segment in 0..segments {
-            let (a, b, c, d) =
-                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
-            indices.extend([a, b, d, a, d, c]);
-        }
-    }
-    let count = positions.len();
-    let mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
-        .with_inserted_indices(Indices::U32(indices));
+    let mesh = sphere_cap(NECK + HEAD_ABOVE_NECK, RADIUS, rings, segments);
+    let count = mesh.count_vertices() as u32;
+    let weights: Vec<[f32; 4]> = (0..count)
+        .map(|vertex| {
+            let head = 1.0 - 0.7 * (vertex / segments) as f32 / rings as f32;
+            [1.0 - head, head, 0.0, 0.0]
+        })
+        .collect();
     if !skinned {
         return mesh;
     }
     mesh.with_inserted_attribute(
         Mesh::ATTRIBUTE_JOINT_INDEX,
-        VertexAttributeValues::Uint16x4(vec![[0, 1, 0, 0]; count]),
+        VertexAttributeValues::Uint16x4(vec![[0, 1, 0, 0]; count as usize]),
     )
     .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights)
 }

@@ -6,13 +6,13 @@
 
 mod common;
 
-use bevy::asset::{AssetPlugin, RenderAssetUsages};
+use bevy::asset::AssetPlugin;
 use bevy::math::Affine3A;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
 use common::headless::{hair_app_with, strand};
+use common::sphere_cap;
 
 /// The scalp's radius, m.
 const RADIUS: f32 = 0.1;
@@ -20,30 +20,10 @@ const RADIUS: f32 = 0.1;
 /// A cap over the top 100° of a sphere of [`RADIUS`] about the origin (`rings` × `2 rings` quads), its
 /// vertices coloured by `color(position)`.
 fn scalp_cap(rings: u32, color: impl Fn(Vec3) -> [f32; 4]) -> Mesh {
-    let segments = 2 * rings;
-    let mut positions = Vec::new();
-    for ring in 0..=rings {
-        let polar = 100f32.to_radians() * ring as f32 / rings as f32;
-        for segment in 0..segments {
-            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
-            positions.push(RADIUS * Vec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin()));
-        }
-    }
-    let at = |ring: u32, segment: u32| ring * segments + segment % segments;
-    let mut indices = Vec::new();
-    for ring in 0..rings {
-        for segment in 0..segments {
-            let (a, b, c, d) =
-                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
-            // Anticlockwise seen from outside.
-            indices.extend([a, b, d, a, d, c]);
-        }
-    }
-    let colors: Vec<[f32; 4]> = positions.iter().map(|&position| color(position)).collect();
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, colors)
-        .with_inserted_indices(Indices::U32(indices))
+    let mesh = sphere_cap(Vec3::ZERO, RADIUS, rings, 2 * rings);
+    let positions = mesh.attribute(Mesh::ATTRIBUTE_POSITION).unwrap().as_float3().unwrap();
+    let colors: Vec<[f32; 4]> = positions.iter().map(|&position| color(Vec3::from(position))).collect();
+    mesh.with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, colors)
 }
 
 /// A groom of `strand_count` straight strands with `followers` each, no hairline to speak of.

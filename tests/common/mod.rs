@@ -37,3 +37,33 @@ pub fn max_speed(rod: &Rod) -> f64 {
 
 pub mod headless;
 pub mod logs;
+
+/// The top 100° of a sphere of `radius` m about `centre` as a triangle list: `rings + 1` rings of
+/// `segments` vertices from the crown down (vertex `ring · segments + segment`), each quad between them two
+/// triangles anticlockwise seen from outside.
+pub fn sphere_cap(centre: bevy::math::Vec3, radius: f32, rings: u32, segments: u32) -> bevy::prelude::Mesh {
+    use bevy::asset::RenderAssetUsages;
+    use bevy::mesh::{Indices, PrimitiveTopology};
+    let mut positions = Vec::new();
+    for ring in 0..=rings {
+        let polar = 100f32.to_radians() * ring as f32 / rings as f32;
+        for segment in 0..segments {
+            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+            let direction =
+                bevy::math::Vec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
+            positions.push(centre + radius * direction);
+        }
+    }
+    let at = |ring: u32, segment: u32| ring * segments + segment % segments;
+    let mut indices = Vec::new();
+    for ring in 0..rings {
+        for segment in 0..segments {
+            let (a, b, c, d) =
+                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
+            indices.extend([a, b, d, a, d, c]);
+        }
+    }
+    bevy::prelude::Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(bevy::prelude::Mesh::ATTRIBUTE_POSITION, positions)
+        .with_inserted_indices(Indices::U32(indices))
+}
