@@ -249,6 +249,8 @@ pub mod debug;
 pub mod detail;
 pub mod followers;
 pub mod groom;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 mod parallel;
 pub mod render;
 pub mod rod;

@@ -1,0 +1,38 @@
+//! The strand step on the GPU: the same discrete elastic rods as [`crate::rod`], stepped in a WGSL compute
+//! shader (`step.wgsl`) in single precision, one invocation per strand (`gpu` feature).
+//!
+//! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
+//! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
+//! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
+//! inextensibility, and contact with the head's spheres, capsules, ellipsoids and planes with Coulomb
+//! friction. The banded Newton system of each strand (half-bandwidth 10, ≤ 255 unknowns) is assembled and
+//! factorised (`L D Lᵀ`) in the invocation's private memory; buffers are vertex-major, so neighbouring
+//! invocations read neighbouring memory.
+//!
+//! **Single precision, and what differs from the CPU.** WebGPU has no `f64`. Three choices keep the step
+//! honest in `f32`:
+//! - *Inextensibility by projection, not by a stiff spring in the solve.* Hair's stretching stiffness
+//!   `EA/l` is ~10⁷ times a node's inertia `m/h²` at 60 Hz; in a solve with it, `f32` rounding (10⁻⁷
+//!   relative) of the stiff terms would swamp the soft modes that make the motion. The GPU's solve keeps
+//!   an edge's first-order change of length only [`STRETCH_RATIO`] (10³) times stiffer than its nodes'
+//!   inertia (condition ~10³, so `f32` solves it to ~10⁻⁴) and has no stretching force; the lengths are
+//!   then projected exactly onto the rest lengths (Goldenthal et al. 2007), as the CPU projects onto its
+//!   linearised lengths.
+//! - *Positions relative to the head*, so that `f32` resolves tenths of a micrometre wherever the head is.
+//! - *A fixed number of Newton iterations* ([`GPU_NEWTON_ITERATIONS`]) for every strand, where the CPU
+//!   stops each strand when it converges; and contact after the solve (push-out, friction on the slip,
+//!   lengths again) where the CPU also has contact springs inside it. Edges dipping into a collider between
+//!   their nodes are the CPU's alone.
+//!
+//! **Faults** are found on the GPU: a strand with a non-finite value, an edge strained past
+//! [`crate::rod::StepParams::strain_bound`] (plus the strain `f32` can resolve,
+//! [`SINGLE_PRECISION_STRAIN`]) or a system that does not factorise is put back in the pose it was uploaded
+//! in, on its root, at rest, and its [`GpuStrandStatus`] says why.
+
+mod solver;
+
+pub use solver::{
+    GPU_CONTACT_ROUNDS, GPU_NEWTON_ITERATIONS, GpuFault, GpuHeadStep, GpuStepError, GpuStrandInput, GpuStrandSolver,
+    GpuStrandStates, GpuStrandStatus, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO,
+    headless_device,
+};

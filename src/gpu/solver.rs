@@ -1,0 +1,561 @@
+//! The GPU strand step on a plain `wgpu` device: the buffers, the pipeline of `step.wgsl`, uploads,
+//! dispatches and read-back. Bevy's renderer hands its own device to it ([`super::HairGpuPlugin`]); tests
+//! and benchmarks make one with [`headless_device`].
+
+use std::num::NonZeroU64;
+
+use bevy::math::{DQuat, DVec2, DVec3};
+use wgpu::util::DeviceExt;
+
+use crate::rod::{ColliderShape, MovingCollider, Rod, RodError, StepParams};
+
+/// Invocations per workgroup (`WORKGROUP` in the shader).
+const WORKGROUP: u32 = 64;
+/// Most workgroups along one dimension of a dispatch (WebGPU's limit).
+const MAX_GROUPS: u32 = 65_535;
+/// The most nodes a strand stepped on the GPU may have (`MAX_NODES` in the shader: its private arrays).
+pub const MAX_GPU_NODES: usize = 64;
+/// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
+const REST_ROWS: usize = 4;
+const STATE_ROWS: usize = 5;
+const HEAD_ROWS: usize = 4;
+const COLLIDER_ROWS: usize = 5;
+const STRAND_FLOATS: usize = 4;
+/// `Params` of the shader: sixteen words.
+const PARAMS_BYTES: u64 = 64;
+
+/// Stiffness of an edge's first-order change of length in the GPU's solve, relative to the inertia of its
+/// nodes `m (1/h² + γ/h)`, dimensionless. Large enough that the linear step keeps lengths to first order
+/// (an edge stretches by 1/1000 of what the forces alone would stretch it, before the projection), small
+/// enough that the system's condition number stays near 10³ and single precision solves it to 10⁻⁴.
+pub const STRETCH_RATIO: f64 = 1e3;
+
+/// The strain single precision can resolve on a strand within a metre of its head: a position's rounding
+/// (6e-8 m) over the shortest edge of 1 mm, doubled. Added to [`StepParams::strain_bound`] for the GPU's
+/// check.
+pub const SINGLE_PRECISION_STRAIN: f64 = 1.2e-4;
+
+/// Newton iterations of each GPU step: the CPU's adaptive count usually stops at one on calm steps and
+/// takes two to four on violent ones; the GPU takes a fixed number, so that every strand of a dispatch
+/// runs the same instructions.
+pub const GPU_NEWTON_ITERATIONS: u32 = 2;
+
+/// Rounds of "push out of the colliders, project the lengths" after the solve (friction in the first).
+pub const GPU_CONTACT_ROUNDS: u32 = 4;
+
+/// Why a strand cannot be stepped on the GPU, or no GPU step can be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GpuStepError {
+    /// No adapter or device (no GPU, no software Vulkan).
+    #[error("no GPU adapter or device: {0}")]
+    NoDevice(String),
+    /// A strand with more nodes than the shader's private arrays hold, or fewer than three.
+    #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
+    NodeCount { strand: usize, nodes: usize },
+    /// A strand whose root edge is not clamped (the GPU step roots every strand on its head).
+    #[error("strand {strand}'s root edge is not clamped: the GPU step needs every strand rooted")]
+    Unrooted { strand: usize },
+    /// A strand on a head that was not given.
+    #[error("strand {strand} is on head {head}, but only {heads} heads were given")]
+    NoSuchHead { strand: usize, head: usize, heads: usize },
+    /// A collider shape the GPU step does not meet (cuboids and meshes: the CPU meets them).
+    #[error("collider {collider} of head {head}: the GPU step meets spheres, capsules, ellipsoids and planes")]
+    UnsupportedCollider { head: usize, collider: usize },
+    /// The step's parameters are not valid.
+    #[error(transparent)]
+    InvalidParameters(#[from] RodError),
+}
+
+/// One strand given to [`GpuStrandSolver::new`]: its rod (state, rest shape, material, its root edge
+/// clamped where the head holds it) and its head.
+#[derive(Debug, Clone, Copy)]
+pub struct GpuStrandInput<'a> {
+    /// The strand, with its root edge clamped ([`Rod::clamp_edge`]) at the head's pose of
+    /// [`GpuStrandSolver::new`].
+    pub rod: &'a Rod,
+    /// Index of its head in the poses given to [`GpuStrandSolver::new`] and [`GpuStrandSolver::step`].
+    pub head: usize,
+    /// Distance from the centre line kept outside colliders, m (the strand's radius plus a margin).
+    pub thickness: f64,
+}
+
+/// A head's motion over one step: its pose at the step's end, its colliders (poses at the step's start
+/// and end, in world space), and the air's velocity around its hair.
+#[derive(Debug, Clone, Default)]
+pub struct GpuHeadStep {
+    /// Where the head is at the end of the step (its rotation and translation, m).
+    pub rotation: DQuat,
+    pub translation: DVec3,
+    /// The colliders its hair meets.
+    pub colliders: Vec<MovingCollider>,
+    /// The air's velocity around the head, m/s (the drag acts on the hair's velocity relative to it).
+    pub air_velocity: DVec3,
+}
+
+/// What a strand's last GPU step reported.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GpuStrandStatus {
+    /// The largest edge strain after the step, dimensionless.
+    pub max_strain: f32,
+    /// Why the last step failed (the strand was put back in its rest pose on its root, at rest), if it did.
+    pub fault: Option<GpuFault>,
+    /// Steps that failed since the upload.
+    pub faults: u32,
+}
+
+/// Why a GPU step failed for a strand.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GpuFault {
+    /// A position or twist was not finite at `node`.
+    NonFinite { node: u32 },
+    /// Edge `edge` was strained past the bound.
+    OverStrained { edge: u32 },
+    /// The Newton system did not factorise even regularised.
+    NotPositiveDefinite,
+}
+
+/// The strands' state read back from the GPU, in world space.
+#[derive(Debug, Clone, Default)]
+pub struct GpuStrandStates {
+    /// Per strand, its node positions, m.
+    pub positions: Vec<Vec<DVec3>>,
+    /// Per strand, its node velocities, m/s.
+    pub velocities: Vec<Vec<DVec3>>,
+    /// Per strand, its edges' twist angles θ, rad.
+    pub twists: Vec<Vec<f64>>,
+    /// Per strand, its last step's report.
+    pub status: Vec<GpuStrandStatus>,
+}
+
+/// A device and queue of their own, headless, on whatever adapter wgpu finds (a discrete GPU, or Mesa's
+/// software Vulkan, lavapipe, on a machine without one), for tests and benchmarks.
+pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), GpuStepError> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = bevy::tasks::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    }))
+    .map_err(|error| GpuStepError::NoDevice(error.to_string()))?;
+    let info = adapter.get_info();
+    let mut limits = wgpu::Limits::default();
+    limits.max_storage_buffers_per_shader_stage = limits.max_storage_buffers_per_shader_stage.max(8);
+    let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+    let (device, queue) = bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("hair strand step"),
+        required_features: features,
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .map_err(|error| GpuStepError::NoDevice(error.to_string()))?;
+    Ok((device, queue, info))
+}
+
+/// The shader's source.
+pub const STEP_SHADER: &str = include_str!("step.wgsl");
+
+/// Strands stepped on the GPU: their buffers (vertex-major, positions relative to their heads), the step's
+/// pipeline, and the heads' poses the strands were last stepped to.
+pub struct GpuStrandSolver {
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+    params: wgpu::Buffer,
+    state: wgpu::Buffer,
+    status: wgpu::Buffer,
+    heads: wgpu::Buffer,
+    colliders: wgpu::Buffer,
+    layout: wgpu::BindGroupLayout,
+    strand_words: wgpu::Buffer,
+    strand_floats: wgpu::Buffer,
+    rest: wgpu::Buffer,
+    strand_count: usize,
+    /// Nodes of each strand, and the head of each.
+    node_counts: Vec<usize>,
+    strand_heads: Vec<usize>,
+    /// Each head's pose after the last step: rotation and translation (the origin of its strands' positions).
+    head_poses: Vec<(DQuat, DVec3)>,
+    /// The step length the last dispatch used, s (a change restarts BDF2).
+    last_dt: f64,
+    /// Scratch for the per-step uploads.
+    head_rows: Vec<[f32; 4]>,
+    collider_rows: Vec<[f32; 4]>,
+    collider_capacity: usize,
+}
+
+fn vec4(v: DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuStrandSolver {
+    /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
+    /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
+    /// (the first GPU step is backward Euler, as the CPU's first). A fault puts a strand back in the pose
+    /// it has here, relative to its head.
+    pub fn new(
+        device: &wgpu::Device,
+        strands: &[GpuStrandInput],
+        head_poses: &[(DQuat, DVec3)],
+    ) -> Result<Self, GpuStepError> {
+        let strand_count = strands.len();
+        let max_nodes = strands.iter().map(|s| s.rod.node_count()).max().unwrap_or(3);
+        for (index, strand) in strands.iter().enumerate() {
+            let nodes = strand.rod.node_count();
+            if !(3..=MAX_GPU_NODES).contains(&nodes) {
+                return Err(GpuStepError::NodeCount { strand: index, nodes });
+            }
+            if strand.head >= head_poses.len() {
+                return Err(GpuStepError::NoSuchHead { strand: index, head: strand.head, heads: head_poses.len() });
+            }
+            let targets = &strand.rod.constraints().node_targets;
+            if targets[0].is_none() || targets[1].is_none() || strand.rod.constraints().twist_targets[0].is_none() {
+                return Err(GpuStepError::Unrooted { strand: index });
+            }
+        }
+        let padded = strand_count.max(1);
+        let mut words = vec![[0_u32; 4]; padded];
+        let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
+        let mut rest = vec![[0.0_f32; 4]; max_nodes * REST_ROWS * padded];
+        let mut state = vec![[0.0_f32; 4]; max_nodes * STATE_ROWS * padded];
+        for (s, strand) in strands.iter().enumerate() {
+            let rod = strand.rod;
+            let (rotation, translation) = head_poses[strand.head];
+            let inverse = rotation.inverse();
+            let local = |world: DVec3| inverse * (world - translation);
+            let nodes = rod.node_count();
+            words[s] = [nodes as u32, strand.head as u32, 0, 0];
+            let stiffness = rod.stiffness();
+            let constraints = rod.constraints();
+            floats[s * STRAND_FLOATS] = [
+                stiffness.stretching as f32,
+                stiffness.bending_1 as f32,
+                stiffness.bending_2 as f32,
+                stiffness.twisting as f32,
+            ];
+            floats[s * STRAND_FLOATS + 1] = vec4(local(constraints.node_targets[0].unwrap()), strand.thickness);
+            floats[s * STRAND_FLOATS + 2] = vec4(local(constraints.node_targets[1].unwrap()), 0.0);
+            floats[s * STRAND_FLOATS + 3] = vec4(inverse * constraints.twist_targets[0].unwrap(), 0.0);
+            let rod_state = rod.state();
+            let frames = rod.frames();
+            let shape = rod.rest_shape();
+            let inertia = rod.inertia();
+            for node in 0..nodes {
+                let edge = node < nodes - 1;
+                let at = |row: usize| (node * REST_ROWS + row) * padded + s;
+                let curvature = shape.curvatures.get(node).copied().unwrap_or(DVec2::ZERO);
+                let voronoi = shape.voronoi_lengths.get(node).copied().filter(|l| *l > 0.0).unwrap_or(1.0);
+                rest[at(0)] = [
+                    if edge { shape.lengths[node] as f32 } else { 0.0 },
+                    voronoi as f32,
+                    curvature.x as f32,
+                    curvature.y as f32,
+                ];
+                rest[at(1)] = [
+                    shape.twists.get(node).copied().unwrap_or(0.0) as f32,
+                    inertia.masses[node] as f32,
+                    if edge { inertia.twist_inertias[node] as f32 } else { 0.0 },
+                    0.0,
+                ];
+                let twist = if edge { rod_state.twist[node] } else { 0.0 };
+                let director = if edge { inverse * frames.reference_directors[node] } else { DVec3::X };
+                let reference_twist = frames.reference_twist.get(node).copied().unwrap_or(0.0);
+                rest[at(2)] = vec4(local(rod_state.positions[node]), twist);
+                rest[at(3)] = vec4(director, reference_twist);
+                let row = |row: usize| (node * STATE_ROWS + row) * padded + s;
+                let rate = if edge { rod_state.twist_rates[node] } else { 0.0 };
+                state[row(0)] = vec4(rotation * local(rod_state.positions[node]), twist);
+                state[row(1)] = vec4(rod_state.velocities[node], rate);
+                state[row(4)] = vec4(rotation * director, reference_twist);
+            }
+        }
+        let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+            })
+        };
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let strand_words = storage("hair strand words", bytemuck::cast_slice(&words), wgpu::BufferUsages::empty());
+        let strand_floats = storage("hair strand floats", bytemuck::cast_slice(&floats), wgpu::BufferUsages::empty());
+        let rest = storage("hair rest shape", bytemuck::cast_slice(&rest), wgpu::BufferUsages::empty());
+        let state = storage("hair strand state", bytemuck::cast_slice(&state), copy);
+        let status = storage("hair strand status", &vec![0_u8; 16 * padded], copy);
+        let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
+        let collider_capacity = 4;
+        let colliders =
+            storage("hair colliders", &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity], wgpu::BufferUsages::COPY_DST);
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hair step parameters"),
+            size: PARAMS_BYTES,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("hair strand step"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: NonZeroU64::new(PARAMS_BYTES),
+                    },
+                    count: None,
+                },
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, false),
+                storage_entry(5, true),
+                storage_entry(6, true),
+                storage_entry(7, false),
+            ],
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("hair strand step"),
+            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("hair strand step"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("hair strand step"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("step"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let bind_group = Self::bind(device, &layout, [&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status]);
+        Ok(Self {
+            pipeline,
+            bind_group,
+            params,
+            state,
+            status,
+            heads,
+            colliders,
+            layout,
+            strand_words,
+            strand_floats,
+            rest,
+            strand_count,
+            node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
+            strand_heads: strands.iter().map(|s| s.head).collect(),
+            head_poses: head_poses.to_vec(),
+            last_dt: 0.0,
+            head_rows: Vec::new(),
+            collider_rows: Vec::new(),
+            collider_capacity,
+        })
+    }
+
+    fn bind(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("hair strand step"), layout, entries: &entries })
+    }
+
+    /// How many strands are stepped.
+    pub fn strand_count(&self) -> usize {
+        self.strand_count
+    }
+
+    /// Records one step of `params.dt` of every strand into `encoder`, with each head moving to its pose in
+    /// `heads` (one per head given to [`GpuStrandSolver::new`], in order), after writing the step's
+    /// parameters, heads and colliders into the queue. Submit the encoder before recording the next step.
+    /// Rejects invalid parameters and colliders the GPU does not meet; nothing changes then.
+    pub fn record_step(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        params: &StepParams,
+        heads: &[GpuHeadStep],
+    ) -> Result<(), GpuStepError> {
+        params.validate()?;
+        if heads.len() != self.head_poses.len() {
+            return Err(RodError::WrongLength { expected: self.head_poses.len(), actual: heads.len() }.into());
+        }
+        self.head_rows.clear();
+        self.collider_rows.clear();
+        for (index, (head, before)) in heads.iter().zip(&self.head_poses).enumerate() {
+            let first = self.collider_rows.len() / COLLIDER_ROWS;
+            for (number, collider) in head.colliders.iter().enumerate() {
+                let shape = match collider.shape {
+                    ColliderShape::Sphere { radius } => [radius as f32, 0.0, 0.0, 0.0],
+                    ColliderShape::Capsule { radius, half_length } => [radius as f32, half_length as f32, 0.0, 1.0],
+                    ColliderShape::Ellipsoid { semi_axes } => vec4(semi_axes, 2.0),
+                    ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
+                    _ => return Err(GpuStepError::UnsupportedCollider { head: index, collider: number }),
+                };
+                let relative = |translation: DVec3| translation - head.translation;
+                let rotation = |q: DQuat| q.as_quat().to_array();
+                self.collider_rows.extend([
+                    vec4(relative(collider.start.translation), collider.shape.bounding_radius()),
+                    rotation(collider.start.rotation),
+                    vec4(relative(collider.end.translation), collider.friction),
+                    rotation(collider.end.rotation),
+                    shape,
+                ]);
+            }
+            let count = head.colliders.len() as u32;
+            self.head_rows.extend([
+                head.rotation.as_quat().to_array(),
+                vec4(before.1 - head.translation, 0.0),
+                vec4(head.air_velocity, 0.0),
+                [f32::from_bits(first as u32), f32::from_bits(count), 0.0, 0.0],
+            ]);
+        }
+        for (pose, head) in self.head_poses.iter_mut().zip(heads) {
+            *pose = (head.rotation, head.translation);
+        }
+        let collider_count = self.collider_rows.len() / COLLIDER_ROWS;
+        if collider_count > self.collider_capacity {
+            self.collider_capacity = collider_count.next_power_of_two();
+            self.colliders = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair colliders"),
+                size: (16 * COLLIDER_ROWS * self.collider_capacity) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.bind_group = Self::bind(
+                device,
+                &self.layout,
+                [
+                    &self.params,
+                    &self.strand_words,
+                    &self.strand_floats,
+                    &self.rest,
+                    &self.state,
+                    &self.heads,
+                    &self.colliders,
+                    &self.status,
+                ],
+            );
+        }
+        if !self.collider_rows.is_empty() {
+            queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
+        }
+        queue.write_buffer(&self.heads, 0, bytemuck::cast_slice(&self.head_rows));
+        let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;
+        self.last_dt = params.dt;
+        let gravity = params.gravity.as_vec3();
+        let words: [u32; 16] = [
+            (params.dt as f32).to_bits(),
+            gravity.x.to_bits(),
+            gravity.y.to_bits(),
+            gravity.z.to_bits(),
+            (params.air_damping as f32).to_bits(),
+            (params.axial_drag_ratio as f32).to_bits(),
+            (params.internal_damping as f32).to_bits(),
+            (params.max_rotation as f32).to_bits(),
+            ((params.strain_bound() + SINGLE_PRECISION_STRAIN) as f32).to_bits(),
+            (STRETCH_RATIO as f32).to_bits(),
+            self.strand_count as u32,
+            GPU_NEWTON_ITERATIONS,
+            params.max_projection_iterations,
+            GPU_CONTACT_ROUNDS,
+            u32::from(params.integrator == crate::rod::Integrator::Bdf2),
+            u32::from(restart),
+        ];
+        queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
+        let groups = (self.strand_count as u32).div_ceil(WORKGROUP).max(1);
+        let (x, y) = if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) };
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("hair strand step"), timestamp_writes: None });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+        Ok(())
+    }
+
+    /// One step, submitted at once: [`GpuStrandSolver::record_step`] in an encoder of its own.
+    pub fn step(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        params: &StepParams,
+        heads: &[GpuHeadStep],
+    ) -> Result<wgpu::SubmissionIndex, GpuStepError> {
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair strand step") });
+        self.record_step(device, queue, &mut encoder, params, heads)?;
+        let submission = queue.submit([encoder.finish()]);
+        // Let wgpu retire finished work (without it, submissions' bookkeeping piles up).
+        let _ = device.poll(wgpu::PollType::Poll);
+        Ok(submission)
+    }
+
+    /// Reads every strand's state back, waiting for the GPU (for tests, benchmarks and on-demand
+    /// read-back; the plugin reads back asynchronously).
+    pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuStrandStates {
+        let state_bytes = self.state.size();
+        let status_bytes = self.status.size();
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hair read-back"),
+            size: state_bytes + status_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
+        encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, state_bytes);
+        encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
+        queue.submit([encoder.finish()]);
+        let slice = staging.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        let _ = device.poll(wgpu::PollType::wait_indefinitely());
+        let data = slice.get_mapped_range();
+        let floats: &[[f32; 4]] = bytemuck::cast_slice(&data[..state_bytes as usize]);
+        let words: &[[u32; 4]] = bytemuck::cast_slice(&data[state_bytes as usize..]);
+        let states = self.unpack(floats, words);
+        drop(data);
+        staging.unmap();
+        states
+    }
+
+    /// The strands' state from the state and status buffers' contents.
+    fn unpack(&self, state: &[[f32; 4]], status: &[[u32; 4]]) -> GpuStrandStates {
+        let padded = self.strand_count.max(1);
+        let mut states = GpuStrandStates::default();
+        for s in 0..self.strand_count {
+            let nodes = self.node_counts[s];
+            let (_, translation) = self.head_poses[self.strand_heads[s]];
+            let row = |node: usize, row: usize| state[(node * STATE_ROWS + row) * padded + s];
+            let world = |v: [f32; 4]| translation + DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+            let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+            states.positions.push((0..nodes).map(|i| world(row(i, 0))).collect());
+            states.velocities.push((0..nodes).map(|i| local(row(i, 1))).collect());
+            states.twists.push((0..nodes - 1).map(|i| row(i, 0)[3] as f64).collect());
+            let [flags, at, strain, faults] = status[s];
+            let fault = if flags & 2 != 0 {
+                Some(GpuFault::NonFinite { node: at })
+            } else if flags & 4 != 0 {
+                Some(GpuFault::OverStrained { edge: at })
+            } else if flags & 8 != 0 {
+                Some(GpuFault::NotPositiveDefinite)
+            } else {
+                None
+            };
+            states.status.push(GpuStrandStatus { max_strain: f32::from_bits(strain), fault, faults });
+        }
+        states
+    }
+}
