@@ -248,9 +248,9 @@ pub mod collision;
 pub mod debug;
 pub mod detail;
 pub mod followers;
-pub mod groom;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod groom;
 mod parallel;
 pub mod render;
 pub mod rod;

@@ -14,7 +14,7 @@ const WORKGROUP: u32 = 64;
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
 /// The most nodes a strand stepped on the GPU may have (`MAX_NODES` in the shader: its private arrays).
-pub const MAX_GPU_NODES: usize = 64;
+pub const MAX_GPU_NODES: usize = 40;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 4;
 const STATE_ROWS: usize = 5;
@@ -294,8 +294,11 @@ impl GpuStrandSolver {
         let status = storage("hair strand status", &vec![0_u8; 16 * padded], copy);
         let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
         let collider_capacity = 4;
-        let colliders =
-            storage("hair colliders", &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity], wgpu::BufferUsages::COPY_DST);
+        let colliders = storage(
+            "hair colliders",
+            &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity],
+            wgpu::BufferUsages::COPY_DST,
+        );
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("hair step parameters"),
             size: PARAMS_BYTES,
@@ -341,7 +344,11 @@ impl GpuStrandSolver {
             compilation_options: Default::default(),
             cache: None,
         });
-        let bind_group = Self::bind(device, &layout, [&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status]);
+        let bind_group = Self::bind(
+            device,
+            &layout,
+            [&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status],
+        );
         Ok(Self {
             pipeline,
             bind_group,
@@ -369,9 +376,16 @@ impl GpuStrandSolver {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
-            .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: buffer.as_entire_binding(),
+            })
             .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("hair strand step"), layout, entries: &entries })
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("hair strand step"),
+            layout,
+            entries: &entries,
+        })
     }
 
     /// How many strands are stepped.
@@ -480,8 +494,10 @@ impl GpuStrandSolver {
         queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
         let groups = (self.strand_count as u32).div_ceil(WORKGROUP).max(1);
         let (x, y) = if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) };
-        let mut pass =
-            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("hair strand step"), timestamp_writes: None });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("hair strand step"),
+            timestamp_writes: None,
+        });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
@@ -496,7 +512,8 @@ impl GpuStrandSolver {
         params: &StepParams,
         heads: &[GpuHeadStep],
     ) -> Result<wgpu::SubmissionIndex, GpuStepError> {
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair strand step") });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair strand step") });
         self.record_step(device, queue, &mut encoder, params, heads)?;
         let submission = queue.submit([encoder.finish()]);
         // Let wgpu retire finished work (without it, submissions' bookkeeping piles up).
@@ -515,7 +532,8 @@ impl GpuStrandSolver {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
         encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, state_bytes);
         encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
         queue.submit([encoder.finish()]);

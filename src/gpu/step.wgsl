@@ -63,8 +63,8 @@ const HEAD_ROWS: u32 = 4u;
 // (r, 0, 0, 0), capsule (r, half length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3)).
 const COLLIDER_ROWS: u32 = 5u;
 
-const MAX_NODES: u32 = 64u;
-const MAX_DOFS: u32 = 255u;
+const MAX_NODES: u32 = 40u;
+const MAX_DOFS: u32 = 159u;
 const BAND: u32 = 10u;
 const WIDTH: u32 = 11u;
 const WORKGROUP: u32 = 64u;
@@ -102,7 +102,7 @@ var<private> m1: array<vec3<f32>, MAX_NODES>;
 var<private> m2: array<vec3<f32>, MAX_NODES>;
 var<private> inverse_length: array<f32, MAX_NODES>;
 var<private> normal: array<vec3<f32>, MAX_NODES>;
-var<private> band: array<f32, 2805>;
+var<private> band: array<f32, 1749>;
 var<private> rhs: array<f32, MAX_DOFS>;
 var<private> product: array<f32, MAX_DOFS>;
 var<private> grad_k1: array<f32, 11>;
@@ -390,7 +390,7 @@ fn factorize() -> bool {
             let l = band[band_index(i, k)];
             diagonal -= l * l * band[band_index(k, k)];
         }
-        if !(diagonal > 0.0) {
+        if !(diagonal > 0.0) || !finite(diagonal) {
             return false;
         }
         band[band_index(i, i)] = diagonal;
@@ -431,7 +431,7 @@ fn largest_strain() -> vec2<f32> {
     var edge = 0u;
     for (var e = 0u; e < edge_count(); e++) {
         let strain = abs(length(x[e + 1u] - x[e]) / rest_at(e, 0u).x - 1.0);
-        if !(strain <= worst) {
+        if strain > worst || !finite(strain) {
             worst = strain;
             edge = e;
         }
@@ -776,9 +776,14 @@ fn reset_to_rest() {
     }
 }
 
+// Whether a value is finite, from its bits: WGSL lets an implementation assume no NaN or infinity in
+// arithmetic and comparisons, so only the exponent's bits tell reliably.
+fn finite(v: f32) -> bool {
+    return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;
+}
+
 fn finite3(v: vec3<f32>) -> bool {
-    // NaN fails every comparison; infinities exceed the largest f32.
-    return all(abs(v) <= vec3<f32>(3.0e38));
+    return finite(v.x) && finite(v.y) && finite(v.z);
 }
 
 @compute @workgroup_size(64)
@@ -865,13 +870,14 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
                 - vec3<f32>(rhs[4u * e], rhs[4u * e + 1u], rhs[4u * e + 2u]);
             let along = dot(change, d) / dot(d, d);
             let turn = length(change - along * d) / length(d) + max(-along - 0.5, 0.0);
-            largest = max(largest, turn);
+            largest = select(max(largest, turn), turn, !finite(turn));
         }
-        if !(largest <= 3.0e38) {
+        if !finite(largest) {
             fault = FAULT_NON_FINITE;
             break;
         }
         let fraction = select(1.0, params.max_rotation / largest, largest > params.max_rotation);
+
         for (var i = 0u; i < nodes; i++) {
             x[i] += fraction * vec3<f32>(rhs[4u * i], rhs[4u * i + 1u], rhs[4u * i + 2u]);
             if i < edge_count() {
@@ -886,6 +892,7 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
             theta[0] += root_twist_offset(target_tangent, root_target(2u));
         }
         project_lengths(params.projection_iterations);
+
         refresh_frames();
     }
 
@@ -904,14 +911,14 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     var strain = largest_strain();
     if fault == 0u {
         for (var i = 0u; i < nodes; i++) {
-            if !finite3(x[i]) || !(abs(theta[i]) <= 3.0e38) {
+            if !finite3(x[i]) || !finite(theta[i]) {
                 fault = FAULT_NON_FINITE;
                 fault_at = i;
                 break;
             }
         }
     }
-    if fault == 0u && !(strain.x <= params.strain_bound) {
+    if fault == 0u && (!finite(strain.x) || strain.x > params.strain_bound) {
         fault = FAULT_OVER_STRAINED;
         fault_at = u32(strain.y);
     }
@@ -927,16 +934,15 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     }
 
     // 6. Velocities and the state written back.
-    for (var i = 0u; i < nodes; i++) {
-        var v = (x[i] - x_hat[i]) / h;
-        var rate = (theta[i] - theta_start[i]) / dt;
-        if fault != 0u {
-            v = vec3<f32>(0.0);
-            rate = 0.0;
-        }
-        state[state_index(i, 0u)] = vec4<f32>(x[i], theta[i]);
+    let count = nodes;
+    let stopped = fault != 0u;
+    for (var i = 0u; i < count; i++) {
+        let p = x[i];
+        let v = select((p - x_hat[i]) / h, vec3<f32>(0.0), stopped);
+        let rate = select((theta[i] - theta_start[i]) / dt, 0.0, stopped);
+        state[state_index(i, 0u)] = vec4<f32>(p, theta[i]);
         state[state_index(i, 1u)] = vec4<f32>(v, rate);
         state[state_index(i, 4u)] = vec4<f32>(director[i], reference_twist[i]);
     }
-    status[strand] = vec4<u32>((flags & HAS_HISTORY) | fault, fault_at, bitcast<u32>(strain.x), status[strand].w + select(0u, 1u, fault != 0u));
+    status[strand] = vec4<u32>((flags & HAS_HISTORY) | fault, fault_at, bitcast<u32>(strain.x), status[strand].w + select(0u, 1u, stopped));
 }
