@@ -51,16 +51,36 @@ pub enum GpuStepError {
     NoDevice(String),
     /// A strand with more nodes than the shader's private arrays hold, or fewer than three.
     #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
-    NodeCount { strand: usize, nodes: usize },
+    NodeCount {
+        /// The strand's index in the input.
+        strand: usize,
+        /// Its node count.
+        nodes: usize,
+    },
     /// A strand whose root edge is not clamped (the GPU step roots every strand on its head).
     #[error("strand {strand}'s root edge is not clamped: the GPU step needs every strand rooted")]
-    Unrooted { strand: usize },
+    Unrooted {
+        /// The strand's index in the input.
+        strand: usize,
+    },
     /// A strand on a head that was not given.
     #[error("strand {strand} is on head {head}, but only {heads} heads were given")]
-    NoSuchHead { strand: usize, head: usize, heads: usize },
+    NoSuchHead {
+        /// The strand's index in the input.
+        strand: usize,
+        /// The head it names.
+        head: usize,
+        /// How many heads were given.
+        heads: usize,
+    },
     /// A collider shape the GPU step does not meet (cuboids and meshes: the CPU meets them).
     #[error("collider {collider} of head {head}: the GPU step meets spheres, capsules, ellipsoids and planes")]
-    UnsupportedCollider { head: usize, collider: usize },
+    UnsupportedCollider {
+        /// The head's index.
+        head: usize,
+        /// The collider's index among the head's.
+        collider: usize,
+    },
     /// The step's parameters are not valid.
     #[error(transparent)]
     InvalidParameters(#[from] RodError),
@@ -83,8 +103,9 @@ pub struct GpuStrandInput<'a> {
 /// and end, in world space), and the air's velocity around its hair.
 #[derive(Debug, Clone, Default)]
 pub struct GpuHeadStep {
-    /// Where the head is at the end of the step (its rotation and translation, m).
+    /// The head's orientation at the end of the step.
     pub rotation: DQuat,
+    /// The head's position at the end of the step, m.
     pub translation: DVec3,
     /// The colliders its hair meets.
     pub colliders: Vec<MovingCollider>,
@@ -107,9 +128,15 @@ pub struct GpuStrandStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GpuFault {
     /// A position or twist was not finite at `node`.
-    NonFinite { node: u32 },
+    NonFinite {
+        /// The first node found.
+        node: u32,
+    },
     /// Edge `edge` was strained past the bound.
-    OverStrained { edge: u32 },
+    OverStrained {
+        /// The most strained edge.
+        edge: u32,
+    },
     /// The Newton system did not factorise even regularised.
     NotPositiveDefinite,
 }
