@@ -36,11 +36,13 @@ fn main() {
         start: RigidPose { rotation: DQuat::IDENTITY, translation: head },
         end: RigidPose { rotation: DQuat::IDENTITY, translation: head },
     };
-    let step = GpuHeadStep { rotation: DQuat::IDENTITY, translation: head, colliders: vec![skull], air_velocity: DVec3::ZERO };
+    let step =
+        GpuHeadStep { rotation: DQuat::IDENTITY, translation: head, colliders: vec![skull], air_velocity: DVec3::ZERO };
     println!("{:>8} {:>6} {:>12} {:>14}", "guides", "edges", "ms/step", "µs/strand");
     for (count, steps) in [(2_000, 20), (10_000, 5)] {
         let rods = groom(count, head);
-        let inputs: Vec<GpuStrandInput> = rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4 }).collect();
+        let inputs: Vec<GpuStrandInput> =
+            rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4 }).collect();
         let mut solver = GpuStrandSolver::new(&device, &inputs, &[(DQuat::IDENTITY, head)]).unwrap();
         // The first step compiles the pipeline on some drivers: not timed.
         solver.step(&device, &queue, &params, std::slice::from_ref(&step)).unwrap();
@@ -52,6 +54,11 @@ fn main() {
         }
         let per_step = start.elapsed().as_secs_f64() / steps as f64;
         let faults: u32 = solver.read_back(&device, &queue).status.iter().map(|s| s.faults).sum();
-        println!("{count:>8} {:>6} {:>12.3} {:>14.3}   (faults {faults})", 32, 1e3 * per_step, 1e6 * per_step / count as f64);
+        println!(
+            "{count:>8} {:>6} {:>12.3} {:>14.3}   (faults {faults})",
+            32,
+            1e3 * per_step,
+            1e6 * per_step / count as f64
+        );
     }
 }

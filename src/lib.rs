@@ -143,6 +143,7 @@
 //! | feature | what it adds | default |
 //! |---|---|---|
 //! | `render` | the hair renderer, `HairRenderPlugin`, with the followers placed and drawn on the GPU (Bevy's `bevy_render`, `bevy_core_pipeline`, `bevy_pbr`; no window, platform or image format) | **on** |
+//! | `gpu` | `render` and the strand step in a compute shader ([`gpu`]), checked against the CPU's step; not yet run by the plugin | **on** |
 //! | `egui` | `render` and `HairPanelPlugin`, the live panel (bevy_egui) | off |
 //! | `examples` | `render` and what the examples need besides: a window (winit, X11), gizmo lines drawn, tonemapping tables, PNG screenshots | off |
 //! | `avian` | avian3d's colliders as hair colliders: `AvianHairCollider` beside a `Collider` (`collision::avian`) | off |
@@ -164,6 +165,7 @@
 //! |---|---|---|
 //! | [`rod`] | the mechanics core | – |
 //! | [`schedule`] | the system sets every concern runs in | – |
+//! | `gpu` (`gpu` feature) | the strand step in a compute shader, on a plain wgpu device | `rod` |
 //! | [`simulation`] | heads, strands, their components, settings, the step, the step cadence, the contact slots | `rod`, `schedule` |
 //! | [`collision`], [`detail`], [`followers`], [`wind`] | one concern each | `rod`, `schedule`, `simulation` |
 //! | [`volume`] | the hair–hair grid | the above, and `followers` |

@@ -10,6 +10,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("rod", 0),
     ("parallel", 0),
     ("schedule", 1),
+    ("gpu", 1),
     ("simulation", 2),
     ("collision", 3),
     ("detail", 3),

@@ -232,3 +232,10 @@ fn a_broken_follower_shader_is_caught() {
     assert_ne!(broken, source, "the line to break is in the shader");
     assert!(validate_followers_shader(&broken).is_err(), "a shader with an undefined name validated");
 }
+
+#[test]
+fn the_strand_step_shader_validates_with_webgpu_capabilities() {
+    // WebGPU's capabilities only (no f64, no subgroups): the step runs wherever wgpu does.
+    let module = validate_followers_shader(include_str!("../src/gpu/step.wgsl")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(entry_points(&module), [(naga::ShaderStage::Compute, "step".to_string())]);
+}
