@@ -368,6 +368,9 @@ macro_rules! in_fixed_update_by_default {
     };
 }
 
+#[cfg(feature = "gpu")]
+in_fixed_update_by_default!(render::HairGpuPlugin);
+
 in_fixed_update_by_default!(
     HairSimulationPlugin,
     HairCollisionPlugin,
@@ -402,6 +405,8 @@ pub mod prelude {
         HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, StrandColors, UpAxis,
     };
     pub use crate::render::HairAppearance;
+    #[cfg(feature = "gpu")]
+    pub use crate::render::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
     #[cfg(feature = "render")]
     pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};

@@ -10,7 +10,7 @@
 mod common;
 
 use bevy::math::{DQuat, DVec3};
-use bevy_hair_sim::gpu::{GpuHeadStep, GpuStrandInput, GpuStrandSolver, headless_device};
+use bevy_hair_sim::gpu::{GpuFault, GpuHeadStep, GpuStepError, GpuStrandInput, GpuStrandSolver, headless_device};
 use bevy_hair_sim::rod::{
     ColliderShape, Contacts, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepParams,
 };
@@ -239,4 +239,64 @@ fn strands_on_a_shaking_head_follow_the_cpu() {
             assert!(rms < 0.04, "RMS node difference {rms:e} m at step {step}");
         }
     }
+}
+
+#[test]
+fn a_strand_that_fails_on_the_gpu_is_reset_and_reported_and_the_others_go_on() {
+    let (device, queue) = device();
+    let heads = [DVec3::new(0.0, 1.6, 0.0), DVec3::new(1.0, 1.6, 0.0)];
+    let rod = |index: usize| {
+        cantilever(heads[index / 4] + DVec3::Z * (0.01 * (index % 4) as f64), 0.2, 16, Default::default())
+    };
+    let rods: Vec<Rod> = (0..8).map(rod).collect();
+    let inputs: Vec<GpuStrandInput> =
+        rods.iter().enumerate().map(|(index, rod)| GpuStrandInput { rod, head: index / 4, thickness: 0.0 }).collect();
+    let poses = heads.map(|translation| (DQuat::IDENTITY, translation));
+    let mut gpu = GpuStrandSolver::new(&device, &inputs, &poses).unwrap();
+    // The second head's strands alone, for the comparison.
+    let second: Vec<GpuStrandInput> = inputs[4..].iter().map(|input| GpuStrandInput { head: 0, ..*input }).collect();
+    let mut alone = GpuStrandSolver::new(&device, &second, &poses[1..]).unwrap();
+    let params = StepParams { dt: 1.0 / 60.0, ..Default::default() };
+    // Air at 10³⁰ m/s on the first head for one step (the step's trust region keeps 10²⁰ m/s finite): its
+    // drag overflows single precision.
+    for step in 0..30 {
+        let air = if step == 10 { 1e30 } else { 0.0 };
+        let first =
+            GpuHeadStep { translation: heads[0], air_velocity: DVec3::new(0.0, air, 0.0), ..Default::default() };
+        gpu.step(&device, &queue, &params, &[first, still_head(heads[1])]).unwrap();
+        alone.step(&device, &queue, &params, &[still_head(heads[1])]).unwrap();
+        if step != 10 {
+            continue;
+        }
+        let states = gpu.read_back(&device, &queue);
+        for (index, rod) in rods.iter().enumerate() {
+            let status = states.status[index];
+            if index < 4 {
+                assert!(matches!(status.fault, Some(GpuFault::NonFinite { .. })), "strand {index}: {status:?}");
+                assert_eq!((status.faults, status.last_fault), (1, status.fault));
+                // Back in the pose it was uploaded in, at rest.
+                for (gpu, cpu) in states.positions[index].iter().zip(rod.positions()) {
+                    assert!(gpu.distance(*cpu) < 1e-6, "node at {gpu} after the reset, uploaded at {cpu}");
+                }
+                assert!(states.velocities[index].iter().all(|v| *v == DVec3::ZERO));
+            } else {
+                assert_eq!((status.fault, status.faults), (None, 0), "strand {index}");
+            }
+        }
+    }
+    let (states, reference) = (gpu.read_back(&device, &queue), alone.read_back(&device, &queue));
+    for index in 0..4 {
+        let status = states.status[index];
+        assert_eq!((status.fault, status.faults), (None, 1), "the reset strand {index} steps on");
+        assert!(states.positions[index].iter().all(|p| p.is_finite()));
+        // Sagging again from its reset: its tip is below the root.
+        assert!(states.positions[index][16].y < heads[0].y - 0.01);
+        // The other head's strands never saw it: bit for bit as stepped alone.
+        assert_eq!(states.positions[index + 4], reference.positions[index], "strand {}", index + 4);
+    }
+    // A head pose the GPU cannot use is refused, and nothing changes.
+    let nan = GpuHeadStep { translation: DVec3::NAN, ..Default::default() };
+    let error = gpu.step(&device, &queue, &params, &[nan, still_head(heads[1])]).unwrap_err();
+    assert_eq!(error, GpuStepError::InvalidHead { head: 0 });
+    assert_eq!(gpu.read_back(&device, &queue).positions, states.positions);
 }

@@ -3,11 +3,15 @@
 //! and benchmarks make one with [`headless_device`].
 
 use std::num::NonZeroU64;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 use bevy::math::{DQuat, DVec2, DVec3};
 use wgpu::util::DeviceExt;
 
-use crate::rod::{ColliderShape, MovingCollider, Rod, RodError, StepParams};
+use crate::rod::{
+    ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
+};
 
 /// Invocations per workgroup (`WORKGROUP` in the shader).
 const WORKGROUP: u32 = 64;
@@ -81,6 +85,12 @@ pub enum GpuStepError {
         /// The collider's index among the head's.
         collider: usize,
     },
+    /// A head's pose, air or collider is not finite, or its rotation not a unit quaternion.
+    #[error("head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit)")]
+    InvalidHead {
+        /// The head's index.
+        head: usize,
+    },
     /// The step's parameters are not valid.
     #[error(transparent)]
     InvalidParameters(#[from] RodError),
@@ -116,10 +126,14 @@ pub struct GpuHeadStep {
 /// What a strand's last GPU step reported.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct GpuStrandStatus {
-    /// The largest edge strain after the step, dimensionless.
+    /// The largest edge strain after the step, dimensionless (after a step failed for over-strain, the
+    /// strain that failed it).
     pub max_strain: f32,
     /// Why the last step failed (the strand was put back in its rest pose on its root, at rest), if it did.
     pub fault: Option<GpuFault>,
+    /// Why the most recent failed step since the upload failed, if any did (read back every few steps,
+    /// this still says why).
+    pub last_fault: Option<GpuFault>,
     /// Steps that failed since the upload.
     pub faults: u32,
 }
@@ -150,8 +164,44 @@ pub struct GpuStrandStates {
     pub velocities: Vec<Vec<DVec3>>,
     /// Per strand, its edges' twist angles θ, rad.
     pub twists: Vec<Vec<f64>>,
+    /// Per strand, its edges' twist rates dθ/dt, rad/s.
+    pub twist_rates: Vec<Vec<f64>>,
+    /// Per strand, its edges' reference directors (unit, across the edge).
+    pub reference_directors: Vec<Vec<DVec3>>,
+    /// Per strand, the reference twist at each vertex, rad.
+    pub reference_twists: Vec<Vec<f64>>,
     /// Per strand, its last step's report.
     pub status: Vec<GpuStrandStatus>,
+}
+
+impl GpuStrandStates {
+    /// Strand `strand` as a rod's snapshot ([`Rod::restore`] takes it): positions, velocities, twists
+    /// and frames from the GPU, no two-step history (the CPU's next step, if any, starts with backward
+    /// Euler) and no contact forces. `None` past the last strand.
+    pub fn snapshot(&self, strand: usize) -> Option<RodSnapshot> {
+        let positions = self.positions.get(strand)?;
+        let tangents = positions.windows(2).map(|ends| (ends[1] - ends[0]).normalize_or_zero()).collect();
+        let nodes = positions.len();
+        Some(RodSnapshot {
+            state: RodState {
+                positions: positions.clone(),
+                velocities: self.velocities[strand].clone(),
+                twist: self.twists[strand].clone(),
+                twist_rates: self.twist_rates[strand].clone(),
+                contact_normal_forces: vec![0.0; nodes],
+                history: StepHistory {
+                    dt: 0.0,
+                    positions: vec![DVec3::ZERO; nodes],
+                    velocities: vec![DVec3::ZERO; nodes],
+                },
+            },
+            frames: RodFrames {
+                tangents,
+                reference_directors: self.reference_directors[strand].clone(),
+                reference_twist: self.reference_twists[strand].clone(),
+            },
+        })
+    }
 }
 
 /// A device and queue of their own, headless, on whatever adapter wgpu finds (a discrete GPU, or Mesa's
@@ -196,8 +246,7 @@ pub struct GpuStrandSolver {
     rest: wgpu::Buffer,
     strand_count: usize,
     /// Nodes of each strand, and the head of each.
-    node_counts: Vec<usize>,
-    strand_heads: Vec<usize>,
+    strands: Arc<StrandLayout>,
     /// Each head's pose after the last step: rotation and translation (the origin of its strands' positions).
     head_poses: Vec<(DQuat, DVec3)>,
     /// The step length the last dispatch used, s (a change restarts BDF2).
@@ -206,6 +255,27 @@ pub struct GpuStrandSolver {
     head_rows: Vec<[f32; 4]>,
     collider_rows: Vec<[f32; 4]>,
     collider_capacity: usize,
+    /// The pipeline that hands the strands to the renderer's follower placement.
+    gather: Gather,
+}
+
+/// The strands as packed for [`GpuStrandSolver::from_upload`]: made from the rods on the CPU (in the main
+/// world, say), turned into buffers where the device is.
+#[derive(Debug, Clone)]
+pub struct GpuStrandUpload {
+    words: Vec<[u32; 4]>,
+    floats: Vec<[f32; 4]>,
+    rest: Vec<[f32; 4]>,
+    state: Vec<[f32; 4]>,
+    layout: Arc<StrandLayout>,
+    head_poses: Vec<(DQuat, DVec3)>,
+}
+
+/// Nodes of each strand, and the head of each.
+#[derive(Debug)]
+struct StrandLayout {
+    node_counts: Vec<usize>,
+    strand_heads: Vec<usize>,
 }
 
 fn vec4(v: DVec3, w: f64) -> [f32; 4] {
@@ -225,16 +295,10 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-impl GpuStrandSolver {
-    /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
-    /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
-    /// (the first GPU step is backward Euler, as the CPU's first). A fault puts a strand back in the pose
-    /// it has here, relative to its head.
-    pub fn new(
-        device: &wgpu::Device,
-        strands: &[GpuStrandInput],
-        head_poses: &[(DQuat, DVec3)],
-    ) -> Result<Self, GpuStepError> {
+impl GpuStrandUpload {
+    /// Packs `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) in
+    /// the GPU's layout. Rejects strands the GPU cannot step ([`GpuStepError`]).
+    pub fn new(strands: &[GpuStrandInput], head_poses: &[(DQuat, DVec3)]) -> Result<Self, GpuStepError> {
         let strand_count = strands.len();
         let max_nodes = strands.iter().map(|s| s.rod.node_count()).max().unwrap_or(3);
         for (index, strand) in strands.iter().enumerate() {
@@ -306,6 +370,42 @@ impl GpuStrandSolver {
                 state[row(4)] = vec4(rotation * director, reference_twist);
             }
         }
+        Ok(Self {
+            words,
+            floats,
+            rest,
+            state,
+            layout: Arc::new(StrandLayout {
+                node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
+                strand_heads: strands.iter().map(|s| s.head).collect(),
+            }),
+            head_poses: head_poses.to_vec(),
+        })
+    }
+
+    /// How many strands it holds.
+    pub fn strand_count(&self) -> usize {
+        self.layout.node_counts.len()
+    }
+}
+
+impl GpuStrandSolver {
+    /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
+    /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
+    /// (the first GPU step is backward Euler, as the CPU's first). A fault puts a strand back in the pose
+    /// it has here, relative to its head.
+    pub fn new(
+        device: &wgpu::Device,
+        strands: &[GpuStrandInput],
+        head_poses: &[(DQuat, DVec3)],
+    ) -> Result<Self, GpuStepError> {
+        Ok(Self::from_upload(device, GpuStrandUpload::new(strands, head_poses)?))
+    }
+
+    /// Builds the buffers of `upload` and the step's pipeline on `device`.
+    pub fn from_upload(device: &wgpu::Device, upload: GpuStrandUpload) -> Self {
+        let GpuStrandUpload { words, floats, rest, state, layout: strands, head_poses } = upload;
+        let strand_count = strands.node_counts.len();
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -318,7 +418,7 @@ impl GpuStrandSolver {
         let strand_floats = storage("hair strand floats", bytemuck::cast_slice(&floats), wgpu::BufferUsages::empty());
         let rest = storage("hair rest shape", bytemuck::cast_slice(&rest), wgpu::BufferUsages::empty());
         let state = storage("hair strand state", bytemuck::cast_slice(&state), copy);
-        let status = storage("hair strand status", &vec![0_u8; 16 * padded], copy);
+        let status = storage("hair strand status", &vec![0_u8; 16 * strand_count.max(1)], copy);
         let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
         let collider_capacity = 4;
         let colliders = storage(
@@ -376,7 +476,8 @@ impl GpuStrandSolver {
             &layout,
             [&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status],
         );
-        Ok(Self {
+        let gather = Gather::new(device);
+        Self {
             pipeline,
             bind_group,
             params,
@@ -389,14 +490,14 @@ impl GpuStrandSolver {
             strand_floats,
             rest,
             strand_count,
-            node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
-            strand_heads: strands.iter().map(|s| s.head).collect(),
-            head_poses: head_poses.to_vec(),
+            strands,
+            head_poses,
             last_dt: 0.0,
             head_rows: Vec::new(),
             collider_rows: Vec::new(),
             collider_capacity,
-        })
+            gather,
+        }
     }
 
     fn bind(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
@@ -420,10 +521,21 @@ impl GpuStrandSolver {
         self.strand_count
     }
 
+    /// Strand `strand`'s node count (0 past the last).
+    pub fn node_count(&self, strand: usize) -> usize {
+        self.strands.node_counts.get(strand).copied().unwrap_or(0)
+    }
+
+    /// Each strand's head (its index among the heads given at upload).
+    pub fn strand_heads(&self) -> &[usize] {
+        &self.strands.strand_heads
+    }
+
     /// Records one step of `params.dt` of every strand into `encoder`, with each head moving to its pose in
     /// `heads` (one per head given to [`GpuStrandSolver::new`], in order), after writing the step's
     /// parameters, heads and colliders into the queue. Submit the encoder before recording the next step.
-    /// Rejects invalid parameters and colliders the GPU does not meet; nothing changes then.
+    /// Rejects invalid parameters, heads with a non-finite pose, air or collider, and colliders the GPU
+    /// does not meet; nothing changes then.
     pub fn record_step(
         &mut self,
         device: &wgpu::Device,
@@ -435,6 +547,20 @@ impl GpuStrandSolver {
         params.validate()?;
         if heads.len() != self.head_poses.len() {
             return Err(RodError::WrongLength { expected: self.head_poses.len(), actual: heads.len() }.into());
+        }
+        for (index, head) in heads.iter().enumerate() {
+            let finite_pose = |pose: &crate::rod::RigidPose| pose.translation.is_finite() && pose.rotation.is_finite();
+            let usable = head.translation.is_finite()
+                && head.rotation.is_finite()
+                && (head.rotation.length() - 1.0).abs() < 1e-3
+                && head.air_velocity.is_finite()
+                && head
+                    .colliders
+                    .iter()
+                    .all(|c| finite_pose(&c.start) && finite_pose(&c.end) && c.friction.is_finite());
+            if !usable {
+                return Err(GpuStepError::InvalidHead { head: index });
+            }
         }
         self.head_rows.clear();
         self.collider_rows.clear();
@@ -519,8 +645,7 @@ impl GpuStrandSolver {
             u32::from(restart),
         ];
         queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
-        let groups = (self.strand_count as u32).div_ceil(WORKGROUP).max(1);
-        let (x, y) = if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) };
+        let (x, y) = workgroups(self.strand_count as u32);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
             timestamp_writes: None,
@@ -549,8 +674,21 @@ impl GpuStrandSolver {
     }
 
     /// Reads every strand's state back, waiting for the GPU (for tests, benchmarks and on-demand
-    /// read-back; the plugin reads back asynchronously).
+    /// read-back; the plugin reads back asynchronously with [`GpuStrandSolver::request_read_back`]).
     pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuStrandStates {
+        let mut pending = self.request_read_back(device, queue);
+        loop {
+            let _ = device.poll(wgpu::PollType::wait_indefinitely());
+            if let Some(states) = pending.try_take() {
+                return states;
+            }
+        }
+    }
+
+    /// Copies every strand's state as the submitted steps leave it into a buffer the CPU can map, and
+    /// asks for it to be mapped: [`GpuReadBack::try_take`] has it once the GPU is done and the device
+    /// was polled (Bevy's renderer polls it every frame).
+    pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuReadBack {
         let state_bytes = self.state.size();
         let status_bytes = self.status.size();
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
@@ -564,43 +702,255 @@ impl GpuStrandSolver {
         encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, state_bytes);
         encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
         queue.submit([encoder.finish()]);
-        let slice = staging.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        let _ = device.poll(wgpu::PollType::wait_indefinitely());
-        let data = slice.get_mapped_range();
-        let floats: &[[f32; 4]] = bytemuck::cast_slice(&data[..state_bytes as usize]);
-        let words: &[[u32; 4]] = bytemuck::cast_slice(&data[state_bytes as usize..]);
-        let states = self.unpack(floats, words);
+        let mapped = Arc::new(AtomicU8::new(MAP_PENDING));
+        let signal = mapped.clone();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |result| {
+            signal.store(if result.is_ok() { MAP_DONE } else { MAP_FAILED }, Ordering::Release);
+        });
+        GpuReadBack {
+            staging,
+            state_bytes,
+            mapped,
+            strands: self.strands.clone(),
+            translations: self.strands.strand_heads.iter().map(|&head| self.head_poses[head].1).collect(),
+        }
+    }
+
+    /// The buffers [`GpuStrandSolver::gather_target`] binds, for a caller that wants them itself: each
+    /// strand's state (vertex-major rows of `vec4<f32>`, see `step.wgsl`) and its status.
+    pub fn state_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.state, &self.status)
+    }
+
+    /// Binds what [`GpuStrandSolver::record_gather`] writes for one head's guides: `guides` lists, in the
+    /// order the follower placement lays them out, each guide's strand (an index into the strands given
+    /// at upload) and its first node in the placement's guide nodes, then one past the last node;
+    /// `guide_data` is the placement's step data (positions from word 0, the guide words from
+    /// `guides_offset`), `guide_frames` its director per guide node (`render/followers.wgsl`).
+    pub fn gather_target(
+        &self,
+        device: &wgpu::Device,
+        guides: &[[u32; 2]],
+        guide_data: &wgpu::Buffer,
+        guide_frames: &wgpu::Buffer,
+    ) -> GpuGatherTarget {
+        self.gather.target(device, self, guides, guide_data, guide_frames)
+    }
+
+    /// Records the gather of one head's guides (`target`, on head `head` of the upload) after the steps
+    /// recorded or submitted before it: each guide's nodes in world space (the head's translation after
+    /// the last step added), its thickness and flags (a guide whose strand faulted in the last step
+    /// snaps), and the material director `m1` of each node's edge.
+    pub fn record_gather(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &GpuGatherTarget,
+        head: usize,
+        guides_offset: u32,
+    ) {
+        let translation = self.head_poses.get(head).map_or(DVec3::ZERO, |pose| pose.1).as_vec3();
+        let words: [u32; 8] = [
+            self.strand_count.max(1) as u32,
+            target.guides,
+            guides_offset,
+            0,
+            translation.x.to_bits(),
+            translation.y.to_bits(),
+            translation.z.to_bits(),
+            0,
+        ];
+        queue.write_buffer(&target.params, 0, bytemuck::cast_slice(&words));
+        let (x, y) = workgroups(target.guides);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("hair guides gathered"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.gather.pipeline);
+        pass.set_bind_group(0, &target.bind_group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+}
+
+/// The workgroups of a dispatch over `invocations`: along X up to the limit, then rows along Y.
+fn workgroups(invocations: u32) -> (u32, u32) {
+    let groups = invocations.div_ceil(WORKGROUP).max(1);
+    if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) }
+}
+
+/// The states of [`GpuReadBack::mapped`].
+const MAP_PENDING: u8 = 0;
+const MAP_DONE: u8 = 1;
+const MAP_FAILED: u8 = 2;
+
+/// A read-back on its way from the GPU ([`GpuStrandSolver::request_read_back`]).
+pub struct GpuReadBack {
+    staging: wgpu::Buffer,
+    state_bytes: u64,
+    /// Set by the mapping's callback.
+    mapped: Arc<AtomicU8>,
+    strands: Arc<StrandLayout>,
+    /// Each strand's head's translation when the read-back was asked for: the origin of its positions.
+    translations: Vec<DVec3>,
+}
+
+impl GpuReadBack {
+    /// The states, once the GPU has copied them and the device was polled since; `None` before. After
+    /// it returned them (or the mapping failed: a lost device), `None` again.
+    pub fn try_take(&mut self) -> Option<GpuStrandStates> {
+        if self.mapped.load(Ordering::Acquire) != MAP_DONE {
+            return None;
+        }
+        self.mapped.store(MAP_FAILED, Ordering::Release);
+        let data = self.staging.slice(..).get_mapped_range();
+        let state_bytes = self.state_bytes as usize;
+        let states =
+            self.unpack(bytemuck::cast_slice(&data[..state_bytes]), bytemuck::cast_slice(&data[state_bytes..]));
         drop(data);
-        staging.unmap();
-        states
+        self.staging.unmap();
+        Some(states)
+    }
+
+    /// Whether the mapping failed or its states were taken: nothing more will come.
+    pub fn is_finished(&self) -> bool {
+        self.mapped.load(Ordering::Acquire) == MAP_FAILED
     }
 
     /// The strands' state from the state and status buffers' contents.
     fn unpack(&self, state: &[[f32; 4]], status: &[[u32; 4]]) -> GpuStrandStates {
-        let padded = self.strand_count.max(1);
+        let counts = &self.strands.node_counts;
+        let padded = counts.len().max(1);
         let mut states = GpuStrandStates::default();
-        for s in 0..self.strand_count {
-            let nodes = self.node_counts[s];
-            let (_, translation) = self.head_poses[self.strand_heads[s]];
+        for (s, (&nodes, &translation)) in counts.iter().zip(&self.translations).enumerate() {
             let row = |node: usize, row: usize| state[(node * STATE_ROWS + row) * padded + s];
-            let world = |v: [f32; 4]| translation + DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
             let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
-            states.positions.push((0..nodes).map(|i| world(row(i, 0))).collect());
+            let edges = nodes - 1;
+            states.positions.push((0..nodes).map(|i| translation + local(row(i, 0))).collect());
             states.velocities.push((0..nodes).map(|i| local(row(i, 1))).collect());
-            states.twists.push((0..nodes - 1).map(|i| row(i, 0)[3] as f64).collect());
+            states.twists.push((0..edges).map(|i| row(i, 0)[3] as f64).collect());
+            states.twist_rates.push((0..edges).map(|i| row(i, 1)[3] as f64).collect());
+            states.reference_directors.push((0..edges).map(|i| local(row(i, 4))).collect());
+            states.reference_twists.push((0..nodes).map(|i| row(i, 4)[3] as f64).collect());
             let [flags, at, strain, faults] = status[s];
-            let fault = if flags & 2 != 0 {
-                Some(GpuFault::NonFinite { node: at })
-            } else if flags & 4 != 0 {
-                Some(GpuFault::OverStrained { edge: at })
-            } else if flags & 8 != 0 {
-                Some(GpuFault::NotPositiveDefinite)
-            } else {
-                None
+            let reason = |bits: u32| {
+                if bits & 2 != 0 {
+                    Some(GpuFault::NonFinite { node: at })
+                } else if bits & 4 != 0 {
+                    Some(GpuFault::OverStrained { edge: at })
+                } else if bits & 8 != 0 {
+                    Some(GpuFault::NotPositiveDefinite)
+                } else {
+                    None
+                }
             };
-            states.status.push(GpuStrandStatus { max_strain: f32::from_bits(strain), fault, faults });
+            states.status.push(GpuStrandStatus {
+                max_strain: f32::from_bits(strain),
+                fault: reason(flags),
+                last_fault: reason(faults >> 28),
+                faults: faults & 0x0fff_ffff,
+            });
         }
         states
+    }
+}
+
+/// `Params` of `gather.wgsl`: eight words.
+const GATHER_PARAMS_BYTES: u64 = 32;
+
+/// The pipeline of `gather.wgsl`.
+struct Gather {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+}
+
+/// One head's guides as [`GpuStrandSolver::record_gather`] writes them for the follower placement.
+pub struct GpuGatherTarget {
+    params: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    guides: u32,
+}
+
+/// The shader that hands strands to the follower placement.
+pub const GATHER_SHADER: &str = include_str!("gather.wgsl");
+
+impl Gather {
+    fn new(device: &wgpu::Device) -> Self {
+        let uniform = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: NonZeroU64::new(GATHER_PARAMS_BYTES),
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("hair guides gathered"),
+            entries: &[
+                uniform,
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, true),
+                storage_entry(5, false),
+                storage_entry(6, false),
+            ],
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("hair guides gathered"),
+            source: wgpu::ShaderSource::Wgsl(GATHER_SHADER.into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("hair guides gathered"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("hair guides gathered"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("gather"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { layout, pipeline }
+    }
+
+    fn target(
+        &self,
+        device: &wgpu::Device,
+        solver: &GpuStrandSolver,
+        guides: &[[u32; 2]],
+        guide_data: &wgpu::Buffer,
+        guide_frames: &wgpu::Buffer,
+    ) -> GpuGatherTarget {
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hair guides gathered"),
+            size: GATHER_PARAMS_BYTES,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let contents: &[u8] = if guides.is_empty() { &[0; 16] } else { bytemuck::cast_slice(guides) };
+        let map = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("hair guide strands"),
+            contents,
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let buffers = [&params, &solver.strand_floats, &solver.state, &solver.status, &map, guide_data, guide_frames];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding: binding as u32,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("hair guides gathered"),
+            layout: &self.layout,
+            entries: &entries,
+        });
+        GpuGatherTarget { params, bind_group, guides: guides.len().saturating_sub(1) as u32 }
     }
 }

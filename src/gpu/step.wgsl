@@ -70,11 +70,14 @@ const WIDTH: u32 = 11u;
 const WORKGROUP: u32 = 64u;
 
 // Status bits (per strand, `status[s].x`): has a step of history; the last step was faulted (non-finite,
-// over-strained), with the node or edge in `status[s].y`, and `status[s].z` the largest strain as bits.
+// over-strained, not definite), with the node or edge of the last fault in `status[s].y`, `status[s].z`
+// the largest strain as bits, `status[s].w` the failed steps and the last one's reason.
 const HAS_HISTORY: u32 = 1u;
 const FAULT_NON_FINITE: u32 = 2u;
 const FAULT_OVER_STRAINED: u32 = 4u;
 const FAULT_NOT_DEFINITE: u32 = 8u;
+// The bits of `status[s].w` that count failed steps (the reason of the last is in the top four).
+const FAULT_COUNT: u32 = 0x0fffffffu;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> strand_words: array<vec4<u32>>;
@@ -922,6 +925,8 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         fault = FAULT_OVER_STRAINED;
         fault_at = u32(strain.y);
     }
+    // On a failed step, the strain reported is the one that failed it.
+    let failing_strain = strain.x;
     if fault != 0u {
         reset_to_rest();
         for (var i = 0u; i < nodes; i++) {
@@ -944,5 +949,15 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         state[state_index(i, 1u)] = vec4<f32>(v, rate);
         state[state_index(i, 4u)] = vec4<f32>(director[i], reference_twist[i]);
     }
-    status[strand] = vec4<u32>((flags & HAS_HISTORY) | fault, fault_at, bitcast<u32>(strain.x), status[strand].w + select(0u, 1u, stopped));
+    // The failed steps' count keeps the last one's reason in its top bits, and `y` where it was, so that a
+    // read-back every few steps still says why.
+    let before = status[strand];
+    var failures = before.w;
+    var at = before.y;
+    if stopped {
+        failures = (((failures & FAULT_COUNT) + 1u) & FAULT_COUNT) | (fault << 28u);
+        at = fault_at;
+    }
+    let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
+    status[strand] = vec4<u32>((flags & HAS_HISTORY) | fault, at, bitcast<u32>(reported), failures);
 }

@@ -106,8 +106,12 @@ struct HeadFeed {
     drawn: AssetId<ShaderBuffer>,
     /// A new layout: per drawn node, per guide node, and where each guide starts.
     layout: Option<GuideLayoutData>,
-    /// Whether `positions` … `colliders` hold a new step.
+    /// Whether `positions` … `colliders` hold a new step (only `colliders` when the GPU steps the guides).
     stepped: bool,
+    /// The GPU steps the guides and hands them to the placement itself (`gather`).
+    gpu_fed: bool,
+    /// More than one step since the last frame: nothing to interpolate from.
+    snap: bool,
     positions: Vec<f32>,
     frames: Vec<u8>,
     guides: Vec<[u32; 2]>,
@@ -125,6 +129,8 @@ struct GuideLayoutData {
     drawn_nodes: Vec<[u32; 4]>,
     guide_of_node: Vec<u32>,
     guide_starts: Vec<u32>,
+    /// The guides' entities, when the GPU steps them.
+    guides: Vec<Entity>,
 }
 
 /// One head's buffers on the GPU.
@@ -165,6 +171,14 @@ struct GpuHead {
     collider_count: u32,
     /// The bind groups, made for the drawn buffer of this id.
     bind_groups: Option<(ParityBindGroups, AssetId<ShaderBuffer>)>,
+    /// The guides' entities, when the GPU steps them.
+    gpu_guides: Vec<Entity>,
+    /// Where the GPU's stepped strands are gathered into this head's buffers: the target, the upload it
+    /// was made for, and the head's index in it.
+    #[cfg(feature = "gpu")]
+    gather: Option<(crate::gpu::GpuGatherTarget, u32, usize)>,
+    /// A step to gather before the placement.
+    gather_due: bool,
     /// Seen in this frame's extraction.
     seen: bool,
 }
@@ -193,18 +207,30 @@ pub(super) fn extract_gpu_followers(mut main_world: ResMut<MainWorld>, mut gpu: 
         let head = gpu.heads.entry(entity).or_default();
         head.seen = true;
         let drawn = hair_mesh.buffer.id();
-        let upload = &mut hair_mesh.upload;
         let feed = &mut head.feed;
         feed.drawn = drawn;
         feed.alpha = sent.alpha;
+        feed.gpu_fed = hair_mesh.gpu_fed;
         if sent.layout {
+            let guides = if hair_mesh.gpu_fed {
+                hair_mesh.strips().guides().iter().map(|guide| guide.entity).collect()
+            } else {
+                Vec::new()
+            };
+            let upload = &mut hair_mesh.upload;
             feed.layout = Some(GuideLayoutData {
                 drawn_nodes: std::mem::take(&mut upload.drawn_nodes),
                 guide_of_node: std::mem::take(&mut upload.guide_of_node),
                 guide_starts: upload.guide_starts(),
+                guides,
             });
         }
-        if sent.step {
+        let upload = &mut hair_mesh.upload;
+        if sent.step && feed.gpu_fed {
+            feed.stepped = true;
+            feed.snap |= sent.snap;
+            feed.colliders.clone_from(&upload.colliders);
+        } else if sent.step {
             feed.stepped = true;
             swap_or_copy(&mut feed.positions, &mut upload.positions);
             swap_or_copy(&mut feed.frames, &mut upload.frames);
@@ -232,6 +258,7 @@ pub(super) fn prepare_gpu_followers(
     pipelines: Option<Res<FollowerPipelines>>,
     pipeline_cache: Res<PipelineCache>,
     drawn_buffers: Res<RenderAssets<GpuShaderBuffer>>,
+    #[cfg(feature = "gpu")] stepping: Option<Res<super::stepping::GpuHairRender>>,
 ) {
     let Some(pipelines) = pipelines else { return };
     for head in gpu.heads.values_mut() {
@@ -239,10 +266,34 @@ pub(super) fn prepare_gpu_followers(
             head.buffers = Some(HeadBuffers::new(&device, &layout));
             head.bind_groups = None;
             (head.place_due, head.placed_once) = (false, false);
+            head.gpu_guides = layout.guides;
+            #[cfg(feature = "gpu")]
+            {
+                head.gather = None;
+            }
+        }
+        #[cfg(feature = "gpu")]
+        if let Some(stepping) = stepping.as_deref() {
+            prepare_gather(head, stepping, &device);
         }
         let Some(buffers) = head.buffers.as_mut() else { continue };
         let feed = &mut head.feed;
-        if std::mem::take(&mut feed.stepped) {
+        if feed.gpu_fed && std::mem::take(&mut feed.stepped) {
+            // The guides are gathered on the GPU; only the colliders come from the CPU.
+            if feed.colliders.len() > buffers.colliders_capacity {
+                buffers.colliders_capacity = feed.colliders.len().next_power_of_two();
+                buffers.colliders = colliders_buffer(&device, buffers.colliders_capacity);
+                head.bind_groups = None;
+            }
+            if !feed.colliders.is_empty() {
+                queue.write_buffer(&buffers.colliders, 0, bytemuck::cast_slice(&feed.colliders));
+            }
+            head.collider_count = feed.colliders.len() as u32;
+            head.snap_all |= head.place_due || !head.placed_once || std::mem::take(&mut feed.snap);
+            head.parity ^= 1;
+            head.place_due = true;
+            head.gather_due = true;
+        } else if std::mem::take(&mut feed.stepped) {
             let words = step_words(feed.positions.len(), feed.frames.len(), feed.guides.len());
             if feed.positions.len() != 3 * buffers.guide_nodes as usize || feed.guides.len() != buffers.guides as usize
             {
@@ -322,6 +373,37 @@ pub(super) fn prepare_gpu_followers(
     }
 }
 
+/// Makes `head`'s gather target when the GPU steps its guides and there is none for the current upload:
+/// each guide's strand and first node (a head with a guide not on the GPU gets none, and is not placed).
+#[cfg(feature = "gpu")]
+fn prepare_gather(head: &mut GpuHead, stepping: &super::stepping::GpuHairRender, device: &RenderDevice) {
+    let (Some(solver), Some(buffers)) = (&stepping.solver, &head.buffers) else {
+        head.gather = None;
+        return;
+    };
+    if head.gpu_guides.is_empty()
+        || head.gather.as_ref().is_some_and(|(_, generation, _)| *generation == stepping.generation)
+    {
+        return;
+    }
+    head.gather = None;
+    let mut guides = Vec::with_capacity(head.gpu_guides.len() + 1);
+    let mut first = 0_u32;
+    let mut index = 0;
+    for &entity in &head.gpu_guides {
+        let Some(&strand) = stepping.index.get(&entity) else { return };
+        index = stepping.strand_heads[strand as usize];
+        guides.push([strand, first]);
+        first += solver.node_count(strand as usize) as u32;
+    }
+    guides.push([0, first]);
+    if first != buffers.guide_nodes {
+        return;
+    }
+    let target = solver.gather_target(device.wgpu_device(), &guides, &buffers.guide_data, &buffers.guide_frames);
+    head.gather = Some((target, stepping.generation, index));
+}
+
 /// Where the parts of a step's data start in the guide data buffer, in words, and its length.
 struct StepWords {
     frames: u32,
@@ -354,7 +436,7 @@ fn colliders_buffer(device: &RenderDevice, capacity: usize) -> Buffer {
 
 impl HeadBuffers {
     fn new(device: &RenderDevice, layout: &GuideLayoutData) -> Self {
-        let GuideLayoutData { drawn_nodes, guide_of_node, guide_starts } = layout;
+        let GuideLayoutData { drawn_nodes, guide_of_node, guide_starts, .. } = layout;
         let guide_nodes = guide_of_node.len();
         let guides = guide_starts.len().saturating_sub(1);
         let with_data = |label: &'static str, contents: &[u8]| {
@@ -410,6 +492,8 @@ pub(super) fn dispatch_gpu_followers(
     mut gpu: ResMut<GpuHeads>,
     pipelines: Option<Res<FollowerPipelines>>,
     pipeline_cache: Res<PipelineCache>,
+    #[cfg(feature = "gpu")] stepping: Option<Res<super::stepping::GpuHairRender>>,
+    #[cfg(feature = "gpu")] queue: Res<RenderQueue>,
 ) {
     let Some(pipelines) = pipelines else { return };
     let pipeline = |id| pipeline_cache.get_compute_pipeline(id);
@@ -420,6 +504,23 @@ pub(super) fn dispatch_gpu_followers(
     };
     if !gpu.heads.values().any(|head| head.buffers.is_some() && head.bind_groups.is_some()) {
         return;
+    }
+    // The GPU's stepped strands gathered into the heads they feed, before their placement.
+    for head in gpu.heads.values_mut() {
+        if !std::mem::take(&mut head.gather_due) {
+            continue;
+        }
+        #[cfg(feature = "gpu")]
+        if let (Some(stepping), Some((target, _, index)), Some(buffers)) =
+            (stepping.as_deref(), &head.gather, &head.buffers)
+            && let Some(solver) = &stepping.solver
+        {
+            let words = step_words(3 * buffers.guide_nodes as usize, guide_frames(buffers.guide_nodes), 0);
+            solver.record_gather(&queue, render_context.command_encoder(), target, *index, words.guides);
+            continue;
+        }
+        // Nothing to gather from: not placed.
+        head.place_due = false;
     }
     let mut pass = render_context
         .command_encoder()
@@ -433,11 +534,14 @@ pub(super) fn dispatch_gpu_followers(
         let (place_group, draw_group) = &groups[head.parity];
         if std::mem::take(&mut head.place_due) {
             (head.placed_once, head.snap_all) = (true, false);
-            // The guides' frames, walked from each root, then the followers placed in them.
-            let (guides_x, guides_y) = workgroups(buffers.guides);
+            // The guides' frames, walked from each root (gathered with them when the GPU steps them), then
+            // the followers placed in them.
             pass.set_bind_group(0, place_group, &[]);
-            pass.set_pipeline(frames);
-            pass.dispatch_workgroups(guides_x, guides_y, 1);
+            if !head.feed.gpu_fed {
+                let (guides_x, guides_y) = workgroups(buffers.guides);
+                pass.set_pipeline(frames);
+                pass.dispatch_workgroups(guides_x, guides_y, 1);
+            }
             pass.set_pipeline(place);
             pass.dispatch_workgroups(x, y, 1);
         }

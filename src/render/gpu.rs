@@ -2,7 +2,7 @@
 
 use bevy::asset::{RenderAssetUsages, embedded_asset};
 use bevy::camera::primitives::Aabb;
-use bevy::camera::visibility::NoAutoAabb;
+use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
 use bevy::ecs::query::QueryState;
 use bevy::mesh::{Indices, MeshVertexAttribute, MeshVertexBufferLayoutRef, PrimitiveTopology};
 use bevy::pbr::{MaterialPipeline, MaterialPipelineKey};
@@ -19,14 +19,14 @@ use bevy::shader::{ShaderDefVal, ShaderRef};
 use bevy::tasks::ComputeTaskPool;
 
 use super::compute::{self, GpuHeads};
-use super::feed::{GuideUpload, LayoutChanged};
+use super::feed::{GpuCollider, GuideUpload, LayoutChanged};
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::{FollowerNodes, FollowerPlacement};
 use crate::groom::StrandColors;
 use crate::schedule::HairDrawSystems;
 use crate::simulation::{
-    CheckedSettings, HairHead, HeadStrands, PackedStrandPose, SimulatedStrand, StrandColliders, StrandFrames,
-    StrandNodes, StrandOf,
+    CheckedSettings, HairHead, HeadStrands, PackedStrandPose, SimulatedStrand, SteppedElsewhere, StrandColliders,
+    StrandFrames, StrandNodes, StrandOf,
 };
 use crate::volume::RepresentedHairs;
 
@@ -181,6 +181,11 @@ pub struct HairMesh {
     gpu_frame: Option<GpuFrame>,
     /// The fixed clock at the last step packed into `upload`, s.
     packed_at: Option<f64>,
+    /// Whether every guide is stepped on the GPU, which hands them to the placement itself
+    /// ([`crate::render::HairGpuPlugin`]): nothing is packed on the CPU.
+    pub(super) gpu_fed: bool,
+    /// The GPU's upload and step count last seen ([`GpuStepCount`]).
+    gpu_seen: GpuStepCount,
     /// Bounds of the last two steps' drawn hair, world space.
     step_bounds: [Option<(Vec3, Vec3)>; 2],
     /// The appearance drawn (the last valid one asked for).
@@ -199,6 +204,16 @@ pub(super) struct GpuFrame {
     pub(super) step: bool,
     /// The fraction of the way from the step before to the last to draw.
     pub(super) alpha: f32,
+    /// More than one step came since the last frame: nothing to interpolate from.
+    pub(super) snap: bool,
+}
+
+/// How many uploads and steps the GPU's stepping has sent ([`crate::render::HairGpuPlugin`]), for the
+/// drawing to see that its guides moved.
+#[derive(Resource, Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct GpuStepCount {
+    pub(super) generation: u32,
+    pub(super) steps: u64,
 }
 
 impl HairMesh {
@@ -267,6 +282,7 @@ fn spawn_hair_meshes(
 
 /// What [`prepare_hair_meshes`] keeps up to date of a head's [`HairMesh`] entity.
 type HairMeshParts = (
+    Entity,
     &'static mut HairMesh,
     &'static ChildOf,
     &'static mut Mesh3d,
@@ -312,6 +328,8 @@ fn prepare_hair_meshes(
     heads: Query<(Ref<HeadStrands>, &GlobalTransform, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
     colors: Query<&StrandColors>,
+    gpu_steps: Option<Res<GpuStepCount>>,
+    stepped_elsewhere: Query<(), With<SteppedElsewhere>>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<HairMaterial>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
@@ -319,7 +337,8 @@ fn prepare_hair_meshes(
     let alpha = fixed_time.overstep_fraction().clamp(0.0, 1.0);
     let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num());
     let on_gpu = placement.is_some_and(|placement| *placement == FollowerPlacement::Gpu);
-    for (mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility) in &mut hair_meshes {
+    let gpu_steps = gpu_steps.map(|count| *count);
+    for (entity, mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility) in &mut hair_meshes {
         let Ok((head_strands, head_transform, appearance)) = heads.get(child_of.parent()) else { continue };
         if !visibility.get() {
             continue;
@@ -344,7 +363,32 @@ fn prepare_hair_meshes(
             || head_strands.is_changed()
             || hair_mesh.strips.guides().len() != head_strands.strands().len();
         let mut relaid = look_over && hair_mesh.strips.set_layout(layout());
-        let bounds = if on_gpu {
+        // A new set of strands on the GPU: which heads it feeds may have changed.
+        if let Some(count) = gpu_steps
+            && on_gpu
+            && (relaid || count.generation != hair_mesh.gpu_seen.generation)
+        {
+            let guides = hair_mesh.strips.guides();
+            let fed = !guides.is_empty() && guides.iter().all(|guide| stepped_elsewhere.contains(guide.entity));
+            if fed != hair_mesh.gpu_fed {
+                // Its guides now come from the GPU (or no longer): the bounds are not known on the CPU.
+                if fed {
+                    commands.entity(entity).insert(NoFrustumCulling);
+                } else {
+                    commands.entity(entity).remove::<NoFrustumCulling>();
+                }
+                hair_mesh.gpu_fed = fed;
+                hair_mesh.upload_laid_out = false;
+            }
+            hair_mesh.gpu_seen = GpuStepCount { generation: count.generation, steps: hair_mesh.gpu_seen.steps };
+        }
+        hair_mesh.gpu_fed &= on_gpu && gpu_steps.is_some();
+        let bounds = if on_gpu && hair_mesh.gpu_fed {
+            hair_mesh.fresh = false;
+            let steps = gpu_steps.map_or(0, |count| count.steps);
+            let colliders = colliders.of(Some(&StrandOf(child_of.parent())));
+            Ok(send_gpu_fed(&mut hair_mesh, relaid, alpha, steps, colliders, &strands))
+        } else if on_gpu {
             hair_mesh.fresh = false;
             let head = StrandOf(child_of.parent());
             let context =
@@ -455,12 +499,42 @@ fn send_to_gpu(
         hair_mesh.step_bounds = [hair_mesh.step_bounds[1], bounds];
         hair_mesh.packed_at = Some(now);
     }
-    hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha: context.alpha });
+    hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha: context.alpha, snap: false });
     let [before, last] = hair_mesh.step_bounds;
     Ok(match (before, last) {
         (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
         (one, other) => one.or(other),
     })
+}
+
+/// Prepares what the GPU's follower placement needs this frame for a head whose guides the GPU steps and
+/// hands to the placement itself: the layout when it changed, the colliders and whether the GPU stepped
+/// since the last frame (`steps`: the steps sent so far). Nothing is packed; the bounds are not known on
+/// the CPU (the mesh is not culled).
+fn send_gpu_fed(
+    hair_mesh: &mut HairMesh,
+    relaid: bool,
+    alpha: f32,
+    steps: u64,
+    colliders: &[crate::rod::MovingCollider],
+    strands: &Query<DrawnStrand>,
+) -> Option<(Vec3, Vec3)> {
+    let HairMesh { strips, upload, .. } = hair_mesh;
+    let layout = relaid || !hair_mesh.upload_laid_out;
+    if layout {
+        let followers_of = |guide: &GuideLayout| strands.get(guide.entity).ok().and_then(|strand| strand.2);
+        upload.set_layout(strips.guides().iter().map(|guide| (*guide, followers_of(guide))));
+        hair_mesh.upload_laid_out = true;
+    }
+    let new_steps = steps.saturating_sub(hair_mesh.gpu_seen.steps);
+    hair_mesh.gpu_seen.steps = steps;
+    let stepped = new_steps > 0;
+    if stepped {
+        upload.colliders.clear();
+        upload.colliders.extend(colliders.iter().filter_map(GpuCollider::new));
+    }
+    hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha, snap: layout || new_steps > 1 });
+    None
 }
 
 /// The bounds, in the head's local space, of the world box `low … high`.

@@ -48,6 +48,10 @@ pub mod feed;
 mod gpu;
 #[cfg(feature = "render")]
 pub use gpu::{DrawnStrand, HairMaterial, HairMesh, HairRenderPlugin, HairShading};
+#[cfg(feature = "gpu")]
+mod stepping;
+#[cfg(feature = "gpu")]
+pub use stepping::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
 
 /// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::simulation::HairHead`]
 /// entity; without one, hair is drawn with [`HairAppearance::default`]. Changes apply the next frame.

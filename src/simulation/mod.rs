@@ -112,7 +112,7 @@ pub(crate) use step::CheckedSettings;
 pub(crate) use strand::StepOutcome;
 pub use strand::{
     FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
-    StrandFault, StrandForces, StrandHealth, StrandRejected, StrandSpawnError,
+    SteppedElsewhere, StrandFault, StrandForces, StrandHealth, StrandRejected, StrandSpawnError,
 };
 
 use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
@@ -148,6 +148,7 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<HairStrand>()
             .register_type::<SimulatedStrand>()
             .register_type::<StrandForces>()
+            .register_type::<SteppedElsewhere>()
             .register_type::<StrandNodes>()
             .register_type::<StrandFrames>()
             .register_type::<PackedStrandPose>()

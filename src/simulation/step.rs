@@ -10,8 +10,8 @@ use bevy::utils::Parallel;
 use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
 use crate::simulation::{
     HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose, SimulatedStrand,
-    StepOutcome, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRestShape,
-    longer_step_params,
+    StepOutcome, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
+    StrandRestShape, longer_step_params,
 };
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
@@ -317,13 +317,13 @@ type StepItem = (
 /// head is at a coarser level of detail is stepped only on its turns, by as many fixed steps as have
 /// passed, and drawn carried with its head in between (see [`crate::detail`]); while the settings are
 /// invalid every strand is drawn so (see [`check_settings`]). A strand not stepped whose state was
-/// written from outside has it checked before it is drawn.
+/// written from outside has it checked before it is drawn. Strands [`SteppedElsewhere`] are left alone.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn step_strands(
     time: Res<Time>,
     checked: Res<CheckedSettings>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<StepItem>,
+    mut strands: Query<StepItem, Without<SteppedElsewhere>>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,

@@ -795,6 +795,14 @@ impl NodeVectors {
     }
 }
 
+/// A strand the CPU step leaves alone: something else steps it and writes its components (the GPU, with
+/// [`HairGpuPlugin`](crate::render::HairGpuPlugin)). Its root is still pinned to its head at every step,
+/// so that whoever steps it reads where its root is held from its rod. Removing the marker hands the
+/// strand back to the CPU, from the state its rod has then.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
+pub struct SteppedElsewhere;
+
 /// Sent when a strand's step fails: which strand and why. A diverged strand (non-finite, over-strained,
 /// degenerate) has been reset to its rest pose on its head; on invalid input (a non-finite force, a head
 /// pose its root cannot follow) the step was skipped. A strand that failed again soon after is also

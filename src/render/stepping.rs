@@ -1,0 +1,552 @@
+//! The strands stepped on the GPU inside a Bevy app ([`HairGpuPlugin`], `gpu` feature): the main world
+//! chooses the strands and sends each fixed step's head poses, colliders and air; the render world steps
+//! them with [`GpuStrandSolver`] on Bevy's own device, hands them to the follower placement and drawing
+//! without leaving the GPU, and reads them back into the ECS components now and then.
+//!
+//! **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
+//! its gravity preload is done. Such a strand gets [`SteppedElsewhere`], so the CPU step leaves it; the
+//! others (longer strands, free strands) stay on the CPU. A head whose guides are all on the GPU is drawn
+//! from the GPU's state directly; a head with some on the CPU is drawn from the components, as before.
+//! Adding or removing strands uploads the set again, each from its last read-back state.
+//!
+//! **What the GPU meets.** Each head's spheres, capsules, ellipsoids and planes (its own and the shared
+//! ones); cuboids and mesh colliders are the CPU's alone, and are left out with one warning. The air's
+//! velocity is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one per head, so
+//! that eddies smaller than a head are not resolved; forces in [`StrandForces`], levels of detail, the
+//! hair–hair grid and followers' own collisions are CPU features that GPU strands do not get.
+//!
+//! **The components are read back**, asynchronously, at [`HairGpuSettings::read_back`]: the GPU copies
+//! the state to a buffer the CPU maps once the GPU is done, and the next frame that finds it mapped writes
+//! [`StrandNodes`], [`StrandFrames`] and the strand's rod. With pipelined rendering that is 2 frames after
+//! the step (the render world runs a frame behind the main world, the copy is mapped by the next frame);
+//! [`HairGpuStatus::read_back_age`] says how many steps old the components are. Faults found on the GPU
+//! (a non-finite value, an over-strained edge, a system that did not factorise) reset the strand there
+//! and arrive with the read-back as [`StrandFault`] messages, as from the CPU's step.
+//!
+//! **Without an adapter** (no renderer) nothing is uploaded and the CPU steps everything.
+//!
+//! [`StrandForces`]: crate::simulation::StrandForces
+
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex};
+
+use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
+use bevy::ecs::schedule::InternedScheduleLabel;
+use bevy::math::{DQuat, DVec3};
+use bevy::prelude::*;
+use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
+
+use super::gpu::GpuStepCount;
+use crate::gpu::{
+    GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates,
+    GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN,
+};
+use crate::rod::{ColliderShape, MovingCollider, StepError, StepParams};
+use crate::schedule::HairStepSystems;
+use crate::simulation::{
+    CheckedSettings, HairHead, HairSettings, HairStatistics, HeadMotion, SimulatedStrand, SteppedElsewhere,
+    StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
+};
+use crate::wind::{HairWind, HairWindSource};
+
+/// Steps the hair on the GPU (see the [module documentation](self)). Add it after [`crate::HairPlugin`],
+/// with Bevy's renderer, in the same schedule (`FixedUpdate` by default):
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// App::new().add_plugins((DefaultPlugins, HairPlugin::default(), HairGpuPlugin::default()));
+/// ```
+#[derive(Debug, Clone)]
+pub struct HairGpuPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
+
+/// How the GPU steps the hair; change it at any time.
+#[derive(Resource, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairGpuSettings {
+    /// Whether the GPU steps the strands it can. Off, every strand goes back to the CPU, from its last
+    /// read-back state.
+    pub enabled: bool,
+    /// How often [`StrandNodes`], [`StrandFrames`] and the strands' rods are read back from the GPU.
+    pub read_back: GpuReadBackRate,
+    /// Read back once after the next step whatever the rate (cleared when it is sent).
+    pub read_back_now: bool,
+}
+
+impl Default for HairGpuSettings {
+    fn default() -> Self {
+        Self { enabled: true, read_back: GpuReadBackRate::EveryStep, read_back_now: false }
+    }
+}
+
+/// How often the GPU's strands are read back into the ECS ([`HairGpuSettings::read_back`]).
+#[derive(Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GpuReadBackRate {
+    /// After every step: the components are as current as the latency allows (a few hundred kB per
+    /// step for 2 000 × 32 strands).
+    EveryStep,
+    /// After every `n`-th step (`n` ≥ 1).
+    EveryNthStep(u32),
+    /// Only when [`HairGpuSettings::read_back_now`] asks: the components keep their last read-back state.
+    OnDemand,
+}
+
+/// What the GPU's stepping did, for a game's panel or log.
+#[derive(Resource, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairGpuStatus {
+    /// Strands the GPU steps now.
+    pub strands: usize,
+    /// Steps sent to the GPU.
+    pub steps: u64,
+    /// Read-backs written into the components.
+    pub read_backs: u64,
+    /// How many steps older than the last step sent the components' state was when last read back.
+    pub read_back_age: Option<u64>,
+    /// Strand steps that failed on the GPU (each also a [`StrandFault`]).
+    pub faults: u64,
+    /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
+    pub error: Option<String>,
+}
+
+/// One fixed step for the render world.
+struct GpuStepOrder {
+    params: StepParams,
+    heads: Vec<GpuHeadStep>,
+    read_back: bool,
+    /// Its number among the steps sent.
+    step: u64,
+}
+
+/// A new set of strands for the render world.
+struct GpuUploadOrder {
+    upload: GpuStrandUpload,
+    strands: Arc<Vec<Entity>>,
+}
+
+/// What the main world sends and remembers of the strands on the GPU.
+#[derive(Resource, Default)]
+struct GpuStepQueue {
+    upload: Option<GpuUploadOrder>,
+    steps: Vec<GpuStepOrder>,
+    /// The strands on the GPU, in the upload's order, and their heads.
+    strands: Arc<Vec<Entity>>,
+    heads: Vec<Entity>,
+    /// Faults each strand has had on the GPU, as last read back.
+    faults: Vec<u32>,
+    /// Bumped at each upload (the renderer lays its heads out again).
+    generation: u32,
+    /// Steps sent since the start.
+    steps_sent: u64,
+    since_read_back: u32,
+    /// The step whose state the components hold, if any was read back.
+    read_back_step: Option<u64>,
+    /// Whether the set of strands must be looked over at the next step.
+    dirty: bool,
+    /// Colliders already warned about, by head.
+    warned_colliders: Vec<Entity>,
+}
+
+/// What the render world sends back.
+enum GpuMessage {
+    ReadBack { step: u64, strands: Arc<Vec<Entity>>, states: GpuStrandStates },
+    Error(String),
+}
+
+/// The main world's end of the read-backs.
+#[derive(Resource)]
+struct GpuReadBackReceiver(Mutex<Receiver<GpuMessage>>);
+
+impl Plugin for HairGpuPlugin {
+    fn build(&self, app: &mut App) {
+        let (sender, receiver) = channel();
+        app.register_type::<HairGpuSettings>()
+            .register_type::<HairGpuStatus>()
+            .init_resource::<HairGpuSettings>()
+            .init_resource::<HairGpuStatus>()
+            .init_resource::<GpuStepQueue>()
+            .init_resource::<GpuStepCount>()
+            .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
+            .add_systems(PreUpdate, apply_read_backs)
+            .add_systems(
+                self.schedule,
+                (choose_gpu_strands, order_gpu_step).chain().in_set(HairStepSystems::Integrate),
+            );
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+            warn!("HairGpuPlugin: there is no renderer (add DefaultPlugins first), so the CPU steps the hair");
+            app.world_mut().resource_mut::<HairGpuStatus>().error = Some("no renderer".into());
+            app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
+            return;
+        };
+        render_app
+            .insert_resource(GpuHairRender { sender: Some(sender), ..default() })
+            .add_systems(ExtractSchedule, extract_gpu_steps)
+            .add_systems(
+                Render,
+                step_on_gpu.in_set(RenderSystems::PrepareResources).before(super::compute::prepare_gpu_followers),
+            );
+    }
+}
+
+/// Looks the strands over when they may have changed and uploads the set the GPU can step: rooted, 3 to
+/// [`MAX_GPU_NODES`] nodes, preloaded. Marks them [`SteppedElsewhere`], and unmarks the others.
+#[allow(clippy::too_many_arguments)]
+fn choose_gpu_strands(
+    mut commands: Commands,
+    settings: Res<HairGpuSettings>,
+    hair_settings: Res<HairSettings>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut count: ResMut<GpuStepCount>,
+    added: Query<(), Added<SimulatedStrand>>,
+    mut removed: RemovedComponents<SimulatedStrand>,
+    strands: Query<(Entity, &SimulatedStrand, &StrandOf, Has<SteppedElsewhere>)>,
+    heads: Query<&HeadMotion, With<HairHead>>,
+) {
+    let queue = &mut *queue;
+    queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
+    queue.dirty |= removed.read().count() > 0;
+    if !queue.dirty {
+        return;
+    }
+    queue.dirty = false;
+    let mut chosen: Vec<(Entity, Entity, &SimulatedStrand)> = Vec::new();
+    if settings.enabled {
+        for (entity, strand, &StrandOf(head), _) in &strands {
+            let nodes = strand.rod().node_count();
+            let rooted = strand.root_anchor().is_some() && heads.contains(head);
+            if strand.preload_pending() || strand.rod().unusable_state().is_some() {
+                // Looked over again until the preload is done, or until the CPU's step has put the
+                // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
+                // it was uploaded in, so that must be one a step can start from).
+                queue.dirty = true;
+            } else if rooted && (3..=MAX_GPU_NODES).contains(&nodes) && !strand.is_quarantined() {
+                chosen.push((head, entity, strand));
+            }
+        }
+    }
+    chosen.sort_by_key(|&(head, entity, _)| (head, entity));
+    let same = chosen.len() == queue.strands.len() && chosen.iter().zip(queue.strands.iter()).all(|(c, s)| c.1 == *s);
+    if same {
+        return;
+    }
+    let mut head_list: Vec<Entity> = chosen.iter().map(|c| c.0).collect();
+    head_list.dedup();
+    let poses: Vec<(DQuat, DVec3)> = head_list
+        .iter()
+        .map(|&head| {
+            heads.get(head).map_or((DQuat::IDENTITY, DVec3::ZERO), |m| (m.current.rotation, m.current.translation))
+        })
+        .collect();
+    let margin = f64::from(hair_settings.collision_margin);
+    let inputs: Vec<GpuStrandInput> = chosen
+        .iter()
+        .map(|&(head, _, strand)| GpuStrandInput {
+            rod: strand.rod(),
+            head: head_list.binary_search(&head).unwrap_or(0),
+            thickness: strand.contact_thickness(margin),
+        })
+        .collect();
+    let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
+    let on_gpu: Vec<Entity> = match upload {
+        Some(Ok(upload)) => {
+            let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
+            info!("HairGpuPlugin: {} strands of {} heads stepped on the GPU", entities.len(), head_list.len());
+            queue.upload = Some(GpuUploadOrder { upload, strands: entities.clone() });
+            queue.strands = entities;
+            status.error = None;
+            queue.strands.to_vec()
+        }
+        Some(Err(error)) => {
+            error!("HairGpuPlugin: the GPU cannot step this hair, the CPU does: {error}");
+            status.error = Some(error.to_string());
+            queue.strands = Arc::default();
+            Vec::new()
+        }
+        None => {
+            queue.strands = Arc::default();
+            Vec::new()
+        }
+    };
+    queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
+    queue.faults = vec![0; on_gpu.len()];
+    queue.read_back_step = None;
+    queue.steps.clear();
+    queue.generation = queue.generation.wrapping_add(1);
+    count.generation = queue.generation;
+    status.strands = on_gpu.len();
+    let on_gpu: EntityHashSet = on_gpu.into_iter().collect();
+    for (entity, _, _, marked) in &strands {
+        let wanted = on_gpu.contains(&entity);
+        match (wanted, marked) {
+            (true, false) => {
+                commands.entity(entity).insert(SteppedElsewhere);
+            }
+            (false, true) => {
+                commands.entity(entity).remove::<SteppedElsewhere>();
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Sends this fixed step to the render world: each head's pose, its colliders the GPU meets and the air
+/// at it, and whether to read back after it.
+#[allow(clippy::too_many_arguments)]
+fn order_gpu_step(
+    time: Res<Time>,
+    checked: Res<CheckedSettings>,
+    mut settings: ResMut<HairGpuSettings>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut count: ResMut<GpuStepCount>,
+    heads: Query<&HeadMotion>,
+    colliders: StrandColliders,
+    wind: Option<Res<HairWind>>,
+    sources: Query<(&HairWindSource, &GlobalTransform)>,
+) {
+    let Some(params) = checked.params else { return };
+    if queue.strands.is_empty() {
+        return;
+    }
+    let queue = &mut *queue;
+    let now = time.elapsed_secs_f64();
+    let mut steps = Vec::with_capacity(queue.heads.len());
+    for &head in &queue.heads {
+        let Ok(motion) = heads.get(head) else {
+            steps.push(GpuHeadStep::default());
+            continue;
+        };
+        let pose = motion.current;
+        let met: Vec<MovingCollider> = colliders
+            .of(Some(&StrandOf(head)))
+            .iter()
+            .filter(|collider| {
+                matches!(
+                    collider.shape,
+                    ColliderShape::Sphere { .. }
+                        | ColliderShape::Capsule { .. }
+                        | ColliderShape::Ellipsoid { .. }
+                        | ColliderShape::Plane
+                )
+            })
+            .cloned()
+            .collect();
+        if met.len() < colliders.of(Some(&StrandOf(head))).len() && !queue.warned_colliders.contains(&head) {
+            warn!("HairGpuPlugin: head {head} has cuboid or mesh colliders, which the GPU step does not meet");
+            queue.warned_colliders.push(head);
+        }
+        // As `HairWindPlugin` blows it (which reports invalid wind): at the head's position.
+        let at = pose.translation.as_vec3();
+        let mut air = wind
+            .as_ref()
+            .filter(|wind| !wind.is_calm() && wind.validate().is_ok())
+            .map_or(Vec3::ZERO, |wind| wind.velocity_at(at, now));
+        for (source, transform) in &sources {
+            if source.validate().is_ok() {
+                air += source.velocity_at(transform, at);
+            }
+        }
+        steps.push(GpuHeadStep {
+            rotation: pose.rotation,
+            translation: pose.translation,
+            colliders: met,
+            air_velocity: air.as_dvec3(),
+        });
+    }
+    queue.since_read_back += 1;
+    let read_back = std::mem::take(&mut settings.bypass_change_detection().read_back_now)
+        || match settings.read_back {
+            GpuReadBackRate::EveryStep => true,
+            GpuReadBackRate::EveryNthStep(n) => queue.since_read_back >= n.max(1),
+            GpuReadBackRate::OnDemand => false,
+        };
+    if read_back {
+        queue.since_read_back = 0;
+    }
+    queue.steps_sent += 1;
+    status.steps = queue.steps_sent;
+    status.read_back_age = queue.read_back_step.map(|step| queue.steps_sent - step);
+    count.steps = queue.steps_sent;
+    queue.steps.push(GpuStepOrder { params, heads: steps, read_back, step: queue.steps_sent });
+}
+
+/// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
+/// GPU found.
+#[allow(clippy::type_complexity)]
+fn apply_read_backs(
+    receiver: Res<GpuReadBackReceiver>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut statistics: ResMut<HairStatistics>,
+    checked: Res<CheckedSettings>,
+    mut strands: Query<(&mut SimulatedStrand, &mut StrandNodes, &mut StrandFrames), With<SteppedElsewhere>>,
+    mut faults: MessageWriter<StrandFault>,
+) {
+    let Ok(receiver) = receiver.0.lock() else { return };
+    let queue = &mut *queue;
+    for message in receiver.try_iter() {
+        let (step, entities, states) = match message {
+            GpuMessage::ReadBack { step, strands, states } => (step, strands, states),
+            GpuMessage::Error(error) => {
+                if status.error.as_ref() != Some(&error) {
+                    error!("HairGpuPlugin: {error}");
+                    status.error = Some(error);
+                }
+                continue;
+            }
+        };
+        // A read-back of an earlier upload is stale.
+        if !Arc::ptr_eq(&entities, &queue.strands) {
+            continue;
+        }
+        for (index, &entity) in entities.iter().enumerate() {
+            let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
+            if let Some(snapshot) = states.snapshot(index)
+                && strand.rod_mut().restore(&snapshot).is_ok()
+            {
+                strand.write_components(Some(1), &mut nodes, &mut frames);
+            }
+            let report = states.status[index];
+            if report.faults > queue.faults[index] {
+                queue.faults[index] = report.faults;
+                status.faults += 1;
+                statistics.faults += 1;
+                let bound = checked.params.as_ref().map_or(0.0, StepParams::strain_bound);
+                let error = step_error(&report, bound);
+                warn!("hair strand {entity} failed a step on the GPU, it was reset to its rest pose: {error}");
+                faults.write(StrandFault { strand: entity, error });
+            }
+        }
+        status.read_backs += 1;
+        queue.read_back_step = Some(step);
+        status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
+    }
+}
+
+/// The CPU's name for the last fault the GPU found on a strand (`strain_bound`: the step's, without the
+/// single-precision floor the GPU adds). The strain of an over-strained step is known when that step was
+/// the last one read back; otherwise it was at least the GPU's limit.
+fn step_error(report: &GpuStrandStatus, strain_bound: f64) -> StepError {
+    let limit = strain_bound + SINGLE_PRECISION_STRAIN;
+    match report.last_fault {
+        Some(GpuFault::NonFinite { node }) => StepError::NonFinite { node: node as usize },
+        Some(GpuFault::OverStrained { edge }) => {
+            let strain = if report.fault.is_some() { f64::from(report.max_strain) } else { limit };
+            StepError::OverStrained { edge: edge as usize, strain, limit }
+        }
+        Some(GpuFault::NotPositiveDefinite) | None => StepError::NotPositiveDefinite { dof: 0 },
+    }
+}
+
+/// The render world's side: the solver on Bevy's device and what the main world sent.
+#[derive(Resource, Default)]
+pub(super) struct GpuHairRender {
+    pub(super) solver: Option<GpuStrandSolver>,
+    /// The strands in the solver's order, and each one's index by entity.
+    strands: Arc<Vec<Entity>>,
+    pub(super) index: EntityHashMap<u32>,
+    /// Each strand's head, as uploaded.
+    pub(super) strand_heads: Vec<usize>,
+    /// Bumped at each upload.
+    pub(super) generation: u32,
+    upload: Option<GpuUploadOrder>,
+    orders: Vec<GpuStepOrder>,
+    read_backs: Vec<(u64, Arc<Vec<Entity>>, GpuReadBack)>,
+    sender: Option<Sender<GpuMessage>>,
+}
+
+/// Moves the main world's upload and steps into the render world.
+fn extract_gpu_steps(mut main_world: ResMut<MainWorld>, mut render: ResMut<GpuHairRender>) {
+    let Some(mut queue) = main_world.get_resource_mut::<GpuStepQueue>() else { return };
+    if let Some(upload) = queue.upload.take() {
+        render.upload = Some(upload);
+        render.orders.clear();
+    }
+    let steps = std::mem::take(&mut queue.steps);
+    render.orders.extend(steps);
+}
+
+/// Uploads a new set of strands, steps them by every fixed step the main world sent, asks for a
+/// read-back after the last step that wants one, and sends the read-backs that arrived.
+fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let render = &mut *render;
+    let (device, queue): (&wgpu::Device, &wgpu::Queue) = (device.wgpu_device(), &queue);
+    if let Some(GpuUploadOrder { upload, strands }) = render.upload.take() {
+        render.solver = Some(GpuStrandSolver::from_upload(device, upload));
+        render.index = strands.iter().enumerate().map(|(index, &entity)| (entity, index as u32)).collect();
+        render.strand_heads = render.solver.as_ref().map(|s| s.strand_heads().to_vec()).unwrap_or_default();
+        render.strands = strands;
+        render.generation = render.generation.wrapping_add(1);
+        render.read_backs.clear();
+    }
+    let send = |sender: &Option<Sender<GpuMessage>>, message| {
+        if let Some(sender) = sender {
+            let _ = sender.send(message);
+        }
+    };
+    if let Some(solver) = render.solver.as_mut() {
+        let mut read_back = None;
+        for order in render.orders.drain(..) {
+            match solver.step(device, queue, &order.params, &order.heads) {
+                Ok(_) if order.read_back => read_back = Some(order.step),
+                Ok(_) => {}
+                Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
+            }
+        }
+        if let Some(step) = read_back {
+            render.read_backs.push((step, render.strands.clone(), solver.request_read_back(device, queue)));
+        }
+    } else {
+        render.orders.clear();
+    }
+    if render.read_backs.is_empty() {
+        return;
+    }
+    let _ = device.poll(wgpu::PollType::Poll);
+    let sender = &render.sender;
+    render.read_backs.retain_mut(|(step, strands, read_back)| {
+        if let Some(states) = read_back.try_take() {
+            send(sender, GpuMessage::ReadBack { step: *step, strands: strands.clone(), states });
+        }
+        !read_back.is_finished()
+    });
+}
+
+/// The message for a step the GPU could not take.
+fn gpu_step_error(error: &GpuStepError) -> String {
+    format!("a GPU step was not taken: {error}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gpu_faults_are_named_as_the_cpu_names_them() {
+        let bound = 1e-3;
+        let limit = bound + SINGLE_PRECISION_STRAIN;
+        let report = |fault, last_fault, max_strain| GpuStrandStatus { max_strain, fault, last_fault, faults: 1 };
+        let over = Some(GpuFault::OverStrained { edge: 7 });
+        // Read back on the failed step: its strain.
+        match step_error(&report(over, over, 0.25), bound) {
+            StepError::OverStrained { edge: 7, strain, limit: l } => {
+                assert_eq!((strain, l), (f64::from(0.25_f32), limit));
+            }
+            other => panic!("{other:?}"),
+        }
+        // Read back later: at least the limit (the strain read is the current one, not the failing one).
+        match step_error(&report(None, over, 1e-6), bound) {
+            StepError::OverStrained { edge: 7, strain, .. } => assert_eq!(strain, limit),
+            other => panic!("{other:?}"),
+        }
+        let nan = Some(GpuFault::NonFinite { node: 3 });
+        assert_eq!(step_error(&report(None, nan, 0.0), bound), StepError::NonFinite { node: 3 });
+        let indefinite = Some(GpuFault::NotPositiveDefinite);
+        assert_eq!(step_error(&report(indefinite, indefinite, 0.0), bound), StepError::NotPositiveDefinite { dof: 0 });
+    }
+}
