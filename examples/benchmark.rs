@@ -138,6 +138,358 @@ fn main() {
     if wanted("coverage") {
         coverage(threads, if quick { 1.0 } else { 4.0 });
     }
+    #[cfg(feature = "gpu")]
+    if wanted("gpu") {
+        gpu::steps_on_the_gpu(threads, if quick { 10 } else { 40 });
+    }
+}
+
+/// The `gpu` table: the strand step on the GPU and the followers placed and drawn from it there.
+#[cfg(feature = "gpu")]
+mod gpu {
+    use std::time::Instant;
+
+    use bevy::math::DVec3;
+    use bevy::prelude::Entity;
+    use bevy_hair_sim::gpu::{GpuHeadStep, GpuStrandInput, GpuStrandSolver, headless_device};
+    use bevy_hair_sim::prelude::*;
+    use bevy_hair_sim::render::feed::{GpuCollider, GuideUpload};
+    use bevy_hair_sim::render::{DrawnStrand, GuideLayout, HairStrips};
+    use bevy_hair_sim::rod::{MovingCollider, RigidPose};
+    use wgpu::util::DeviceExt;
+
+    use super::{Scene, WARM_UP_STEPS, groomed_head, move_head};
+
+    /// The follower placement's shader, as the renderer loads it.
+    const FOLLOWERS_SHADER: &str = include_str!("../src/render/followers.wgsl");
+
+    /// GPU time per step (timestamp queries where the adapter has them, otherwise from submit to done) of
+    /// the strand step for a groom of 2 000 guides × 32 edges with 10 followers each (20 000), and of the
+    /// followers' part (the guides gathered from the step's buffers, the followers placed in their frames
+    /// and pushed out of the skull, every drawn node written for the frame), and of 10 000 guides × 32 edges
+    /// without followers. The guides come from the plugin's groom, moved as the other tables move their
+    /// head; `steps` steps per row after two untimed ones.
+    pub fn steps_on_the_gpu(threads: usize, steps: usize) {
+        let (device, queue, info) = match headless_device() {
+            Ok(found) => found,
+            Err(error) => {
+                println!("\nGPU: no adapter ({error}); nothing to measure");
+                return;
+            }
+        };
+        let timestamps = device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        println!(
+            "\nGPU: {} ({:?}, {:?}, {}); time per step {}",
+            info.name,
+            info.device_type,
+            info.backend,
+            info.driver_info,
+            if timestamps { "from timestamp queries" } else { "from submit to done (no timestamp queries)" }
+        );
+        println!("{:>8} {:>6} {:>10} {:>14} {:>16} {:>12}", "guides", "edges", "followers", "step ms", "followers ms", "total ms");
+        for (guides, followers) in [(2_000, 10), (10_000, 0)] {
+            let row = Row::new(&device, threads, guides, followers);
+            let [step, placed] = row.measure(&device, &queue, timestamps, steps);
+            println!(
+                "{guides:>8} {:>6} {:>10} {:>14.3} {:>16.3} {:>12.3}",
+                32,
+                guides * followers,
+                1e3 * step,
+                1e3 * placed,
+                1e3 * (step + placed)
+            );
+        }
+    }
+
+    /// One row's guides on the GPU, with its followers' buffers and pipelines when it has followers.
+    struct Row {
+        solver: GpuStrandSolver,
+        followers: Option<Followers>,
+        skull: MovingCollider,
+    }
+
+    /// The follower placement's buffers and pipelines (as `render/compute.rs` makes them in the renderer).
+    struct Followers {
+        target: bevy_hair_sim::gpu::GpuGatherTarget,
+        guides_offset: u32,
+        place: wgpu::ComputePipeline,
+        draw: wgpu::ComputePipeline,
+        place_group: wgpu::BindGroup,
+        draw_group: wgpu::BindGroup,
+        drawn_nodes: u32,
+    }
+
+    impl Row {
+        fn new(device: &wgpu::Device, threads: usize, guides: usize, followers: usize) -> Self {
+            let (mut app, head) = groomed_head(threads, guides, followers, 32);
+            // The skull under the scalp, which the CPU meets in the warm-up as the GPU does after it.
+            app.world_mut().spawn((
+                HairCollider::sphere(0.1),
+                HairColliderOf(head),
+                bevy::prelude::ChildOf(head),
+                bevy::prelude::Transform::default(),
+            ));
+            for step in 1..=WARM_UP_STEPS {
+                move_head(&mut app, head, step);
+            }
+            let strands: Vec<Entity> = app.world().get::<HeadStrands>(head).expect("a groom").strands().to_vec();
+            let margin = HairSettings::default().collision_margin;
+            let world = app.world();
+            let inputs: Vec<GpuStrandInput> = strands
+                .iter()
+                .map(|&strand| {
+                    let simulated = world.get::<SimulatedStrand>(strand).expect("built");
+                    let thickness = f64::from(simulated.collision_thickness(margin));
+                    GpuStrandInput { rod: simulated.rod(), head: 0, thickness }
+                })
+                .collect();
+            let (translation, rotation) = Scene::head_pose(WARM_UP_STEPS);
+            let pose = (rotation.as_dquat(), translation.as_dvec3());
+            let solver = GpuStrandSolver::new(device, &inputs, &[pose]).expect("strands the GPU takes");
+            // The skull under the groom's scalp (a sphere of 10 cm about the head's origin).
+            let at = RigidPose { rotation: pose.0, translation: pose.1 };
+            let skull = MovingCollider {
+                shape: bevy_hair_sim::rod::ColliderShape::Sphere { radius: 0.1 },
+                friction: 0.3,
+                start: at,
+                end: at,
+            };
+            let followers = (followers > 0).then(|| {
+                let mut drawn = app.world_mut().query::<DrawnStrand>();
+                let query = drawn.query(app.world());
+                let layout = |entity| {
+                    let (strand, nodes, followers, represented, ..) = query.get(entity).ok()?;
+                    Some((GuideLayout::drawn(entity, strand, nodes, followers, represented), followers))
+                };
+                let mut strips = HairStrips::default();
+                strips.set_layout(strands.iter().filter_map(|&entity| Some(layout(entity)?.0)));
+                let mut upload = GuideUpload::default();
+                upload.set_layout(strands.iter().filter_map(|&entity| layout(entity)));
+                Followers::new(device, &solver, &upload, &skull)
+            });
+            Self { solver, followers, skull }
+        }
+
+        /// Seconds per step: the strand step, and the followers' part.
+        fn measure(mut self, device: &wgpu::Device, queue: &wgpu::Queue, timestamps: bool, steps: usize) -> [f64; 2] {
+            let params = bevy_hair_sim::rod::StepParams::default();
+            let queries = timestamps.then(|| {
+                device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("hair benchmark"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: 3 * steps as u32,
+                })
+            });
+            let mut wall = [0.0; 2];
+            for step in 0..steps + 2 {
+                let (translation, rotation) = Scene::head_pose(WARM_UP_STEPS + 1 + step);
+                let mut head = GpuHeadStep {
+                    rotation: rotation.as_dquat(),
+                    translation: translation.as_dvec3(),
+                    colliders: Vec::new(),
+                    air_velocity: DVec3::ZERO,
+                };
+                let at = RigidPose { rotation: head.rotation, translation: head.translation };
+                self.skull.start = self.skull.end;
+                self.skull.end = at;
+                head.colliders.push(self.skull.clone());
+                let timed = step >= 2;
+                let mark = |encoder: &mut wgpu::CommandEncoder, index: usize| {
+                    if let (Some(queries), true) = (&queries, timed) {
+                        let index = (3 * (step - 2) + index) as u32;
+                        let writes = wgpu::ComputePassTimestampWrites {
+                            query_set: queries,
+                            beginning_of_pass_write_index: Some(index),
+                            end_of_pass_write_index: None,
+                        };
+                        drop(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                            label: Some("hair benchmark mark"),
+                            timestamp_writes: Some(writes),
+                        }));
+                    }
+                };
+                // The step, then (in a submission of its own, for the wall clock) the followers' part.
+                let started = Instant::now();
+                let mut encoder = device.create_command_encoder(&Default::default());
+                mark(&mut encoder, 0);
+                self.solver.record_step(device, queue, &mut encoder, &params, &[head]).expect("a valid step");
+                mark(&mut encoder, 1);
+                queue.submit([encoder.finish()]);
+                let _ = device.poll(wgpu::PollType::wait_indefinitely());
+                let stepped = Instant::now();
+                if let Some(followers) = &self.followers {
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    followers.record(&self.solver, queue, &mut encoder);
+                    mark(&mut encoder, 2);
+                    queue.submit([encoder.finish()]);
+                    let _ = device.poll(wgpu::PollType::wait_indefinitely());
+                } else {
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    mark(&mut encoder, 2);
+                    queue.submit([encoder.finish()]);
+                }
+                if timed {
+                    wall[0] += (stepped - started).as_secs_f64();
+                    if self.followers.is_some() {
+                        wall[1] += stepped.elapsed().as_secs_f64();
+                    }
+                }
+            }
+            let states = self.solver.read_back(device, queue);
+            let faults: u32 = states.status.iter().map(|s| s.faults).sum();
+            if faults > 0 {
+                let first = states.status.iter().position(|s| s.faults > 0).unwrap();
+                println!("{faults} faults; first strand {first}: {:?}", states.status[first]);
+            }
+            let Some(queries) = queries else {
+                return wall.map(|seconds| seconds / steps as f64);
+            };
+            let count = 3 * steps as u64;
+            let resolved = device.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size: 8 * count,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size: 8 * count,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.resolve_query_set(&queries, 0..count as u32, &resolved, 0);
+            encoder.copy_buffer_to_buffer(&resolved, 0, &read, 0, 8 * count);
+            queue.submit([encoder.finish()]);
+            read.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+            let _ = device.poll(wgpu::PollType::wait_indefinitely());
+            let ticks: Vec<u64> = bytemuck::cast_slice(&read.slice(..).get_mapped_range()).to_vec();
+            let period = f64::from(queue.get_timestamp_period()) * 1e-9;
+            let mut gpu = [0.0; 2];
+            for step in ticks.chunks_exact(3) {
+                gpu[0] += step[1].saturating_sub(step[0]) as f64 * period;
+                gpu[1] += step[2].saturating_sub(step[1]) as f64 * period;
+            }
+            if self.followers.is_none() {
+                gpu[1] = 0.0;
+            }
+            gpu.map(|seconds| seconds / steps as f64)
+        }
+    }
+
+    impl Followers {
+        fn new(device: &wgpu::Device, solver: &GpuStrandSolver, upload: &GuideUpload, skull: &MovingCollider) -> Self {
+            let guide_nodes = upload.guide_node_count() as u32;
+            let starts = upload.guide_starts();
+            let guides = starts.len() as u32 - 1;
+            // As `render/compute.rs` lays a step's data out: positions, frame codes (unused here: the
+            // gather writes the frames), the guide words.
+            let guides_offset = 3 * guide_nodes + (3 * guide_nodes).next_multiple_of(4) / 4;
+            let storage = |size: u64| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: None,
+                    size: size.max(16),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            let with_data = |contents: &[u8]| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: None,
+                    contents,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::UNIFORM,
+                })
+            };
+            let drawn_nodes = upload.drawn_node_count() as u32;
+            let guide_data = storage(4 * u64::from(guides_offset + 2 * guides));
+            let guide_frames = storage(16 * u64::from(guide_nodes));
+            let map: Vec<[u32; 2]> =
+                starts.iter().enumerate().map(|(guide, &first)| [guide.min(guides as usize - 1) as u32, first]).collect();
+            let target = solver.gather_target(device, &map, &guide_data, &guide_frames);
+            let params: [u32; 8] = [drawn_nodes, guide_nodes, guides, 1, 3 * guide_nodes, guides_offset, 0.5_f32.to_bits(), 0];
+            let params = with_data(bytemuck::cast_slice(&params));
+            let nodes = with_data(bytemuck::cast_slice(&upload.drawn_nodes));
+            let guide_of_node = with_data(bytemuck::cast_slice(&upload.guide_of_node));
+            let guide_starts = with_data(bytemuck::cast_slice(&starts));
+            let colliders = with_data(bytemuck::cast_slice(&[GpuCollider::new(skull).expect("a sphere")]));
+            let placed = [storage(12 * u64::from(drawn_nodes)), storage(12 * u64::from(drawn_nodes))];
+            let drawn = storage(12 * u64::from(drawn_nodes));
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("hair followers"),
+                source: wgpu::ShaderSource::Wgsl(FOLLOWERS_SHADER.into()),
+            });
+            // The layouts of `render/compute.rs`: a uniform, then storage buffers (`true`: read only).
+            let layout = |storage: &[bool]| {
+                let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }];
+                entries.extend(storage.iter().enumerate().map(|(index, &read_only)| wgpu::BindGroupLayoutEntry {
+                    binding: index as u32 + 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }));
+                device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &entries })
+            };
+            let place_layout = layout(&[true, true, true, true, false, false, true, false]);
+            let draw_layout = layout(&[true, true, false]);
+            let pipeline = |entry: &str, layout: &wgpu::BindGroupLayout| {
+                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: None,
+                    bind_group_layouts: &[Some(layout)],
+                    immediate_size: 0,
+                });
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some(entry),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            };
+            let (place, draw) = (pipeline("place", &place_layout), pipeline("draw", &draw_layout));
+            let group = |layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]| {
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .iter()
+                    .enumerate()
+                    .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
+                    .collect();
+                device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
+            };
+            let place_group = group(
+                &place_layout,
+                &[&params, &nodes, &guide_of_node, &guide_data, &colliders, &placed[0], &placed[1], &guide_starts, &guide_frames],
+            );
+            let draw_group = group(&draw_layout, &[&params, &placed[1], &placed[0], &drawn]);
+            Self { target, guides_offset, place, draw, place_group, draw_group, drawn_nodes }
+        }
+
+        /// The followers' part of a step: gather, place, draw (as the renderer records them).
+        fn record(&self, solver: &GpuStrandSolver, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder) {
+            solver.record_gather(queue, encoder, &self.target, 0, self.guides_offset);
+            let groups = self.drawn_nodes.div_ceil(64);
+            let (x, y) = if groups > 65_535 { (65_535, groups.div_ceil(65_535)) } else { (groups, 1) };
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.place);
+            pass.set_bind_group(0, &self.place_group, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+            pass.set_pipeline(&self.draw);
+            pass.set_bind_group(0, &self.draw_group, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
 }
 
 /// The example's default scene (`examples/head.rs`: 2 000 combed straight guides × 24 edges with 10

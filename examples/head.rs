@@ -9,7 +9,8 @@
 //! turn it, Space cycles the head's animation (still, nod, shake, turn, sway, flick), 1 to 5 pick the hair style, K
 //! combs it along the scalp or grows it straight out, C shows the colliders the hair rests on (skull,
 //! face, neck, shoulders, torso), V turns a gusty, turbulent breeze on and off (tune it in the panel), L
-//! switches between rendered hair, gizmo lines and both.
+//! switches between rendered hair, gizmo lines and both. `--gpu on` (or the Scene panel's switch) steps
+//! the strands on the GPU (`HairGpuPlugin`), with the followers placed and the hair drawn from there.
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
@@ -51,8 +52,10 @@ fn main() {
             .set(WindowPlugin { primary_window: Some(window), ..default() })
             .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
         HairPlugin::default(),
+        HairGpuPlugin::default(),
     ));
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
+        .insert_resource(HairGpuSettings { enabled: options.gpu, ..default() })
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(AnimationClock { animation: options.animation, seconds: 0.0 })
         .insert_resource(HairSettings { integrator: options.integrator, volume: options.volume, ..default() })
@@ -123,6 +126,8 @@ struct Options {
     appearance: HairAppearance,
     /// A level of detail to keep (`None`: chosen from the camera's distance).
     detail: Option<HairDetailLevel>,
+    /// Whether the GPU steps the hair (`HairGpuPlugin`).
+    gpu: bool,
 }
 
 /// How the example draws hair: rendered strands, gizmo lines, or both over each other.
@@ -151,7 +156,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--draw hair|lines|both]
-            [--draw-every-frame on|off] [--detail auto|full|2|4|carried]
+            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -178,6 +183,7 @@ impl Options {
             draw_every_frame: false,
             appearance: HairAppearance::default(),
             detail: None,
+            gpu: false,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -199,6 +205,7 @@ impl Options {
                 "--wind" => options.wind = number("a speed in m/s")?,
                 "--pressure" => options.volume.stiffness = number("a pressure in Pa")?,
                 "--grid" => options.volume.enabled = switch()?,
+                "--gpu" => options.gpu = switch()?,
                 "--integrator" => {
                     options.integrator = match value.as_str() {
                         "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,
@@ -608,6 +615,7 @@ fn hair_keys(
 fn show_statistics(
     time: Res<Time<Real>>,
     statistics: Res<HairStatistics>,
+    gpu: Res<HairGpuStatus>,
     clock: Res<AnimationClock>,
     mut windows: Query<&mut Window>,
     mut since_update: Local<f32>,
@@ -617,10 +625,11 @@ fn show_statistics(
         return;
     }
     *since_update = 0.0;
+    let on_gpu = if gpu.strands > 0 { format!(" ({} on the GPU)", gpu.strands) } else { String::new() };
     let title = format!(
-        "bevy_hair_sim: {} strands + {} followers, {} nodes ({} in contact), step {:.1} ms, {:.0} fps, strain {:.1e}, \
-         {} faults, head: {} (Space)",
-        statistics.strands,
+        "bevy_hair_sim: {} strands{on_gpu} + {} followers, {} nodes ({} in contact), step {:.1} ms, {:.0} fps, \
+         strain {:.1e}, {} faults, head: {} (Space)",
+        statistics.strands + gpu.strands,
         statistics.followers,
         statistics.nodes,
         statistics.contacts,
@@ -637,9 +646,25 @@ fn show_statistics(
 
 /// The scene's own controls, next to the hair panel.
 #[cfg(feature = "egui")]
-fn scene_panel(mut contexts: bevy_egui::EguiContexts, mut clock: ResMut<AnimationClock>) -> Result {
+fn scene_panel(
+    mut contexts: bevy_egui::EguiContexts,
+    mut clock: ResMut<AnimationClock>,
+    mut gpu: ResMut<HairGpuSettings>,
+    gpu_status: Res<HairGpuStatus>,
+) -> Result {
     use bevy_egui::egui;
     egui::Window::new("Scene").anchor(egui::Align2::RIGHT_TOP, [-8.0, 8.0]).show(contexts.ctx_mut()?, |ui| {
+        let mut enabled = gpu.enabled;
+        if ui.checkbox(&mut enabled, "step on the GPU").changed() {
+            gpu.enabled = enabled;
+        }
+        if gpu.enabled {
+            let age = gpu_status.read_back_age.map_or("—".to_string(), |age| format!("{age} steps old"));
+            ui.label(format!("{} strands on the GPU, read back {age}", gpu_status.strands));
+            if let Some(error) = &gpu_status.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, error);
+            }
+        }
         ui.horizontal_wrapped(|ui| {
             ui.label("head:");
             for animation in Animation::ALL {

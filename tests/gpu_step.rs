@@ -300,3 +300,63 @@ fn a_strand_that_fails_on_the_gpu_is_reset_and_reported_and_the_others_go_on() {
     assert_eq!(error, GpuStepError::InvalidHead { head: 0 });
     assert_eq!(gpu.read_back(&device, &queue).positions, states.positions);
 }
+
+#[test]
+fn a_strand_deep_inside_a_collider_holding_its_root_stays_whole() {
+    let (device, queue) = device();
+    // A strand rooted on a 5 cm ball's surface and grown straight through it: no step can put it outside
+    // with its lengths kept and its root held.
+    let centre = DVec3::new(0.0, 1.6, 0.0);
+    let root = centre + DVec3::X * 0.05;
+    let nodes: Vec<DVec3> = straight_nodes(0.2, 20, -DVec3::X).into_iter().map(|p| p + root).collect();
+    let mut rod = Rod::new(&nodes, DVec3::Y, Default::default()).unwrap();
+    rod.clamp_root_in_place();
+    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4 };
+    let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, centre)]).unwrap();
+    let at = RigidPose { rotation: DQuat::IDENTITY, translation: centre };
+    let ball = MovingCollider { shape: ColliderShape::Sphere { radius: 0.05 }, friction: 0.3, start: at, end: at };
+    let head = GpuHeadStep { translation: centre, colliders: vec![ball], ..Default::default() };
+    let params = StepParams { dt: 1.0 / 60.0, ..Default::default() };
+    let mut given_up = 0;
+    for _ in 0..60 {
+        gpu.step(&device, &queue, &params, std::slice::from_ref(&head)).unwrap();
+        let states = gpu.read_back(&device, &queue);
+        let status = states.status[0];
+        given_up += usize::from(status.contact_given_up);
+        assert_eq!(status.faults, 0, "{status:?}");
+        assert!(f64::from(status.max_strain) < params.strain_bound(), "{status:?}");
+        assert!(states.positions[0].iter().all(|p| p.is_finite()));
+    }
+    println!("contact given up in {given_up} of 60 steps");
+    assert!(given_up > 0, "the strand was never stuck: the test does not reach the case");
+}
+
+#[test]
+fn a_collider_holding_the_root_leaves_the_strand_near_it_free() {
+    let (device, queue) = device();
+    // A strand rooted 2 cm deep inside a 30 cm ball (a hat, a hood), growing out of it along the radius:
+    // its first nodes lie inside, and could not be outside with the root where it is. As on the CPU
+    // (`held_reach`), the ball leaves the strand within twice the root's depth free of it.
+    let centre = DVec3::new(0.0, 1.6, 0.0);
+    let root = centre + DVec3::X * 0.28;
+    let nodes: Vec<DVec3> = straight_nodes(0.2, 32, DVec3::X).into_iter().map(|p| p + root).collect();
+    let mut rod = Rod::new(&nodes, DVec3::Y, Default::default()).unwrap();
+    rod.clamp_root_in_place();
+    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4 };
+    let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, centre)]).unwrap();
+    let at = RigidPose { rotation: DQuat::IDENTITY, translation: centre };
+    let ball = MovingCollider { shape: ColliderShape::Sphere { radius: 0.3 }, friction: 0.3, start: at, end: at };
+    let head = GpuHeadStep { translation: centre, colliders: vec![ball], ..Default::default() };
+    let params = StepParams { dt: 1.0 / 60.0, ..Default::default() };
+    for _ in 0..60 {
+        gpu.step(&device, &queue, &params, std::slice::from_ref(&head)).unwrap();
+    }
+    let states = gpu.read_back(&device, &queue);
+    let status = states.status[0];
+    assert!(!status.contact_given_up && status.faults == 0, "{status:?}");
+    // The nodes past the held reach (4 cm of strand) are outside the ball grown by the thickness.
+    let outside = |p: &DVec3| p.distance(centre) >= 0.3 + 1e-4 - 1e-6;
+    assert!(states.positions[0][8..].iter().all(outside), "a node past the held reach is inside the ball");
+    // And the strand hangs from the ball's surface: its tip fell well below the root.
+    assert!(states.positions[0][32].y < centre.y - 0.05, "tip at {}", states.positions[0][32]);
+}

@@ -1,5 +1,7 @@
 //! The strand step on the GPU: the same discrete elastic rods as [`crate::rod`], stepped in a WGSL compute
-//! shader (`step.wgsl`) in single precision, one invocation per strand (`gpu` feature).
+//! shader (`step.wgsl`) in single precision, one invocation per strand (`gpu` feature). In an app,
+//! [`HairGpuPlugin`](crate::render::HairGpuPlugin) runs it on Bevy's device; [`GpuStrandSolver`] runs it on
+//! any wgpu device.
 //!
 //! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
 //! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
@@ -27,7 +29,11 @@
 //! **Faults** are found on the GPU: a strand with a non-finite value, an edge strained past
 //! [`crate::rod::StepParams::strain_bound`] (plus the strain `f32` can resolve,
 //! [`SINGLE_PRECISION_STRAIN`]) or a system that does not factorise is put back in the pose it was uploaded
-//! in, on its root, at rest, and its [`GpuStrandStatus`] says why.
+//! in, on its root, at rest, and its [`GpuStrandStatus`] says why (the reason of the last failure is kept
+//! until the next, for read-backs every few steps). Contact that cannot be met with the lengths kept (a
+//! strand deep inside a collider that holds its root) is given up for the step rather than failing it;
+//! a collider holding a root inside it leaves the strand within twice the root's depth free of it, as on
+//! the CPU.
 
 mod solver;
 

@@ -1,6 +1,6 @@
 //! The GPU strand step on a plain `wgpu` device: the buffers, the pipeline of `step.wgsl`, uploads,
-//! dispatches and read-back. Bevy's renderer hands its own device to it ([`super::HairGpuPlugin`]); tests
-//! and benchmarks make one with [`headless_device`].
+//! dispatches and read-back. Bevy's renderer hands its own device to it
+//! ([`HairGpuPlugin`](crate::render::HairGpuPlugin)); tests and benchmarks make one with [`headless_device`].
 
 use std::num::NonZeroU64;
 use std::sync::Arc;
@@ -136,6 +136,9 @@ pub struct GpuStrandStatus {
     pub last_fault: Option<GpuFault>,
     /// Steps that failed since the upload.
     pub faults: u32,
+    /// Whether the last step could not put the strand outside its colliders with its lengths kept (it
+    /// lies deep inside one that holds its root, say), and kept its state without contact instead.
+    pub contact_given_up: bool,
 }
 
 /// Why a GPU step failed for a strand.
@@ -844,6 +847,7 @@ impl GpuReadBack {
                 }
             };
             states.status.push(GpuStrandStatus {
+                contact_given_up: flags & 16 != 0,
                 max_strain: f32::from_bits(strain),
                 fault: reason(flags),
                 last_fault: reason(faults >> 28),

@@ -70,12 +70,21 @@ const WIDTH: u32 = 11u;
 const WORKGROUP: u32 = 64u;
 
 // Status bits (per strand, `status[s].x`): has a step of history; the last step was faulted (non-finite,
-// over-strained, not definite), with the node or edge of the last fault in `status[s].y`, `status[s].z`
+// over-strained, not definite) or its contact given up, with the node or edge of the last fault in
+// `status[s].y`, `status[s].z`
 // the largest strain as bits, `status[s].w` the failed steps and the last one's reason.
 const HAS_HISTORY: u32 = 1u;
 const FAULT_NON_FINITE: u32 = 2u;
 const FAULT_OVER_STRAINED: u32 = 4u;
 const FAULT_NOT_DEFINITE: u32 = 8u;
+const CONTACT_GIVEN_UP: u32 = 16u;
+// A collider holding the root this deep inside it leaves this many times the depth of strand free of it.
+const HELD_REACH: f32 = 2.0;
+// A node this close to a collider's grown surface, m, has a contact spring in the solve (with no force
+// until it sinks in); the spring's stiffness relative to the node's inertia: as stiff as `f32` solves
+// well (as `STRETCH_RATIO`), a node pressed by its weight sinking `g h² / 10³` (3 µm at 60 Hz).
+const CONTACT_GAP: f32 = 2e-6;
+const CONTACT_RATIO: f32 = 1e3;
 // The bits of `status[s].w` that count failed steps (the reason of the last is in the top four).
 const FAULT_COUNT: u32 = 0x0fffffffu;
 
@@ -114,6 +123,7 @@ var<private> grad_tw: array<f32, 11>;
 var<private> tri_diagonal: array<f32, MAX_NODES>;
 var<private> tri_upper: array<f32, MAX_NODES>;
 var<private> tri_rhs: array<f32, MAX_NODES>;
+var<private> springs: array<f32, MAX_NODES>;
 
 var<private> strand: u32;
 var<private> nodes: u32;
@@ -540,6 +550,45 @@ fn gauss_seidel_sweep() {
 
 // Assembles the Newton system at the current iterate; returns false where it does not factorise even
 // with the diagonal scaled by `1 + λ`, λ up to 1.
+// Contact inside the solve, as on the CPU (`rod/contact.rs`): each node within `CONTACT_GAP` of a collider
+// (at its end pose, grown by the thickness) gets a stiff one-sided spring along the surface normal,
+// `½ k min(d, 0)²` with `k = CONTACT_RATIO m (1/h² + γ/h)`, so that the solve knows what supports the
+// strand (a node pressed by its weight sinks `g h² / CONTACT_RATIO`). Nodes held inside a collider with
+// the root (`HELD_REACH`) are free of it. `springs[i]` says whether node `i` has one, for the friction.
+fn add_contact_springs(inertia: f32) {
+    let first = bitcast<u32>(head_row(3u).x);
+    let count = bitcast<u32>(head_row(3u).y);
+    let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
+    for (var i = 0u; i < nodes; i++) {
+        springs[i] = 0.0;
+    }
+    for (var k = 0u; k < count; k++) {
+        let c = first + k;
+        let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
+        var arc = rest_at(0u, 0u).x;
+        for (var i = 2u; i < nodes; i++) {
+            arc += rest_at(i - 1u, 0u).x;
+            if arc <= reach {
+                continue;
+            }
+            let contact = touch(c, x[i], thickness);
+            if contact.distance >= CONTACT_GAP {
+                continue;
+            }
+            let stiffness = CONTACT_RATIO * rest_at(i, 1u).y * inertia;
+            let n = contact.normal;
+            let pressed = stiffness * min(contact.distance, 0.0);
+            for (var a = 0u; a < 3u; a++) {
+                rhs[4u * i + a] += pressed * n[a];
+                for (var b = 0u; b <= a; b++) {
+                    band[band_index(4u * i + a, 4u * i + b)] += stiffness * n[a] * n[b];
+                }
+            }
+            springs[i] = 1.0;
+        }
+    }
+}
+
 fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
     let n = dofs();
     var regularisation = 0.0;
@@ -605,6 +654,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                 }
             }
         }
+        add_contact_springs(inertia);
         // Twists by backward Euler.
         let dt = params.dt;
         for (var e = 0u; e < edge_count(); e++) {
@@ -730,9 +780,18 @@ fn push_out(friction: bool) -> bool {
     let count = bitcast<u32>(head_row(3u).y);
     let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
     var moved = false;
-    for (var i = 2u; i < nodes; i++) {
-        for (var k = 0u; k < count; k++) {
-            let c = first + k;
+    for (var k = 0u; k < count; k++) {
+        let c = first + k;
+        // A collider holding the root inside it leaves the nodes within `HELD_REACH` times the root's depth
+        // (along the strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of
+        // it, and is not torn trying to be outside.
+        let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
+        var arc = rest_at(0u, 0u).x;
+        for (var i = 2u; i < nodes; i++) {
+            arc += rest_at(i - 1u, 0u).x;
+            if arc <= reach {
+                continue;
+            }
             let contact = touch(c, x[i], thickness);
             if contact.distance >= 0.0 {
                 continue;
@@ -745,7 +804,9 @@ fn push_out(friction: bool) -> bool {
                 let carried = colliders[c * COLLIDER_ROWS + 2u].xyz + rotate(colliders[c * COLLIDER_ROWS + 3u], start_local);
                 let slip = goal - carried;
                 let tangential = slip - dot(slip, contact.normal) * contact.normal;
-                let limit = mu * -contact.distance;
+                // The normal push this step: the spring's force in the solve (as a displacement over the
+                // step, `k d h² / m = CONTACT_RATIO d`) and the push-out itself.
+                let limit = mu * -contact.distance * (1.0 + CONTACT_RATIO * springs[i]);
                 let size = length(tangential);
                 if size <= limit {
                     goal -= tangential;
@@ -899,13 +960,27 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         refresh_frames();
     }
 
-    // 4. Contact with the head's colliders.
+    // 4. Contact with the head's colliders. A strand that cannot be put outside them with its lengths kept
+    // (one deep inside a collider that holds its root, say) keeps its solved state for this step instead
+    // (status bit `CONTACT_GIVEN_UP`): it stays whole and comes out as far as it can in later steps.
+    flags = flags & ~CONTACT_GIVEN_UP;
     if fault == 0u && bitcast<u32>(head_row(3u).y) > 0u {
+        for (var i = 0u; i < nodes; i++) {
+            x_carried[i] = x[i];
+        }
         for (var round = 0u; round < params.contact_rounds; round++) {
             if !push_out(round == 0u) {
                 break;
             }
             project_lengths(params.projection_iterations);
+        }
+        let pushed = largest_strain().x;
+        if !(pushed <= params.strain_bound) {
+            for (var i = 0u; i < nodes; i++) {
+                x[i] = x_carried[i];
+                normal[i] = vec3<f32>(0.0);
+            }
+            flags = flags | CONTACT_GIVEN_UP;
         }
         refresh_frames();
     }
@@ -959,5 +1034,5 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         at = fault_at;
     }
     let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
-    status[strand] = vec4<u32>((flags & HAS_HISTORY) | fault, at, bitcast<u32>(reported), failures);
+    status[strand] = vec4<u32>((flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault, at, bitcast<u32>(reported), failures);
 }

@@ -1,31 +1,8 @@
-//! The strands stepped on the GPU inside a Bevy app ([`HairGpuPlugin`], `gpu` feature): the main world
-//! chooses the strands and sends each fixed step's head poses, colliders and air; the render world steps
-//! them with [`GpuStrandSolver`] on Bevy's own device, hands them to the follower placement and drawing
-//! without leaving the GPU, and reads them back into the ECS components now and then.
-//!
-//! **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
-//! its gravity preload is done. Such a strand gets [`SteppedElsewhere`], so the CPU step leaves it; the
-//! others (longer strands, free strands) stay on the CPU. A head whose guides are all on the GPU is drawn
-//! from the GPU's state directly; a head with some on the CPU is drawn from the components, as before.
-//! Adding or removing strands uploads the set again, each from its last read-back state.
-//!
-//! **What the GPU meets.** Each head's spheres, capsules, ellipsoids and planes (its own and the shared
-//! ones); cuboids and mesh colliders are the CPU's alone, and are left out with one warning. The air's
-//! velocity is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one per head, so
-//! that eddies smaller than a head are not resolved; forces in [`StrandForces`], levels of detail, the
-//! hair–hair grid and followers' own collisions are CPU features that GPU strands do not get.
-//!
-//! **The components are read back**, asynchronously, at [`HairGpuSettings::read_back`]: the GPU copies
-//! the state to a buffer the CPU maps once the GPU is done, and the next frame that finds it mapped writes
-//! [`StrandNodes`], [`StrandFrames`] and the strand's rod. With pipelined rendering that is 2 frames after
-//! the step (the render world runs a frame behind the main world, the copy is mapped by the next frame);
-//! [`HairGpuStatus::read_back_age`] says how many steps old the components are. Faults found on the GPU
-//! (a non-finite value, an over-strained edge, a system that did not factorise) reset the strand there
-//! and arrive with the read-back as [`StrandFault`] messages, as from the CPU's step.
-//!
-//! **Without an adapter** (no renderer) nothing is uploaded and the CPU steps everything.
-//!
-//! [`StrandForces`]: crate::simulation::StrandForces
+//! The strands stepped on the GPU inside a Bevy app ([`HairGpuPlugin`]): the main world chooses the
+//! strands and sends each fixed step's head poses, colliders and air; the render world steps them with
+//! [`GpuStrandSolver`] on Bevy's own device (one submission per step, before the render graph), gathers
+//! them into the follower placement's buffers (`render/compute.rs`), and reads them back now and then
+//! through a channel to the main world.
 
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
@@ -50,7 +27,8 @@ use crate::simulation::{
 };
 use crate::wind::{HairWind, HairWindSource};
 
-/// Steps the hair on the GPU (see the [module documentation](self)). Add it after [`crate::HairPlugin`],
+/// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
+/// compute invocation per strand), on the device of Bevy's renderer. Add it after [`crate::HairPlugin`],
 /// with Bevy's renderer, in the same schedule (`FixedUpdate` by default):
 ///
 /// ```no_run
@@ -58,6 +36,39 @@ use crate::wind::{HairWind, HairWindSource};
 /// # use bevy_hair_sim::prelude::*;
 /// App::new().add_plugins((DefaultPlugins, HairPlugin::default(), HairGpuPlugin::default()));
 /// ```
+///
+/// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
+/// its gravity preload is done and its state is one a step can start from. Such a strand gets
+/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands) stay on the
+/// CPU. A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
+/// state directly (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head
+/// with some on the CPU is drawn from the components. Adding or removing strands uploads the set again,
+/// each from its last read-back state; writing a GPU strand's rod or components from outside has no
+/// effect (the GPU's state is the truth, and the next read-back overwrites them).
+///
+/// **What the GPU meets.** Each head's spheres, capsules, ellipsoids and planes (its own and the shared
+/// ones), with the CPU's rule for a collider holding a root inside it (the strand near the root is left
+/// free of it). Cuboids and mesh colliders are the CPU's alone and are left out, with one warning per
+/// head. The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
+/// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
+/// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
+///
+/// **The components are read back** asynchronously at [`HairGpuSettings::read_back`]: the GPU copies the
+/// state into a buffer the CPU maps once the GPU is done, and the first frame that finds it mapped writes
+/// [`StrandNodes`], [`StrandFrames`] and the strand's rod. With pipelined rendering that is two frames
+/// after the step (the render world runs a frame behind the main world, and the copy is mapped by the next
+/// frame); [`HairGpuStatus::read_back_age`] says how many steps old the components are.
+///
+/// **Faults** found on the GPU (a non-finite value, an edge strained past the bound, a system that does not
+/// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
+/// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
+/// strands go on. A strand that cannot be put outside its colliders with its lengths kept keeps its
+/// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
+///
+/// **Without an adapter** (no renderer) nothing is uploaded: the CPU steps everything, and
+/// [`HairGpuStatus::error`] says why.
+///
+/// [`StrandForces`]: crate::simulation::StrandForces
 #[derive(Debug, Clone)]
 pub struct HairGpuPlugin {
     /// The fixed-timestep schedule the simulation runs in.
@@ -109,6 +120,9 @@ pub struct HairGpuStatus {
     pub read_back_age: Option<u64>,
     /// Strand steps that failed on the GPU (each also a [`StrandFault`]).
     pub faults: u64,
+    /// Strands whose last read-back step could not put them outside their colliders with their lengths
+    /// kept (deep inside a collider that holds the root): they stayed whole, inside, for that step.
+    pub contact_given_up: usize,
     /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
     pub error: Option<String>,
 }
@@ -423,6 +437,7 @@ fn apply_read_backs(
             }
         }
         status.read_backs += 1;
+        status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
         queue.read_back_step = Some(step);
         status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
     }
@@ -530,7 +545,7 @@ mod tests {
     fn gpu_faults_are_named_as_the_cpu_names_them() {
         let bound = 1e-3;
         let limit = bound + SINGLE_PRECISION_STRAIN;
-        let report = |fault, last_fault, max_strain| GpuStrandStatus { max_strain, fault, last_fault, faults: 1 };
+        let report = |fault, last_fault, max_strain| GpuStrandStatus { max_strain, fault, last_fault, faults: 1, ..Default::default() };
         let over = Some(GpuFault::OverStrained { edge: 7 });
         // Read back on the failed step: its strain.
         match step_error(&report(over, over, 0.25), bound) {
