@@ -186,7 +186,10 @@ mod gpu {
             info.driver_info,
             if timestamps { "from timestamp queries" } else { "from submit to done (no timestamp queries)" }
         );
-        println!("{:>8} {:>6} {:>10} {:>14} {:>16} {:>12}", "guides", "edges", "followers", "step ms", "followers ms", "total ms");
+        println!(
+            "{:>8} {:>6} {:>10} {:>14} {:>16} {:>12}",
+            "guides", "edges", "followers", "step ms", "followers ms", "total ms"
+        );
         for (guides, followers) in [(2_000, 10), (10_000, 0)] {
             let row = Row::new(&device, threads, guides, followers);
             let [step, placed] = row.measure(&device, &queue, timestamps, steps);
@@ -384,7 +387,7 @@ mod gpu {
             let guides = starts.len() as u32 - 1;
             // As `render/compute.rs` lays a step's data out: positions, frame codes (unused here: the
             // gather writes the frames), the guide words.
-            let guides_offset = 3 * guide_nodes + (3 * guide_nodes).next_multiple_of(4) / 4;
+            let guides_offset = 3 * guide_nodes + (3 * guide_nodes).div_ceil(4);
             let storage = |size: u64| {
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: None,
@@ -403,10 +406,14 @@ mod gpu {
             let drawn_nodes = upload.drawn_node_count() as u32;
             let guide_data = storage(4 * u64::from(guides_offset + 2 * guides));
             let guide_frames = storage(16 * u64::from(guide_nodes));
-            let map: Vec<[u32; 2]> =
-                starts.iter().enumerate().map(|(guide, &first)| [guide.min(guides as usize - 1) as u32, first]).collect();
+            let map: Vec<[u32; 2]> = starts
+                .iter()
+                .enumerate()
+                .map(|(guide, &first)| [guide.min(guides as usize - 1) as u32, first])
+                .collect();
             let target = solver.gather_target(device, &map, &guide_data, &guide_frames);
-            let params: [u32; 8] = [drawn_nodes, guide_nodes, guides, 1, 3 * guide_nodes, guides_offset, 0.5_f32.to_bits(), 0];
+            let params: [u32; 8] =
+                [drawn_nodes, guide_nodes, guides, 1, 3 * guide_nodes, guides_offset, 0.5_f32.to_bits(), 0];
             let params = with_data(bytemuck::cast_slice(&params));
             let nodes = with_data(bytemuck::cast_slice(&upload.drawn_nodes));
             let guide_of_node = with_data(bytemuck::cast_slice(&upload.guide_of_node));
@@ -464,13 +471,26 @@ mod gpu {
                 let entries: Vec<wgpu::BindGroupEntry> = buffers
                     .iter()
                     .enumerate()
-                    .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
+                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                        binding: binding as u32,
+                        resource: buffer.as_entire_binding(),
+                    })
                     .collect();
                 device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
             };
             let place_group = group(
                 &place_layout,
-                &[&params, &nodes, &guide_of_node, &guide_data, &colliders, &placed[0], &placed[1], &guide_starts, &guide_frames],
+                &[
+                    &params,
+                    &nodes,
+                    &guide_of_node,
+                    &guide_data,
+                    &colliders,
+                    &placed[0],
+                    &placed[1],
+                    &guide_starts,
+                    &guide_frames,
+                ],
             );
             let draw_group = group(&draw_layout, &[&params, &placed[1], &placed[0], &drawn]);
             Self { target, guides_offset, place, draw, place_group, draw_group, drawn_nodes }

@@ -545,7 +545,13 @@ mod tests {
     fn gpu_faults_are_named_as_the_cpu_names_them() {
         let bound = 1e-3;
         let limit = bound + SINGLE_PRECISION_STRAIN;
-        let report = |fault, last_fault, max_strain| GpuStrandStatus { max_strain, fault, last_fault, faults: 1, ..Default::default() };
+        let report = |fault, last_fault, max_strain| GpuStrandStatus {
+            max_strain,
+            fault,
+            last_fault,
+            faults: 1,
+            ..Default::default()
+        };
         let over = Some(GpuFault::OverStrained { edge: 7 });
         // Read back on the failed step: its strain.
         match step_error(&report(over, over, 0.25), bound) {
