@@ -392,6 +392,48 @@ impl GpuStrandUpload {
     }
 }
 
+/// The compute pipeline of `entry` in the WGSL `source`, with the one bind group `layout`.
+fn compute_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    source: &str,
+    entry: &str,
+    layout: &wgpu::BindGroupLayout,
+) -> wgpu::ComputePipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// `buffers`, whole, at bindings 0, 1, … of `layout`.
+fn bind(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+}
+
 impl GpuStrandSolver {
     /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
     /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
@@ -457,27 +499,12 @@ impl GpuStrandSolver {
                 storage_entry(7, false),
             ],
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("hair strand step"),
-            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("hair strand step"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("hair strand step"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("step"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let bind_group = Self::bind(
+        let pipeline = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
+        let bind_group = bind(
             device,
+            "hair strand step",
             &layout,
-            [&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status],
+            &[&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status],
         );
         let gather = Gather::new(device);
         Self {
@@ -501,22 +528,6 @@ impl GpuStrandSolver {
             collider_capacity,
             gather,
         }
-    }
-
-    fn bind(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, buffers: [&wgpu::Buffer; 8]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                binding: binding as u32,
-                resource: buffer.as_entire_binding(),
-            })
-            .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("hair strand step"),
-            layout,
-            entries: &entries,
-        })
     }
 
     /// How many strands are stepped.
@@ -607,10 +618,11 @@ impl GpuStrandSolver {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_group = Self::bind(
+            self.bind_group = bind(
                 device,
+                "hair strand step",
                 &self.layout,
-                [
+                &[
                     &self.params,
                     &self.strand_words,
                     &self.strand_floats,
@@ -901,23 +913,7 @@ impl Gather {
                 storage_entry(6, false),
             ],
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("hair guides gathered"),
-            source: wgpu::ShaderSource::Wgsl(GATHER_SHADER.into()),
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("hair guides gathered"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("hair guides gathered"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("gather"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_pipeline(device, "hair guides gathered", GATHER_SHADER, "gather", &layout);
         Self { layout, pipeline }
     }
 
@@ -942,19 +938,7 @@ impl Gather {
             usage: wgpu::BufferUsages::STORAGE,
         });
         let buffers = [&params, &solver.strand_floats, &solver.state, &solver.status, &map, guide_data, guide_frames];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                binding: binding as u32,
-                resource: buffer.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("hair guides gathered"),
-            layout: &self.layout,
-            entries: &entries,
-        });
+        let bind_group = bind(device, "hair guides gathered", &self.layout, &buffers);
         GpuGatherTarget { params, bind_group, guides: guides.len().saturating_sub(1) as u32 }
     }
 }

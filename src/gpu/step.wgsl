@@ -550,6 +550,21 @@ fn gauss_seidel_sweep() {
 
 // Assembles the Newton system at the current iterate; returns false where it does not factorise even
 // with the diagonal scaled by `1 + λ`, λ up to 1.
+// The first node collider `c` meets (from the third: the root edge is prescribed). A collider holding the
+// root inside it leaves the nodes within `HELD_REACH` times the root's depth (along the strand) free of it,
+// as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not torn trying to be
+// outside.
+fn first_met_node(c: u32, thickness: f32) -> u32 {
+    let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
+    var arc = rest_at(0u, 0u).x + rest_at(1u, 0u).x;
+    var i = 2u;
+    while i < nodes && arc <= reach {
+        arc += rest_at(i, 0u).x;
+        i++;
+    }
+    return i;
+}
+
 // Contact inside the solve, as on the CPU (`rod/contact.rs`): each node within `CONTACT_GAP` of a collider
 // (at its end pose, grown by the thickness) gets a stiff one-sided spring along the surface normal,
 // `½ k min(d, 0)²` with `k = CONTACT_RATIO m (1/h² + γ/h)`, so that the solve knows what supports the
@@ -564,13 +579,7 @@ fn add_contact_springs(inertia: f32) {
     }
     for (var k = 0u; k < count; k++) {
         let c = first + k;
-        let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
-        var arc = rest_at(0u, 0u).x;
-        for (var i = 2u; i < nodes; i++) {
-            arc += rest_at(i - 1u, 0u).x;
-            if arc <= reach {
-                continue;
-            }
+        for (var i = first_met_node(c, thickness); i < nodes; i++) {
             let contact = touch(c, x[i], thickness);
             if contact.distance >= CONTACT_GAP {
                 continue;
@@ -782,16 +791,7 @@ fn push_out(friction: bool) -> bool {
     var moved = false;
     for (var k = 0u; k < count; k++) {
         let c = first + k;
-        // A collider holding the root inside it leaves the nodes within `HELD_REACH` times the root's depth
-        // (along the strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of
-        // it, and is not torn trying to be outside.
-        let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
-        var arc = rest_at(0u, 0u).x;
-        for (var i = 2u; i < nodes; i++) {
-            arc += rest_at(i - 1u, 0u).x;
-            if arc <= reach {
-                continue;
-            }
+        for (var i = first_met_node(c, thickness); i < nodes; i++) {
             let contact = touch(c, x[i], thickness);
             if contact.distance >= 0.0 {
                 continue;
