@@ -211,6 +211,26 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     let after = guide_nodes(&gpu, gpu_head.0);
     let moved = before.iter().zip(&after).map(|(a, b)| a[16].distance(b[16])).fold(0.0, f32::max);
     assert!(moved > 1e-3 && after.iter().flatten().all(|p| p.is_finite()), "the CPU steps them: tips moved {moved} m");
+
+    // A guide whose tip is folded back flat onto itself (within 10⁻³ rad, as a tip pushed onto a shoulder
+    // can be), turned on again: single precision cannot step it (`tests/gpu_step.rs`), it stays on the CPU.
+    let folded = guides[5];
+    {
+        let mut strand = gpu.world_mut().get_mut::<SimulatedStrand>(folded).unwrap();
+        let positions = strand.rod_mut().positions_mut();
+        let edge = positions[12] - positions[11];
+        let aside = edge.any_orthonormal_vector() * edge.length() * 1e-3;
+        for j in 1..=4 {
+            positions[12 + j] = positions[12 - j] + aside;
+        }
+        assert!(strand.rod().sharpest_turn().1 > std::f64::consts::PI - 2e-3);
+    }
+    gpu.world_mut().resource_mut::<HairGpuSettings>().enabled = true;
+    for number in SHAKING_STEPS + 20..SHAKING_STEPS + 23 {
+        step(&mut gpu, gpu_head, number);
+    }
+    assert!(gpu.world().get::<SteppedElsewhere>(folded).is_none(), "the folded guide went to the GPU");
+    assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 63, "the other guides are on the GPU");
 }
 
 /// What the GPU should draw for the head's hair from its components now: each guide's nodes, then each

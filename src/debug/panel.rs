@@ -223,7 +223,11 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
             ui.label(value);
             ui.end_row();
         };
-        row("strands / nodes", format!("{} / {}", statistics.strands, statistics.nodes));
+        let elsewhere = match statistics.strands_elsewhere {
+            0 => String::new(),
+            strands => format!(" (+ {strands} on the GPU)"),
+        };
+        row("strands / nodes", format!("{} / {}{elsewhere}", statistics.strands, statistics.nodes));
         row("followers", format!("{} ({:.2} ms)", statistics.followers, 1e3 * statistics.follower_seconds));
         row(
             "hair–hair grid",

@@ -38,7 +38,7 @@
 mod solver;
 
 pub use solver::{
-    GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep, GpuReadBack,
-    GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES,
-    SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
+    GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep,
+    GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
+    MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
 };

@@ -34,6 +34,13 @@ const PARAMS_BYTES: u64 = 64;
 /// enough that the system's condition number stays near 10³ and single precision solves it to 10⁻⁴.
 pub const STRETCH_RATIO: f64 = 1e3;
 
+/// How near to folded back two consecutive edges of a strand may be for the GPU to take it, rad short of
+/// π (a turn sharper than 166°). The bending's gradients grow as `1/(1 + t⁻·t)`: at this turn they are
+/// 60 times those of a straight strand and the Newton matrix 4 000 times, which single precision still
+/// factorises; a strand folded flat (a tip pushed onto a shoulder, say, folds within 10⁻⁴ rad) makes the
+/// factorisation fail at every step. Such strands stay on the CPU ([`crate::rod::Rod::sharpest_turn`]).
+pub const GPU_FOLD_GAP: f64 = 0.25;
+
 /// The strain single precision can resolve on a strand within a metre of its head: a position's rounding
 /// (6e-8 m) over the shortest edge of 1 mm, doubled. Added to [`StepParams::strain_bound`] for the GPU's
 /// check.

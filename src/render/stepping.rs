@@ -4,6 +4,7 @@
 //! them into the follower placement's buffers (`render/compute.rs`), and reads them back now and then
 //! through a channel to the main world.
 
+use std::f64::consts::PI;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::sync::{Arc, Mutex};
 
@@ -16,13 +17,13 @@ use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems}
 
 use super::gpu::GpuStepCount;
 use crate::gpu::{
-    GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates,
+    GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates,
     GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN,
 };
 use crate::rod::{ColliderShape, MovingCollider, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
-    CheckedSettings, HairHead, HairSettings, HairStatistics, HeadMotion, SimulatedStrand, SteppedElsewhere,
+    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, SimulatedStrand, SteppedElsewhere,
     StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
 };
 use crate::wind::{HairWind, HairWindSource};
@@ -38,9 +39,10 @@ use crate::wind::{HairWind, HairWindSource};
 /// ```
 ///
 /// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
-/// its gravity preload is done and its state is one a step can start from. Such a strand gets
-/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands) stay on the
-/// CPU. A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
+/// its gravity preload is done and its state is one a step can start from, without two edges folded
+/// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
+/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands, folded
+/// strands) stay on the CPU. A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
 /// state directly (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head
 /// with some on the CPU is drawn from the components. Adding or removing strands uploads the set again,
 /// each from its last read-back state; writing a GPU strand's rod or components from outside has no
@@ -62,7 +64,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// **Faults** found on the GPU (a non-finite value, an edge strained past the bound, a system that does not
 /// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
 /// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
-/// strands go on. A strand that cannot be put outside its colliders with its lengths kept keeps its
+/// strands go on. A strand that fails in three read-backs running (the pose it is reset to fails again) is
+/// handed back to the CPU for good, where its faults are held, retried and quarantined as any strand's.
+/// A strand that cannot be put outside its colliders with its lengths kept keeps its
 /// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
 ///
 /// **Without an adapter** (no renderer) nothing is uploaded: the CPU steps everything, and
@@ -150,8 +154,11 @@ struct GpuStepQueue {
     /// The strands on the GPU, in the upload's order, and their heads.
     strands: Arc<Vec<Entity>>,
     heads: Vec<Entity>,
-    /// Faults each strand has had on the GPU, as last read back.
+    /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
     faults: Vec<u32>,
+    fault_streaks: Vec<u32>,
+    /// Strands that failed [`GPU_FAULT_STREAK`] read-backs running: stepped on the CPU from then on.
+    handed_back: EntityHashSet,
     /// Bumped at each upload (the renderer lays its heads out again).
     generation: u32,
     /// Steps sent since the start.
@@ -207,7 +214,8 @@ impl Plugin for HairGpuPlugin {
 }
 
 /// Looks the strands over when they may have changed and uploads the set the GPU can step: rooted, 3 to
-/// [`MAX_GPU_NODES`] nodes, preloaded. Marks them [`SteppedElsewhere`], and unmarks the others.
+/// [`MAX_GPU_NODES`] nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat, not handed back after
+/// failing on the GPU. Marks them [`SteppedElsewhere`], and unmarks the others.
 #[allow(clippy::too_many_arguments)]
 fn choose_gpu_strands(
     mut commands: Commands,
@@ -238,7 +246,12 @@ fn choose_gpu_strands(
                 // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
                 // it was uploaded in, so that must be one a step can start from).
                 queue.dirty = true;
-            } else if rooted && (3..=MAX_GPU_NODES).contains(&nodes) && !strand.is_quarantined() {
+            } else if rooted
+                && (3..=MAX_GPU_NODES).contains(&nodes)
+                && !strand.is_quarantined()
+                && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
+                && !queue.handed_back.contains(&entity)
+            {
                 chosen.push((head, entity, strand));
             }
         }
@@ -288,6 +301,7 @@ fn choose_gpu_strands(
     };
     queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
     queue.faults = vec![0; on_gpu.len()];
+    queue.fault_streaks = vec![0; on_gpu.len()];
     queue.read_back_step = None;
     queue.steps.clear();
     queue.generation = queue.generation.wrapping_add(1);
@@ -400,8 +414,11 @@ fn apply_read_backs(
     checked: Res<CheckedSettings>,
     mut strands: Query<(&mut SimulatedStrand, &mut StrandNodes, &mut StrandFrames), With<SteppedElsewhere>>,
     mut faults: MessageWriter<StrandFault>,
+    time: Res<Time>,
+    mut fault_log: Local<FaultLog>,
 ) {
     let Ok(receiver) = receiver.0.lock() else { return };
+    let now = time.elapsed_secs_f64();
     let queue = &mut *queue;
     for message in receiver.try_iter() {
         let (step, entities, states) = match message {
@@ -426,22 +443,44 @@ fn apply_read_backs(
                 strand.write_components(Some(1), &mut nodes, &mut frames);
             }
             let report = states.status[index];
-            if report.faults > queue.faults[index] {
-                queue.faults[index] = report.faults;
-                status.faults += 1;
-                statistics.faults += 1;
-                let bound = checked.params.as_ref().map_or(0.0, StepParams::strain_bound);
-                let error = step_error(&report, bound);
-                warn!("hair strand {entity} failed a step on the GPU, it was reset to its rest pose: {error}");
-                faults.write(StrandFault { strand: entity, error });
+            if report.faults <= queue.faults[index] {
+                queue.fault_streaks[index] = 0;
+                continue;
             }
+            queue.faults[index] = report.faults;
+            queue.fault_streaks[index] += 1;
+            status.faults += 1;
+            statistics.faults += 1;
+            let bound = checked.params.as_ref().map_or(0.0, StepParams::strain_bound);
+            let error = step_error(&report, bound);
+            let streak = queue.fault_streaks[index];
+            let handed_back = streak >= GPU_FAULT_STREAK;
+            if fault_log.admit(streak == 1 || handed_back, false) {
+                let consequence = if handed_back {
+                    "it failed every read-back since it was reset on the GPU and is stepped on the CPU from now on"
+                } else {
+                    "it was reset to its rest pose"
+                };
+                warn!("hair strand {entity} failed a step on the GPU, {consequence}: {error}");
+            }
+            if handed_back {
+                queue.handed_back.insert(entity);
+                queue.dirty = true;
+            }
+            faults.write(StrandFault { strand: entity, error });
         }
+        fault_log.summarise(now);
         status.read_backs += 1;
         status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
         queue.read_back_step = Some(step);
         status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
     }
 }
+
+/// Read-backs running in which a strand failed on the GPU after which it is handed back to the CPU for
+/// good: the pose it is reset to on the GPU fails again, and the CPU's fault handling (held, retried,
+/// quarantined) takes over.
+const GPU_FAULT_STREAK: u32 = 3;
 
 /// The CPU's name for the last fault the GPU found on a strand (`strain_bound`: the step's, without the
 /// single-precision floor the GPU adds). The strain of an over-strained step is known when that step was
@@ -569,5 +608,50 @@ mod tests {
         assert_eq!(step_error(&report(None, nan, 0.0), bound), StepError::NonFinite { node: 3 });
         let indefinite = Some(GpuFault::NotPositiveDefinite);
         assert_eq!(step_error(&report(indefinite, indefinite, 0.0), bound), StepError::NotPositiveDefinite { dof: 0 });
+    }
+
+    #[test]
+    fn a_strand_failing_read_back_after_read_back_is_handed_back_to_the_cpu() {
+        use bevy::ecs::system::RunSystemOnce;
+        // The main world's half alone (no renderer): read-backs arrive through a channel the test holds.
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, crate::HairPlugin::default(), HairGpuPlugin::default()));
+        let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+        let strand = app
+            .world_mut()
+            .spawn((crate::simulation::HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.2, 8), StrandOf(head)))
+            .id();
+        app.insert_resource(bevy::time::TimeUpdateStrategy::FixedTimesteps(1));
+        app.update();
+        app.update();
+        assert!(app.world().get::<SimulatedStrand>(strand).is_some(), "the strand is built");
+        app.world_mut().entity_mut(strand).insert(SteppedElsewhere);
+        let (sender, receiver) = channel();
+        app.insert_resource(GpuReadBackReceiver(Mutex::new(receiver)));
+        let strands = Arc::new(vec![strand]);
+        {
+            let mut queue = app.world_mut().resource_mut::<GpuStepQueue>();
+            queue.strands = strands.clone();
+            queue.faults = vec![0];
+            queue.fault_streaks = vec![0];
+        }
+        let indefinite = Some(GpuFault::NotPositiveDefinite);
+        let mut read_back = |step: u64, faults: u32| {
+            let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
+            // No positions: nothing to restore, only the report.
+            let states = GpuStrandStates { status: vec![report], ..default() };
+            sender.send(GpuMessage::ReadBack { step, strands: strands.clone(), states }).unwrap();
+            app.world_mut().run_system_once(apply_read_backs).unwrap();
+            let messages = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().count();
+            (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))
+        };
+        // Failing, then not (the same count), then failing twice: never three read-backs running.
+        assert_eq!(read_back(1, 1), (1, false));
+        assert_eq!(read_back(2, 1), (0, false));
+        assert_eq!(read_back(3, 2), (1, false));
+        assert_eq!(read_back(4, 3), (1, false));
+        // The third running: handed back (`choose_gpu_strands` leaves it out from now on).
+        assert_eq!(read_back(5, 5), (1, true));
+        assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
     }
 }

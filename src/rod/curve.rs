@@ -335,6 +335,18 @@ impl Rod {
             )
     }
 
+    /// The sharpest turn between two consecutive edges, rad (0 straight, π folded back onto itself), with
+    /// its vertex (0 for a single edge).
+    pub fn sharpest_turn(&self) -> (usize, f64) {
+        let tangents: Vec<DVec3> =
+            self.state.positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize_or_zero()).collect();
+        tangents
+            .windows(2)
+            .map(|pair| pair[0].angle_between(pair[1]))
+            .enumerate()
+            .fold((0, 0.0), |best, (edge, angle)| if angle > best.1 { (edge + 1, angle) } else { best })
+    }
+
     /// Kinetic energy of the nodes and of the edges' spin about their axes, J.
     pub fn kinetic_energy(&self) -> f64 {
         let translational: f64 =

@@ -131,6 +131,9 @@ pub struct HairStatistics {
     /// Strands not simulated in the last step because their head is at a coarser level of detail (stepped
     /// on other fixed steps, or carried; see [`crate::detail`]).
     pub unstepped_strands: usize,
+    /// Strands [`SteppedElsewhere`](crate::simulation::SteppedElsewhere) at the last step (on the GPU with
+    /// `HairGpuPlugin`), not counted in the other figures.
+    pub strands_elsewhere: usize,
     /// Heads at each level of detail at the last step ([`crate::detail`]).
     pub heads_by_detail: HeadsByDetail,
     /// Nodes of those strands.

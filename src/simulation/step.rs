@@ -237,14 +237,9 @@ pub(crate) struct FaultLog {
 
 impl FaultLog {
     fn record(&mut self, now: f64, fault: &Fault) {
-        if fault.quarantine.is_some() {
-            self.quarantines += 1;
-        }
-        if !(fault.first_of_episode && self.lines < FAULT_LINES_PER_PERIOD) {
-            self.unlogged_faults += 1;
+        if !self.admit(fault.first_of_episode, fault.quarantine.is_some()) {
             return;
         }
-        self.lines += 1;
         let StrandFault { strand, error } = &fault.message;
         let consequence = match (error, fault.quarantine) {
             (_, Some(seconds)) => format!("it is quarantined for {seconds} s"),
@@ -255,8 +250,22 @@ impl FaultLog {
         self.summarise(now);
     }
 
+    /// Counts a fault; true when it gets a line of its own (the first of its strand's episode, and lines
+    /// are left in this period).
+    pub(crate) fn admit(&mut self, first_of_episode: bool, quarantined: bool) -> bool {
+        if quarantined {
+            self.quarantines += 1;
+        }
+        if !(first_of_episode && self.lines < FAULT_LINES_PER_PERIOD) {
+            self.unlogged_faults += 1;
+            return false;
+        }
+        self.lines += 1;
+        true
+    }
+
     /// Logs the period's summary when the period is over and something went unlogged.
-    fn summarise(&mut self, now: f64) {
+    pub(crate) fn summarise(&mut self, now: f64) {
         if now - self.period_start < FAULT_LOG_PERIOD {
             return;
         }
@@ -324,6 +333,7 @@ pub(crate) fn step_strands(
     checked: Res<CheckedSettings>,
     mut statistics: ResMut<HairStatistics>,
     mut strands: Query<StepItem, Without<SteppedElsewhere>>,
+    elsewhere: Query<(), With<SteppedElsewhere>>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
@@ -424,6 +434,7 @@ pub(crate) fn step_strands(
     fault_log.summarise(now);
     statistics.quarantined = quarantined;
     statistics.unstepped_strands = unstepped;
+    statistics.strands_elsewhere = elsewhere.iter().len();
     statistics.step_seconds = started.elapsed().as_secs_f64();
     statistics.pose_seconds = pose_seconds.max(0.0);
     // Held by invalid settings, the hair was not simulated.

@@ -71,7 +71,8 @@ use crate::parallel::run_in_parallel;
 use crate::schedule::HairSystems;
 pub use crate::simulation::HairVolume;
 use crate::simulation::{
-    CheckedSettings, HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, StrandForces, StrandOf,
+    CheckedSettings, HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, SteppedElsewhere, StrandForces,
+    StrandOf,
 };
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
@@ -195,14 +196,15 @@ type GridItem = (
 );
 
 /// Splats every head's hair to its grid, then gives each strand's free nodes the grid's velocity change
-/// and pressure force, in parallel.
+/// and pressure force, in parallel. Strands [`SteppedElsewhere`] (on the GPU) are left out: the GPU step
+/// has no grid, and their components are only as fresh as their last read-back.
 pub(crate) fn interact_through_grid(
     time: Res<Time>,
     settings: Res<HairSettings>,
     checked: Res<CheckedSettings>,
     mut grids: ResMut<HairVolumeGrids>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<GridItem>,
+    mut strands: Query<GridItem, Without<SteppedElsewhere>>,
 ) {
     let dt = time.delta_secs_f64();
     // Invalid settings are reported once, by `check_settings`, and hold the hair until they are fixed.
