@@ -7,6 +7,11 @@
 //!   drawn width, covers at least the disc of radius `reach` around it (summed width × length inside the
 //!   ball of `reach` ≥ π reach²). Every root has hair at it, so "any hair near" would hide every point; a
 //!   bald patch is where the hair left, only the roots' first millimetres remaining.
+//! - **Scalp seen** ([`scalp_seen`]): what a camera sees of the scalp through the hair. Of the same points,
+//!   those facing the camera; each is seen when the hair in front of it, projected along the view as
+//!   ribbons of its drawn width, covers less than the disc of a pixel about it. Hair lifted off the scalp
+//!   hides it where it hangs in front; a bald patch is where the camera looks through. This is the
+//!   figure the pictures are judged by.
 //! - **Strays** ([`StrayCheck`]): the fraction of guides whose tip has left the tips of their neighbours
 //!   (the guides rooted nearest them) by more than a set distance, counted from where it was at rest
 //!   relative to them (a groom's parting or layers set tips apart at rest): single strands flying out.
@@ -45,6 +50,55 @@ pub fn scalp_exposure<'a>(
     Ok(exposed as f32 / points.len() as f32)
 }
 
+/// The fraction (0 to 1) of the haired scalp a far camera looking along `-towards_camera` (world space)
+/// sees through the hair: of `samples` points spread evenly over the haired scalp, those facing the camera
+/// (their outward normal within 90° of `towards_camera`), the share whose line of sight the hair does not
+/// hide. A point is hidden when the hair in front of it, drawn `hair_width` m wide and projected along the
+/// view, covers at least the disc of radius `pixel` (m) around it on the picture (summed width × chord
+/// through the disc ≥ π pixel²): what a picture of `pixel`-sized pixels would show as scalp. Unlike
+/// [`scalp_exposure`], hair lifted away from the scalp still hides it where it lies in front. 0 when no
+/// point faces the camera. Fails as [`Scalp::roots`] does.
+pub fn scalp_seen<'a>(
+    scalp: &Scalp,
+    head: &Affine3A,
+    hairs: impl IntoIterator<Item = &'a [Vec3]>,
+    samples: usize,
+    towards_camera: Vec3,
+    (pixel, hair_width): (f32, f32),
+) -> Result<f32, GroomError> {
+    let Some(depth_axis) = towards_camera.try_normalize() else { return Ok(0.0) };
+    // The view's frame: the picture's two axes and the depth towards the camera.
+    let (right, up) = depth_axis.any_orthonormal_pair();
+    let to_view = |p: Vec3| Vec3::new(p.dot(right), p.dot(up), p.dot(depth_axis));
+    let flat = |p: Vec3| Vec3::new(p.x, p.y, 0.0);
+    let mut points = Vec::new();
+    let mut depths = Vec::new();
+    for root in scalp.roots(samples)? {
+        let normal = head.transform_vector3(root.normal);
+        if normal.dot(depth_axis) > 0.0 {
+            let seen = to_view(head.transform_point3(root.position));
+            points.push(flat(seen));
+            depths.push(seen.z);
+        }
+    }
+    if points.is_empty() || !(pixel > 0.0 && pixel.is_finite()) {
+        return Ok(0.0);
+    }
+    let grid = PointGrid::new(&points, pixel);
+    let mut lengths = vec![0.0_f32; points.len()];
+    for hair in hairs {
+        for ends in hair.windows(2) {
+            let (a, b) = (to_view(ends[0]), to_view(ends[1]));
+            // Only the hair in front of a point hides it: the segment's depth where it passes the point.
+            let in_front = |index: usize, along: f32| a.z + (b.z - a.z) * along.clamp(0.0, 1.0) > depths[index];
+            grid.add_lengths_where(flat(a), flat(b), pixel, &points, &mut lengths, in_front);
+        }
+    }
+    let disc = std::f32::consts::PI * pixel * pixel;
+    let seen = lengths.iter().filter(|&&length| length * hair_width < disc).count();
+    Ok(seen as f32 / points.len() as f32)
+}
+
 /// The sample points in cells of `reach`, to find those near a segment.
 struct PointGrid {
     cell: f32,
@@ -68,6 +122,20 @@ impl PointGrid {
     /// Adds to each point's length the length of the segment `a … b` within `reach` of it (the chord of
     /// the ball of radius `reach` about the point).
     fn add_lengths(&self, a: Vec3, b: Vec3, reach: f32, points: &[Vec3], lengths: &mut [f32]) {
+        self.add_lengths_where(a, b, reach, points, lengths, |_, _| true);
+    }
+
+    /// [`PointGrid::add_lengths`] for the points `counts` accepts, given the point's index and the
+    /// fraction of the way from `a` to `b` nearest it.
+    fn add_lengths_where(
+        &self,
+        a: Vec3,
+        b: Vec3,
+        reach: f32,
+        points: &[Vec3],
+        lengths: &mut [f32],
+        counts: impl Fn(usize, f32) -> bool,
+    ) {
         let (low, high) = (a.min(b) - Vec3::splat(reach), a.max(b) + Vec3::splat(reach));
         // Most of a head's hair hangs away from its scalp: nothing to look up there.
         if low.cmpgt(self.high).any() || high.cmplt(self.low).any() || !(low.is_finite() && high.is_finite()) {
@@ -89,7 +157,7 @@ impl PointGrid {
                         let offset = points[index as usize] - a;
                         let centre = offset.dot(direction);
                         let half_chord_squared = reach * reach - (offset.length_squared() - centre * centre);
-                        if half_chord_squared > 0.0 {
+                        if half_chord_squared > 0.0 && counts(index as usize, centre / length) {
                             let half_chord = half_chord_squared.sqrt();
                             let inside = (centre + half_chord).min(length) - (centre - half_chord).max(0.0);
                             lengths[index as usize] += inside.max(0.0);
@@ -219,6 +287,47 @@ mod tests {
             .map(|hair| hair.iter().map(|p| scalp.centre + (*p - scalp.centre) * 1.25).collect())
             .collect();
         assert_eq!(exposure(&far, 3e-3), 1.0);
+    }
+
+    #[test]
+    fn a_camera_sees_the_scalp_the_hair_in_front_of_it_leaves_bare() {
+        let scalp = Scalp::default();
+        let head =
+            Affine3A::from_rotation_translation(bevy::math::Quat::from_rotation_y(0.5), Vec3::new(0.3, 1.6, -0.1));
+        let world = |hairs: &[Vec<Vec3>]| -> Vec<Vec<Vec3>> {
+            hairs.iter().map(|hair| hair.iter().map(|p| head.transform_point3(*p)).collect()).collect()
+        };
+        // From behind the head (its +Z, turned with it), 2 mm pixels.
+        let behind = head.transform_vector3(Vec3::Z);
+        let seen = |hairs: &[Vec<Vec3>], width: f32, towards_camera: Vec3| {
+            let hairs = world(hairs);
+            scalp_seen(&scalp, &head, hairs.iter().map(Vec::as_slice), 2000, towards_camera, (0.002, width)).unwrap()
+        };
+        assert_eq!(seen(&[], 1e-3, behind), 1.0, "no hair: all of it seen");
+        // Circles 2 mm apart lying on the skull: seen from behind, they cross the 2 mm disc about a point's
+        // image with 4 mm of chord at least (one through its centre, or two 1 mm from it with 3.5 mm each;
+        // more where the surface slopes away from the view and the circles crowd together), so 4 mm
+        // ribbons hide it (π (2 mm)² / 4 mm = 3.1 mm of chord needed), 0.1 mm hairs do not.
+        let everywhere = lying_hairs(&scalp, 0.02, |_| true);
+        assert_eq!(seen(&everywhere, 4e-3, behind), 0.0);
+        assert_eq!(seen(&everywhere, 1e-4, behind), 1.0, "too few hairs to hide the scalp");
+        // The same hair lifted 2.5 cm off the scalp still hides it where it hangs in front of it (which the
+        // nearby measure, `scalp_exposure`, calls bare).
+        let lifted: Vec<Vec<Vec3>> = everywhere
+            .iter()
+            .map(|hair| hair.iter().map(|p| scalp.centre + (*p - scalp.centre) * 1.25).collect())
+            .collect();
+        assert_eq!(seen(&lifted, 4e-3, behind), 0.0);
+        // Hair only on the far side of the head (z < 0, in front of the face, seen from behind): it lies
+        // behind the scalp the camera sees, and hides none of it.
+        let front = lying_hairs(&scalp, 0.02, |point| point.z < scalp.centre.z - 0.01);
+        assert_eq!(seen(&front, 4e-3, behind), 1.0, "hair behind the scalp hides it");
+        // Over the right half only (x > 0), seen from straight above (the hairline symmetric about x = 0):
+        // half of what the camera sees is bare, to the sampling's spread and the edge.
+        let right = lying_hairs(&scalp, 0.02, |point| point.x > 0.0);
+        let half = seen(&right, 4e-3, head.transform_vector3(Vec3::Y));
+        assert!((half - 0.5).abs() < 0.03, "{half}");
+        assert_eq!(seen(&right, 4e-3, Vec3::ZERO), 0.0, "no view: nothing seen");
     }
 
     #[test]
