@@ -618,10 +618,11 @@ fn coverage(threads: usize, seconds: f32) {
                     hairs.extend(followers.positions.chunks_exact(per));
                 }
             }
-            let exposure = coverage::scalp_exposure(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
-                .expect("the scalp");
-            let seen = coverage::scalp_seen(&scalp, &head_pose(app), hairs, 2000, BEHIND, (0.002, width))
-                .expect("the scalp");
+            let exposure =
+                coverage::scalp_exposure(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
+                    .expect("the scalp");
+            let seen =
+                coverage::scalp_seen(&scalp, &head_pose(app), hairs, 2000, BEHIND, (0.002, width)).expect("the scalp");
             (exposure, strays.stray_fraction(&head_pose(app), &tips, 0.05), seen)
         };
         let (mut largest, mut last) = ((0.0_f32, 0.0_f32, 0.0_f32), (0.0, 0.0, 0.0));

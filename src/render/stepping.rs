@@ -405,7 +405,7 @@ fn order_gpu_step(
 
 /// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
 /// GPU found.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn apply_read_backs(
     receiver: Res<GpuReadBackReceiver>,
     mut queue: ResMut<GpuStepQueue>,

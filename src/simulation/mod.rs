@@ -108,7 +108,9 @@ pub use packed::PackedStrandPose;
 pub(crate) use pose::ScaledPose;
 pub use settings::{HairPause, HairSettings, HairStatistics, HairVolume};
 pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
-pub(crate) use step::{CheckedSettings, FaultLog};
+pub(crate) use step::CheckedSettings;
+#[cfg(feature = "gpu")]
+pub(crate) use step::FaultLog;
 pub(crate) use strand::StepOutcome;
 pub use strand::{
     FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
