@@ -522,7 +522,8 @@ mod gpu {
 /// of the same points facing it, those the hair in front covers less than a 2 mm pixel of),
 /// and the strays ([`coverage::StrayCheck`]: guides whose tip has moved more than 5 cm from where it was
 /// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
-/// run (every 0.1 s) and at its end.
+/// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
+/// ([`HairStyleHold`] at 200/s).
 fn coverage(threads: usize, seconds: f32) {
     use bevy::prelude::{ChildOf, Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
@@ -548,12 +549,19 @@ fn coverage(threads: usize, seconds: f32) {
         "The example's scene moving, {seconds} s each: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
     );
     println!(
-        "| motion | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
+        "| motion | style hold, 1/s | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|");
-    for (name, rotation) in motions {
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    // Unheld, and held near the roots as strongly as a hold acting once per step can (see `HairStyleHold`).
+    let holds = [0.0, 200.0];
+    for ((name, rotation), hold) in motions.into_iter().flat_map(|motion| holds.iter().map(move |&hold| (motion, hold)))
+    {
         let mut app = Scene::app(Some(threads));
-        app.world_mut().resource_mut::<HairSettings>().volume = HairVolume { enabled: true, ..HairVolume::default() };
+        {
+            let mut settings = app.world_mut().resource_mut::<HairSettings>();
+            settings.volume = HairVolume { enabled: true, ..HairVolume::default() };
+            settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
+        }
         let groom = HairGroom {
             scalp,
             strand_count: 2000,
@@ -637,7 +645,7 @@ fn coverage(threads: usize, seconds: f32) {
             }
         }
         println!(
-            "| {name} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
+            "| {name} | {hold} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
             100.0 * largest.2,
             100.0 * last.2,
             100.0 * largest.0,

@@ -97,6 +97,7 @@
 //! | [`HairOnCharacter`](scalp::HairOnCharacter) on a character's scene root | [`HairHead`](simulation::HairHead), [`HairScalpMesh`](scalp::HairScalpMesh), the groom and colliders on its head joint | [`scalp`] |
 //! | [`StrandForces`](simulation::StrandForces) on a strand, [`HairWind`](wind::HairWind), [`HairWindSource`](wind::HairWindSource) | (cleared after each step) | [`simulation`], [`wind`] |
 //! | [`HairSettings::volume`](simulation::HairSettings::volume), [`RepresentedHairs`](volume::RepresentedHairs) | [`HairVolumeGrids`](volume::HairVolumeGrids) | [`volume`] |
+//! | [`HairSettings::style_hold`](simulation::HairSettings::style_hold) | rooted strands drawn towards their groomed shape near the root | [`simulation`] |
 //! | [`HairDetailSettings`](detail::HairDetailSettings), [`HairDetail::fixed`](detail::HairDetail::fixed) | each head's level of detail | [`detail`] |
 //! | [`HairAppearance`](render::HairAppearance) on a head (`render` feature) | `HairMesh`, a child of the head | [`render`] |
 //!
@@ -416,9 +417,9 @@ pub mod prelude {
     };
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
     pub use crate::simulation::{
-        EdgeFrame, HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HeadStrands,
-        SimulatedStrand, StrandFault, StrandForces, StrandFrames, StrandHealth, StrandNodes, StrandOf, StrandRejected,
-        StrandRestShape, StrandSnapshot, StrandSnapshotData,
+        EdgeFrame, HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HairStyleHold,
+        HeadStrands, SimulatedStrand, StrandFault, StrandForces, StrandFrames, StrandHealth, StrandNodes, StrandOf,
+        StrandRejected, StrandRestShape, StrandSnapshot, StrandSnapshotData,
     };
     pub use crate::volume::{HairVolume, HairVolumeGrids, HairVolumePlugin, RepresentedHairs};
     pub use crate::wind::{HairWind, HairWindPlugin, HairWindSource};

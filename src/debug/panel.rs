@@ -314,6 +314,8 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
         grid_row(ui, "steps per frame (max)", egui::Slider::new(&mut settings.max_steps_per_frame, 0..=8));
         let teleport_distance = egui::Slider::new(&mut settings.teleport_distance, 0.05..=5.0).logarithmic(true);
         grid_row(ui, "teleport distance (m)", teleport_distance);
+        grid_row(ui, "style hold (1/s)", egui::Slider::new(&mut settings.style_hold.rate, 0.0..=100.0));
+        grid_row(ui, "style hold reach", egui::Slider::new(&mut settings.style_hold.reach, 0.0..=1.0));
     });
 }
 

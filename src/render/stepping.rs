@@ -53,7 +53,8 @@ use crate::wind::{HairWind, HairWindSource};
 /// free of it). Cuboids and mesh colliders are the CPU's alone and are left out, with one warning per
 /// head. The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
 /// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
-/// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
+/// detail, the hair–hair grid, the style hold ([`HairSettings::style_hold`]) and the followers' own
+/// collisions on the CPU are not applied to GPU strands.
 ///
 /// **The components are read back** asynchronously at [`HairGpuSettings::read_back`]: the GPU copies the
 /// state into a buffer the CPU maps once the GPU is done, and the first frame that finds it mapped writes

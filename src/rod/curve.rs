@@ -580,6 +580,11 @@ impl Rod {
         self.constraints.node_targets.get(node).is_some_and(Option::is_some)
     }
 
+    /// The node positions the rod was created with, m: the pose [`Rod::reset`] puts it back in.
+    pub fn initial_positions(&self) -> &[DVec3] {
+        &self.initial.state.positions
+    }
+
     /// Puts the rod back in the shape and frames it was created with, at rest. Boundary conditions stay.
     pub fn reset(&mut self) {
         self.state.copy_from(&self.initial.state);

@@ -92,6 +92,7 @@ mod settings;
 mod snapshot;
 mod step;
 mod strand;
+mod style_hold;
 
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
@@ -106,7 +107,7 @@ pub use data::{EdgeFrame, StrandFrames, StrandNodes, StrandRestShape};
 pub use head::{HairHead, HeadMotion, HeadStrands, StrandOf};
 pub use packed::PackedStrandPose;
 pub(crate) use pose::ScaledPose;
-pub use settings::{HairPause, HairSettings, HairStatistics, HairVolume};
+pub use settings::{HairPause, HairSettings, HairStatistics, HairStyleHold, HairVolume};
 pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
 pub(crate) use step::CheckedSettings;
 #[cfg(feature = "gpu")]
@@ -158,6 +159,7 @@ impl Plugin for HairSimulationPlugin {
             .register_type::<StrandRestShape>()
             .register_type::<StrandRejected>()
             .register_type::<HairSettings>()
+            .register_type::<HairStyleHold>()
             .register_type::<HairPause>()
             .register_type::<HairStatistics>()
             .init_resource::<HairSettings>()
@@ -219,6 +221,7 @@ impl Plugin for HairSimulationPlugin {
                 (step::check_settings, step::open_step).chain().in_set(HairPrepareSystems::Budget),
                 head::track_heads.in_set(HairPinSystems::Track),
                 step::pin_roots.in_set(HairPinSystems::Pin),
+                style_hold::hold_style.in_set(HairSystems::ExternalForces),
                 (step::preload_rest_shapes, step::step_strands).chain().in_set(HairStepSystems::Integrate),
             ),
         );

@@ -1,7 +1,7 @@
 //! Strand components: the shape a strand is spawned from, its simulated state, the forces users apply
 //! to it and the pose it is drawn in.
 
-use bevy::math::{DVec2, DVec3};
+use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
@@ -426,6 +426,13 @@ impl SimulatedStrand {
     /// Whether the strand is held in quarantine (see [`SimulatedStrand`]).
     pub fn is_quarantined(&self) -> bool {
         self.health.quarantined_until.is_some()
+    }
+
+    /// The rigid motion that carries the strand's groomed pose ([`Rod::initial_positions`], where it was
+    /// spawned) to where its head is at the end of this fixed step (once its root is pinned); `None` for
+    /// a strand without a head.
+    pub(crate) fn groomed_pose_motion(&self) -> Option<(DQuat, DVec3)> {
+        self.anchor.is_some().then(|| self.spawn_head.rigid_motion_to(&self.detail.head))
     }
 
     /// Puts the strand back in its rest pose on its head, at rest.
