@@ -100,3 +100,60 @@ fn a_hold_out_of_range_is_refused() {
     }
     assert!(HairSettings { style_hold: HairStyleHold { rate: 20.0, reach: 0.5 }, ..default() }.validated(DT).is_ok());
 }
+
+/// The head turned about the vertical as `benchmark coverage` shakes it (±0.7 rad at 1.8 Hz) at `step`.
+fn shaken(step: usize) -> Transform {
+    let t = step as f32 / 60.0;
+    let angle = 0.7 * (std::f32::consts::TAU * 1.8 * t).sin();
+    Transform::from_xyz(0.0, 1.6, 0.0).with_rotation(Quat::from_rotation_y(angle))
+}
+
+/// A combed groom of 64 guides × 16 edges lying on its skull, shaken for 2 s with the style held as
+/// `hold`. Returns the RMS distance from their groomed places (carried with the head) of the nodes an
+/// eighth to three eighths of the way along, and of the tips, m.
+fn shaken_groom(hold: HairStyleHold) -> (f32, f32) {
+    let mut app = hair_app();
+    app.world_mut().resource_mut::<HairSettings>().style_hold = hold;
+    let groom = HairGroom { strand_count: 64, segments: 16, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, shaken(0))).id();
+    let skull =
+        (HairCollider::ellipsoid(Scalp::default().semi_axes), Transform::from_translation(Scalp::default().centre));
+    app.world_mut().spawn((skull, HairColliderOf(head), ChildOf(head)));
+    app.update();
+    let strands = app.world().get::<HeadStrands>(head).unwrap().strands().to_vec();
+    let to_head = shaken(0).to_matrix().inverse();
+    let groomed: Vec<Vec<Vec3>> = strands
+        .iter()
+        .map(|&strand| {
+            let rod = app.world().get::<SimulatedStrand>(strand).unwrap().rod();
+            rod.initial_positions().iter().map(|p| to_head.transform_point3(p.as_vec3())).collect()
+        })
+        .collect();
+    let (mut near, mut tips, mut samples) = (0.0_f32, 0.0_f32, 0);
+    for step in 1..=120 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = shaken(step);
+        app.update();
+        let pose = shaken(step).to_matrix();
+        for (strand, groomed) in strands.iter().zip(&groomed) {
+            let nodes = &app.world().get::<StrandNodes>(*strand).unwrap().positions;
+            let offset = |node: usize| nodes[node].distance_squared(pose.transform_point3(groomed[node]));
+            near += (2..=6).map(offset).sum::<f32>() / 5.0;
+            tips += offset(16);
+        }
+        samples += strands.len();
+    }
+    ((near / samples as f32).sqrt(), (tips / samples as f32).sqrt())
+}
+
+#[test]
+fn a_held_groom_keeps_its_style_on_a_shaken_head_and_its_tips_swing() {
+    let (free_near, free_tips) = shaken_groom(HairStyleHold::default());
+    let (held_near, held_tips) = shaken_groom(HairStyleHold { rate: 200.0, ..default() });
+    let half = shaken_groom(HairStyleHold { rate: 200.0, reach: 0.5 });
+    println!(
+        "from the groomed places, near the roots / at the tips: unheld {free_near:.4} / {free_tips:.4} m, held at 200/s {held_near:.4} / {held_tips:.4} m, held over half the length {:.4} / {:.4} m",
+        half.0, half.1
+    );
+    assert!(held_near < 0.25 * free_near, "held {held_near} m from the style, unheld {free_near} m");
+    assert!(held_tips > 0.2 * free_tips, "the held tips hardly swing: {held_tips} m, unheld {free_tips} m");
+}
