@@ -151,7 +151,10 @@ mod gpu {
 
     use bevy::math::DVec3;
     use bevy::prelude::Entity;
-    use bevy_hair_sim::gpu::{GpuHeadStep, GpuStrandInput, GpuStrandSolver, headless_device};
+    use bevy_hair_sim::gpu::{
+        GpuHeadStep, GpuStrandInput, GpuStrandSolver, bind_whole_buffers, compute_layout, compute_pipeline,
+        headless_device,
+    };
     use bevy_hair_sim::prelude::*;
     use bevy_hair_sim::render::feed::{GpuCollider, GuideUpload};
     use bevy_hair_sim::render::{DrawnStrand, GuideLayout, HairStrips};
@@ -421,62 +424,14 @@ mod gpu {
             let colliders = with_data(bytemuck::cast_slice(&[GpuCollider::new(skull).expect("a sphere")]));
             let placed = [storage(12 * u64::from(drawn_nodes)), storage(12 * u64::from(drawn_nodes))];
             let drawn = storage(12 * u64::from(drawn_nodes));
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("hair followers"),
-                source: wgpu::ShaderSource::Wgsl(FOLLOWERS_SHADER.into()),
-            });
             // The layouts of `render/compute.rs`: a uniform, then storage buffers (`true`: read only).
-            let layout = |storage: &[bool]| {
-                let mut entries = vec![wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                }];
-                entries.extend(storage.iter().enumerate().map(|(index, &read_only)| wgpu::BindGroupLayoutEntry {
-                    binding: index as u32 + 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                }));
-                device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &entries })
-            };
-            let place_layout = layout(&[true, true, true, true, false, false, true, false]);
-            let draw_layout = layout(&[true, true, false]);
-            let pipeline = |entry: &str, layout: &wgpu::BindGroupLayout| {
-                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: None,
-                    bind_group_layouts: &[Some(layout)],
-                    immediate_size: 0,
-                });
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(entry),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some(entry),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            };
-            let (place, draw) = (pipeline("place", &place_layout), pipeline("draw", &draw_layout));
+            let place_layout =
+                compute_layout(device, "hair followers", None, &[true, true, true, true, false, false, true, false]);
+            let draw_layout = compute_layout(device, "hair followers", None, &[true, true, false]);
+            let place = compute_pipeline(device, "place", FOLLOWERS_SHADER, "place", &place_layout);
+            let draw = compute_pipeline(device, "draw", FOLLOWERS_SHADER, "draw", &draw_layout);
             let group = |layout: &wgpu::BindGroupLayout, buffers: &[&wgpu::Buffer]| {
-                let entries: Vec<wgpu::BindGroupEntry> = buffers
-                    .iter()
-                    .enumerate()
-                    .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                        binding: binding as u32,
-                        resource: buffer.as_entire_binding(),
-                    })
-                    .collect();
-                device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
+                bind_whole_buffers(device, "hair followers", layout, buffers)
             };
             let place_group = group(
                 &place_layout,

@@ -35,10 +35,12 @@
 //! a collider holding a root inside it leaves the strand within twice the root's depth free of it, as on
 //! the CPU.
 
+mod compute;
 mod solver;
 
+pub use compute::{bind_whole_buffers, compute_layout, compute_pipeline};
 pub use solver::{
     GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep,
     GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
+    MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets, headless_device,
 };

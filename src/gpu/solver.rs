@@ -2,12 +2,13 @@
 //! dispatches and read-back. Bevy's renderer hands its own device to it
 //! ([`HairGpuPlugin`](crate::render::HairGpuPlugin)); tests and benchmarks make one with [`headless_device`].
 
-use std::num::NonZeroU64;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use bevy::math::{DQuat, DVec2, DVec3};
 use wgpu::util::DeviceExt;
+
+use super::compute::{bind_whole_buffers, compute_layout, compute_pipeline};
 
 use crate::rod::{
     ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
@@ -288,21 +289,26 @@ struct StrandLayout {
     strand_heads: Vec<usize>,
 }
 
-fn vec4(v: DVec3, w: f64) -> [f32; 4] {
-    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+/// Whether the GPU step meets colliders of `shape`: spheres, capsules, ellipsoids and planes (cuboids and
+/// baked meshes are the CPU's alone).
+pub fn gpu_meets(shape: &ColliderShape) -> bool {
+    shape_row(shape).is_some()
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+/// A collider shape's row in the step's collider buffer (its sizes, and its kind in `w`), if the GPU
+/// meets it.
+fn shape_row(shape: &ColliderShape) -> Option<[f32; 4]> {
+    Some(match *shape {
+        ColliderShape::Sphere { radius } => [radius as f32, 0.0, 0.0, 0.0],
+        ColliderShape::Capsule { radius, half_length } => [radius as f32, half_length as f32, 0.0, 1.0],
+        ColliderShape::Ellipsoid { semi_axes } => vec4(semi_axes, 2.0),
+        ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
+        _ => return None,
+    })
+}
+
+fn vec4(v: DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
 }
 
 impl GpuStrandUpload {
@@ -399,48 +405,6 @@ impl GpuStrandUpload {
     }
 }
 
-/// The compute pipeline of `entry` in the WGSL `source`, with the one bind group `layout`.
-fn compute_pipeline(
-    device: &wgpu::Device,
-    label: &str,
-    source: &str,
-    entry: &str,
-    layout: &wgpu::BindGroupLayout,
-) -> wgpu::ComputePipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    })
-}
-
-/// `buffers`, whole, at bindings 0, 1, … of `layout`.
-fn bind(
-    device: &wgpu::Device,
-    label: &str,
-    layout: &wgpu::BindGroupLayout,
-    buffers: &[&wgpu::Buffer],
-) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = buffers
-        .iter()
-        .enumerate()
-        .map(|(binding, buffer)| wgpu::BindGroupEntry { binding: binding as u32, resource: buffer.as_entire_binding() })
-        .collect();
-    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
-}
-
 impl GpuStrandSolver {
     /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
     /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
@@ -484,30 +448,12 @@ impl GpuStrandSolver {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("hair strand step"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: NonZeroU64::new(PARAMS_BYTES),
-                    },
-                    count: None,
-                },
-                storage_entry(1, true),
-                storage_entry(2, true),
-                storage_entry(3, true),
-                storage_entry(4, false),
-                storage_entry(5, true),
-                storage_entry(6, true),
-                storage_entry(7, false),
-            ],
-        });
+        // Bindings: parameters; strand words, floats, rest shape (read); state (written); heads, colliders
+        // (read); status (written).
+        let read_only = [true, true, true, false, true, true, false];
+        let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
         let pipeline = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
-        let bind_group = bind(
+        let bind_group = bind_whole_buffers(
             device,
             "hair strand step",
             &layout,
@@ -588,13 +534,8 @@ impl GpuStrandSolver {
         for (index, (head, before)) in heads.iter().zip(&self.head_poses).enumerate() {
             let first = self.collider_rows.len() / COLLIDER_ROWS;
             for (number, collider) in head.colliders.iter().enumerate() {
-                let shape = match collider.shape {
-                    ColliderShape::Sphere { radius } => [radius as f32, 0.0, 0.0, 0.0],
-                    ColliderShape::Capsule { radius, half_length } => [radius as f32, half_length as f32, 0.0, 1.0],
-                    ColliderShape::Ellipsoid { semi_axes } => vec4(semi_axes, 2.0),
-                    ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
-                    _ => return Err(GpuStepError::UnsupportedCollider { head: index, collider: number }),
-                };
+                let shape = shape_row(&collider.shape)
+                    .ok_or(GpuStepError::UnsupportedCollider { head: index, collider: number })?;
                 let relative = |translation: DVec3| translation - head.translation;
                 let rotation = |q: DQuat| q.as_quat().to_array();
                 self.collider_rows.extend([
@@ -625,7 +566,7 @@ impl GpuStrandSolver {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_group = bind(
+            self.bind_group = bind_whole_buffers(
                 device,
                 "hair strand step",
                 &self.layout,
@@ -898,28 +839,9 @@ pub const GATHER_SHADER: &str = include_str!("gather.wgsl");
 
 impl Gather {
     fn new(device: &wgpu::Device) -> Self {
-        let uniform = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: NonZeroU64::new(GATHER_PARAMS_BYTES),
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("hair guides gathered"),
-            entries: &[
-                uniform,
-                storage_entry(1, true),
-                storage_entry(2, true),
-                storage_entry(3, true),
-                storage_entry(4, true),
-                storage_entry(5, false),
-                storage_entry(6, false),
-            ],
-        });
+        // Bindings: parameters; strand floats, state, status, guide list (read); guide data, frames (written).
+        let read_only = [true, true, true, true, false, false];
+        let layout = compute_layout(device, "hair guides gathered", Some(GATHER_PARAMS_BYTES), &read_only);
         let pipeline = compute_pipeline(device, "hair guides gathered", GATHER_SHADER, "gather", &layout);
         Self { layout, pipeline }
     }
@@ -945,7 +867,7 @@ impl Gather {
             usage: wgpu::BufferUsages::STORAGE,
         });
         let buffers = [&params, &solver.strand_floats, &solver.state, &solver.status, &map, guide_data, guide_frames];
-        let bind_group = bind(device, "hair guides gathered", &self.layout, &buffers);
+        let bind_group = bind_whole_buffers(device, "hair guides gathered", &self.layout, &buffers);
         GpuGatherTarget { params, bind_group, guides: guides.len().saturating_sub(1) as u32 }
     }
 }

@@ -45,9 +45,15 @@ pub fn scalp_exposure<'a>(
             grid.add_lengths(ends[0], ends[1], reach, &points, &mut lengths);
         }
     }
-    let disc = std::f32::consts::PI * reach * reach;
-    let exposed = lengths.iter().filter(|&&length| length * hair_width < disc).count();
-    Ok(exposed as f32 / points.len() as f32)
+    Ok(uncovered_share(&lengths, hair_width, reach))
+}
+
+/// The share of points whose hair (`lengths`, m, drawn `hair_width` m wide) covers less than the disc of
+/// `radius` about them.
+fn uncovered_share(lengths: &[f32], hair_width: f32, radius: f32) -> f32 {
+    let disc = std::f32::consts::PI * radius * radius;
+    let uncovered = lengths.iter().filter(|&&length| length * hair_width < disc).count();
+    uncovered as f32 / lengths.len() as f32
 }
 
 /// The fraction (0 to 1) of the haired scalp a far camera looking along `-towards_camera` (world space)
@@ -94,9 +100,7 @@ pub fn scalp_seen<'a>(
             grid.add_lengths_where(flat(a), flat(b), pixel, &points, &mut lengths, in_front);
         }
     }
-    let disc = std::f32::consts::PI * pixel * pixel;
-    let seen = lengths.iter().filter(|&&length| length * hair_width < disc).count();
-    Ok(seen as f32 / points.len() as f32)
+    Ok(uncovered_share(&lengths, hair_width, pixel))
 }
 
 /// The sample points in cells of `reach`, to find those near a segment.

@@ -18,9 +18,9 @@ use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems}
 use super::gpu::GpuStepCount;
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates,
-    GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN,
+    GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, gpu_meets,
 };
-use crate::rod::{ColliderShape, MovingCollider, StepError, StepParams};
+use crate::rod::{MovingCollider, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, SimulatedStrand, SteppedElsewhere,
@@ -351,21 +351,9 @@ fn order_gpu_step(
             continue;
         };
         let pose = motion.current;
-        let met: Vec<MovingCollider> = colliders
-            .of(Some(&StrandOf(head)))
-            .iter()
-            .filter(|collider| {
-                matches!(
-                    collider.shape,
-                    ColliderShape::Sphere { .. }
-                        | ColliderShape::Capsule { .. }
-                        | ColliderShape::Ellipsoid { .. }
-                        | ColliderShape::Plane
-                )
-            })
-            .cloned()
-            .collect();
-        if met.len() < colliders.of(Some(&StrandOf(head))).len() && !queue.warned_colliders.contains(&head) {
+        let all = colliders.of(Some(&StrandOf(head)));
+        let met: Vec<MovingCollider> = all.iter().filter(|collider| gpu_meets(&collider.shape)).cloned().collect();
+        if met.len() < all.len() && !queue.warned_colliders.contains(&head) {
             warn!("HairGpuPlugin: head {head} has cuboid or mesh colliders, which the GPU step does not meet");
             queue.warned_colliders.push(head);
         }
