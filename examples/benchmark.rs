@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`; all by
+//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default). Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
@@ -20,7 +20,7 @@ use std::process::Command;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-use bevy::math::{DVec3, Vec3};
+use bevy::math::{DVec3, Vec2, Vec3};
 use bevy::tasks::available_parallelism;
 use bevy_hair_sim::detail::HeadsByDetail;
 use bevy_hair_sim::groom::ScalpRoot;
@@ -137,6 +137,9 @@ fn main() {
     }
     if wanted("coverage") {
         coverage(threads, if quick { 1.0 } else { 4.0 });
+    }
+    if wanted("styles") {
+        styles_at_rest(threads, if quick { 1.0 } else { 3.0 });
     }
     #[cfg(feature = "gpu")]
     if wanted("gpu") {
@@ -467,6 +470,72 @@ mod gpu {
     }
 }
 
+/// The skull of `examples/head.rs`, head-local: its hair grows here.
+const EXAMPLE_SCALP: Scalp = Scalp {
+    centre: Vec3::new(0.0, 0.12, 0.01),
+    semi_axes: Vec3::new(0.078, 0.095, 0.1),
+    nape_height: -0.35,
+    brow_height: 0.45,
+};
+/// The example's neck height, m.
+const EXAMPLE_NECK_HEIGHT: f32 = 1.5;
+/// The example's followers per guide.
+const EXAMPLE_FOLLOWERS: usize = 10;
+/// The example's face ellipsoid: centre and semi-axes, head-local, m.
+const EXAMPLE_FACE: (Vec3, Vec3) = (Vec3::new(0.0, 0.065, -0.035), Vec3::new(0.062, 0.075, 0.07));
+
+/// The example's head (`examples/head.rs`) in `app`, with its groom of `style` (2 000 combed guides × 24
+/// edges, 10 followers each) and its colliders: skull and face on the head; neck, shoulders and torso.
+fn example_head(app: &mut bevy::prelude::App, style: HairStyle) -> bevy::prelude::Entity {
+    use bevy::prelude::{ChildOf, Quat, Transform};
+    let groom = HairGroom {
+        scalp: EXAMPLE_SCALP,
+        strand_count: 2000,
+        segments: 24,
+        style,
+        seed: 1,
+        followers_per_guide: EXAMPLE_FOLLOWERS,
+        ..HairGroom::default()
+    };
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, EXAMPLE_NECK_HEIGHT, 0.0))).id();
+    let on_head = [(EXAMPLE_SCALP.centre, EXAMPLE_SCALP.semi_axes), EXAMPLE_FACE];
+    for (centre, semi_axes) in on_head {
+        let collider = HairCollider::ellipsoid(semi_axes);
+        app.world_mut().spawn((collider, Transform::from_translation(centre), HairColliderOf(head), ChildOf(head)));
+    }
+    let half_turn = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let on_body = [
+        (HairCollider::capsule(0.045, 0.05), Transform::from_xyz(0.0, 1.47, 0.0)),
+        (HairCollider::capsule(0.06, 0.12), Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(half_turn)),
+        (HairCollider::capsule(0.12, 0.35), Transform::from_xyz(0.0, 0.93, 0.0)),
+    ];
+    for (collider, transform) in on_body {
+        app.world_mut().spawn((collider, transform, HairColliderOf(head)));
+    }
+    head
+}
+
+/// Every hair of the head as drawn, world space: each guide's nodes and its followers'.
+fn drawn_hairs<'w>(world: &'w bevy::prelude::World, strands: &[bevy::prelude::Entity]) -> Vec<&'w [Vec3]> {
+    let mut hairs: Vec<&[Vec3]> = Vec::new();
+    for &strand in strands {
+        hairs.push(&world.get::<StrandNodes>(strand).expect("a strand").positions);
+        if let Some(followers) = world.get::<FollowerNodes>(strand) {
+            let per = followers.nodes_per_follower().max(1);
+            hairs.extend(followers.positions.chunks_exact(per));
+        }
+    }
+    hairs
+}
+
+/// The width the renderer draws the example's hairs, m: a fibre's diameter times the hairs each stands for.
+fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f32 {
+    let material = *world.get::<SimulatedStrand>(strand).expect("a strand").rod().material();
+    let represented = world.get::<bevy_hair_sim::volume::RepresentedHairs>(strand).map_or(1, |hairs| hairs.0);
+    2.0 * (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32
+        * (represented as f32 / (1 + EXAMPLE_FOLLOWERS) as f32).max(1.0)
+}
+
 /// The example's default scene (`examples/head.rs`: 2 000 combed straight guides × 24 edges with 10
 /// followers each on its skull; skull, face, neck, shoulders and torso as colliders; the hair–hair grid's
 /// velocity smoothing on), held still, shaken, turned and flicked as the example animates its head, for
@@ -480,13 +549,9 @@ mod gpu {
 /// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
 /// ([`HairStyleHold`] at 200/s).
 fn coverage(threads: usize, seconds: f32) {
-    use bevy::prelude::{ChildOf, Quat, Transform};
+    use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
-    // As `examples/head.rs` sets them.
-    const NECK_HEIGHT: f32 = 1.5;
-    const FOLLOWERS: usize = 10;
-    let scalp =
-        Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..Scalp::default() };
+    let scalp = EXAMPLE_SCALP;
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
         ("rest", |_| Quat::IDENTITY),
@@ -517,31 +582,7 @@ fn coverage(threads: usize, seconds: f32) {
             settings.volume = HairVolume { enabled: true, ..HairVolume::default() };
             settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
         }
-        let groom = HairGroom {
-            scalp,
-            strand_count: 2000,
-            segments: 24,
-            seed: 1,
-            followers_per_guide: FOLLOWERS,
-            ..HairGroom::default()
-        };
-        let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, NECK_HEIGHT, 0.0))).id();
-        let on_head = [
-            (HairCollider::ellipsoid(scalp.semi_axes), scalp.centre),
-            (HairCollider::ellipsoid(Vec3::new(0.062, 0.075, 0.07)), Vec3::new(0.0, 0.065, -0.035)),
-        ];
-        for (collider, centre) in on_head {
-            app.world_mut().spawn((collider, Transform::from_translation(centre), HairColliderOf(head), ChildOf(head)));
-        }
-        let half_turn = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
-        let on_body = [
-            (HairCollider::capsule(0.045, 0.05), Transform::from_xyz(0.0, 1.47, 0.0)),
-            (HairCollider::capsule(0.06, 0.12), Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(half_turn)),
-            (HairCollider::capsule(0.12, 0.35), Transform::from_xyz(0.0, 0.93, 0.0)),
-        ];
-        for (collider, transform) in on_body {
-            app.world_mut().spawn((collider, transform, HairColliderOf(head)));
-        }
+        let head = example_head(&mut app, HairStyle::Straight);
         for _ in 0..60 {
             app.update();
         }
@@ -561,26 +602,14 @@ fn coverage(threads: usize, seconds: f32) {
             .map(|&strand| *app.world().get::<StrandNodes>(strand).unwrap().positions.last().expect("nodes"))
             .collect();
         let strays = StrayCheck::new(&roots, 6, &head_pose(&app), &rest_tips);
-        // Each hair as the renderer draws it: a ribbon of the fibre's diameter times the hairs it stands for.
-        let first = strands[0];
-        let material = *app.world().get::<SimulatedStrand>(first).expect("a strand").rod().material();
-        let represented = app.world().get::<bevy_hair_sim::volume::RepresentedHairs>(first).map_or(1, |hairs| hairs.0);
-        let width = 2.0
-            * (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32
-            * (represented as f32 / (1 + FOLLOWERS) as f32).max(1.0);
+        let width = drawn_width(app.world(), strands[0]);
         let measure = |app: &bevy::prelude::App| {
             let world = app.world();
-            let mut hairs: Vec<&[Vec3]> = Vec::new();
-            let mut tips = Vec::with_capacity(strands.len());
-            for &strand in &strands {
-                let nodes = &world.get::<StrandNodes>(strand).expect("a strand").positions;
-                hairs.push(nodes);
-                tips.push(*nodes.last().expect("nodes"));
-                if let Some(followers) = world.get::<FollowerNodes>(strand) {
-                    let per = followers.nodes_per_follower().max(1);
-                    hairs.extend(followers.positions.chunks_exact(per));
-                }
-            }
+            let hairs = drawn_hairs(world, &strands);
+            let tips: Vec<Vec3> = strands
+                .iter()
+                .map(|&strand| *world.get::<StrandNodes>(strand).expect("a strand").positions.last().expect("nodes"))
+                .collect();
             let exposure =
                 coverage::scalp_exposure(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
                     .expect("the scalp");
@@ -609,6 +638,107 @@ fn coverage(threads: usize, seconds: f32) {
             100.0 * last.1
         );
     }
+}
+
+/// Every style of the example (`examples/head.rs`, as [`example_head`] grows it) left still for
+/// `seconds` on the head after its groom grew: how far the guides stand from their groomed shape (RMS and
+/// largest over their nodes), the strays against the groomed shape ([`coverage::StrayCheck`]: tips 3 cm
+/// off their 6 neighbours'), and the share of the face below the hairline and of the eyes a camera in
+/// front sees hidden by hair ([`coverage::share_seen`], 1 mm pixels); unheld, held as the example holds
+/// it, and held with the grid's pressure (50 Pa).
+fn styles_at_rest(threads: usize, seconds: f32) {
+    use bevy::prelude::Transform;
+    use bevy_hair_sim::groom::coverage::{self, StrayCheck};
+    println!();
+    println!(
+        "Every style at rest after {seconds} s (the example's head and colliders, grid on): distance of the guides' nodes from the groomed shape, strays against it (tips 3 cm off their 6 neighbours'), face below the hairline and eyes hidden by hair seen from the front (1 mm pixels):"
+    );
+    println!(
+        "| style | style hold, 1/s | pressure, Pa | from groomed, RMS mm | largest, mm | strays | face hidden | eyes hidden |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    let (face, eyes) = example_face_points();
+    for style in HairStyle::ALL {
+        for (hold, pressure) in [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)] {
+            let mut app = Scene::app(Some(threads));
+            {
+                let mut settings = app.world_mut().resource_mut::<HairSettings>();
+                settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
+                settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
+            }
+            let head = example_head(&mut app, style);
+            for _ in 0..(seconds * 60.0).round() as usize {
+                app.update();
+            }
+            let world = app.world();
+            let transform = world.get::<Transform>(head).expect("the head exists");
+            let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
+            let strands = world.get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+            // The head has not moved: the groomed shape is where each strand was spawned.
+            let (mut squared, mut count, mut largest) = (0.0_f64, 0_usize, 0.0_f64);
+            let (mut roots, mut groomed_tips, mut tips) = (Vec::new(), Vec::new(), Vec::new());
+            for &strand in &strands {
+                let rod = world.get::<SimulatedStrand>(strand).expect("every strand built").rod();
+                for (now, groomed) in rod.positions().iter().zip(rod.initial_positions()) {
+                    let distance = now.distance(*groomed);
+                    (squared, count, largest) = (squared + distance * distance, count + 1, largest.max(distance));
+                }
+                let (first, last) = (rod.initial_positions()[0], rod.initial_positions()[rod.node_count() - 1]);
+                roots.push(pose.inverse().transform_point3(first.as_vec3()));
+                groomed_tips.push(last.as_vec3());
+                tips.push(rod.positions()[rod.node_count() - 1].as_vec3());
+            }
+            let strays = StrayCheck::new(&roots, 6, &pose, &groomed_tips).stray_fraction(&pose, &tips, 0.03);
+            let hairs = drawn_hairs(world, &strands);
+            let width = drawn_width(world, strands[0]);
+            let in_front = pose.transform_vector3(Vec3::NEG_Z);
+            let hidden = |points: &[Vec3]| {
+                let points: Vec<Vec3> = points.iter().map(|&point| pose.transform_point3(point)).collect();
+                1.0 - coverage::share_seen(&points, hairs.iter().copied(), in_front, (0.001, width))
+            };
+            println!(
+                "| {} | {hold} | {pressure} | {:.2} | {:.1} | {:.2} % | {:.1} % | {:.1} % |",
+                style.name(),
+                1e3 * (squared / count as f64).sqrt(),
+                1e3 * largest,
+                100.0 * strays,
+                100.0 * hidden(&face),
+                100.0 * hidden(&eyes)
+            );
+        }
+    }
+}
+
+/// The example's face below the hairline as seen from in front, head-local: points 2 mm apart from the
+/// chin to 1 cm under the hairline and between the outer corners of the eyes, each on the frontmost of the
+/// skull, the face and the eyes; and those of them on the eyes.
+fn example_face_points() -> (Vec<Vec3>, Vec<Vec3>) {
+    const EYES: [Vec3; 2] = [Vec3::new(-0.03, 0.115, -0.084), Vec3::new(0.03, 0.115, -0.084)];
+    const EYE_RADIUS: f32 = 0.011;
+    // The front of an ellipsoid seen along +Z at (x, y), if it is there.
+    let front = |centre: Vec3, semi_axes: Vec3, x: f32, y: f32| {
+        let (u, v) = ((x - centre.x) / semi_axes.x, (y - centre.y) / semi_axes.y);
+        (u * u + v * v < 1.0).then(|| centre.z - semi_axes.z * (1.0 - u * u - v * v).sqrt())
+    };
+    let (mut face, mut eyes) = (Vec::new(), Vec::new());
+    for row in 0..=65 {
+        for column in 0..=40 {
+            let (x, y) = (-0.04 + 0.002 * column as f32, 0.02 + 0.002 * row as f32);
+            let shapes = [(EXAMPLE_SCALP.centre, EXAMPLE_SCALP.semi_axes), EXAMPLE_FACE]
+                .into_iter()
+                .chain(EYES.map(|eye| (eye, Vec3::splat(EYE_RADIUS))));
+            let Some(z) = shapes.filter_map(|(centre, semi_axes)| front(centre, semi_axes, x, y)).reduce(f32::min)
+            else {
+                continue;
+            };
+            let point = Vec3::new(x, y, z);
+            face.push(point);
+            if EYES.iter().any(|eye| Vec2::new(x - eye.x, y - eye.y).length() < EYE_RADIUS) {
+                eyes.push(point);
+            }
+        }
+    }
+    (face, eyes)
 }
 
 /// A crowd of 10 heads × 200 strands × 32 edges around one camera that sees two of them up close (see

@@ -3,6 +3,8 @@
 
 mod common;
 
+use std::f32::consts::FRAC_PI_2;
+
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use common::headless::{hair_app, strand};
@@ -232,4 +234,66 @@ fn a_strand_of_your_own_is_preloaded_when_built_and_again_on_demand() {
     println!("preloaded again under sideways gravity: moved {still:.2e} m in 1 s; then weightless: {relaxed:.4} m");
     assert!(still < 1e-3, "preloaded where it hangs, it stays: {still} m");
     assert!(relaxed > 0.005, "with gravity gone, the new rest shape (which bends against it) moves the hair");
+}
+
+#[test]
+fn hair_grown_over_the_shoulders_rests_on_them_where_it_was_groomed() {
+    // Straight hair of 14 to 22 cm on a 10 cm skull reaches shoulders 14 cm below the skull's centre. A
+    // groom grown before the shoulders were there passes through them, and the first steps throw those
+    // strands out; grown with them, it drapes over them and stays.
+    let groom = HairGroom { strand_count: 400, ..default() };
+    let shoulders = |app: &mut App, head: Entity| {
+        let across = Transform::from_xyz(0.0, 1.6 - 0.14, 0.0).with_rotation(Quat::from_rotation_z(FRAC_PI_2));
+        app.world_mut().spawn((HairCollider::capsule(0.06, 0.12), across, HairColliderOf(head))).id()
+    };
+    let mut results = Vec::new();
+    for grown_with_shoulders in [false, true] {
+        let mut app = hair_app();
+        let head = app.world_mut().spawn((HairHead, groom.clone(), Transform::from_xyz(0.0, 1.6, 0.0))).id();
+        let skull = (HairCollider::ellipsoid(groom.scalp.semi_axes), Transform::from_xyz(0.0, 1.6, 0.0));
+        app.world_mut().spawn((skull, HairColliderOf(head)));
+        if grown_with_shoulders {
+            shoulders(&mut app, head);
+        }
+        app.update();
+        if !grown_with_shoulders {
+            shoulders(&mut app, head);
+        }
+        let strands = strands_of(&app, head);
+        let groomed = shape(&app, &strands);
+        // Inside the shoulders, as grown (their capsule's axis runs along x at 1.46 m).
+        let depth = |nodes: &[Vec<Vec3>]| {
+            let axis = |node: Vec3| Vec3::new(node.x.clamp(-0.12, 0.12), 1.46, 0.0);
+            nodes.iter().flatten().map(|&node| 0.06 - node.distance(axis(node))).fold(0.0_f32, f32::max)
+        };
+        for _ in 0..120 {
+            app.update();
+        }
+        let settled = shape(&app, &strands);
+        // How far each strand's farthest node moved.
+        let moved: Vec<f32> = groomed
+            .iter()
+            .zip(&settled)
+            .map(|(a, b)| a.iter().zip(b).map(|(p, q)| p.distance(*q)).fold(0.0_f32, f32::max))
+            .collect();
+        let thrown = moved.iter().filter(|&&distance| distance > 0.01).count();
+        let (all, _) = rms(&groomed, &settled);
+        println!(
+            "grown {} the shoulders: deepest groomed node {:.1} mm inside them; after 2 s {:.2} mm RMS from the \
+             groom, {thrown} of {} strands moved more than 1 cm (farthest {:.1} mm)",
+            if grown_with_shoulders { "with" } else { "before" },
+            1e3 * depth(&groomed),
+            1e3 * all,
+            strands.len(),
+            1e3 * moved.iter().fold(0.0_f32, |a, &b| a.max(b)),
+        );
+        assert_eq!(app.world().resource::<HairStatistics>().faults, 0);
+        results.push((depth(&groomed), all, thrown));
+    }
+    let [(through, all_through, thrown_through), (inside, all, thrown)] = results[..] else { unreachable!() };
+    assert!(through > 0.02, "grown without them, the hair passes through the shoulders: {through} m deep");
+    assert!(all_through > 0.01 && thrown_through > 20, "and is thrown: {all_through} m RMS, {thrown_through} strands");
+    assert!(inside <= 0.0, "draped hair lies outside the shoulders: {inside} m inside");
+    // Draped, it stays where it was groomed; a strand in a hundred may still buckle where it stands on them.
+    assert!(all < 0.002 && thrown <= 4, "draped: {all} m RMS, {thrown} strands moved more than 1 cm");
 }

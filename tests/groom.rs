@@ -1,9 +1,11 @@
 //! Grooming: roots spread evenly over the scalp along its normals, strand counts and shapes as asked,
 //! bad grooms rejected with their reason.
 
+use bevy::math::{DQuat, DVec3};
 use bevy::prelude::*;
-use bevy_hair_sim::groom::{GroomError, ScalpRoot};
+use bevy_hair_sim::groom::{GroomError, GroomObstacles, ScalpRoot};
 use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::rod::{ColliderShape, RigidPose};
 
 /// A head-like skull: narrower than deep, centred above the head's origin.
 fn skull() -> Scalp {
@@ -115,6 +117,89 @@ fn combed_strands_have_the_style_lengths_and_leave_the_root_along_the_scalp() {
             assert!((0.97 * shortest..=longest + 1e-5).contains(&length), "{style:?} strand of {length} m");
             assert!(strand.material_direction.dot(root_edge.normalize()).abs() < 1e-3, "{style:?} material direction");
             assert_eq!(strand.gravity_preload, 1.0);
+        }
+    }
+}
+
+/// The sharpest turn between consecutive edges of `nodes`, rad.
+fn sharpest_turn(nodes: &[Vec3]) -> f32 {
+    nodes.windows(3).map(|three| (three[1] - three[0]).angle_between(three[2] - three[1])).fold(0.0, f32::max)
+}
+
+/// The example's skull: wider front to back than side to side, the nape low.
+fn example_scalp() -> Scalp {
+    Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() }
+}
+
+/// The example's body under its head, head-local: neck, shoulders and torso capsules (vertical, across,
+/// vertical).
+fn example_body() -> Vec<(ColliderShape, RigidPose)> {
+    let across = DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2);
+    vec![
+        (ColliderShape::capsule(0.045, 0.05), RigidPose::new(DQuat::IDENTITY, DVec3::new(0.0, -0.03, 0.0))),
+        (ColliderShape::capsule(0.06, 0.12), RigidPose::new(across, DVec3::new(0.0, -0.14, 0.0))),
+        (ColliderShape::capsule(0.12, 0.35), RigidPose::new(DQuat::IDENTITY, DVec3::new(0.0, -0.57, 0.0))),
+    ]
+}
+
+#[test]
+fn combed_strands_and_their_followers_turn_smoothly_on_a_head_shaped_skull() {
+    // Short hair combed all the way along the example's skull once ran into the underside of the skull,
+    // where "down" along the scalp turns back on itself, and doubled back there (a turn of 180°, a strand
+    // the rod refuses).
+    for style in HairStyle::ALL {
+        let groom = HairGroom {
+            scalp: example_scalp(),
+            strand_count: 2000,
+            segments: 24,
+            style,
+            seed: 1,
+            followers_per_guide: 2,
+            ..default()
+        };
+        for obstacles in [GroomObstacles::default(), GroomObstacles::new(example_body())] {
+            let grown = groom.grow_with_followers_around(None, &obstacles).unwrap();
+            let hairs = grown.iter().flat_map(|(guide, followers)| {
+                std::iter::once(guide.nodes.as_slice()).chain(followers.curves.iter().map(Vec::as_slice))
+            });
+            let sharpest = hairs.map(sharpest_turn).fold(0.0, f32::max);
+            let around = if obstacles.is_empty() { "alone" } else { "over the body" };
+            println!("{style:?}, {around}: sharpest turn {:.0}°", sharpest.to_degrees());
+            // Curls of 6 mm radius on 1 cm edges turn by about 1.2 rad per edge; nothing folds.
+            assert!(sharpest < 1.6, "{style:?}: a strand turns by {:.0}°", sharpest.to_degrees());
+        }
+    }
+}
+
+#[test]
+fn falling_hair_drapes_over_the_body_instead_of_passing_through_it() {
+    let body = example_body();
+    let obstacles = GroomObstacles::new(body.clone());
+    for style in [HairStyle::Straight, HairStyle::Long, HairStyle::Curly] {
+        let groom = HairGroom { scalp: example_scalp(), strand_count: 600, segments: 24, style, seed: 3, ..default() };
+        let (shortest, longest) = style.length_range();
+        let depth = |strands: &[HairStrand]| {
+            let nodes = strands.iter().flat_map(|strand| &strand.nodes);
+            nodes
+                .map(|node| {
+                    let inside = body.iter().map(|(shape, pose)| -shape.distance_bound(pose.to_local(node.as_dvec3())));
+                    inside.fold(0.0_f64, f64::max)
+                })
+                .fold(0.0, f64::max)
+        };
+        let through = groom.grow().unwrap();
+        let draped: Vec<HairStrand> =
+            groom.grow_with_followers_around(None, &obstacles).unwrap().into_iter().map(|(strand, _)| strand).collect();
+        let (before, after) = (depth(&through), depth(&draped));
+        println!("{style:?}: deepest node in the body {:.1} mm, draped {:.2} mm", 1e3 * before, 1e3 * after);
+        // Every node outside the body: it lies a lift above it, to the ellipsoid-free capsules' exactness.
+        assert_eq!(after, 0.0, "{style:?}: a draped node is {after} m inside the body");
+        for strand in &draped {
+            let length: f32 = strand.nodes.windows(2).map(|edge| edge[0].distance(edge[1])).sum();
+            assert!((0.97 * shortest..=longest + 1e-5).contains(&length), "{style:?} strand of {length} m");
+        }
+        if style == HairStyle::Long {
+            assert!(before > 0.05, "the long hair reaches the shoulders and back: {before} m deep without draping");
         }
     }
 }

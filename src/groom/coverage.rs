@@ -72,35 +72,47 @@ pub fn scalp_seen<'a>(
     towards_camera: Vec3,
     (pixel, hair_width): (f32, f32),
 ) -> Result<f32, GroomError> {
-    let Some(depth_axis) = towards_camera.try_normalize() else { return Ok(0.0) };
+    let facing: Vec<Vec3> = scalp
+        .roots(samples)?
+        .iter()
+        .filter(|root| head.transform_vector3(root.normal).dot(towards_camera) > 0.0)
+        .map(|root| head.transform_point3(root.position))
+        .collect();
+    Ok(if facing.is_empty() { 0.0 } else { share_seen(&facing, hairs, towards_camera, (pixel, hair_width)) })
+}
+
+/// The fraction (0 to 1) of `points` (world space) a far camera looking along `-towards_camera` sees
+/// through `hairs` (each hair's node positions, drawn `hair_width` m wide): a point is hidden when the
+/// hair in front of it, projected along the view, covers at least the disc of radius `pixel` (m) about it
+/// on the picture, as in [`scalp_seen`]. Any surface can be judged this way, a face as well as a scalp.
+/// 0 without points, a view or a positive `pixel`.
+pub fn share_seen<'a>(
+    points: &[Vec3],
+    hairs: impl IntoIterator<Item = &'a [Vec3]>,
+    towards_camera: Vec3,
+    (pixel, hair_width): (f32, f32),
+) -> f32 {
+    let Some(depth_axis) = towards_camera.try_normalize() else { return 0.0 };
+    if points.is_empty() || !(pixel > 0.0 && pixel.is_finite()) {
+        return 0.0;
+    }
     // The view's frame: the picture's two axes and the depth towards the camera.
     let (right, up) = depth_axis.any_orthonormal_pair();
     let to_view = |p: Vec3| Vec3::new(p.dot(right), p.dot(up), p.dot(depth_axis));
     let flat = |p: Vec3| Vec3::new(p.x, p.y, 0.0);
-    let mut points = Vec::new();
-    let mut depths = Vec::new();
-    for root in scalp.roots(samples)? {
-        let normal = head.transform_vector3(root.normal);
-        if normal.dot(depth_axis) > 0.0 {
-            let seen = to_view(head.transform_point3(root.position));
-            points.push(flat(seen));
-            depths.push(seen.z);
-        }
-    }
-    if points.is_empty() || !(pixel > 0.0 && pixel.is_finite()) {
-        return Ok(0.0);
-    }
-    let grid = PointGrid::new(&points, pixel);
+    let depths: Vec<f32> = points.iter().map(|&point| to_view(point).z).collect();
+    let pictured: Vec<Vec3> = points.iter().map(|&point| flat(to_view(point))).collect();
+    let grid = PointGrid::new(&pictured, pixel);
     let mut lengths = vec![0.0_f32; points.len()];
     for hair in hairs {
         for ends in hair.windows(2) {
             let (a, b) = (to_view(ends[0]), to_view(ends[1]));
             // Only the hair in front of a point hides it: the segment's depth where it passes the point.
             let in_front = |index: usize, along: f32| a.z + (b.z - a.z) * along.clamp(0.0, 1.0) > depths[index];
-            grid.add_lengths_where(flat(a), flat(b), pixel, &points, &mut lengths, in_front);
+            grid.add_lengths_where(flat(a), flat(b), pixel, &pictured, &mut lengths, in_front);
         }
     }
-    Ok(uncovered_share(&lengths, hair_width, pixel))
+    uncovered_share(&lengths, hair_width, pixel)
 }
 
 /// The sample points in cells of `reach`, to find those near a segment.

@@ -93,7 +93,8 @@ pub use file::{
     MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, StrandColors, UpAxis,
 };
 pub use procedural::{
-    Combing, GroomError, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot,
+    Combing, GroomError, GroomObstacles, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS,
+    Scalp, ScalpRoot,
 };
 pub use surface::{GroomSurface, ScalpSurface};
 

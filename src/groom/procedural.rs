@@ -11,7 +11,9 @@ use thiserror::Error;
 
 use super::surface::{GroomSurface, ScalpSurface};
 use crate::collision::mesh::MeshColliderError;
+use crate::collision::{HairCollider, HeadColliders};
 use crate::followers::HairFollowers;
+use crate::rod::{ColliderShape, RigidPose};
 use crate::simulation::{HairStrand, HeadStrands, StrandOf};
 use crate::volume::RepresentedHairs;
 
@@ -295,6 +297,18 @@ impl HairGroom {
         &self,
         surface: Option<&ScalpSurface>,
     ) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
+        self.grow_with_followers_around(surface, &GroomObstacles::default())
+    }
+
+    /// [`HairGroom::grow_with_followers_on`], the falling hair draped over `obstacles` (the body under the
+    /// head: shoulders, back, chest) instead of passing through them: a falling strand bends as it nears
+    /// one, lies on its surface a [`Combing::lift`] above it and slides down along it. The plugin grows a
+    /// head's groom around the colliders tied to the head when the groom grows.
+    pub fn grow_with_followers_around(
+        &self,
+        surface: Option<&ScalpSurface>,
+        obstacles: &GroomObstacles,
+    ) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
         self.validate()?;
         let every = 1 + self.followers_per_guide;
         let mut random = fastrand::Rng::with_seed(self.seed);
@@ -314,7 +328,7 @@ impl HairGroom {
         let mut grown: Vec<(HairStrand, HairFollowers)> = Vec::with_capacity(guide_roots.len());
         for &root in &guide_roots {
             let followers = HairFollowers { clumping: self.follower_clumping, ..HairFollowers::default() };
-            grown.push((self.grow_strand(root, surface, &mut random), followers));
+            grown.push((self.grow_strand(root, surface, obstacles, &mut random), followers));
         }
         for root in follower_roots {
             let nearest = guide_roots
@@ -326,7 +340,7 @@ impl HairGroom {
                         .total_cmp(&b.1.position.distance_squared(root.position))
                 })
                 .map(|(index, _)| index);
-            let follower = self.grow_strand(root, surface, &mut random);
+            let follower = self.grow_strand(root, surface, obstacles, &mut random);
             if let Some(guide) = nearest {
                 grown[guide].1.curves.push(follower.nodes);
             }
@@ -362,14 +376,20 @@ impl HairGroom {
 
     /// One strand of this groom from `root`, in the head's local space, combed along `surface` if given,
     /// else along the scalp's ellipsoid.
-    fn grow_strand(&self, root: ScalpRoot, surface: Option<&ScalpSurface>, random: &mut fastrand::Rng) -> HairStrand {
+    fn grow_strand(
+        &self,
+        root: ScalpRoot,
+        surface: Option<&ScalpSurface>,
+        obstacles: &GroomObstacles,
+        random: &mut fastrand::Rng,
+    ) -> HairStrand {
         let (shortest, longest) = self.style.length_range();
         let length = shortest + (longest - shortest) * random.f32();
         let edge_length = length / self.segments as f32;
         let strand = match &self.combing {
             Some(combing) => {
                 let lift = combing.lift + combing.layer_spread * random.f32();
-                let path = CombedPath { scalp: &self.scalp, surface, combing, lift };
+                let path = CombedPath { scalp: &self.scalp, surface, obstacles, combing, lift };
                 let (nodes, material_direction) = path.grow(root, self.style, length, self.segments, random);
                 HairStrand::from_nodes(nodes, material_direction)
             }
@@ -386,6 +406,64 @@ impl HairGroom {
             }
         };
         strand.with_gravity_preload(self.gravity_preload)
+    }
+}
+
+/// Shapes a groom's falling hair drapes over instead of passing through: the body under a head, in the
+/// head's local space (see [`HairGroom::grow_with_followers_around`]). The plugin makes them from the
+/// [`HairCollider`]s tied to the head when its groom grows.
+#[derive(Debug, Clone, Default)]
+pub struct GroomObstacles {
+    shapes: Vec<(ColliderShape, RigidPose)>,
+}
+
+impl GroomObstacles {
+    /// Obstacles from shapes placed in the head's local space (each shape in its own frame, `pose` taking
+    /// that frame to the head's). Shapes that fail [`ColliderShape::validate`] are left out.
+    pub fn new(shapes: impl IntoIterator<Item = (ColliderShape, RigidPose)>) -> Self {
+        Self { shapes: shapes.into_iter().filter(|(shape, _)| shape.validate().is_ok()).collect() }
+    }
+
+    /// The colliders tied to `head` ([`HeadColliders`]) in its local space, as they are placed now.
+    fn of_head(
+        head: Entity,
+        colliders: &Query<&HeadColliders>,
+        shapes: &Query<&HairCollider>,
+        transforms: &TransformHelper,
+    ) -> Self {
+        let Ok(head_transform) = transforms.compute_global_transform(head) else { return Self::default() };
+        let to_head = head_transform.affine().inverse();
+        let own = colliders.get(head).map(HeadColliders::colliders).unwrap_or_default();
+        Self::new(own.iter().filter_map(|&entity| {
+            let collider = shapes.get(entity).ok()?;
+            let transform = transforms.compute_global_transform(entity).ok()?;
+            let (scale, rotation, translation) = (to_head * transform.affine()).to_scale_rotation_translation();
+            let shape = collider.shape.scaled(scale.as_dvec3());
+            Some((shape, RigidPose::new(rotation.as_dquat().normalize(), translation.as_dvec3())))
+        }))
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.shapes.is_empty()
+    }
+
+    /// The first obstacle that does not hold `root` (a hair grows out of the shapes its root is in) with
+    /// `point` (head-local) less than `reach` m outside it grown by `clearance`: how far outside that
+    /// surface `point` is (m, negative inside), and its outward normal there.
+    fn nearest(&self, point: Vec3, clearance: f32, reach: f32, root: Vec3) -> Option<(f32, Vec3)> {
+        self.shapes.iter().find_map(|(shape, pose)| {
+            let grown = shape.inflated(f64::from(clearance));
+            let (local, root) = (pose.to_local(point.as_dvec3()), pose.to_local(root.as_dvec3()));
+            let gap = grown.distance_bound(local);
+            (gap < f64::from(reach) && !grown.contains(root)).then(|| {
+                let surface = grown.closest_surface_point(local);
+                let normal = (pose.rotation * surface.normal).as_vec3();
+                // Outside, the distance bound; inside, the depth below the nearest surface point.
+                let gap = if gap >= 0.0 { gap as f32 } else { -(surface.point - local).length() as f32 };
+                (gap, normal)
+            })
+        })
     }
 }
 
@@ -419,6 +497,8 @@ struct CombedPath<'a> {
     scalp: &'a Scalp,
     /// The surface combed along, if not the scalp's ellipsoid.
     surface: Option<&'a ScalpSurface>,
+    /// What the falling hair drapes over.
+    obstacles: &'a GroomObstacles,
     combing: &'a Combing,
     /// Height of this strand over the skull where it lies on it, m.
     lift: f32,
@@ -432,6 +512,11 @@ impl CombedPath<'_> {
     /// How near the skull a falling strand's point must be to be kept out of it, m (farther, the skull's
     /// nearest point says nothing of which side it is on).
     const NEAR: f32 = 0.02;
+    /// How far the scalp may face down (its normal's up component) and short hair still lie on it: below,
+    /// the skull turns under and the hair falls from it.
+    const UNDER_THE_SKULL: f32 = -0.6;
+    /// How far above an obstacle a falling strand starts bending to slide along it, m.
+    const BEND: f32 = 0.015;
 
     /// The point of the skull's surface radially under `point` (the nearest point of the scalp mesh, if
     /// combed along one), with the outward normal there.
@@ -462,10 +547,15 @@ impl CombedPath<'_> {
         let mut tangent = self.combing.direction(self.scalp, surface, normal);
         let first_direction = tangent;
         let mut arc = 0.0;
-        // Along the scalp; short hair all the way, the nape's too.
+        // Along the scalp; short hair all the way, the nape's too, but not under the skull.
         let lies_everywhere = style == HairStyle::Short;
-        while arc < length && (normal.y > 0.0 || lies_everywhere) {
-            tangent = self.combing.direction(self.scalp, surface, normal);
+        while arc < length && (normal.y > 0.0 || (lies_everywhere && normal.y > Self::UNDER_THE_SKULL)) {
+            let combed = self.combing.direction(self.scalp, surface, normal);
+            // Where the combing turns back on itself (its "down" under a skull), the hair leaves the scalp.
+            if combed.dot(tangent) < 0.5 {
+                break;
+            }
+            tangent = combed;
             let (next, next_normal) = self.on_skull(surface + Self::STEP * tangent);
             // At the edge of a scalp mesh the hair leaves it.
             if self.surface.is_some() && next.distance(surface) < 0.25 * Self::STEP {
@@ -484,11 +574,22 @@ impl CombedPath<'_> {
             let (start, lifted) = (arc, self.lift * (arc / edge_length).min(1.0));
             // The path's own length (a curl pushed out of the skull may lie longer or shorter than its arc).
             let mut walked: f32 = path.windows(2).map(|pair| pair[0].distance(pair[1])).sum();
+            // Where a strand lands on top of an obstacle, it slides off the side its root is on: front or back.
+            let slide = Vec3::Z * (root.position.z - self.scalp.centre.z).signum();
             while walked < length && arc < 4.0 * length {
                 let fallen = arc - start;
                 let blend = (fallen / Self::TURN).min(1.0);
                 let blend = blend * blend * (3.0 - 2.0 * blend);
-                let direction = tangent.lerp(shape.tangent(fallen), blend).normalize_or(Vec3::NEG_Y);
+                let mut direction = tangent.lerp(shape.tangent(fallen), blend).normalize_or(Vec3::NEG_Y);
+                // Nearing an obstacle, the strand bends to slide down along it, all the way once it lies on it.
+                if let Some((gap, normal)) = self.obstacles.nearest(point, self.lift, Self::BEND, root.position)
+                    && direction.dot(normal) < 0.0
+                {
+                    let downhill = Vec3::NEG_Y.reject_from_normalized(normal);
+                    let along = (downhill + 0.3 * slide.reject_from_normalized(normal)).normalize_or(downhill);
+                    let closeness = (1.0 - gap / Self::BEND).clamp(0.0, 1.0);
+                    direction = direction.lerp(along, closeness * closeness).normalize_or(along);
+                }
                 point += Self::STEP * direction;
                 arc += Self::STEP;
                 // A strand that falls from its root still rises to its lift over the first edge.
@@ -508,6 +609,11 @@ impl CombedPath<'_> {
                     let push = (self.lift - height) * outward;
                     placed += push;
                     point += push;
+                }
+                if let Some((gap, normal)) = self.obstacles.nearest(placed, self.lift, 0.0, root.position) {
+                    // Inside: out onto the surface, a lift above the obstacle.
+                    let out = -gap * normal;
+                    (placed, point) = (placed + out, point + out);
                 }
                 walked += path.last().map_or(0.0, |last| last.distance(placed));
                 path.push(placed);
@@ -713,14 +819,21 @@ type GroomHeads<'w, 's> = Query<
     Or<(Changed<HairGroom>, Changed<GroomSurface>)>,
 >;
 
-/// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands; a
-/// head with a [`GroomSurface`] grows on it once it is known, and again when it changes.
-pub(super) fn grow_groomed_hair(mut commands: Commands, heads: GroomHeads, groomed: Query<(), With<GroomedStrand>>) {
+/// Grows the hair of every head whose [`HairGroom`] is new or changed, replacing its groomed strands, draped
+/// over the colliders tied to the head as they are then; a head with a [`GroomSurface`] grows on it once
+/// it is known, and again when it changes.
+pub(super) fn grow_groomed_hair(
+    mut commands: Commands,
+    heads: GroomHeads,
+    groomed: Query<(), With<GroomedStrand>>,
+    (colliders, shapes, transforms): (Query<&HeadColliders>, Query<&HairCollider>, TransformHelper),
+) {
     for (head, groom, surface, strands) in &heads {
         if matches!(surface, Some(GroomSurface::Waiting)) {
             continue;
         }
-        let grown = match groom.grow_with_followers_on(surface.and_then(GroomSurface::surface)) {
+        let obstacles = GroomObstacles::of_head(head, &colliders, &shapes, &transforms);
+        let grown = match groom.grow_with_followers_around(surface.and_then(GroomSurface::surface), &obstacles) {
             Ok(grown) => grown,
             Err(error) => {
                 error!("hair groom of head {head} rejected, it keeps its hair: {error}");
