@@ -8,11 +8,13 @@
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
-//! default). Bevy's task pools are set once per process, so the parallel table runs this program again
+//! default), `--style NAME` to measure one style in `styles`. Bevy's task pools are set once per process, so the parallel table runs this program again
 //! with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;
+#[path = "support/scene.rs"]
+mod example_scene;
 #[path = "../benches/support/scene.rs"]
 mod scene;
 
@@ -90,7 +92,9 @@ fn main() {
     let tables: Vec<&str> = args
         .iter()
         .enumerate()
-        .filter(|&(index, arg)| !arg.starts_with("--") && (index == 0 || args[index - 1] != "--threads"))
+        .filter(|&(index, arg)| {
+            !arg.starts_with("--") && (index == 0 || !["--threads", "--style"].contains(&args[index - 1].as_str()))
+        })
         .map(|(_, arg)| arg.as_str())
         .collect();
     let wanted = |table: &str| tables.is_empty() || tables.contains(&table);
@@ -139,7 +143,10 @@ fn main() {
         coverage(threads, if quick { 1.0 } else { 4.0 });
     }
     if wanted("styles") {
-        styles_at_rest(threads, if quick { 1.0 } else { 3.0 });
+        let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
+        let styles: Vec<HairStyle> =
+            HairStyle::ALL.into_iter().filter(|style_| style.is_none_or(|name| style_.name() == name)).collect();
+        styles_at_rest(threads, if quick { 1.0 } else { 3.0 }, &styles);
     }
     #[cfg(feature = "gpu")]
     if wanted("gpu") {
@@ -471,25 +478,15 @@ mod gpu {
 }
 
 /// The skull of `examples/head.rs`, head-local: its hair grows here.
-const EXAMPLE_SCALP: Scalp = Scalp {
-    centre: Vec3::new(0.0, 0.12, 0.01),
-    semi_axes: Vec3::new(0.078, 0.095, 0.1),
-    nape_height: -0.35,
-    brow_height: 0.45,
-};
-/// The example's neck height, m.
-const EXAMPLE_NECK_HEIGHT: f32 = 1.5;
 /// The example's followers per guide.
 const EXAMPLE_FOLLOWERS: usize = 10;
-/// The example's face ellipsoid: centre and semi-axes, head-local, m.
-const EXAMPLE_FACE: (Vec3, Vec3) = (Vec3::new(0.0, 0.065, -0.035), Vec3::new(0.062, 0.075, 0.07));
 
 /// The example's head (`examples/head.rs`) in `app`, with its groom of `style` (2 000 combed guides × 24
 /// edges, 10 followers each) and its colliders: skull and face on the head; neck, shoulders and torso.
 fn example_head(app: &mut bevy::prelude::App, style: HairStyle) -> bevy::prelude::Entity {
-    use bevy::prelude::{ChildOf, Quat, Transform};
+    use bevy::prelude::{ChildOf, Transform};
     let groom = HairGroom {
-        scalp: EXAMPLE_SCALP,
+        scalp: example_scene::SCALP,
         strand_count: 2000,
         segments: 24,
         style,
@@ -497,20 +494,14 @@ fn example_head(app: &mut bevy::prelude::App, style: HairStyle) -> bevy::prelude
         followers_per_guide: EXAMPLE_FOLLOWERS,
         ..HairGroom::default()
     };
-    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, EXAMPLE_NECK_HEIGHT, 0.0))).id();
-    let on_head = [(EXAMPLE_SCALP.centre, EXAMPLE_SCALP.semi_axes), EXAMPLE_FACE];
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, example_scene::NECK_HEIGHT, 0.0))).id();
+    let on_head = [(example_scene::SCALP.centre, example_scene::SCALP.semi_axes), example_scene::FACE];
     for (centre, semi_axes) in on_head {
         let collider = HairCollider::ellipsoid(semi_axes);
         app.world_mut().spawn((collider, Transform::from_translation(centre), HairColliderOf(head), ChildOf(head)));
     }
-    let half_turn = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
-    let on_body = [
-        (HairCollider::capsule(0.045, 0.05), Transform::from_xyz(0.0, 1.47, 0.0)),
-        (HairCollider::capsule(0.06, 0.12), Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(half_turn)),
-        (HairCollider::capsule(0.12, 0.35), Transform::from_xyz(0.0, 0.93, 0.0)),
-    ];
-    for (collider, transform) in on_body {
-        app.world_mut().spawn((collider, transform, HairColliderOf(head)));
+    for part in example_scene::BODY {
+        app.world_mut().spawn((part.collider(), part.transform(), HairColliderOf(head)));
     }
     head
 }
@@ -551,7 +542,7 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
 fn coverage(threads: usize, seconds: f32) {
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
-    let scalp = EXAMPLE_SCALP;
+    let scalp = example_scene::SCALP;
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
         ("rest", |_| Quat::IDENTITY),
@@ -646,7 +637,7 @@ fn coverage(threads: usize, seconds: f32) {
 /// off their 6 neighbours'), and the share of the face below the hairline and of the eyes a camera in
 /// front sees hidden by hair ([`coverage::share_seen`], 1 mm pixels); unheld, held as the example holds
 /// it, and held with the grid's pressure (50 Pa).
-fn styles_at_rest(threads: usize, seconds: f32) {
+fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
     use bevy::prelude::Transform;
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
     println!();
@@ -658,7 +649,7 @@ fn styles_at_rest(threads: usize, seconds: f32) {
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|");
     let (face, eyes) = example_face_points();
-    for style in HairStyle::ALL {
+    for &style in styles {
         for (hold, pressure) in [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)] {
             let mut app = Scene::app(Some(threads));
             {
@@ -713,8 +704,7 @@ fn styles_at_rest(threads: usize, seconds: f32) {
 /// chin to 1 cm under the hairline and between the outer corners of the eyes, each on the frontmost of the
 /// skull, the face and the eyes; and those of them on the eyes.
 fn example_face_points() -> (Vec<Vec3>, Vec<Vec3>) {
-    const EYES: [Vec3; 2] = [Vec3::new(-0.03, 0.115, -0.084), Vec3::new(0.03, 0.115, -0.084)];
-    const EYE_RADIUS: f32 = 0.011;
+    use example_scene::{EYE_RADIUS, EYES};
     // The front of an ellipsoid seen along +Z at (x, y), if it is there.
     let front = |centre: Vec3, semi_axes: Vec3, x: f32, y: f32| {
         let (u, v) = ((x - centre.x) / semi_axes.x, (y - centre.y) / semi_axes.y);
@@ -724,7 +714,7 @@ fn example_face_points() -> (Vec<Vec3>, Vec<Vec3>) {
     for row in 0..=65 {
         for column in 0..=40 {
             let (x, y) = (-0.04 + 0.002 * column as f32, 0.02 + 0.002 * row as f32);
-            let shapes = [(EXAMPLE_SCALP.centre, EXAMPLE_SCALP.semi_axes), EXAMPLE_FACE]
+            let shapes = [(example_scene::SCALP.centre, example_scene::SCALP.semi_axes), example_scene::FACE]
                 .into_iter()
                 .chain(EYES.map(|eye| (eye, Vec3::splat(EYE_RADIUS))));
             let Some(z) = shapes.filter_map(|(centre, semi_axes)| front(centre, semi_axes, x, y)).reduce(f32::min)

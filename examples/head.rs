@@ -34,8 +34,10 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_dis
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
 
-/// Height of the neck joint the head turns about, m.
-const NECK_HEIGHT: f32 = 1.5;
+#[path = "support/scene.rs"]
+mod scene;
+
+use scene::{BODY, EYE_RADIUS, EYES, FACE, NECK_HEIGHT, SCALP};
 
 fn main() {
     let options = match Options::from_args(std::env::args().skip(1)) {
@@ -83,14 +85,6 @@ fn main() {
     }
     app.insert_resource(options).run();
 }
-
-/// The example's skull, head-local, m.
-const SCALP: Scalp = Scalp {
-    centre: Vec3::new(0.0, 0.12, 0.01),
-    semi_axes: Vec3::new(0.078, 0.095, 0.1),
-    nape_height: -0.35,
-    brow_height: 0.45,
-};
 
 /// Command-line options: the scene's start and picture mode.
 #[derive(Resource, Debug, Clone)]
@@ -413,23 +407,12 @@ fn spawn_scene(
     // shape (the unit spheres scaled into ellipsoids by their transforms), tied to the head.
     let collider = |shape: HairCollider| (shape, HairColliderOf(head));
     let ellipsoid = |semi_axes: Vec3, centre: Vec3| Transform::from_translation(centre).with_scale(semi_axes);
+    let [neck, shoulders, torso] = BODY;
     commands.entity(body).with_children(|body| {
-        body.spawn((
-            part(Capsule3d::new(0.12, 0.7).into(), &shirt, Transform::from_xyz(0.0, 0.93, 0.0)),
-            collider(HairCollider::capsule(0.12, 0.35)),
-        ));
-        body.spawn((
-            part(
-                Capsule3d::new(0.06, 0.24).into(),
-                &shirt,
-                Transform::from_xyz(0.0, 1.36, 0.0).with_rotation(Quat::from_rotation_z(PI / 2.0)),
-            ),
-            collider(HairCollider::capsule(0.06, 0.12)),
-        ));
-        body.spawn((
-            part(Cylinder::new(0.045, 0.14).into(), &skin, Transform::from_xyz(0.0, 1.47, 0.0)),
-            collider(HairCollider::capsule(0.045, 0.05)),
-        ));
+        let capsule = |part: &scene::BodyCapsule| Capsule3d::new(part.radius, 2.0 * part.half_length);
+        body.spawn((part(capsule(&torso).into(), &shirt, torso.transform()), collider(torso.collider())));
+        body.spawn((part(capsule(&shoulders).into(), &shirt, shoulders.transform()), collider(shoulders.collider())));
+        body.spawn((part(Cylinder::new(neck.radius, 0.14).into(), &skin, neck.transform()), collider(neck.collider())));
     });
     commands.entity(head).with_children(|head| {
         head.spawn((
@@ -438,17 +421,14 @@ fn spawn_scene(
         ));
         // Face and jaw, in front of and below the skull (the face looks along −Z).
         head.spawn((
-            part(
-                Sphere::new(1.0).mesh().uv(32, 16),
-                &skin,
-                ellipsoid(Vec3::new(0.062, 0.075, 0.07), Vec3::new(0.0, 0.065, -0.035)),
-            ),
+            part(Sphere::new(1.0).mesh().uv(32, 16), &skin, ellipsoid(FACE.1, FACE.0)),
             collider(HairCollider::sphere(1.0)),
         ));
-        head.spawn(part(Sphere::new(0.011).into(), &white, Transform::from_xyz(-0.03, 0.115, -0.084)));
-        head.spawn(part(Sphere::new(0.011).into(), &white, Transform::from_xyz(0.03, 0.115, -0.084)));
-        head.spawn(part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(-0.03, 0.115, -0.0935)));
-        head.spawn(part(Sphere::new(0.0055).into(), &iris, Transform::from_xyz(0.03, 0.115, -0.0935)));
+        for eye in EYES {
+            head.spawn(part(Sphere::new(EYE_RADIUS).into(), &white, Transform::from_translation(eye)));
+            let iris_centre = eye - Vec3::Z * (EYE_RADIUS - 0.0015);
+            head.spawn(part(Sphere::new(0.5 * EYE_RADIUS).into(), &iris, Transform::from_translation(iris_centre)));
+        }
         head.spawn(part(
             Capsule3d::new(0.011, 0.03).into(),
             &skin,

@@ -1,7 +1,10 @@
 //! Grooming: roots spread evenly over the scalp along its normals, strand counts and shapes as asked,
 //! bad grooms rejected with their reason.
 
-use bevy::math::{DQuat, DVec3};
+#[path = "../examples/support/scene.rs"]
+mod scene;
+
+use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::groom::{GroomError, GroomObstacles, ScalpRoot};
 use bevy_hair_sim::prelude::*;
@@ -126,20 +129,17 @@ fn sharpest_turn(nodes: &[Vec3]) -> f32 {
     nodes.windows(3).map(|three| (three[1] - three[0]).angle_between(three[2] - three[1])).fold(0.0, f32::max)
 }
 
-/// The example's skull: wider front to back than side to side, the nape low.
-fn example_scalp() -> Scalp {
-    Scalp { centre: Vec3::new(0.0, 0.12, 0.01), semi_axes: Vec3::new(0.078, 0.095, 0.1), ..default() }
-}
-
-/// The example's body under its head, head-local: neck, shoulders and torso capsules (vertical, across,
-/// vertical).
+/// The example's body under its head, head-local: neck, shoulders and torso.
 fn example_body() -> Vec<(ColliderShape, RigidPose)> {
-    let across = DQuat::from_rotation_z(std::f64::consts::FRAC_PI_2);
-    vec![
-        (ColliderShape::capsule(0.045, 0.05), RigidPose::new(DQuat::IDENTITY, DVec3::new(0.0, -0.03, 0.0))),
-        (ColliderShape::capsule(0.06, 0.12), RigidPose::new(across, DVec3::new(0.0, -0.14, 0.0))),
-        (ColliderShape::capsule(0.12, 0.35), RigidPose::new(DQuat::IDENTITY, DVec3::new(0.0, -0.57, 0.0))),
-    ]
+    let neck = DVec3::Y * f64::from(scene::NECK_HEIGHT);
+    scene::BODY
+        .iter()
+        .map(|part| {
+            let transform = part.transform();
+            let pose = RigidPose::new(transform.rotation.as_dquat(), transform.translation.as_dvec3() - neck);
+            (ColliderShape::capsule(f64::from(part.radius), f64::from(part.half_length)), pose)
+        })
+        .collect()
 }
 
 #[test]
@@ -149,7 +149,7 @@ fn combed_strands_and_their_followers_turn_smoothly_on_a_head_shaped_skull() {
     // the rod refuses).
     for style in HairStyle::ALL {
         let groom = HairGroom {
-            scalp: example_scalp(),
+            scalp: scene::SCALP,
             strand_count: 2000,
             segments: 24,
             style,
@@ -176,7 +176,7 @@ fn falling_hair_drapes_over_the_body_instead_of_passing_through_it() {
     let body = example_body();
     let obstacles = GroomObstacles::new(body.clone());
     for style in [HairStyle::Straight, HairStyle::Long, HairStyle::Curly] {
-        let groom = HairGroom { scalp: example_scalp(), strand_count: 600, segments: 24, style, seed: 3, ..default() };
+        let groom = HairGroom { scalp: scene::SCALP, strand_count: 600, segments: 24, style, seed: 3, ..default() };
         let (shortest, longest) = style.length_range();
         let depth = |strands: &[HairStrand]| {
             let nodes = strands.iter().flat_map(|strand| &strand.nodes);

@@ -4,7 +4,9 @@
 mod common;
 
 use bevy::math::DVec3;
-use bevy_hair_sim::rod::{Rod, RodMaterial, RodWorkspace, StepParams};
+use bevy_hair_sim::rod::{
+    ColliderShape, Contacts, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepParams,
+};
 use common::run;
 
 /// A 12 cm human hair in 16 edges, clamped at the root: leaving the root sideways (+x), then curving
@@ -227,4 +229,58 @@ fn a_preloaded_strand_held_out_by_its_root_bend_falls_unless_stiffened_to_hold()
     );
     assert!(fallen > 0.01, "preloaded only, it stayed within {fallen} m");
     assert!(held < 1e-3, "stiffened to hold, it moved {held} m RMS");
+}
+
+#[test]
+fn long_hair_lying_over_a_skull_is_held_there_by_its_tension_not_by_rest_curls() {
+    // 35 cm of human hair combed from the crown of a 9 cm ball down its side and hanging 21 cm below:
+    // frictionless, the ball pushes the hair out and the hanging weight pulls it onto the ball, as a rope
+    // over a pulley. The preload leaves that to the support and changes the rest shape little.
+    let (radius, thickness, edge) = (0.09, 1e-4, 0.01);
+    let lying = radius + thickness;
+    let on_ball = (std::f64::consts::FRAC_PI_2 * lying / edge).round() as usize;
+    let mut nodes: Vec<DVec3> = (0..=on_ball)
+        .map(|node| {
+            let angle = std::f64::consts::FRAC_PI_2 * node as f64 / on_ball as f64;
+            lying * DVec3::new(angle.sin(), angle.cos(), 0.0)
+        })
+        .collect();
+    let supports: Vec<Option<DVec3>> =
+        nodes.iter().enumerate().map(|(node, at)| (node > 0).then(|| at.normalize())).chain(vec![None; 21]).collect();
+    for _ in 0..21 {
+        nodes.push(*nodes.last().unwrap() - DVec3::Y * edge);
+    }
+    let mut rod = Rod::new(&nodes, DVec3::Z, RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    let params = StepParams::default();
+    let present: Vec<f64> = (0..rod.node_count()).map(|vertex| rod.rest_curvatures()[vertex].length()).collect();
+    let mut unsupported = rod.clone();
+    unsupported.preload_for_gravity(params.gravity, &vec![None; rod.node_count()], 1.0).unwrap();
+    let largest_unsupported = unsupported.rest_curvatures().iter().map(|k| k.length()).fold(0.0, f64::max);
+    let report = rod.preload_for_gravity(params.gravity, &supports, 1.0).unwrap();
+    let largest_rest = rod.rest_curvatures().iter().map(|k| k.length()).fold(0.0, f64::max);
+    let largest_present = present.iter().copied().fold(0.0, f64::max);
+
+    let ball = [MovingCollider::fixed(ColliderShape::sphere(radius), 0.0, RigidPose::default())];
+    let contacts = Contacts { colliders: &ball, thickness };
+    let groomed = rod.positions().to_vec();
+    run_with(&mut rod, &params, &contacts, 180, &mut RodWorkspace::default());
+    let moved = rod.positions().iter().zip(&groomed).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+    println!(
+        "{on_ball} edges on the ball: largest rest curvature {largest_rest:.3} against {largest_present:.3} groomed \
+         (integrated; {largest_unsupported:.3} preloaded as if the ball were not there), {report:?}; after 3 s on a \
+         frictionless ball the largest move is {:.3} mm",
+        1e3 * moved
+    );
+    assert_eq!(report.bounded_vertices, 0);
+    assert!(largest_rest < 1.5 * largest_present, "rest curvature {largest_rest} against {largest_present}");
+    assert!(largest_unsupported > 3.0 * largest_present, "unsupported, curls hold it: {largest_unsupported}");
+    assert!(moved < 1e-3, "held within 1 mm: moved {moved} m");
+}
+
+/// Steps `rod` `steps` times against `contacts`.
+fn run_with(rod: &mut Rod, params: &StepParams, contacts: &Contacts, steps: usize, workspace: &mut RodWorkspace) {
+    for _ in 0..steps {
+        rod.step_with_contacts(params, None, contacts, workspace).unwrap();
+    }
 }

@@ -109,6 +109,12 @@ impl HairCollider {
         self.friction = friction;
         self
     }
+
+    /// This collider's shape scaled by `transform`'s scale, and the rigid pose that places it.
+    pub(crate) fn placed(&self, transform: &GlobalTransform) -> (ColliderShape, RigidPose) {
+        let ScaledPose { translation, rotation, scale } = ScaledPose::from(transform);
+        (self.shape.scaled(scale), RigidPose::new(rotation, translation))
+    }
 }
 
 /// Ties a collider to a head: that head's strands meet it (and, unless it is [`SharedHairCollider`], no
@@ -231,10 +237,9 @@ pub(crate) fn track_colliders(
                 continue;
             }
         };
-        let ScaledPose { translation, rotation, scale } = ScaledPose::from(&transform);
-        let shape = collider.shape.scaled(scale);
+        let (shape, pose) = collider.placed(&transform);
         let friction = f64::from(collider.friction);
-        let moving = MovingCollider::fixed(shape, friction, RigidPose::new(rotation, translation));
+        let moving = MovingCollider::fixed(shape, friction, pose);
         match moving.validate() {
             Ok(()) => {
                 motion.advance(moving.shape, friction, moving.end, f64::from(settings.teleport_distance));

@@ -437,9 +437,7 @@ impl GroomObstacles {
         Self::new(own.iter().filter_map(|&entity| {
             let collider = shapes.get(entity).ok()?;
             let transform = transforms.compute_global_transform(entity).ok()?;
-            let (scale, rotation, translation) = (to_head * transform.affine()).to_scale_rotation_translation();
-            let shape = collider.shape.scaled(scale.as_dvec3());
-            Some((shape, RigidPose::new(rotation.as_dquat().normalize(), translation.as_dvec3())))
+            Some(collider.placed(&GlobalTransform::from(to_head * transform.affine())))
         }))
     }
 
@@ -448,11 +446,11 @@ impl GroomObstacles {
         self.shapes.is_empty()
     }
 
-    /// The first obstacle that does not hold `root` (a hair grows out of the shapes its root is in) with
-    /// `point` (head-local) less than `reach` m outside it grown by `clearance`: how far outside that
-    /// surface `point` is (m, negative inside), and its outward normal there.
+    /// Of the obstacles that do not hold `root` (a hair grows out of the shapes its root is in), the one
+    /// whose surface grown by `clearance` is nearest `point` (head-local), if less than `reach` m outside
+    /// it: how far outside that surface `point` is (m, negative inside), and its outward normal there.
     fn nearest(&self, point: Vec3, clearance: f32, reach: f32, root: Vec3) -> Option<(f32, Vec3)> {
-        self.shapes.iter().find_map(|(shape, pose)| {
+        let within_reach = self.shapes.iter().filter_map(|(shape, pose)| {
             let grown = shape.inflated(f64::from(clearance));
             let (local, root) = (pose.to_local(point.as_dvec3()), pose.to_local(root.as_dvec3()));
             let gap = grown.distance_bound(local);
@@ -463,7 +461,8 @@ impl GroomObstacles {
                 let gap = if gap >= 0.0 { gap as f32 } else { -(surface.point - local).length() as f32 };
                 (gap, normal)
             })
-        })
+        });
+        within_reach.min_by(|a, b| a.0.total_cmp(&b.0))
     }
 }
 
