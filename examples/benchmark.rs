@@ -560,17 +560,18 @@ fn coverage(threads: usize, seconds: f32) {
         "The example's scene moving, {seconds} s each: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
     );
     println!(
-        "| motion | style hold, 1/s | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
+        "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
-    // Unheld, and held near the roots as strongly as a hold acting once per step can (see `HairStyleHold`).
-    let holds = [0.0, 200.0];
-    for ((name, rotation), hold) in motions.into_iter().flat_map(|motion| holds.iter().map(move |&hold| (motion, hold)))
-    {
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    // Unheld; held near the roots as strongly as a hold acting once per step can (see `HairStyleHold`);
+    // held, with the grid's pressure against the groom's packing.
+    let settings = [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)];
+    let runs = motions.into_iter().flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
+    for ((name, rotation), (hold, pressure)) in runs {
         let mut app = Scene::app(Some(threads));
         {
             let mut settings = app.world_mut().resource_mut::<HairSettings>();
-            settings.volume = HairVolume { enabled: true, ..HairVolume::default() };
+            settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
             settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
         }
         let head = example_head(&mut app, HairStyle::Straight);
@@ -620,7 +621,7 @@ fn coverage(threads: usize, seconds: f32) {
             }
         }
         println!(
-            "| {name} | {hold} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
+            "| {name} | {hold} | {pressure} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
             100.0 * largest.2,
             100.0 * last.2,
             100.0 * largest.0,
@@ -650,7 +651,7 @@ fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
     println!("|---|---:|---:|---:|---:|---:|---:|---:|");
     let (face, eyes) = example_face_points();
     for &style in styles {
-        for (hold, pressure) in [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)] {
+        for (hold, pressure) in [(0.0, 0.0), (0.0, 50.0), (200.0, 0.0), (200.0, 50.0)] {
             let mut app = Scene::app(Some(threads));
             {
                 let mut settings = app.world_mut().resource_mut::<HairSettings>();
@@ -992,6 +993,10 @@ fn volume_cost(threads: usize, steps: usize) {
         ("smoothing, 1 cm cells", HairVolume { cell_size: 0.01, ..on }),
         ("smoothing, 5 mm cells", on),
         ("smoothing and pressure (50 Pa), 5 mm", HairVolume { stiffness: 50.0, ..on }),
+        (
+            "the same, pressure against the target alone",
+            HairVolume { stiffness: 50.0, keep_groomed_volume: false, ..on },
+        ),
     ];
     let mut scenes: Vec<Scene> = rows
         .iter()

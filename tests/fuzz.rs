@@ -499,6 +499,7 @@ fn random_volume(rng: &mut fastrand::Rng) -> HairVolume {
         velocity_smoothing: uniform(rng, 0.0, 20.0) as f32,
         target_volume_fraction: uniform(rng, 0.05, 0.3) as f32,
         stiffness: sometimes_bad(rng, 0.05, |rng| uniform(rng, 0.0, 60.0)) as f32,
+        keep_groomed_volume: rng.bool(),
     }
 }
 

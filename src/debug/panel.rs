@@ -361,6 +361,9 @@ fn volume_grid(ui: &mut egui::Ui, volume: &mut HairVolume) {
         let target = egui::Slider::new(&mut volume.target_volume_fraction, 0.01..=0.5).logarithmic(true);
         grid_row(ui, "target volume fraction", target);
         grid_row(ui, "pressure stiffness (Pa)", egui::Slider::new(&mut volume.stiffness, 0.0..=200.0));
+        ui.label("");
+        ui.checkbox(&mut volume.keep_groomed_volume, "groomed packing at rest");
+        ui.end_row();
     });
 }
 

@@ -264,17 +264,29 @@ pub struct HairVolume {
     /// hair fills about a tenth of its volume; lower gives more volume. Default 0.1.
     pub target_volume_fraction: f32,
     /// Pressure of hair packed at twice its target fraction, Pa (the pressure grows linearly from zero
-    /// at the target). 0 turns the pressure off. Default 0: the grooms lay their hair in one thin layer,
-    /// packed far beyond any target, and the pressure rearranges a combed style to give it volume (see
-    /// [`crate::volume`]). 50 with 5 mm cells gives a head of 100 000 hairs a layer of 6 mm instead of 1. It is
+    /// at the target). 0 turns the pressure off. Default 0. With [`HairVolume::keep_groomed_volume`] off,
+    /// 50 with 5 mm cells gives a head of 100 000 hairs a layer of 6 mm instead of 1. It is
     /// an explicit force (the grid is built before the step): the stiffer it is, the smaller the cells
     /// and the longer the step, the likelier it jitters; the tests run 50 Pa on 5 mm cells at 60 Hz.
     pub stiffness: f32,
+    /// Whether hair packed as densely as it was groomed is at rest: the pressure pushes only where hair
+    /// is packed beyond both the target and its groom's own packing (measured where each node lay when
+    /// its strand was made). Default true: the grooms lay their hair in thin layers, packed far beyond
+    /// any target, and measured against the target alone the pressure rearranges a combed style to give
+    /// it volume (see [`crate::volume`]). Off, a groom laid flat swells to the target fraction.
+    pub keep_groomed_volume: bool,
 }
 
 impl Default for HairVolume {
     fn default() -> Self {
-        Self { enabled: false, cell_size: 0.005, velocity_smoothing: 5.0, target_volume_fraction: 0.1, stiffness: 0.0 }
+        Self {
+            enabled: false,
+            cell_size: 0.005,
+            velocity_smoothing: 5.0,
+            target_volume_fraction: 0.1,
+            stiffness: 0.0,
+            keep_groomed_volume: true,
+        }
     }
 }
 

@@ -12,8 +12,13 @@
 //! - smoothing fraction `α_c = 1 − exp(−k dt min(φ_c/φ₀, 1))`: the share of a node's velocity difference
 //!   from the hair around it that goes in one step at rate `k` (1/s), full where the hair is packed at
 //!   its target fraction `φ₀` and fading where it is sparse (a lone strand is not smoothed);
-//! - pressure `p_c = K max(φ_c/φ₀ − 1, 0)` (Pa): hair pushes back only when packed more densely than
-//!   `φ₀`; its push per volume of keratin `g_c = ∇p_c / max(φ_c, φ₀)` (central differences).
+//! - target fraction `φ₀_c = max(φ₀, φ̄_c)`, with `φ̄_c = Σ w_ic V_i φ̄_i / Σ w_ic V_i` the groomed
+//!   fraction of the hair there (`φ̄_i`: the fraction where node `i` lay in its groom, measured on the
+//!   same grid; 0 where not known). A groom lays its hair in thin layers, packed far beyond any `φ₀`;
+//!   measured against its own packing, the pressure leaves a groom at rest as it is and pushes back only
+//!   where hair is pressed together more than it was groomed;
+//! - pressure `p_c = K max(φ_c/φ₀_c − 1, 0)` (Pa): hair pushes back only when packed more densely than
+//!   that; its push per volume of keratin `g_c = ∇p_c / max(φ_c, φ₀_c)` (central differences).
 //!
 //! **What a node gets back.**
 //! - Velocity smoothing (Petrovic, Henne, Anderson 2005): `Δv_i = Σ_c w_ic α_c (u_c − v_i)`. Its momentum
@@ -61,6 +66,9 @@ pub struct GridParticle {
     pub mass: f64,
     /// Volume of keratin of the hair it stands for, m³.
     pub volume: f64,
+    /// The hair volume fraction where the node lies in its groom (0: not known). The pressure leaves hair
+    /// packed up to its groomed fraction alone (see the module documentation).
+    pub groomed_fraction: f64,
 }
 
 /// The physical parameters of the grid's response.
@@ -89,6 +97,8 @@ struct GridPoint {
     smoothing: f64,
     /// `φ_c`.
     fraction: f64,
+    /// The fraction beyond which the pressure pushes, `φ₀_c = max(φ₀, φ̄_c)`.
+    target: f64,
 }
 
 type Brick = [GridPoint; BRICK_POINTS];
@@ -118,7 +128,7 @@ struct Stencil {
 struct Slab {
     /// The bricks in use (the first `used`) and spare ones.
     bricks: Vec<Brick>,
-    /// The pressure's push `g_c = ∇p_c / max(φ_c, φ₀)` (Pa/m) at each point of each brick in use,
+    /// The pressure's push `g_c = ∇p_c / max(φ_c, φ₀_c)` (Pa/m) at each point of each brick in use,
     /// while the grid is `pressed`.
     pushes: Vec<[DVec3; BRICK_POINTS]>,
     /// Coordinates of each brick in use, in bricks.
@@ -179,6 +189,17 @@ impl VolumeGrid {
             sum += weight * self.slabs[slab].bricks[brick][local].fraction;
         });
         sum
+    }
+
+    /// The largest hair volume fraction at the 8 grid points around `position` (0 where there is no
+    /// hair): how densely the hair there is packed, at least, wherever in its cell it lies.
+    pub fn densest_fraction_around(&self, position: DVec3) -> f64 {
+        let Some(stencil) = self.placement.stencil(position) else { return 0.0 };
+        let mut densest = 0.0_f64;
+        self.for_each_corner(&stencil, |slab, brick, local, _| {
+            densest = densest.max(self.slabs[slab].bricks[brick][local].fraction);
+        });
+        densest
     }
 
     /// The velocity change `Δv = Σ w α (u − v)` of a node at `position` moving at `velocity` (m/s),
@@ -263,6 +284,7 @@ impl VolumeGrid {
                     point.velocity += weight * momentum;
                     point.smoothing += weight * particle.mass;
                     point.fraction += weight * particle.volume;
+                    point.target += weight * particle.volume * particle.groomed_fraction;
                 }
             }
         };
@@ -275,15 +297,17 @@ impl VolumeGrid {
         let cell_volume = self.placement.cell_size.powi(3);
         let target = params.target_fraction;
         let rate = params.smoothing_rate * params.dt;
-        let mut max_fraction = 0.0_f64;
+        let (mut max_fraction, mut packed) = (0.0_f64, false);
         for slab in &mut self.slabs {
             for point in slab.bricks[..slab.used].iter_mut().flatten() {
                 let (momentum, mass) = (point.velocity, point.smoothing);
                 if point.fraction == 0.0 {
                     continue;
                 }
+                point.target = (point.target / point.fraction).max(target);
                 point.fraction /= cell_volume;
                 max_fraction = max_fraction.max(point.fraction);
+                packed |= point.fraction > point.target;
                 (point.velocity, point.smoothing) = if mass > 0.0 && rate > 0.0 {
                     let smoothing = 1.0 - (-rate * (point.fraction / target).min(1.0)).exp();
                     (smoothing * momentum / mass, smoothing)
@@ -293,7 +317,7 @@ impl VolumeGrid {
             }
         }
         self.max_fraction = max_fraction;
-        self.pressed = params.stiffness > 0.0 && max_fraction > target;
+        self.pressed = params.stiffness > 0.0 && packed;
         if !self.pressed {
             return;
         }
@@ -308,9 +332,10 @@ impl VolumeGrid {
     /// The pressure's push at every point of slab `index`'s bricks, from each brick's pressures with a
     /// layer of its face neighbours' around them.
     fn compute_pushes(&self, index: usize, pushes: &mut [[DVec3; BRICK_POINTS]], params: &VolumeParams) {
-        let target = params.target_fraction;
         let half_over_cell = 0.5 / self.placement.cell_size;
-        let pressure = |fraction: f64| params.stiffness * (fraction / target - 1.0).max(0.0);
+        let pressure = |point: &GridPoint| {
+            if point.fraction > point.target { params.stiffness * (point.fraction / point.target - 1.0) } else { 0.0 }
+        };
         const PADDED: usize = BRICK + 2;
         let mut padded = [[[0.0_f64; PADDED]; PADDED]; PADDED];
         let slab = &self.slabs[index];
@@ -318,7 +343,7 @@ impl VolumeGrid {
         for ((brick, &coordinates), pushes) in bricks.zip(pushes.iter_mut()) {
             for (local, point) in brick.iter().enumerate() {
                 let [x, y, z] = local_coordinates(local);
-                padded[x + 1][y + 1][z + 1] = pressure(point.fraction);
+                padded[x + 1][y + 1][z + 1] = pressure(point);
             }
             for axis in 0..3 {
                 for (side, padded_layer, neighbour_layer) in [(-1, 0, BRICK - 1), (1, BRICK + 1, 0)] {
@@ -333,15 +358,14 @@ impl VolumeGrid {
                             (padded_at[others[0]], padded_at[others[1]]) = (a + 1, b + 1);
                             local[axis] = neighbour_layer;
                             padded_at[axis] = padded_layer;
-                            let value =
-                                neighbour.map_or(0.0, |neighbour| pressure(neighbour[local_index(local)].fraction));
+                            let value = neighbour.map_or(0.0, |neighbour| pressure(&neighbour[local_index(local)]));
                             padded[padded_at[0]][padded_at[1]][padded_at[2]] = value;
                         }
                     }
                 }
             }
             for (local, push) in pushes.iter_mut().enumerate() {
-                let fraction = brick[local].fraction;
+                let GridPoint { fraction, target, .. } = brick[local];
                 if fraction == 0.0 {
                     *push = DVec3::ZERO;
                     continue;
