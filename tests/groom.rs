@@ -205,6 +205,39 @@ fn falling_hair_drapes_over_the_body_instead_of_passing_through_it() {
 }
 
 #[test]
+fn followers_keep_to_their_guide_all_along_its_length() {
+    // Grown each on its own, a follower left its guide by centimetres (another length, the other side of
+    // a shoulder): 2 to 4 cm at the median, up to 21 cm; its offset, carried in the guide's turning
+    // frame, then swung it far from the hair. Each follower now lies as far from its guide everywhere as
+    // at the root.
+    let obstacles = GroomObstacles::new(example_body());
+    for style in HairStyle::ALL {
+        let groom = HairGroom {
+            scalp: scene::SCALP,
+            strand_count: 500,
+            segments: 24,
+            style,
+            seed: 1,
+            followers_per_guide: 10,
+            ..default()
+        };
+        let (mut farthest, mut widest) = (0.0_f32, 0.0_f32);
+        for (guide, followers) in groom.grow_with_followers_around(None, &obstacles).unwrap() {
+            for curve in &followers.curves {
+                let at_root = curve[0].distance(guide.nodes[0]);
+                let along = curve.iter().zip(&guide.nodes).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+                (farthest, widest) = (farthest.max(along - at_root), widest.max(at_root));
+            }
+        }
+        println!(
+            "{style:?}: followers up to {:.1} mm from their guide's root, {farthest:e} m farther along",
+            1e3 * widest
+        );
+        assert!(farthest < 1e-5, "{style:?}: a follower leaves its guide by {farthest} m beyond its root's offset");
+    }
+}
+
+#[test]
 fn the_same_seed_grows_the_same_hair_and_another_seed_other_hair() {
     let groom = HairGroom { strand_count: 50, style: HairStyle::Curly, ..default() };
     assert_eq!(groom.grow().unwrap(), groom.grow().unwrap());

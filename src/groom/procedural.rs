@@ -198,11 +198,13 @@ pub struct HairGroom {
     /// style's shape; `None` grows each strand straight out along the scalp's normal. Default: combed.
     pub combing: Option<Combing>,
     /// Follower hairs per simulated strand (see [`crate::followers`]): each guide strand carries this
-    /// many unsimulated hairs with roots of their own, spread evenly between the guides' roots, placed
-    /// from the guide's motion every step. 0 (the default) simulates every hair drawn.
+    /// many unsimulated hairs with roots of their own, spread evenly between the guides' roots, each in
+    /// its guide's shape moved onto its root, placed from the guide's motion every step. 0 (the default)
+    /// simulates every hair drawn.
     pub followers_per_guide: usize,
     /// How much followers gather onto their guide towards the tip, 0 to 1 (see
-    /// [`HairFollowers::clumping`]). Default 0: each follower keeps its own groomed shape.
+    /// [`HairFollowers::clumping`]). Default 0: each follower keeps its guide's groomed shape, moved onto
+    /// its own root.
     pub follower_clumping: f32,
     /// Hairs on the head the groom stands for, in the hair's volume ([`crate::volume`]): each strand is
     /// counted as `hair_count / strand_count` hairs (at least itself and its followers; see
@@ -330,19 +332,18 @@ impl HairGroom {
             let followers = HairFollowers { clumping: self.follower_clumping, ..HairFollowers::default() };
             grown.push((self.grow_strand(root, surface, obstacles, &mut random), followers));
         }
+        // A follower is its guide's shape moved onto its own root: grown on its own, it would leave its guide
+        // (another length, the other side of a shoulder, the other way round a parting) by centimetres,
+        // and its offset, carried in the guide's turning frame, swings it far from the hair when the guide
+        // twists.
         for root in follower_roots {
-            let nearest = guide_roots
-                .iter()
-                .enumerate()
-                .min_by(|a, b| {
-                    a.1.position
-                        .distance_squared(root.position)
-                        .total_cmp(&b.1.position.distance_squared(root.position))
-                })
-                .map(|(index, _)| index);
-            let follower = self.grow_strand(root, surface, obstacles, &mut random);
-            if let Some(guide) = nearest {
-                grown[guide].1.curves.push(follower.nodes);
+            let nearest = guide_roots.iter().enumerate().min_by(|a, b| {
+                a.1.position.distance_squared(root.position).total_cmp(&b.1.position.distance_squared(root.position))
+            });
+            if let Some((guide, guide_root)) = nearest {
+                let curve =
+                    grown[guide].0.nodes.iter().map(|&node| root.position + (node - guide_root.position)).collect();
+                grown[guide].1.curves.push(curve);
             }
         }
         Ok(grown)
