@@ -142,21 +142,26 @@ fn example_body() -> Vec<(ColliderShape, RigidPose)> {
         .collect()
 }
 
+/// A groom of `style` on the example's skull: `strands` guides × 24 edges with `followers` each.
+fn example_groom(style: HairStyle, strands: usize, followers: usize) -> HairGroom {
+    HairGroom {
+        scalp: scene::SCALP,
+        strand_count: strands,
+        segments: 24,
+        style,
+        seed: 1,
+        followers_per_guide: followers,
+        ..default()
+    }
+}
+
 #[test]
 fn combed_strands_and_their_followers_turn_smoothly_on_a_head_shaped_skull() {
     // Short hair combed all the way along the example's skull once ran into the underside of the skull,
     // where "down" along the scalp turns back on itself, and doubled back there (a turn of 180°, a strand
     // the rod refuses).
     for style in HairStyle::ALL {
-        let groom = HairGroom {
-            scalp: scene::SCALP,
-            strand_count: 2000,
-            segments: 24,
-            style,
-            seed: 1,
-            followers_per_guide: 2,
-            ..default()
-        };
+        let groom = example_groom(style, 2000, 2);
         for obstacles in [GroomObstacles::default(), GroomObstacles::new(example_body())] {
             let grown = groom.grow_with_followers_around(None, &obstacles).unwrap();
             let hairs = grown.iter().flat_map(|(guide, followers)| {
@@ -212,15 +217,7 @@ fn followers_keep_to_their_guide_all_along_its_length() {
     // at the root.
     let obstacles = GroomObstacles::new(example_body());
     for style in HairStyle::ALL {
-        let groom = HairGroom {
-            scalp: scene::SCALP,
-            strand_count: 500,
-            segments: 24,
-            style,
-            seed: 1,
-            followers_per_guide: 10,
-            ..default()
-        };
+        let groom = example_groom(style, 500, 10);
         let (mut farthest, mut widest) = (0.0_f32, 0.0_f32);
         for (guide, followers) in groom.grow_with_followers_around(None, &obstacles).unwrap() {
             for curve in &followers.curves {
