@@ -8,8 +8,8 @@
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
-//! default), `--style NAME` to measure one style in `styles`. Bevy's task pools are set once per process, so the parallel table runs this program again
-//! with `--threads`.
+//! default), `--style NAME` to measure one style in `styles`. Bevy's task pools are set once per
+//! process, so the parallel table runs this program again with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;
@@ -477,7 +477,6 @@ mod gpu {
     }
 }
 
-/// The skull of `examples/head.rs`, head-local: its hair grows here.
 /// The example's followers per guide.
 const EXAMPLE_FOLLOWERS: usize = 10;
 

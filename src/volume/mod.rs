@@ -243,7 +243,9 @@ pub(crate) fn interact_through_grid(
     }
     let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).max(1);
     let readonly = strands.as_readonly();
-    if settings.volume.keep_groomed_volume {
+    // Only the pressure reads the groomed fractions, and only while it keeps the groom.
+    let keep_groomed = settings.volume.keep_groomed_volume && params.stiffness > 0.0;
+    if keep_groomed {
         for group in &mut grids.groups {
             let strand_of = |entity: Entity| {
                 let (strand, _, _, represented, followers, _) = readonly.get(entity).ok()?;
@@ -258,7 +260,7 @@ pub(crate) fn interact_through_grid(
         let mut pieces = Vec::with_capacity(threads);
         let total = group.particles.len();
         let mut rest = group.particles.as_mut_slice();
-        let groomed = &group.groomed;
+        let groomed = keep_groomed.then_some(&group.groomed);
         for (index, strands_of_piece) in group.strands.chunks(chunk).enumerate() {
             let end = group.strands.get((index + 1) * chunk).map_or(total, |next| next.1);
             let (piece, after) = rest.split_at_mut(end - strands_of_piece[0].1);
@@ -275,7 +277,7 @@ pub(crate) fn interact_through_grid(
                 let density = rod.material().density;
                 let nodes = rod.positions().iter().zip(rod.velocities()).zip(rod.masses()).enumerate();
                 let slots = &mut piece[offset - first..offset - first + rod.node_count()];
-                let groomed = groomed.get(&entity).map_or(&[][..], Vec::as_slice);
+                let groomed = groomed.and_then(|groomed| groomed.get(&entity)).map_or(&[][..], Vec::as_slice);
                 for (slot, (node, ((&position, &velocity), &mass))) in slots.iter_mut().zip(nodes) {
                     *slot = GridParticle {
                         position,
