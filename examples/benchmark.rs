@@ -8,7 +8,8 @@
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
-//! default), `--style NAME` to measure one style in `styles`. Bevy's task pools are set once per
+//! default), `--style NAME` to measure one style in `styles`, `--motion NAME` one motion (`rest`, `shake`,
+//! `turn`, `flick`) in `coverage`. Bevy's task pools are set once per
 //! process, so the parallel table runs this program again with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
@@ -93,7 +94,8 @@ fn main() {
         .iter()
         .enumerate()
         .filter(|&(index, arg)| {
-            !arg.starts_with("--") && (index == 0 || !["--threads", "--style"].contains(&args[index - 1].as_str()))
+            !arg.starts_with("--")
+                && (index == 0 || !["--threads", "--style", "--motion"].contains(&args[index - 1].as_str()))
         })
         .map(|(_, arg)| arg.as_str())
         .collect();
@@ -140,7 +142,8 @@ fn main() {
         crowd(threads, steps);
     }
     if wanted("coverage") {
-        coverage(threads, if quick { 1.0 } else { 4.0 });
+        let motion = args.iter().position(|arg| arg == "--motion").and_then(|position| args.get(position + 1));
+        coverage(threads, if quick { 1.0 } else { 4.0 }, motion.map(String::as_str));
     }
     if wanted("styles") {
         let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
@@ -538,7 +541,7 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
 /// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
 /// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
 /// ([`HairStyleHold`] at 200/s).
-fn coverage(threads: usize, seconds: f32) {
+fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
@@ -562,10 +565,11 @@ fn coverage(threads: usize, seconds: f32) {
         "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
     );
     println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
-    // Unheld; held near the roots as strongly as a hold acting once per step can (see `HairStyleHold`);
-    // held, with the grid's pressure against the groom's packing.
+    // Unheld; held at the example's 200/s (see `HairStyleHold`); held, with the grid's pressure against
+    // the groom's packing.
     let settings = [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)];
-    let runs = motions.into_iter().flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
+    let motions = motions.into_iter().filter(|(name, _)| only.is_none_or(|only| only == *name));
+    let runs = motions.flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
     for ((name, rotation), (hold, pressure)) in runs {
         let mut app = Scene::app(Some(threads));
         {

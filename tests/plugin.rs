@@ -9,6 +9,7 @@ use bevy::math::DVec3;
 use bevy::mesh::MeshPlugin;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::simulation::HeadMotion;
 use common::headless::{DT, drain_messages, hair_app, hair_app_with, spawn_head, strand};
 
 /// The world positions the root edge's two nodes must have for a head whose world transform is `head`.
@@ -206,4 +207,46 @@ fn a_strand_given_to_another_head_is_rooted_there() {
     let tip_to_head = positions.last().unwrap().distance(DVec3::new(2.0, 1.0, 0.0));
     assert!(tip_to_head < 0.31, "the whole strand moved to its new head ({tip_to_head} m from it)");
     assert_eq!(app.world().get::<HeadStrands>(other).unwrap().strands(), &[strands[1]]);
+}
+
+#[test]
+fn hair_drawn_between_steps_is_carried_onto_the_head_where_it_is_now() {
+    let mut app = hair_app();
+    let (head, strands) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 40, 12);
+    // The head turns 0.1 rad per step about y and drifts sideways, as a head shaken hard does.
+    let pose = |step: usize| {
+        Transform::from_xyz(0.01 * step as f32, 1.6, 0.0).with_rotation(Quat::from_rotation_y(0.1 * step as f32))
+    };
+    for step in 0..10 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = pose(step);
+        app.update();
+    }
+    let motion = *app.world().get::<HeadMotion>(head).unwrap();
+    let anchor = |transform: &Transform, entity: Entity| {
+        transform.transform_point(app.world().get::<HairStrand>(entity).unwrap().nodes[0])
+    };
+    // Not moved since the last step: drawn where stepped.
+    let last = GlobalTransform::from(pose(9));
+    assert!(motion.drawn_to_now(1.0, &last).abs_diff_eq(bevy::math::Affine3A::IDENTITY, 1e-5));
+    // Moved on after the step, as a game's `Update` moves it: a step and a half further.
+    let now = pose(9).with_rotation(Quat::from_rotation_y(1.05)).with_translation(Vec3::new(0.105, 1.6, 0.0));
+    // The drawing interpolates positions along the chord between the two steps; a root on a circle of
+    // radius r turned by 0.1 rad lies at most r (1 − cos 0.05) from its chord.
+    let radius = strands.iter().map(|&entity| anchor(&Transform::IDENTITY, entity).xz().length()).fold(0.0, f32::max);
+    let sagitta = radius * (1.0 - 0.05_f32.cos());
+    for alpha in [0.0, 0.5, 1.0] {
+        let carry = motion.drawn_to_now(alpha, &GlobalTransform::from(now));
+        let mut worst: f32 = 0.0;
+        for &entity in &strands {
+            let nodes = app.world().get::<StrandNodes>(entity).unwrap();
+            let drawn = nodes.previous_positions[0].lerp(nodes.positions[0], alpha);
+            worst = worst.max(carry.transform_point3(drawn).distance(anchor(&now, entity)));
+        }
+        println!("alpha {alpha}: carried roots at most {worst:e} m from their anchors on the head now");
+        let bound = if alpha == 0.5 { sagitta + 1e-6 } else { 1e-5 };
+        assert!(worst <= bound, "alpha {alpha}: a carried root is {worst:e} m off (bound {bound:e})");
+    }
+    // Uncarried, the roots would trail the head by a step and a half: the bald scalp a turning head shows.
+    let nodes = app.world().get::<StrandNodes>(strands[0]).unwrap();
+    assert!(nodes.positions[0].distance(anchor(&now, strands[0])) > 0.01);
 }

@@ -109,7 +109,6 @@ fn common_definitions() -> HashMap<String, ShaderDefValue> {
     let mut definitions: HashMap<String, ShaderDefValue> = HashMap::new();
     definitions.insert("MATERIAL_BIND_GROUP".into(), ShaderDefValue::UInt(3));
     definitions.insert("AVAILABLE_STORAGE_BUFFER_BINDINGS".into(), ShaderDefValue::UInt(16));
-    definitions.insert("PER_OBJECT_BUFFER_BATCH_SIZE".into(), ShaderDefValue::UInt(0));
     definitions.insert("VERTEX_OUTPUT_INSTANCE_INDEX".into(), ShaderDefValue::Bool(true));
     definitions.insert("VIEW_PROJECTION_PERSPECTIVE".into(), ShaderDefValue::Bool(true));
     definitions

@@ -3,13 +3,15 @@
 use bevy::color::Mix;
 use bevy::gizmos::GizmoPlugin;
 use bevy::gizmos::config::{GizmoConfigGroup, GizmoConfigStore};
+use bevy::math::Affine3A;
 use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
 
 use crate::collision::ColliderMotion;
 use crate::followers::FollowerNodes;
 use crate::rod::ColliderShape;
 use crate::schedule::HairDrawSystems;
-use crate::simulation::{SimulatedStrand, StrandNodes};
+use crate::simulation::{HeadMotion, SimulatedStrand, StrandNodes, StrandOf};
 
 /// The gizmo group hair is drawn in, with its colours. Change it (and the line width, depth bias, …) at
 /// run time through `GizmoConfigStore::config_mut::<HairGizmos>()`.
@@ -111,13 +113,16 @@ fn renders_hair(app: &App) -> bool {
 }
 
 /// Draws each strand at the pose a fraction of the way between its last two steps that the fixed clock has
-/// run past the last step, so that hair moves smoothly when frames come faster than steps. Followers are
+/// run past the last step, so that hair moves smoothly when frames come faster than steps, carried onto
+/// its head as the head is now ([`HeadMotion::drawn_to_now`], as the renderer draws it). Followers are
 /// drawn where the CPU placed them: under the renderer, which places them on the GPU, only those of heads
 /// marked [`PlaceFollowersOnCpu`](crate::followers::PlaceFollowersOnCpu).
 pub fn draw_strands(
     mut gizmos: Gizmos<HairGizmos>,
     fixed_time: Res<Time<Fixed>>,
-    strands: Query<(&StrandNodes, Option<&FollowerNodes>), With<SimulatedStrand>>,
+    strands: Query<(&StrandNodes, Option<&FollowerNodes>, Option<&StrandOf>), With<SimulatedStrand>>,
+    heads: Query<&HeadMotion>,
+    transforms: TransformHelper,
 ) {
     if !gizmos.config_ext.draw_strands {
         return;
@@ -126,16 +131,33 @@ pub fn draw_strands(
     let root = gizmos.config_ext.root_color.to_linear();
     let tip = gizmos.config_ext.tip_color.to_linear();
     let draw_followers = gizmos.config_ext.draw_followers;
-    for (nodes, followers) in &strands {
+    // The carry of the last head met: a head's strands usually come one after another.
+    let mut last_head: Option<(Entity, Affine3A)> = None;
+    for (nodes, followers, head) in &strands {
+        let carry = match (head, last_head) {
+            (None, _) => Affine3A::IDENTITY,
+            (Some(&StrandOf(head)), Some((last, carry))) if head == last => carry,
+            (Some(&StrandOf(head)), _) => {
+                // From the head's transform as it is (also where nothing propagates transforms).
+                let now = transforms.compute_global_transform(head);
+                let carry = match (heads.get(head), now) {
+                    (Ok(motion), Ok(now)) => motion.drawn_to_now(alpha, &now),
+                    _ => Affine3A::IDENTITY,
+                };
+                last_head = Some((head, carry));
+                carry
+            }
+        };
         let count = nodes.positions.len();
         let last = count.saturating_sub(1).max(1) as f32;
         let colors = move || (0..count).map(move |node| root.mix(&tip, node as f32 / last));
-        gizmos.linestrip_gradient(nodes.interpolated(alpha).zip(colors()));
+        let carried = |point: Vec3| carry.transform_point3(point);
+        gizmos.linestrip_gradient(nodes.interpolated(alpha).map(carried).zip(colors()));
         let Some(followers) = followers.filter(|_| draw_followers) else {
             continue;
         };
         for follower in 0..followers.count() {
-            gizmos.linestrip_gradient(followers.interpolated(follower, alpha).zip(colors()));
+            gizmos.linestrip_gradient(followers.interpolated(follower, alpha).map(carried).zip(colors()));
         }
     }
 }

@@ -25,8 +25,8 @@ use crate::followers::{FollowerNodes, FollowerPlacement};
 use crate::groom::StrandColors;
 use crate::schedule::HairDrawSystems;
 use crate::simulation::{
-    CheckedSettings, HairHead, HeadStrands, PackedStrandPose, SimulatedStrand, SteppedElsewhere, StrandColliders,
-    StrandFrames, StrandNodes, StrandOf,
+    CheckedSettings, HairHead, HeadMotion, HeadStrands, PackedStrandPose, SimulatedStrand, SteppedElsewhere,
+    StrandColliders, StrandFrames, StrandNodes, StrandOf,
 };
 use crate::volume::RepresentedHairs;
 
@@ -60,6 +60,11 @@ impl Plugin for HairRenderPlugin {
             app.insert_resource(FollowerPlacement::Gpu);
         }
         app.add_plugins(MaterialPlugin::<HairMaterial>::default())
+            // The hair mesh's transform and bounds, set here, are the ones this frame is culled with.
+            .configure_sets(
+                PostUpdate,
+                HairDrawSystems.before(bevy::camera::visibility::VisibilitySystems::CheckVisibility),
+            )
             .add_systems(PostUpdate, (spawn_hair_meshes, prepare_hair_meshes).chain().in_set(HairDrawSystems));
         if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             render_app
@@ -289,6 +294,7 @@ type HairMeshParts = (
     &'static MeshMaterial3d<HairMaterial>,
     &'static mut Aabb,
     &'static InheritedVisibility,
+    &'static mut GlobalTransform,
 );
 
 /// What the renderer reads of each guide it draws, in one lookup: its strand, nodes, followers, the hairs it
@@ -325,7 +331,7 @@ fn prepare_hair_meshes(
     checked: Res<CheckedSettings>,
     colliders: StrandColliders,
     mut hair_meshes: Query<HairMeshParts>,
-    heads: Query<(Ref<HeadStrands>, &GlobalTransform, Option<&HairAppearance>)>,
+    heads: Query<(Ref<HeadStrands>, &GlobalTransform, &HeadMotion, Option<&HairAppearance>)>,
     strands: Query<DrawnStrand>,
     colors: Query<&StrandColors>,
     gpu_steps: Option<Res<GpuStepCount>>,
@@ -338,11 +344,14 @@ fn prepare_hair_meshes(
     let threads = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num());
     let on_gpu = placement.is_some_and(|placement| *placement == FollowerPlacement::Gpu);
     let gpu_steps = gpu_steps.map(|count| *count);
-    for (entity, mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility) in &mut hair_meshes {
-        let Ok((head_strands, head_transform, appearance)) = heads.get(child_of.parent()) else { continue };
+    for (entity, mut hair_mesh, child_of, mut mesh, material, mut aabb, visibility, mut carried) in &mut hair_meshes {
+        let Ok((head_strands, head_transform, motion, appearance)) = heads.get(child_of.parent()) else { continue };
         if !visibility.get() {
             continue;
         }
+        // The nodes are drawn where they were stepped, carried onto the head as it is now (its transform
+        // propagated this frame): the mesh's own transform, set over the one propagated from the head.
+        *carried = GlobalTransform::from(motion.drawn_to_now(alpha, head_transform));
         // A new appearance is checked once; an invalid one is reported and the last valid one kept.
         let requested = appearance.cloned().unwrap_or_default();
         let mut appearance = hair_mesh.appearance.clone().unwrap_or_default();
@@ -440,7 +449,7 @@ fn prepare_hair_meshes(
         }
         if let Ok(Some((low, high))) = bounds {
             // The ribbons reach a hair's radius (or a pixel) beyond the nodes: a centimetre covers both.
-            *aabb = local_bounds(head_transform, low - Vec3::splat(0.01), high + Vec3::splat(0.01));
+            *aabb = Aabb::from_min_max(low - Vec3::splat(0.01), high + Vec3::splat(0.01));
         }
     }
 }
@@ -535,17 +544,6 @@ fn send_gpu_fed(
     }
     hair_mesh.gpu_frame = Some(GpuFrame { layout, step: stepped, alpha, snap: layout || new_steps > 1 });
     None
-}
-
-/// The bounds, in the head's local space, of the world box `low … high`.
-fn local_bounds(head: &GlobalTransform, low: Vec3, high: Vec3) -> Aabb {
-    let to_local = head.affine().inverse();
-    let corners = (0..8).map(|corner| {
-        let pick = |bit: usize, a: f32, b: f32| if corner & bit == 0 { a } else { b };
-        to_local.transform_point3(Vec3::new(pick(1, low.x, high.x), pick(2, low.y, high.y), pick(4, low.z, high.z)))
-    });
-    let (min, max) = corners.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| (a.min(c), b.max(c)));
-    Aabb::from_min_max(min, max)
 }
 
 /// This frame's node positions of each head, moved from the main world, with the buffer they go to.

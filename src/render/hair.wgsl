@@ -4,6 +4,7 @@
 // with PREPASS_PIPELINE, draws the hair into shadow maps (ribbons then face the light).
 
 #import bevy_pbr::mesh_view_bindings::view
+#import bevy_pbr::mesh_functions::get_world_from_local
 
 #ifdef PREPASS_PIPELINE
 #import bevy_pbr::prepass_io::VertexOutput
@@ -41,8 +42,11 @@ struct Vertex {
 #endif
 }
 
-fn node_position(node: u32) -> vec3<f32> {
-    return vec3(positions[3u * node], positions[3u * node + 1u], positions[3u * node + 2u]);
+// A node where it is drawn: where it was stepped, carried by the mesh's transform onto the head as it is
+// this frame (`HeadMotion::drawn_to_now`).
+fn node_position(node: u32, world_from_local: mat4x4<f32>) -> vec3<f32> {
+    let stepped = vec3(positions[3u * node], positions[3u * node + 1u], positions[3u * node + 2u]);
+    return (world_from_local * vec4(stepped, 1.0)).xyz;
 }
 
 fn is_orthographic() -> bool {
@@ -69,15 +73,16 @@ struct Ribbon {
 // The ribbon vertex of a hair vertex: the node moved sideways, along tangent × (direction to the eye), by
 // half the drawn width; the drawn width is the hair's diameter, or `min_pixel_width` pixels where that is
 // wider, with the coverage lowered in proportion (`bevy_hair_sim::render::ribbon_width`).
-fn ribbon(vertex: Vertex) -> Ribbon {
+fn ribbon(vertex: Vertex, instance_index: u32) -> Ribbon {
+    let world_from_local = get_world_from_local(instance_index);
     let node = vertex.hair.x;
     let packed = vertex.hair.z;
     let side = f32(packed & 1u) * 2.0 - 1.0;
     let along = (packed >> 1u) & 0x7fffu;
     let last = packed >> 16u;
-    let position = node_position(node);
-    let previous = node_position(select(node - 1u, node, along == 0u));
-    let next = node_position(select(node + 1u, node, along >= last));
+    let position = node_position(node, world_from_local);
+    let previous = node_position(select(node - 1u, node, along == 0u), world_from_local);
+    let next = node_position(select(node + 1u, node, along >= last), world_from_local);
     var tangent = next - previous;
     tangent = select(vec3(0.0, 1.0, 0.0), normalize(tangent), dot(tangent, tangent) > 1e-20);
     let eye = towards_eye(position);
@@ -106,7 +111,7 @@ fn ribbon(vertex: Vertex) -> Ribbon {
 
 @vertex
 fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> VertexOutput {
-    let ribbon = ribbon(vertex);
+    let ribbon = ribbon(vertex, instance_index);
     var out: VertexOutput;
     out.world_position = vec4(ribbon.world_position, 1.0);
     out.position = view.clip_from_world * out.world_position;
@@ -144,8 +149,8 @@ struct HairVertexOutput {
 }
 
 @vertex
-fn vertex(vertex: Vertex) -> HairVertexOutput {
-    let ribbon = ribbon(vertex);
+fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> HairVertexOutput {
+    let ribbon = ribbon(vertex, instance_index);
     var out: HairVertexOutput;
     out.position = view.clip_from_world * vec4(ribbon.world_position, 1.0);
     out.world_position = ribbon.world_position;

@@ -133,6 +133,18 @@ pub enum RodError {
         /// The change that was given, m/s.
         change: DVec3,
     },
+    /// An anchor ([`crate::rod::Anchor`]) with a non-finite target or a negative or non-finite stiffness.
+    #[error(
+        "the anchor at node {node} (towards {target}, stiffness {stiffness} 1/s²) needs a finite target and a finite, non-negative stiffness"
+    )]
+    InvalidAnchor {
+        /// The node the anchor was given for.
+        node: usize,
+        /// Where it pulls, m.
+        target: DVec3,
+        /// Its stiffness per unit mass, 1/s².
+        stiffness: f64,
+    },
     /// A node or edge index past the end of the rod.
     #[error("{what} index {index} is out of range (the rod has {count})")]
     OutOfRange {

@@ -65,6 +65,6 @@ pub use lockstep::{LANES, LockstepResults, LockstepStrand, LockstepWorkspace};
 pub use material::{MATERIAL_RANGES, RodMaterial, Stiffness};
 pub use params::{Integrator, MAX_DT, MAX_GRAVITY, StepParams};
 pub use preload::{FLIP_MARGIN, MAX_PRELOAD_TURN, PreloadReport, SELF_WEIGHT_BUCKLING, TWIST_HOLDING};
-pub use solver::{EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepLoads, StepReport};
+pub use solver::{Anchor, EXTRA_PROJECTION_ITERATIONS, RodWorkspace, StepLoads, StepReport};
 pub use state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState, StepHistory};
 pub use timing::StepTimings;

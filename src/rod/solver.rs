@@ -8,11 +8,12 @@
 //! see [`Integrator`]). Written with the scheme's step `h` and prediction `x̂`, `v̂` ([`Scheme`];
 //! backward Euler `h = dt`, `x̂ = xₙ`, `v̂ = vₙ`), each Newton iteration solves
 //!
-//! `(M/h² + D/h + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u) + ∇E + β/dt H (q − q̃) − f]`
+//! `(M/h² + D/h + M K + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u) + M K (q − x̄) + ∇E + β/dt H (q − q̃) − f]`
 //!
 //! over the unknowns `q = (x_0, θ^0, …, x_n)` (the twists with backward Euler's weights), where `H` is
 //! the positive semi-definite Hessian approximation of [`super::energy`], `D` the air drag relative to
-//! the air's velocity `u` ([`StepParams::air_damping`]) and `β` the internal (stiffness-proportional)
+//! the air's velocity `u` ([`StepParams::air_damping`]), `K` the anchors' stiffnesses per unit mass
+//! pulling towards `x̄` ([`Anchor`]) and `β` the internal (stiffness-proportional)
 //! damping measured from the configuration `q̃` below. Prescribed unknowns (pins, clamps) enter as known
 //! displacements. The matrix is banded (half-bandwidth 10), so each solve costs `O(n)`.
 //!
@@ -150,6 +151,22 @@ pub struct StepLoads<'a> {
     /// nodes ignore it. With BDF2 the velocity one step back changes too, so that both integrators'
     /// predicted velocity `v̂` moves by exactly the change.
     pub velocity_changes: Option<&'a [DVec3]>,
+    /// A zero-length spring on each node towards a place, inside the implicit solve (one per node), or
+    /// none: see [`Anchor`]. Prescribed nodes ignore theirs.
+    pub anchors: Option<&'a [Anchor]>,
+}
+
+/// A node drawn towards `target` by a zero-length spring of stiffness `m k` (`m` the node's mass), the
+/// force `−m k (x − target)` taken implicitly with the rest of the step, so that the elastic forces and
+/// inertia of the strand beyond it pull against it in the same solve (the plugin's style hold ties hair to
+/// its groomed shape with them). On a free node alone it is an oscillator of angular frequency
+/// `√k`, which the implicit step damps; against a steady force `F` it gives way by `F/(m k)`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Anchor {
+    /// Where the spring pulls the node at the end of the step, m.
+    pub target: DVec3,
+    /// Stiffness per unit of the node's mass `k`, 1/s² (finite, not negative; 0: no spring).
+    pub stiffness: f64,
 }
 
 /// What a successful step measured.
@@ -315,6 +332,17 @@ impl Rod {
                 return Err(RodError::NonFiniteVelocityChange { node, change }.into());
             }
             self.change_velocities(changes);
+        }
+        if let Some(anchors) = loads.anchors {
+            if anchors.len() != self.node_count() {
+                return Err(RodError::WrongLength { expected: self.node_count(), actual: anchors.len() }.into());
+            }
+            let unusable = |anchor: &Anchor| {
+                !(anchor.target.is_finite() && anchor.stiffness.is_finite() && anchor.stiffness >= 0.0)
+            };
+            if let Some((node, anchor)) = anchors.iter().enumerate().find(|(_, anchor)| unusable(anchor)) {
+                return Err(RodError::InvalidAnchor { node, target: anchor.target, stiffness: anchor.stiffness }.into());
+            }
         }
         Ok(())
     }
@@ -699,8 +727,8 @@ impl Rod {
     /// Inertia `M (q − x̂ − h v̂)/h²` of the nodes and of the edges' spin (see [`Scheme`]), the air drag
     /// `D (v − u)` with `v = (q − x̂)/h` (see [`StepParams::air_damping`]: `D = m γ [I − (1 − r) t tᵀ]` per
     /// node, `t` its tangent at the start of the step, `u` the air's velocity, still air without
-    /// `air_velocities`), spin drag `γ J θ̇`, with Hessian `M/h² + D/h`, and the forces: gravity `M g`
-    /// and `external_forces` (N).
+    /// `air_velocities`), spin drag `γ J θ̇`, the anchors' springs `m k (x − x̄)` ([`Anchor`]), with Hessian
+    /// `M/h² + D/h + M K`, and the forces: gravity `M g` and `external_forces` (N).
     fn add_inertia_and_external_forces(&self, params: &StepParams, loads: &StepLoads, workspace: &mut RodWorkspace) {
         let RodWorkspace { hessian, residual, saved, scheme, .. } = workspace;
         let (h, gamma) = (scheme.h, params.air_damping);
@@ -723,9 +751,14 @@ impl Rod {
                 n => (tangents[n - 1] + tangents[n]).normalize_or(tangents[n]),
             };
             let drag = mass * gamma * (DMat3::IDENTITY - (1.0 - params.axial_drag_ratio) * outer_product(tangent));
-            let residual_node =
+            let mut residual_node =
                 mass / (h * h) * (offset - h * scheme.velocities[node]) + drag * relative_velocity - force;
-            let block = DMat3::from_diagonal(DVec3::splat(mass / (h * h))) + drag / h;
+            let mut diagonal = mass / (h * h);
+            if let Some(anchor) = loads.anchors.map(|anchors| anchors[node]).filter(|anchor| anchor.stiffness > 0.0) {
+                residual_node += mass * anchor.stiffness * (self.state.positions[node] - anchor.target);
+                diagonal += mass * anchor.stiffness;
+            }
+            let block = DMat3::from_diagonal(DVec3::splat(diagonal)) + drag / h;
             for row in 0..3 {
                 let dof = node_dof(node) + row;
                 residual[dof] += residual_node[row];

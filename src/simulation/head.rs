@@ -1,5 +1,6 @@
 //! Heads: the bodies hair is rooted on, and the relationship that ties strands to them.
 
+use bevy::math::Affine3A;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
@@ -77,6 +78,30 @@ impl HeadMotion {
     /// strands were then carried along rigidly instead of being whipped.
     pub fn teleported(&self) -> bool {
         self.teleported
+    }
+
+    /// The rigid motion that carries hair drawn a fraction `alpha` of the way from the previous step to
+    /// the last (as the drawing interpolates it) onto the head where it is now, `now` (its
+    /// `GlobalTransform` this frame). Hair is stepped where the head was at the fixed steps, but a game
+    /// usually moves its heads after them (in `Update`, or with its animation in `PostUpdate`), so
+    /// drawn where it was stepped the hair would trail its head by one to two steps: a head turning at
+    /// 8 rad/s leaves it 1 cm behind on the scalp. Drawn through this motion, the roots sit on the scalp
+    /// as it is drawn, and the hair keeps the motion it was stepped with relative to the head. The
+    /// identity when the head has not moved since, or has no usable transform.
+    pub fn drawn_to_now(&self, alpha: f32, now: &GlobalTransform) -> Affine3A {
+        let now = ScaledPose::from(now);
+        if !(self.tracked && now.is_usable()) {
+            return Affine3A::IDENTITY;
+        }
+        // A head that teleported is drawn where it arrived (the hair jumped with it).
+        let alpha = if self.teleported { 1.0 } else { f64::from(alpha.clamp(0.0, 1.0)) };
+        let drawn = ScaledPose {
+            translation: self.previous.translation.lerp(self.current.translation, alpha),
+            rotation: self.previous.rotation.slerp(self.current.rotation, alpha).normalize(),
+            scale: self.previous.scale.lerp(self.current.scale, alpha),
+        };
+        let (rotation, translation) = drawn.rigid_motion_to(&now);
+        Affine3A::from_rotation_translation(rotation.as_quat(), translation.as_vec3())
     }
 
     fn advance(&mut self, pose: ScaledPose, teleport_distance: f64) {
