@@ -984,28 +984,33 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
 
 /// Hair–hair interaction ([`HairVolume`]) on the scene's 2 000 × 32 strands standing for 100 000 hairs
 /// (50 each), on all five colliders: the grid off, on with its velocity smoothing (1 cm and 5 mm cells),
-/// and with the volume pressure too (50 Pa, 5 mm), in turn (one interleaved run): median ms per update,
-/// of the grid alone, and its share of the update.
+/// with the style held as the example holds it ([`HairStyleHold`] at 200/s), and with the volume pressure
+/// (50 Pa, 5 mm), in turn (one interleaved run): median ms per update, of the grid alone, and its share
+/// of the update.
 fn volume_cost(threads: usize, steps: usize) {
     println!();
     println!("| 2 000 × 32, 5 colliders, 100 000 hairs | ms per update | grid, ms | grid share |");
     println!("|---|---:|---:|---:|");
     let on = HairVolume { enabled: true, ..HairVolume::default() };
+    let held = HairStyleHold { rate: 200.0, ..HairStyleHold::default() };
     let rows = [
-        ("grid off", HairVolume::default()),
-        ("smoothing, 1 cm cells", HairVolume { cell_size: 0.01, ..on }),
-        ("smoothing, 5 mm cells", on),
-        ("smoothing and pressure (50 Pa), 5 mm", HairVolume { stiffness: 50.0, ..on }),
+        ("grid off", HairVolume::default(), HairStyleHold::default()),
+        ("smoothing, 1 cm cells", HairVolume { cell_size: 0.01, ..on }, HairStyleHold::default()),
+        ("smoothing, 5 mm cells", on, HairStyleHold::default()),
+        ("smoothing, 5 mm, the style held at 200/s (as the example)", on, held),
+        ("smoothing and pressure (50 Pa), 5 mm", HairVolume { stiffness: 50.0, ..on }, HairStyleHold::default()),
         (
             "the same, pressure against the target alone",
             HairVolume { stiffness: 50.0, keep_groomed_volume: false, ..on },
+            HairStyleHold::default(),
         ),
     ];
     let mut scenes: Vec<Scene> = rows
         .iter()
-        .map(|(_, volume)| {
+        .map(|(_, volume, hold)| {
             let mut scene = Scene::new(2000, 32, Some(threads)).with_colliders(5);
-            scene.app.world_mut().resource_mut::<HairSettings>().volume = *volume;
+            let mut settings = scene.app.world_mut().resource_mut::<HairSettings>();
+            (settings.volume, settings.style_hold) = (*volume, *hold);
             let strands: Vec<_> = scene.app.world().get::<HeadStrands>(scene.head).expect("hair").strands().to_vec();
             for strand in strands {
                 scene.app.world_mut().entity_mut(strand).insert(RepresentedHairs(50));
@@ -1028,7 +1033,7 @@ fn volume_cost(threads: usize, steps: usize) {
         values.sort_by(f64::total_cmp);
         values[values.len() / 2]
     };
-    for ((name, _), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
+    for ((name, ..), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
         let (update, grid) = (median(times), median(grid));
         println!("| {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * grid / update);
     }

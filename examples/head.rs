@@ -180,8 +180,8 @@ impl Options {
             integrator: HairSettings::default().integrator,
             // The example shows the hair–hair grid: its velocity smoothing (the pressure with --pressure).
             volume: HairVolume { enabled: true, ..default() },
-            // The style held near the roots: shaken, 2 % of the guides stray instead of 37 % (`benchmark
-            // coverage`); `--hold 0` lets the hair go.
+            // The style held, strongest at the roots: shaken, 0.55 % of the guides stray instead of 38 %
+            // (`benchmark coverage`); `--hold 0` lets the hair go.
             style_hold: 200.0,
             drawing: Drawing::Rendered,
             draw_every_frame: false,

@@ -30,7 +30,7 @@ fn the_hold_ties_each_node_by_a_spring_fading_from_the_root() {
     // A soft hair (E = G = 100 Pa: its own stiffness holds nothing) held out from its head at 60/s over
     // its whole length, stepped by the plugin and, from the same state, by the mechanics core with the
     // springs the documentation gives: node i at a fraction s of the length drawn to its groomed place
-    // with k = (rate (1 − smoothstep(s)))².
+    // (still: the head does not move) with ω = rate (1 − smoothstep(s)), k = ω², c = 2ω.
     let (rate, steps) = (60.0, 90);
     let soft = RodMaterial { youngs_modulus: 100.0, shear_modulus: 100.0, ..RodMaterial::human_hair() };
     for integrator in [Integrator::BackwardEuler, Integrator::Bdf2] {
@@ -48,8 +48,9 @@ fn the_hold_ties_each_node_by_a_spring_fading_from_the_root() {
                     along += rod.rest_lengths()[node - 1] / length;
                 }
                 let fade = 1.0 - along * along * (3.0 - 2.0 * along);
-                let stiffness = if rod.is_node_prescribed(node) { 0.0 } else { (f64::from(rate) * fade).powi(2) };
-                Anchor { target: rod.initial_positions()[node], stiffness }
+                let frequency = if rod.is_node_prescribed(node) { 0.0 } else { f64::from(rate) * fade };
+                let target = rod.initial_positions()[node];
+                Anchor { target, stiffness: frequency * frequency, damping: 2.0 * frequency, ..Anchor::default() }
             })
             .collect();
         let mut workspace = RodWorkspace::default();
@@ -79,7 +80,7 @@ fn a_node_held_alone_rests_where_its_spring_carries_its_weight() {
     let nodes: Vec<DVec3> = (0..=16).map(|i| DVec3::new(0.0125 * i as f64, 1.6, 0.0)).collect();
     let soft = RodMaterial { youngs_modulus: 100.0, shear_modulus: 100.0, ..RodMaterial::human_hair() };
     let stiffness = 3600.0;
-    let anchors: Vec<Anchor> = nodes.iter().map(|&target| Anchor { target, stiffness }).collect();
+    let anchors: Vec<Anchor> = nodes.iter().map(|&target| Anchor { target, stiffness, ..Anchor::default() }).collect();
     let alone = 9.81 / stiffness;
     for integrator in [Integrator::BackwardEuler, Integrator::Bdf2] {
         let params = StepParams { integrator, ..StepParams::default() };
@@ -206,26 +207,36 @@ fn an_anchor_is_a_spring_taken_implicitly_with_the_step() {
     use bevy::math::DVec3;
     use bevy_hair_sim::rod::{Anchor, Contacts, Rod, RodWorkspace, StepLoads, StepParams};
     // A free, straight 10 cm hair at rest in weightless still air, every node anchored a millimetre and a
-    // half away: a uniform pull is a rigid translation, and one implicit step of `m (x − x̂)/h² =
-    // −m k (x − x̄)` moves each node by `k h² / (1 + k h²)` of the way (h = dt for backward Euler, ⅔ dt
-    // for BDF2 after a step at rest).
+    // half away, the place still: a uniform pull is a rigid translation, and one implicit step of
+    // `m (x − x̂)/h² = −m k (x − x̄) − m c (x − x̂)/h` moves each node by `k / (1/h² + c/h + k)` of the way
+    // (h = dt for backward Euler, ⅔ dt for BDF2 after a step at rest). With the place moving at `v̄` and no
+    // spring, the damper alone moves it by `c v̄ / (1/h² + c/h)` (as far as `h v̄` for a stiff damper).
     let nodes: Vec<DVec3> = (0..=10).map(|i| DVec3::new(0.01 * i as f64, 0.0, 0.0)).collect();
-    let (pull, stiffness) = (DVec3::new(0.001, -0.0005, 0.0002), 2500.0);
-    let anchors: Vec<Anchor> = nodes.iter().map(|&node| Anchor { target: node + pull, stiffness }).collect();
+    let (pull, velocity) = (DVec3::new(0.001, -0.0005, 0.0002), DVec3::new(0.02, 0.01, -0.03));
+    let cases = [(2500.0, 0.0, DVec3::ZERO), (2500.0, 100.0, DVec3::ZERO), (0.0, 100.0, velocity)];
     for integrator in [Integrator::BackwardEuler, Integrator::Bdf2] {
-        let params = StepParams { gravity: DVec3::ZERO, air_damping: 0.0, integrator, ..StepParams::default() };
-        let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
-        let mut workspace = RodWorkspace::default();
-        rod.step(&params, None, &mut workspace).unwrap();
-        let loads = StepLoads { anchors: Some(&anchors), ..StepLoads::default() };
-        rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
-        let h = if integrator == Integrator::Bdf2 { 2.0 / 3.0 * params.dt } else { params.dt };
-        let share = stiffness * h * h / (1.0 + stiffness * h * h);
-        for (node, (&after, &start)) in rod.positions().iter().zip(&nodes).enumerate() {
-            let moved = after - start;
-            assert!((moved - share * pull).length() < 1e-12, "{integrator:?} node {node} moved {moved}");
+        for (stiffness, damping, target_velocity) in cases {
+            let params = StepParams { gravity: DVec3::ZERO, air_damping: 0.0, integrator, ..StepParams::default() };
+            let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
+            let mut workspace = RodWorkspace::default();
+            rod.step(&params, None, &mut workspace).unwrap();
+            let anchors: Vec<Anchor> =
+                nodes.iter().map(|&node| Anchor { target: node + pull, target_velocity, stiffness, damping }).collect();
+            let loads = StepLoads { anchors: Some(&anchors), ..StepLoads::default() };
+            rod.step_with_loads(&params, &loads, &Contacts::NONE, &mut workspace).unwrap();
+            let h = if integrator == Integrator::Bdf2 { 2.0 / 3.0 * params.dt } else { params.dt };
+            let expected = (stiffness * pull + damping * target_velocity) / (1.0 / (h * h) + damping / h + stiffness);
+            for (node, (&after, &start)) in rod.positions().iter().zip(&nodes).enumerate() {
+                let moved = after - start;
+                assert!(
+                    (moved - expected).length() < 1e-12,
+                    "{integrator:?} k {stiffness} c {damping}: node {node} moved {moved}, expected {expected}"
+                );
+            }
         }
     }
+    let anchors: Vec<Anchor> =
+        nodes.iter().map(|&node| Anchor { target: node + pull, stiffness: 2500.0, ..Anchor::default() }).collect();
     // An anchor that is not finite, or pulls with a negative stiffness, or a list of the wrong length, is
     // refused and changes nothing.
     let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();

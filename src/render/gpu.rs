@@ -331,7 +331,7 @@ fn prepare_hair_meshes(
     checked: Res<CheckedSettings>,
     colliders: StrandColliders,
     mut hair_meshes: Query<HairMeshParts>,
-    heads: Query<(Ref<HeadStrands>, &GlobalTransform, &HeadMotion, Option<&HairAppearance>)>,
+    heads: Query<(Ref<HeadStrands>, &GlobalTransform, &HeadMotion, Option<&HairAppearance>), Without<HairMesh>>,
     strands: Query<DrawnStrand>,
     colors: Query<&StrandColors>,
     gpu_steps: Option<Res<GpuStepCount>>,

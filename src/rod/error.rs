@@ -133,17 +133,21 @@ pub enum RodError {
         /// The change that was given, m/s.
         change: DVec3,
     },
-    /// An anchor ([`crate::rod::Anchor`]) with a non-finite target or a negative or non-finite stiffness.
+    /// An anchor ([`crate::rod::Anchor`]) that is not finite, or has a negative stiffness or damping.
     #[error(
-        "the anchor at node {node} (towards {target}, stiffness {stiffness} 1/s²) needs a finite target and a finite, non-negative stiffness"
+        "the anchor at node {node} (towards {target} moving at {target_velocity} m/s, stiffness {stiffness} 1/s², damping {damping} 1/s) needs finite values and a stiffness and damping not negative"
     )]
     InvalidAnchor {
         /// The node the anchor was given for.
         node: usize,
         /// Where it pulls, m.
         target: DVec3,
+        /// How fast that place moves, m/s.
+        target_velocity: DVec3,
         /// Its stiffness per unit mass, 1/s².
         stiffness: f64,
+        /// Its damping per unit mass, 1/s.
+        damping: f64,
     },
     /// A node or edge index past the end of the rod.
     #[error("{what} index {index} is out of range (the rod has {count})")]

@@ -8,12 +8,12 @@
 //! see [`Integrator`]). Written with the scheme's step `h` and prediction `x̂`, `v̂` ([`Scheme`];
 //! backward Euler `h = dt`, `x̂ = xₙ`, `v̂ = vₙ`), each Newton iteration solves
 //!
-//! `(M/h² + D/h + M K + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u) + M K (q − x̄) + ∇E + β/dt H (q − q̃) − f]`
+//! `(M/h² + D/h + M (K + C/h) + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u) + M K (q − x̄) + M C ((q − x̂)/h − v̄) + ∇E + β/dt H (q − q̃) − f]`
 //!
 //! over the unknowns `q = (x_0, θ^0, …, x_n)` (the twists with backward Euler's weights), where `H` is
 //! the positive semi-definite Hessian approximation of [`super::energy`], `D` the air drag relative to
-//! the air's velocity `u` ([`StepParams::air_damping`]), `K` the anchors' stiffnesses per unit mass
-//! pulling towards `x̄` ([`Anchor`]) and `β` the internal (stiffness-proportional)
+//! the air's velocity `u` ([`StepParams::air_damping`]), `K` and `C` the anchors' stiffnesses and damping
+//! per unit mass pulling towards `x̄` moving at `v̄` ([`Anchor`]) and `β` the internal (stiffness-proportional)
 //! damping measured from the configuration `q̃` below. Prescribed unknowns (pins, clamps) enter as known
 //! displacements. The matrix is banded (half-bandwidth 10), so each solve costs `O(n)`.
 //!
@@ -156,17 +156,34 @@ pub struct StepLoads<'a> {
     pub anchors: Option<&'a [Anchor]>,
 }
 
-/// A node drawn towards `target` by a zero-length spring of stiffness `m k` (`m` the node's mass), the
-/// force `−m k (x − target)` taken implicitly with the rest of the step, so that the elastic forces and
-/// inertia of the strand beyond it pull against it in the same solve (the plugin's style hold ties hair to
-/// its groomed shape with them). On a free node alone it is an oscillator of angular frequency
-/// `√k`, which the implicit step damps; against a steady force `F` it gives way by `F/(m k)`.
+/// A node drawn towards a moving place by a zero-length spring and a damper, `−m k (x − x̄) − m c (v − v̄)`
+/// (`m` the node's mass, `x̄` the place at the end of the step, `v̄` its velocity), taken implicitly with
+/// the rest of the step, so that the elastic forces and inertia of the strand beyond it pull against it
+/// in the same solve (the plugin's style hold ties hair to its groomed shape with them). On a free node
+/// alone it is an oscillator of angular frequency `√k`, critically damped at `c = 2√k`; against a steady
+/// force `F` it gives way by `F/(m k)`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Anchor {
     /// Where the spring pulls the node at the end of the step, m.
     pub target: DVec3,
+    /// The place's velocity, m/s: the damper acts on the node's velocity relative to it.
+    pub target_velocity: DVec3,
     /// Stiffness per unit of the node's mass `k`, 1/s² (finite, not negative; 0: no spring).
     pub stiffness: f64,
+    /// Damping per unit of the node's mass `c`, 1/s (finite, not negative; 0: no damper).
+    pub damping: f64,
+}
+
+impl Anchor {
+    /// Whether it can be stepped: finite, with a stiffness and damping not negative.
+    fn is_usable(&self) -> bool {
+        self.target.is_finite()
+            && self.target_velocity.is_finite()
+            && self.stiffness.is_finite()
+            && self.stiffness >= 0.0
+            && self.damping.is_finite()
+            && self.damping >= 0.0
+    }
 }
 
 /// What a successful step measured.
@@ -337,11 +354,15 @@ impl Rod {
             if anchors.len() != self.node_count() {
                 return Err(RodError::WrongLength { expected: self.node_count(), actual: anchors.len() }.into());
             }
-            let unusable = |anchor: &Anchor| {
-                !(anchor.target.is_finite() && anchor.stiffness.is_finite() && anchor.stiffness >= 0.0)
-            };
-            if let Some((node, anchor)) = anchors.iter().enumerate().find(|(_, anchor)| unusable(anchor)) {
-                return Err(RodError::InvalidAnchor { node, target: anchor.target, stiffness: anchor.stiffness }.into());
+            if let Some((node, anchor)) = anchors.iter().enumerate().find(|(_, anchor)| !anchor.is_usable()) {
+                return Err(RodError::InvalidAnchor {
+                    node,
+                    target: anchor.target,
+                    target_velocity: anchor.target_velocity,
+                    stiffness: anchor.stiffness,
+                    damping: anchor.damping,
+                }
+                .into());
             }
         }
         Ok(())
@@ -727,8 +748,9 @@ impl Rod {
     /// Inertia `M (q − x̂ − h v̂)/h²` of the nodes and of the edges' spin (see [`Scheme`]), the air drag
     /// `D (v − u)` with `v = (q − x̂)/h` (see [`StepParams::air_damping`]: `D = m γ [I − (1 − r) t tᵀ]` per
     /// node, `t` its tangent at the start of the step, `u` the air's velocity, still air without
-    /// `air_velocities`), spin drag `γ J θ̇`, the anchors' springs `m k (x − x̄)` ([`Anchor`]), with Hessian
-    /// `M/h² + D/h + M K`, and the forces: gravity `M g` and `external_forces` (N).
+    /// `air_velocities`), spin drag `γ J θ̇`, the anchors' springs and dampers `m k (x − x̄) + m c (v − v̄)`
+    /// ([`Anchor`]), with Hessian `M/h² + D/h + M (K + C/h)`, and the forces: gravity `M g` and
+    /// `external_forces` (N).
     fn add_inertia_and_external_forces(&self, params: &StepParams, loads: &StepLoads, workspace: &mut RodWorkspace) {
         let RodWorkspace { hessian, residual, saved, scheme, .. } = workspace;
         let (h, gamma) = (scheme.h, params.air_damping);
@@ -754,9 +776,10 @@ impl Rod {
             let mut residual_node =
                 mass / (h * h) * (offset - h * scheme.velocities[node]) + drag * relative_velocity - force;
             let mut diagonal = mass / (h * h);
-            if let Some(anchor) = loads.anchors.map(|anchors| anchors[node]).filter(|anchor| anchor.stiffness > 0.0) {
-                residual_node += mass * anchor.stiffness * (self.state.positions[node] - anchor.target);
-                diagonal += mass * anchor.stiffness;
+            if let Some(anchor) = loads.anchors.map(|anchors| anchors[node]) {
+                residual_node += mass * anchor.stiffness * (self.state.positions[node] - anchor.target)
+                    + mass * anchor.damping * (offset / h - anchor.target_velocity);
+                diagonal += mass * (anchor.stiffness + anchor.damping / h);
             }
             let block = DMat3::from_diagonal(DVec3::splat(diagonal)) + drag / h;
             for row in 0..3 {

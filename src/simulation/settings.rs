@@ -189,19 +189,19 @@ pub struct HairStatistics {
 /// swing.
 ///
 /// Each step, node `i` at arc length `s` from the root is drawn towards `x̄_i`, its groomed place at the
-/// end of the step, by a zero-length spring of stiffness `m_i k_i` inside the step's implicit solve
-/// ([`crate::rod::Anchor`]), `k_i = ω_i²` with `ω_i = rate (1 − smoothstep(s/(reach·L)))` (`L` the strand's
-/// length): the spring's angular frequency fades from `rate` at the root to nothing at the reach, and
-/// falls fast enough that the tips still swing. Being in the solve, the springs hold against the
-/// strand's own free tail and inertia in the same step, at any rate without going unstable. A held node
-/// gives way to a steady force `F` by `F/(m_i k_i)`: under gravity it rests `g/k_i` below its place,
-/// 0.25 mm at the root at 200/s, 2.7 mm at 60/s, with either integrator. Strands stepped elsewhere (on
-/// the GPU) are not held.
+/// end of the step, by a critically damped zero-length spring inside the step's implicit solve
+/// ([`crate::rod::Anchor`]): stiffness `m_i ω_i²` and damping `2 m_i ω_i` relative to the groomed place's
+/// velocity, `ω_i = rate (1 − smoothstep(s/(reach·L)))` (`L` the strand's length). Its angular frequency
+/// fades from `rate` at the root to nothing at the reach, fast enough that the tips still swing. Being in
+/// the solve, the springs hold against the strand's own free tail and inertia in the same step, at any
+/// rate without going unstable. A held node gives way to a steady force `F` by `F/(m_i ω_i²)`: under
+/// gravity it rests `g/ω_i²` below its place, 0.25 mm at the root at 200/s, 2.7 mm at 60/s, with either
+/// integrator. Strands stepped elsewhere (on the GPU) are not held.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Default, Clone, PartialEq)]
 pub struct HairStyleHold {
     /// How fast a node at the root is drawn back to its groomed place, 1/s, from 0 (off) to 1 000: the
-    /// angular frequency of its spring alone (`k = rate²`). Default 0.
+    /// angular frequency of its spring alone. Default 0.
     pub rate: f32,
     /// How far along each strand the hold reaches, as a fraction of its length, from 0 to 1: its angular
     /// frequency falls off as `1 − smoothstep(s/(reach·L))` (half at half the reach) and is 0 beyond. Default 1: the
@@ -232,16 +232,16 @@ impl HairStyleHold {
         Ok(())
     }
 
-    /// The hold's spring stiffness per unit mass at `along` (0 at the root, 1 at the tip) of the strand's
-    /// length, 1/s²: `(rate (1 − smoothstep(along/reach)))²`.
-    pub fn stiffness(&self, along: f64) -> f64 {
+    /// The angular frequency of the hold's spring at `along` (0 at the root, 1 at the tip) of the strand's
+    /// length, 1/s: `rate (1 − smoothstep(along/reach))`.
+    pub fn angular_frequency(&self, along: f64) -> f64 {
         let reach = f64::from(self.reach);
         if reach <= 0.0 || along >= reach {
             return 0.0;
         }
         let x = along / reach;
         // 1 − smoothstep: full over the first part of the reach, no kink where it ends.
-        (f64::from(self.rate) * (1.0 - x * x * (3.0 - 2.0 * x))).powi(2)
+        f64::from(self.rate) * (1.0 - x * x * (3.0 - 2.0 * x))
     }
 }
 

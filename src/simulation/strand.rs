@@ -436,6 +436,17 @@ impl SimulatedStrand {
         self.anchor.is_some().then(|| self.spawn_head.rigid_motion_to(&self.detail.head))
     }
 
+    /// The rigid motion that carries the strand's groomed pose to where its head was when this strand's
+    /// coming step starts (where its rod is); `None` for a strand without a head.
+    pub(crate) fn groomed_pose_motion_at_start(&self) -> Option<(DQuat, DVec3)> {
+        self.anchor.is_some().then(|| self.spawn_head.rigid_motion_to(&self.head))
+    }
+
+    /// How many fixed steps this strand's coming step spans (more than one at a coarser level of detail).
+    pub(crate) fn fixed_steps_in_step(&self) -> u32 {
+        self.detail.elapsed.max(1)
+    }
+
     /// Puts the strand back in its rest pose on its head, at rest.
     pub fn reset_to_rest(&mut self) {
         self.rod.reset();
