@@ -112,6 +112,9 @@ fn renders_hair(app: &App) -> bool {
     }
 }
 
+/// What [`draw_strands`] reads of a strand: its nodes, its followers' and its head.
+type DrawnStrandLines = (&'static StrandNodes, Option<&'static FollowerNodes>, Option<&'static StrandOf>);
+
 /// Draws each strand at the pose a fraction of the way between its last two steps that the fixed clock has
 /// run past the last step, so that hair moves smoothly when frames come faster than steps, carried onto
 /// its head as the head is now ([`HeadMotion::drawn_to_now`], as the renderer draws it). Followers are
@@ -120,7 +123,7 @@ fn renders_hair(app: &App) -> bool {
 pub fn draw_strands(
     mut gizmos: Gizmos<HairGizmos>,
     fixed_time: Res<Time<Fixed>>,
-    strands: Query<(&StrandNodes, Option<&FollowerNodes>, Option<&StrandOf>), With<SimulatedStrand>>,
+    strands: Query<DrawnStrandLines, With<SimulatedStrand>>,
     heads: Query<&HeadMotion>,
     transforms: TransformHelper,
 ) {

@@ -285,6 +285,11 @@ fn spawn_hair_meshes(
     }
 }
 
+/// What [`prepare_hair_meshes`] reads of a head: its strands, where it is this frame, where it was at the
+/// last two steps, and its look.
+type DrawnHead =
+    (Ref<'static, HeadStrands>, &'static GlobalTransform, &'static HeadMotion, Option<&'static HairAppearance>);
+
 /// What [`prepare_hair_meshes`] keeps up to date of a head's [`HairMesh`] entity.
 type HairMeshParts = (
     Entity,
@@ -331,7 +336,7 @@ fn prepare_hair_meshes(
     checked: Res<CheckedSettings>,
     colliders: StrandColliders,
     mut hair_meshes: Query<HairMeshParts>,
-    heads: Query<(Ref<HeadStrands>, &GlobalTransform, &HeadMotion, Option<&HairAppearance>), Without<HairMesh>>,
+    heads: Query<DrawnHead, Without<HairMesh>>,
     strands: Query<DrawnStrand>,
     colors: Query<&StrandColors>,
     gpu_steps: Option<Res<GpuStepCount>>,
