@@ -6,7 +6,7 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `styles`; all by
+//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `hold`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default), `--style NAME` to measure one style in `styles`, `--motion NAME` one motion (`rest`, `shake`,
 //! `turn`, `flick`) in `coverage`. Bevy's task pools are set once per
@@ -144,6 +144,9 @@ fn main() {
     if wanted("coverage") {
         let motion = args.iter().position(|arg| arg == "--motion").and_then(|position| args.get(position + 1));
         coverage(threads, if quick { 1.0 } else { 4.0 }, motion.map(String::as_str));
+    }
+    if wanted("hold") {
+        hold_cost(threads, if quick { 60 } else { 240 });
     }
     if wanted("styles") {
         let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
@@ -635,6 +638,49 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     }
 }
 
+/// What holding the style costs the example's scene ([`example_head`], the grid's smoothing on): the
+/// straight groom shaken as `coverage` shakes it, unheld and held at 200/s, stepped in turn after a still
+/// second (one interleaved run): median ms per update, and the Newton iterations per strand.
+fn hold_cost(threads: usize, steps: usize) {
+    use bevy::prelude::{Quat, Transform};
+    println!();
+    println!("| the example's scene shaken | ms per update | Newton iterations per strand |");
+    println!("|---|---:|---:|");
+    let rows = [("unheld", 0.0), ("held at 200/s", 200.0)];
+    let mut apps: Vec<(bevy::prelude::App, bevy::prelude::Entity)> = rows
+        .iter()
+        .map(|&(_, rate)| {
+            let mut app = Scene::app(Some(threads));
+            {
+                let mut settings = app.world_mut().resource_mut::<HairSettings>();
+                settings.volume = HairVolume { enabled: true, ..HairVolume::default() };
+                settings.style_hold = HairStyleHold { rate, ..HairStyleHold::default() };
+            }
+            let head = example_head(&mut app, HairStyle::Straight);
+            for _ in 0..60 {
+                app.update();
+            }
+            (app, head)
+        })
+        .collect();
+    let mut times = vec![Vec::with_capacity(steps); rows.len()];
+    let mut iterations = vec![0.0; rows.len()];
+    for step in 1..=steps {
+        let rotation = Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * step as f32 / 60.0).sin());
+        for (index, (app, head)) in apps.iter_mut().enumerate() {
+            app.world_mut().get_mut::<Transform>(*head).expect("the head exists").rotation = rotation;
+            let started = Instant::now();
+            app.update();
+            times[index].push(started.elapsed().as_secs_f64());
+            iterations[index] += app.world().resource::<HairStatistics>().mean_newton_iterations / steps as f64;
+        }
+    }
+    for (((name, _), times), iterations) in rows.iter().zip(&mut times).zip(&iterations) {
+        times.sort_by(f64::total_cmp);
+        println!("| {name} | {:.2} | {iterations:.2} |", 1e3 * times[times.len() / 2]);
+    }
+}
+
 /// Every style of the example (`examples/head.rs`, as [`example_head`] grows it) left still for
 /// `seconds` on the head after its groom grew: how far the guides stand from their groomed shape (RMS and
 /// largest over their nodes), the strays against the groomed shape ([`coverage::StrayCheck`]: tips 3 cm
@@ -984,33 +1030,28 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
 
 /// Hair–hair interaction ([`HairVolume`]) on the scene's 2 000 × 32 strands standing for 100 000 hairs
 /// (50 each), on all five colliders: the grid off, on with its velocity smoothing (1 cm and 5 mm cells),
-/// with the style held as the example holds it ([`HairStyleHold`] at 200/s), and with the volume pressure
-/// (50 Pa, 5 mm), in turn (one interleaved run): median ms per update, of the grid alone, and its share
-/// of the update.
+/// and with the volume pressure too (50 Pa, 5 mm), in turn (one interleaved run): median ms per update,
+/// of the grid alone, and its share of the update.
 fn volume_cost(threads: usize, steps: usize) {
     println!();
     println!("| 2 000 × 32, 5 colliders, 100 000 hairs | ms per update | grid, ms | grid share |");
     println!("|---|---:|---:|---:|");
     let on = HairVolume { enabled: true, ..HairVolume::default() };
-    let held = HairStyleHold { rate: 200.0, ..HairStyleHold::default() };
     let rows = [
-        ("grid off", HairVolume::default(), HairStyleHold::default()),
-        ("smoothing, 1 cm cells", HairVolume { cell_size: 0.01, ..on }, HairStyleHold::default()),
-        ("smoothing, 5 mm cells", on, HairStyleHold::default()),
-        ("smoothing, 5 mm, the style held at 200/s (as the example)", on, held),
-        ("smoothing and pressure (50 Pa), 5 mm", HairVolume { stiffness: 50.0, ..on }, HairStyleHold::default()),
+        ("grid off", HairVolume::default()),
+        ("smoothing, 1 cm cells", HairVolume { cell_size: 0.01, ..on }),
+        ("smoothing, 5 mm cells", on),
+        ("smoothing and pressure (50 Pa), 5 mm", HairVolume { stiffness: 50.0, ..on }),
         (
             "the same, pressure against the target alone",
             HairVolume { stiffness: 50.0, keep_groomed_volume: false, ..on },
-            HairStyleHold::default(),
         ),
     ];
     let mut scenes: Vec<Scene> = rows
         .iter()
-        .map(|(_, volume, hold)| {
+        .map(|(_, volume)| {
             let mut scene = Scene::new(2000, 32, Some(threads)).with_colliders(5);
-            let mut settings = scene.app.world_mut().resource_mut::<HairSettings>();
-            (settings.volume, settings.style_hold) = (*volume, *hold);
+            scene.app.world_mut().resource_mut::<HairSettings>().volume = *volume;
             let strands: Vec<_> = scene.app.world().get::<HeadStrands>(scene.head).expect("hair").strands().to_vec();
             for strand in strands {
                 scene.app.world_mut().entity_mut(strand).insert(RepresentedHairs(50));
@@ -1033,7 +1074,7 @@ fn volume_cost(threads: usize, steps: usize) {
         values.sort_by(f64::total_cmp);
         values[values.len() / 2]
     };
-    for ((name, ..), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
+    for ((name, _), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
         let (update, grid) = (median(times), median(grid));
         println!("| {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * grid / update);
     }

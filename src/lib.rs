@@ -137,7 +137,10 @@
 //! | [`PostStep`](HairSystems::PostStep) | – | read the new state, add checks and constraints |
 //!
 //! [`HairDrawSystems`](schedule::HairDrawSystems) (in `PostUpdate`, after transform propagation) draws the
-//! gizmo lines and prepares the rendered hair. Bevy gives its compute pool only the cores its IO and async
+//! gizmo lines and prepares the rendered hair. Hair is stepped where its head was at the fixed step, and
+//! drawn carried onto the head where it is in the frame ([`HeadMotion::drawn_to_now`](simulation::HeadMotion::drawn_to_now)),
+//! so heads may be moved and animated anywhere before transform propagation (`Update`, an animation in
+//! `PostUpdate`) without the scalp showing through hair that trails it. Bevy gives its compute pool only the cores its IO and async
 //! pools leave (one thread of two on a 2-core machine); [`HairPlugin::task_pool_options`] gives it every
 //! core.
 //!

@@ -104,7 +104,9 @@ fn bevy_composer() -> Composer {
     composer
 }
 
-/// The definitions Bevy's mesh pipeline gives every material shader.
+/// The definitions Bevy's mesh pipeline gives every material shader on a device with storage buffers
+/// (`PER_OBJECT_BUFFER_BATCH_SIZE`, which puts the meshes in a uniform array, is defined only without
+/// them, on WebGL2).
 fn common_definitions() -> HashMap<String, ShaderDefValue> {
     let mut definitions: HashMap<String, ShaderDefValue> = HashMap::new();
     definitions.insert("MATERIAL_BIND_GROUP".into(), ShaderDefValue::UInt(3));
