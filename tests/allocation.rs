@@ -30,11 +30,12 @@ fn allocations_during(count: fn() -> u64, work: impl FnOnce()) -> u64 {
 
 /// Allocations per update of an app with one head of `strands` strands (32 edges, 4 followers each) that
 /// moves, with colliders, in a gusty, turbulent wind with a fan, with hair–hair interaction (smoothing and
-/// pressure), at the level of detail `level`, once running.
+/// pressure) and the style held, at the level of detail `level`, once running.
 fn allocations_per_update(strands: usize, level: HairDetailLevel) -> u64 {
     let mut app = hair_app();
-    let volume = &mut app.world_mut().resource_mut::<HairSettings>().volume;
-    (volume.enabled, volume.stiffness) = (true, 50.0);
+    let mut settings = app.world_mut().resource_mut::<HairSettings>();
+    (settings.volume.enabled, settings.volume.stiffness) = (true, 50.0);
+    settings.style_hold = HairStyleHold { rate: 200.0, ..default() };
     app.insert_resource(HairWind { velocity: Vec3::new(2.0, 0.0, 0.0), gusts: 1.0, turbulence: 0.5, ..default() });
     app.world_mut().spawn((
         HairWindSource { speed: 4.0, radius: 0.05, range: 1.0 },

@@ -1,10 +1,11 @@
 //! Fuzzing the public API with seeded random inputs: random strands, materials (and material directions),
 //! step parameters (both integrators), boundary conditions, moving and jumping colliders (over the roots
-//! too), forces (huge, non-finite), rest shapes, states written from outside; in the plugin also settings,
+//! too), forces (huge, non-finite), anchors (soft to stiff, near and far, non-finite), rest shapes, states written from outside; in the plugin also settings,
 //! heads that jump or lose their transform, spawns, respawns and despawns, procedural grooms (combed,
 //! preloaded, with followers), groom files (valid and corrupted), followers of strands of one's own
 //! (valid and not), levels of detail (fixed, switching, from a moving camera, invalid), the hair–hair
-//! grid (on, off, toggled, invalid), wind and wind sources (valid and not).
+//! grid (on, off, toggled, invalid), the style hold (off, up to its stiffest, invalid), wind and wind sources
+//! (valid and not).
 //!
 //! Checked after every step: no panic, no NaN anywhere in any state, every `Ok` step within the strain
 //! bound, no strand failing more than a few times in a row, and (in the plugin) a bounded number of log
@@ -24,7 +25,7 @@ use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Contacts, Integrator, MovingCollider, RigidPose};
+use bevy_hair_sim::rod::{Anchor, Contacts, Integrator, MovingCollider, RigidPose, StepLoads};
 use bevy_hair_sim::simulation::{HeadMotion, LONGER_STEP_STRAIN_TOLERANCE};
 use common::headless::{DT, camera, drain_messages, drawn_is_finite, hair_app_with};
 use common::logs;
@@ -270,7 +271,31 @@ fn core_case(seed: u64, tally: &mut CoreTally) {
         }
         let contacts = Contacts { colliders: &moving, thickness };
         let force_input = (force_kind >= 0.1 || rng.bool()).then_some(&forces[..]);
-        let result = rod.step_with_contacts(&params, force_input, &contacts, &mut workspace);
+        // Anchors (a style hold's springs): mostly none, sometimes towards places near the nodes or far,
+        // moving, from soft to far stiffer than any hold, now and then not finite.
+        let anchor_kind = rng.f64();
+        let anchors: Vec<Anchor> = if anchor_kind < 0.15 {
+            let places: Vec<DVec3> = rod.positions().to_vec();
+            places
+                .into_iter()
+                .map(|place| Anchor {
+                    target: place + unit_vector(&mut rng) * log_uniform(&mut rng, -5.0, 0.0),
+                    target_velocity: unit_vector(&mut rng) * uniform(&mut rng, 0.0, 5.0),
+                    stiffness: log_uniform(&mut rng, 0.0, 7.0),
+                    damping: uniform(&mut rng, 0.0, 2000.0),
+                })
+                .collect()
+        } else if anchor_kind < 0.16 {
+            vec![Anchor { stiffness: f64::NAN, ..Anchor::default() }; rod.node_count()]
+        } else {
+            Vec::new()
+        };
+        let loads = StepLoads {
+            forces: force_input,
+            anchors: (!anchors.is_empty()).then_some(&anchors[..]),
+            ..StepLoads::default()
+        };
+        let result = rod.step_with_loads(&params, &loads, &contacts, &mut workspace);
         tally.steps += 1;
         if std::env::var("FUZZ_SEED").is_ok_and(|s| s == seed.to_string()) {
             eprintln!(
@@ -716,11 +741,12 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
         let event = rng.f64();
         if event < 0.03 {
             let mut settings = app.world_mut().resource_mut::<HairSettings>();
-            match rng.u8(0..5) {
+            match rng.u8(0..6) {
                 0 => settings.default_material.youngs_modulus = 0.0,
                 1 => settings.gravity.y = f32::NAN,
                 2 => settings.collision_margin = f32::INFINITY,
                 3 => settings.volume.cell_size = 0.0,
+                4 => settings.style_hold.rate = f32::NAN,
                 _ => settings.collision_margin = -1.0,
             }
             bad_events += 1;
@@ -735,6 +761,11 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 gravity: if gravity.is_finite() { gravity } else { Vec3::new(0.0, -9.81, 0.0) },
                 integrator: if rng.bool() { Integrator::Bdf2 } else { Integrator::BackwardEuler },
                 volume: random_volume(&mut rng),
+                // Held or not, up to the stiffest hold allowed.
+                style_hold: HairStyleHold {
+                    rate: if rng.bool() { uniform(&mut rng, 0.0, 1000.0) as f32 } else { 0.0 },
+                    reach: uniform(&mut rng, 0.0, 1.0) as f32,
+                },
                 ..default()
             };
             bad_events += 1;
