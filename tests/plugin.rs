@@ -250,3 +250,36 @@ fn hair_drawn_between_steps_is_carried_onto_the_head_where_it_is_now() {
     let nodes = app.world().get::<StrandNodes>(strands[0]).unwrap();
     assert!(nodes.positions[0].distance(anchor(&now, strands[0])) > 0.01);
 }
+
+#[test]
+fn colliders_are_drawn_where_their_transforms_put_them_in_the_frame() {
+    // The head moves in `Update`, after the fixed step (as a game animates it): its skull collider met the
+    // hair where the head was at the step, and is drawn where the head is in the frame, with its mesh.
+    #[derive(Component)]
+    struct Moved;
+    let mut app = hair_app_with((AssetPlugin::default(), MeshPlugin, GizmoPlugin));
+    app.add_systems(Update, |mut heads: Query<&mut Transform, With<Moved>>| {
+        heads.iter_mut().for_each(|mut head| head.translation.x += 0.05);
+    });
+    let (head, _) = spawn_head(&mut app, Transform::from_xyz(0.0, 1.6, 0.0), 4, 8);
+    app.world_mut().entity_mut(head).insert(Moved);
+    app.world_mut().spawn((HairCollider::sphere(0.1), Transform::default(), HairColliderOf(head), ChildOf(head)));
+    app.world_mut().resource_mut::<GizmoConfigStore>().config_mut::<HairGizmos>().1.draw_colliders = true;
+    for _ in 0..5 {
+        app.update();
+    }
+    let now = app.world().get::<Transform>(head).unwrap().translation;
+    let handle = app.world().resource::<GizmoHandles>().handles()[&std::any::TypeId::of::<HairGizmos>()].clone();
+    let asset = app.world().resource::<Assets<GizmoAsset>>().get(&handle.expect("drawn")).unwrap();
+    let buffer = asset.buffer().buffer();
+    let points: Vec<Vec3> =
+        buffer.list_positions.iter().chain(buffer.strip_positions.iter()).copied().filter(|p| p.is_finite()).collect();
+    // The sphere's lines, apart from the strands' (which start on the scalp 0.1 m from the head's origin
+    // and hang below it).
+    let on_sphere = points.iter().filter(|p| (p.distance(now) - 0.1).abs() < 1e-4).count();
+    let at_step = now - Vec3::X * 0.05;
+    let on_stepped = points.iter().filter(|p| (p.distance(at_step) - 0.1).abs() < 1e-4).count();
+    println!("{on_sphere} points on the sphere where the head is now, {on_stepped} where it was at the step");
+    assert!(on_sphere > 50, "the collider is not drawn where the head is now ({on_sphere} points)");
+    assert!(on_stepped < on_sphere / 4, "the collider is still drawn where the step met it ({on_stepped} points)");
+}

@@ -7,7 +7,7 @@ use bevy::math::Affine3A;
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use crate::collision::ColliderMotion;
+use crate::collision::{ColliderMotion, HairCollider};
 use crate::followers::FollowerNodes;
 use crate::rod::ColliderShape;
 use crate::schedule::HairDrawSystems;
@@ -165,18 +165,26 @@ pub fn draw_strands(
     }
 }
 
-/// Draws every collider in use at its pose of the last step, when [`HairGizmos::draw_colliders`] is on:
-/// spheres and ellipsoids as three great ellipses, capsules as wire capsules, planes as a 2 m grid.
-pub fn draw_colliders(mut gizmos: Gizmos<HairGizmos>, colliders: Query<&ColliderMotion>) {
+/// Draws every collider in use, when [`HairGizmos::draw_colliders`] is on: a [`HairCollider`] where its
+/// transform puts it in this frame (as its mesh is drawn, and the hair with it), the others (baked from
+/// meshes, from avian) where the last step met them; spheres and ellipsoids as three great ellipses,
+/// capsules as wire capsules, planes as a 2 m grid.
+pub fn draw_colliders(
+    mut gizmos: Gizmos<HairGizmos>,
+    colliders: Query<(Entity, &ColliderMotion, Option<&HairCollider>)>,
+    transforms: TransformHelper,
+) {
     if !gizmos.config_ext.draw_colliders {
         return;
     }
     let color = gizmos.config_ext.collider_color;
     let quarter = std::f32::consts::FRAC_PI_2;
-    for collider in colliders.iter().filter_map(|motion| motion.collider.as_ref()) {
-        let pose = collider.end;
+    for (entity, motion, own) in &colliders {
+        let Some(met) = motion.collider.as_ref() else { continue };
+        let now = own.zip(transforms.compute_global_transform(entity).ok()).map(|(own, now)| own.placed(&now));
+        let (shape, pose) = now.unwrap_or_else(|| (met.shape.clone(), met.end));
         let isometry = Isometry3d::new(pose.translation.as_vec3(), pose.rotation.as_quat());
-        match collider.shape {
+        match shape {
             ColliderShape::Sphere { radius } => {
                 gizmos.sphere(isometry, radius as f32, color);
             }
