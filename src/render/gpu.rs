@@ -85,7 +85,8 @@ impl Plugin for HairRenderPlugin {
 /// the [`HairRenderPlugin`] from the head's [`HairAppearance`].
 #[derive(Asset, TypePath, AsBindGroup, Debug, Clone)]
 pub struct HairMaterial {
-    /// Node positions, `x y z` per node (world space, m), written every frame.
+    /// Node positions, `x y z` per node (world space where the hair was stepped, m; the mesh's transform
+    /// carries them onto the head as it is drawn), written every frame.
     #[storage(0, read_only)]
     pub positions: Handle<ShaderBuffer>,
     /// Colours and highlights.
@@ -191,7 +192,7 @@ pub struct HairMesh {
     pub(super) gpu_fed: bool,
     /// The GPU's upload and step count last seen ([`GpuStepCount`]).
     gpu_seen: GpuStepCount,
-    /// Bounds of the last two steps' drawn hair, world space.
+    /// Bounds of the last two steps' drawn hair, world space where it was stepped (the mesh's own space).
     step_bounds: [Option<(Vec3, Vec3)>; 2],
     /// The appearance drawn (the last valid one asked for).
     appearance: Option<HairAppearance>,

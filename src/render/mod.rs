@@ -7,8 +7,11 @@
 //! positions, interpolated between the last two fixed steps like the gizmos, into one buffer of `f32`
 //! triples, in parallel over the guides. The GPU receives that buffer (one `write_buffer` into a storage
 //! buffer that lives as long as the layout) and a static mesh of two vertices per node that says which node
-//! each vertex stands for, which side of the ribbon it is on and how thick the hair is there. The vertex
-//! shader reads the node and its neighbours, and expands the ribbon across the strand, along
+//! each vertex stands for, which side of the ribbon it is on and how thick the hair is there. The positions
+//! are where the hair was stepped; the hair mesh's transform carries them onto the head where it is in
+//! the frame ([`HeadMotion::drawn_to_now`](crate::simulation::HeadMotion::drawn_to_now)), so that hair
+//! stepped before the game moved its head does not trail the scalp. The vertex shader reads the node and
+//! its neighbours through that transform, and expands the ribbon across the strand, along
 //! `tangent × (direction to the eye)`, by the hair's diameter; sub-pixel hairs are widened to
 //! [`HairAppearance::min_pixel_width`] and their coverage lowered by the same factor
 //! ([`ribbon_width`]), so thin hair fades instead of shimmering. Coverage goes to the GPU's multisampling
