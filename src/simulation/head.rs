@@ -85,7 +85,7 @@ impl HeadMotion {
     /// `GlobalTransform` this frame). Hair is stepped where the head was at the fixed steps, but a game
     /// usually moves its heads after them (in `Update`, or with its animation in `PostUpdate`), so
     /// drawn where it was stepped the hair would trail its head by one to two steps: a head turning at
-    /// 8 rad/s leaves it 1 cm behind on the scalp. Drawn through this motion, the roots sit on the scalp
+    /// 8 rad/s leaves it 1 to 2 cm behind on the scalp. Drawn through this motion, the roots sit on the scalp
     /// as it is drawn, and the hair keeps the motion it was stepped with relative to the head. The
     /// identity when the head has not moved since, or has no usable transform.
     pub fn drawn_to_now(&self, alpha: f32, now: &GlobalTransform) -> Affine3A {

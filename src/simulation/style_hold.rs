@@ -9,8 +9,8 @@ use crate::rod::Anchor;
 use super::{CheckedSettings, HairSettings, HairStyleHold, SimulatedStrand, SteppedElsewhere, StrandForces};
 
 /// Ties each held node to its groomed place `x̄_i` with a critically damped spring (see
-/// [`HairStyleHold`]) in its strand's [`StrandForces`], in parallel. Strands stepped elsewhere, quarantined, without a head or not
-/// stepped at this fixed step are left alone.
+/// [`HairStyleHold`]) in its strand's [`StrandForces`], in parallel. Strands stepped elsewhere,
+/// quarantined, without a head or not stepped at this fixed step are left alone.
 pub(crate) fn hold_style(
     time: Res<Time>,
     settings: Res<HairSettings>,
