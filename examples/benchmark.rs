@@ -9,8 +9,8 @@
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `hold`, `styles`; all by
 //! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
 //! default), `--style NAME` to measure one style in `styles`, `--motion NAME` one motion (`rest`, `shake`,
-//! `turn`, `flick`) in `coverage`. Bevy's task pools are set once per
-//! process, so the parallel table runs this program again with `--threads`.
+//! `turn`, `flick`) in `coverage`. Bevy's task pools are set once per process, so the parallel table runs
+//! this program again with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;
@@ -511,6 +511,33 @@ fn example_head(app: &mut bevy::prelude::App, style: HairStyle) -> bevy::prelude
     head
 }
 
+/// An app with the example's head grown in `style` ([`example_head`]), the grid's velocity smoothing on
+/// with a volume pressure of `pressure` Pa, the style held at `hold` 1/s, left still for `still_steps`
+/// fixed steps.
+fn example_app(
+    threads: usize,
+    style: HairStyle,
+    (hold, pressure): (f32, f32),
+    still_steps: usize,
+) -> (bevy::prelude::App, bevy::prelude::Entity) {
+    let mut app = Scene::app(Some(threads));
+    {
+        let mut settings = app.world_mut().resource_mut::<HairSettings>();
+        settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
+        settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
+    }
+    let head = example_head(&mut app, style);
+    for _ in 0..still_steps {
+        app.update();
+    }
+    (app, head)
+}
+
+/// The head shaken as the example shakes it, `t` s in: ±0.7 rad about the vertical at 1.8 Hz.
+fn shaken(t: f32) -> bevy::prelude::Quat {
+    bevy::prelude::Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * t).sin())
+}
+
 /// Every hair of the head as drawn, world space: each guide's nodes and its followers'.
 fn drawn_hairs<'w>(world: &'w bevy::prelude::World, strands: &[bevy::prelude::Entity]) -> Vec<&'w [Vec3]> {
     let mut hairs: Vec<&[Vec3]> = Vec::new();
@@ -551,7 +578,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
         ("rest", |_| Quat::IDENTITY),
-        ("shake", |t| Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * t).sin())),
+        ("shake", shaken),
         ("turn", |t| Quat::from_rotation_y(1.2 * (std::f32::consts::TAU * 0.3 * t).sin())),
         ("flick", |t| {
             let s = ((t - 1.0) / 0.3).clamp(0.0, 1.0);
@@ -574,16 +601,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     let motions = motions.into_iter().filter(|(name, _)| only.is_none_or(|only| only == *name));
     let runs = motions.flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
     for ((name, rotation), (hold, pressure)) in runs {
-        let mut app = Scene::app(Some(threads));
-        {
-            let mut settings = app.world_mut().resource_mut::<HairSettings>();
-            settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
-            settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
-        }
-        let head = example_head(&mut app, HairStyle::Straight);
-        for _ in 0..60 {
-            app.update();
-        }
+        let (mut app, head) = example_app(threads, HairStyle::Straight, (hold, pressure), 60);
         let head_pose = |app: &bevy::prelude::App| {
             let transform = app.world().get::<Transform>(head).expect("the head exists");
             bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation)
@@ -642,31 +660,17 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
 /// straight groom shaken as `coverage` shakes it, unheld and held at 200/s, stepped in turn after a still
 /// second (one interleaved run): median ms per update, and the Newton iterations per strand.
 fn hold_cost(threads: usize, steps: usize) {
-    use bevy::prelude::{Quat, Transform};
+    use bevy::prelude::Transform;
     println!();
     println!("| the example's scene shaken | ms per update | Newton iterations per strand |");
     println!("|---|---:|---:|");
     let rows = [("unheld", 0.0), ("held at 200/s", 200.0)];
-    let mut apps: Vec<(bevy::prelude::App, bevy::prelude::Entity)> = rows
-        .iter()
-        .map(|&(_, rate)| {
-            let mut app = Scene::app(Some(threads));
-            {
-                let mut settings = app.world_mut().resource_mut::<HairSettings>();
-                settings.volume = HairVolume { enabled: true, ..HairVolume::default() };
-                settings.style_hold = HairStyleHold { rate, ..HairStyleHold::default() };
-            }
-            let head = example_head(&mut app, HairStyle::Straight);
-            for _ in 0..60 {
-                app.update();
-            }
-            (app, head)
-        })
-        .collect();
+    let mut apps: Vec<(bevy::prelude::App, bevy::prelude::Entity)> =
+        rows.iter().map(|&(_, hold)| example_app(threads, HairStyle::Straight, (hold, 0.0), 60)).collect();
     let mut times = vec![Vec::with_capacity(steps); rows.len()];
     let mut iterations = vec![0.0; rows.len()];
     for step in 1..=steps {
-        let rotation = Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * step as f32 / 60.0).sin());
+        let rotation = shaken(step as f32 / 60.0);
         for (index, (app, head)) in apps.iter_mut().enumerate() {
             app.world_mut().get_mut::<Transform>(*head).expect("the head exists").rotation = rotation;
             let started = Instant::now();
@@ -701,16 +705,7 @@ fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
     let (face, eyes) = example_face_points();
     for &style in styles {
         for (hold, pressure) in [(0.0, 0.0), (0.0, 50.0), (200.0, 0.0), (200.0, 50.0)] {
-            let mut app = Scene::app(Some(threads));
-            {
-                let mut settings = app.world_mut().resource_mut::<HairSettings>();
-                settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
-                settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
-            }
-            let head = example_head(&mut app, style);
-            for _ in 0..(seconds * 60.0).round() as usize {
-                app.update();
-            }
+            let (app, head) = example_app(threads, style, (hold, pressure), (seconds * 60.0).round() as usize);
             let world = app.world();
             let transform = world.get::<Transform>(head).expect("the head exists");
             let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
