@@ -6,11 +6,11 @@
 //! started to swing.
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
-//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`, `hold`, `styles`; all by
-//! default), `--quick` to measure fewer steps, `--threads N` for the compute threads (one per core by
-//! default), `--style NAME` to measure one style in `styles`, `--motion NAME` one motion (`rest`, `shake`,
-//! `turn`, `flick`) in `coverage`. Bevy's task pools are set once per process, so the parallel table runs
-//! this program again with `--threads`.
+//! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`,
+//! `bare`, `hold`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
+//! compute threads (one per core by default), `--style NAME` to measure one style in `styles`,
+//! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`. Bevy's task pools are set
+//! once per process, so the parallel table runs this program again with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
 mod counting_allocator;
@@ -144,6 +144,9 @@ fn main() {
     if wanted("coverage") {
         let motion = args.iter().position(|arg| arg == "--motion").and_then(|position| args.get(position + 1));
         coverage(threads, if quick { 1.0 } else { 4.0 }, motion.map(String::as_str));
+    }
+    if wanted("bare") {
+        bare_regions(threads, if quick { 1.0 } else { 4.0 });
     }
     if wanted("hold") {
         hold_cost(threads, if quick { 60 } else { 240 });
@@ -654,6 +657,72 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
             100.0 * last.1
         );
     }
+}
+
+/// Where the example's scalp is bare ([`coverage::bare_scalp`], as `coverage` judges it) after
+/// `seconds` still, held as the example holds it: of the scalp's 2 000 points in each part (by the
+/// skull's normal's up component, its side, and within 1 cm of the parting), how many are bare, and how
+/// many of those lie within 1 cm of the hairline.
+fn bare_regions(threads: usize, seconds: f32) {
+    use bevy_hair_sim::groom::coverage;
+    let scalp = example_scene::SCALP;
+    let (mut app, head) = example_app(threads, HairStyle::Straight, (200.0, 50.0), 60);
+    for _ in 0..(seconds * 60.0) as usize {
+        app.update();
+    }
+    let strands: Vec<bevy::prelude::Entity> =
+        app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+    let width = drawn_width(app.world(), strands[0]);
+    let transform = app.world().get::<bevy::prelude::Transform>(head).expect("the head exists");
+    let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
+    let hairs = drawn_hairs(app.world(), &strands);
+    let bare = coverage::bare_scalp(&scalp, &pose, hairs, 2000, (0.003, width)).expect("the scalp");
+    let normal = |point: Vec3| ((point - scalp.centre) / scalp.semi_axes / scalp.semi_axes).normalize();
+    // The skull outside the hairline, finely sampled.
+    let whole_skull = bevy_hair_sim::prelude::Scalp { nape_height: -1.0, brow_height: -1.0, ..scalp };
+    let bald: Vec<Vec3> = whole_skull
+        .roots(40_000)
+        .expect("the skull")
+        .into_iter()
+        .filter(|root| root.normal.y < scalp.hairline_height(root.normal))
+        .map(|root| root.position)
+        .collect();
+    let near_the_hairline = |point: Vec3| bald.iter().any(|outside| outside.distance(point) < 0.01);
+    let part = |point: Vec3| {
+        let normal = normal(point);
+        let height = match normal.y {
+            y if y > 0.7 => "top",
+            y if y > 0.3 => "upper",
+            y if y > 0.0 => "above the widest",
+            _ => "below the widest",
+        };
+        let side = if normal.z < -0.5 {
+            "front"
+        } else if normal.z > 0.5 {
+            "back"
+        } else {
+            "sides"
+        };
+        let parting = (point.x - scalp.centre.x - 0.02).abs() < 0.01 && normal.y > 0.3;
+        (height, side, parting)
+    };
+    let mut counts: std::collections::BTreeMap<(&str, &str, bool), [usize; 3]> = Default::default();
+    for root in scalp.roots(2000).expect("the scalp") {
+        counts.entry(part(root.position)).or_default()[0] += 1;
+    }
+    for &point in &bare.points {
+        let count = counts.entry(part(point)).or_default();
+        count[1] += 1;
+        count[2] += usize::from(near_the_hairline(point));
+    }
+    println!();
+    println!("The example's scalp after {seconds} s still (held at 200/s, 50 Pa): where it is bare");
+    println!("| part | side | at the parting | points | bare | of them within 1 cm of the hairline |");
+    println!("|---|---|---|---:|---:|---:|");
+    for ((height, side, parting), [all, bare, near]) in counts {
+        println!("| {height} | {side} | {} | {all} | {bare} | {near} |", if parting { "yes" } else { "" });
+    }
+    println!("| all | | | {} | {} | |", bare.roots, bare.points.len());
 }
 
 /// What holding the style costs the example's scene ([`example_head`], the grid's smoothing on): the

@@ -4,7 +4,7 @@
 #[path = "../examples/support/scene.rs"]
 mod scene;
 
-use bevy::math::DVec3;
+use bevy::math::{Affine3A, DVec3};
 use bevy::prelude::*;
 use bevy_hair_sim::groom::{GroomError, GroomObstacles, ScalpRoot};
 use bevy_hair_sim::prelude::*;
@@ -177,6 +177,51 @@ fn combed_strands_and_their_followers_turn_smoothly_on_a_head_shaped_skull() {
 }
 
 #[test]
+fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
+    // The example's groom as grown, with its followers: 22 000 hairs drawn as wide as the renderer draws
+    // them (each the width of the 100 000 / 22 000 fibres it stands for).
+    use bevy_hair_sim::groom::coverage;
+    let groom = example_groom(HairStyle::Straight, 2000, 10);
+    let width = 2.0 * 40e-6 * groom.hair_count as f32 / 22_000.0;
+    let bare = |combing: Combing| {
+        let grown = HairGroom { combing: Some(combing), ..groom.clone() }
+            .grow_with_followers_around(None, &GroomObstacles::new(example_body()))
+            .unwrap();
+        let hairs = grown.iter().flat_map(|(guide, followers)| {
+            std::iter::once(guide.nodes.as_slice()).chain(followers.curves.iter().map(Vec::as_slice))
+        });
+        coverage::bare_scalp(&groom.scalp, &Affine3A::IDENTITY, hairs, 2000, (0.003, width)).unwrap()
+    };
+    let scalp = groom.scalp;
+    let normal = |point: Vec3| ((point - scalp.centre) / scalp.semi_axes / scalp.semi_axes).normalize();
+    let at_the_parting = |point: Vec3| (point.x - scalp.centre.x - 0.02).abs() < 0.01 && normal(point).y > 0.3;
+    let below_the_widest = |point: Vec3| normal(point).y < 0.0;
+    let roots = scalp.roots(2000).unwrap();
+    let share = |bare: &coverage::BareScalp, part: &dyn Fn(Vec3) -> bool| {
+        let all = roots.iter().filter(|root| part(root.position)).count();
+        bare.points.iter().filter(|&&point| part(point)).count() as f32 / all as f32
+    };
+    let combed = bare(Combing::default());
+    // Combed only sideways at the crown, turning fully sideways within 1.5 cm of the parting.
+    let parted = bare(Combing { crown_sweep: 0.0, parting_blend: 0.015, ..default() });
+    let everywhere = combed.points.len() as f32 / combed.roots as f32;
+    println!(
+        "bare: {:.1} % of the scalp, {:.1} % below its widest part, {:.1} % at the parting (combed only \
+         sideways at the crown: {:.1} %)",
+        100.0 * everywhere,
+        100.0 * share(&combed, &below_the_widest),
+        100.0 * share(&combed, &at_the_parting),
+        100.0 * share(&parted, &at_the_parting),
+    );
+    // The hair lies on the skull down to its hairline, not only to its widest part.
+    assert!(share(&combed, &below_the_widest) < 0.03, "below the widest part");
+    // The parting is a line the hair turns at, not a stripe it leaves bare; combed only sideways it is.
+    assert!(share(&combed, &at_the_parting) < 0.15, "at the parting");
+    assert!(share(&parted, &at_the_parting) > 0.3, "a parting the hair leaves at once");
+    assert!(everywhere < 0.02, "{everywhere} of the scalp bare");
+}
+
+#[test]
 fn falling_hair_drapes_over_the_body_instead_of_passing_through_it() {
     let body = example_body();
     let obstacles = GroomObstacles::new(body.clone());
@@ -252,6 +297,8 @@ fn invalid_grooms_are_rejected_with_their_reason() {
         (HairGroom { scalp: Scalp { nape_height: 1.0, brow_height: 1.0, ..default() }, ..default() }, "no room"),
         (HairGroom { gravity_preload: 1.5, ..default() }, "gravity preload"),
         (HairGroom { combing: Some(Combing { lift: -0.001, ..default() }), ..default() }, "combing"),
+        (HairGroom { combing: Some(Combing { crown_sweep: -0.5, ..default() }), ..default() }, "crown_sweep"),
+        (HairGroom { combing: Some(Combing { parting_blend: 0.0, ..default() }), ..default() }, "parting_blend"),
     ];
     for (groom, reason) in cases {
         let error: GroomError = groom.grow().unwrap_err();

@@ -33,10 +33,32 @@ pub fn scalp_exposure<'a>(
     samples: usize,
     (reach, hair_width): (f32, f32),
 ) -> Result<f32, GroomError> {
-    let points: Vec<Vec3> = scalp.roots(samples)?.iter().map(|root| head.transform_point3(root.position)).collect();
-    if points.is_empty() || !(reach > 0.0 && reach.is_finite()) {
-        return Ok(1.0);
+    let bare = bare_scalp(scalp, head, hairs, samples, (reach, hair_width))?;
+    Ok(if bare.roots == 0 { 1.0 } else { bare.points.len() as f32 / bare.roots as f32 })
+}
+
+/// The points of the scalp [`scalp_exposure`] calls bare, to show where they are (a gizmo, a probe).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct BareScalp {
+    /// The bare points, head-local (on [`Scalp`]'s ellipsoid), m.
+    pub points: Vec<Vec3>,
+    /// How many points were judged.
+    pub roots: usize,
+}
+
+/// The points of `scalp` the hair leaves bare, judged as [`scalp_exposure`] judges them.
+pub fn bare_scalp<'a>(
+    scalp: &Scalp,
+    head: &Affine3A,
+    hairs: impl IntoIterator<Item = &'a [Vec3]>,
+    samples: usize,
+    (reach, hair_width): (f32, f32),
+) -> Result<BareScalp, GroomError> {
+    let local: Vec<Vec3> = scalp.roots(samples)?.iter().map(|root| root.position).collect();
+    if local.is_empty() || !(reach > 0.0 && reach.is_finite()) {
+        return Ok(BareScalp { roots: local.len(), points: local });
     }
+    let points: Vec<Vec3> = local.iter().map(|&point| head.transform_point3(point)).collect();
     let grid = PointGrid::new(&points, reach);
     // Per point, the length of hair within `reach` of it, m.
     let mut lengths = vec![0.0_f32; points.len()];
@@ -45,7 +67,9 @@ pub fn scalp_exposure<'a>(
             grid.add_lengths(ends[0], ends[1], reach, &points, &mut lengths);
         }
     }
-    Ok(uncovered_share(&lengths, hair_width, reach))
+    let disc = std::f32::consts::PI * reach * reach;
+    let bare = local.iter().zip(&lengths).filter(|&(_, &length)| length * hair_width < disc).map(|(&point, _)| point);
+    Ok(BareScalp { points: bare.collect(), roots: local.len() })
 }
 
 /// The share of points whose hair (`lengths`, m, drawn `hair_width` m wide) covers less than the disc of
@@ -297,6 +321,11 @@ mod tests {
         let right = lying_hairs(&scalp, 0.02, |point| point.x > 0.0);
         let half = exposure(&right, 3e-3);
         assert!((half - 0.5).abs() < 0.03, "{half}");
+        // The bare points are those of the left half, head-local, on the skull, one for each the share counts.
+        let hairs = world(&right);
+        let bare = bare_scalp(&scalp, &head, hairs.iter().map(Vec::as_slice), 2000, (0.004, 3e-3)).unwrap();
+        assert_eq!((bare.points.len() as f32 / bare.roots as f32, bare.roots), (half, 2000));
+        assert!(bare.points.iter().all(|point| point.x < 0.004 && (point.length() - 0.1).abs() < 1e-5));
         // Hair 2 cm above the scalp hides nothing within 4 mm.
         let far: Vec<Vec<Vec3>> = everywhere
             .iter()

@@ -95,9 +95,10 @@ impl Scalp {
             .then(|| ScalpRoot { position: self.centre + self.semi_axes * on_unit_sphere, normal })
     }
 
-    /// The hairline's height in the direction of `normal`: the brow's over the face, blending into the
-    /// nape's over the temples.
-    pub(super) fn hairline_height(&self, normal: Vec3) -> f32 {
+    /// The hairline's height in the direction of `normal` (the skull's outward unit normal, head-local),
+    /// as the up component of the normal: the brow's over the face, blending into the nape's over the
+    /// temples. Hair grows where `normal.y` is at least this.
+    pub fn hairline_height(&self, normal: Vec3) -> f32 {
         let horizontal = Vec2::new(normal.x, -normal.z);
         let facing_front = if horizontal.length_squared() > 1e-12 { horizontal.normalize().y } else { 0.0 };
         let face = ((facing_front - 0.3) / 0.4).clamp(0.0, 1.0);
@@ -194,8 +195,8 @@ pub struct HairGroom {
     /// Seed of the per-strand variation (lengths, curl phases): the same seed grows the same hair.
     pub seed: u64,
     /// How the hair is combed: `Some` lays each strand along the scalp from its root, away from a parting
-    /// and back from the face, until the scalp turns under it, and lets the rest fall from there in the
-    /// style's shape; `None` grows each strand straight out along the scalp's normal. Default: combed.
+    /// and back from the face, down to the hairline, and lets the rest fall from there in the style's
+    /// shape; `None` grows each strand straight out along the scalp's normal. Default: combed.
     pub combing: Option<Combing>,
     /// Follower hairs per simulated strand (see [`crate::followers`]): each guide strand carries this
     /// many unsimulated hairs with roots of their own, spread evenly between the guides' roots, each in
@@ -234,8 +235,11 @@ impl Default for HairGroom {
 }
 
 /// How a [`HairGroom`] is combed (all head-local). Hair is laid along the scalp in the direction of a
-/// combing field: away from the parting line, back from the face, and down; where the scalp turns under
-/// it (its normal points below the horizontal), a strand leaves it and falls.
+/// combing field: away from the parting line, back from the face and the crown, and down; from the
+/// skull's upper sides on straight down (where the weight of the hair hanging from it would slide it to),
+/// so that the hair covers the scalp down to its hairline. There, or where the combing turns back on
+/// itself, a strand leaves the scalp and falls. Short hair lies on past the hairline, until the skull
+/// turns under it.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Default, Clone, PartialEq)]
 pub struct Combing {
@@ -253,11 +257,28 @@ pub struct Combing {
     pub lift: f32,
     /// How much higher the highest layer lies, m: each strand's lift is spread over this. Default 0.0004.
     pub layer_spread: f32,
+    /// How strongly hair on top of the head is combed back, dimensionless, fading out towards the sides
+    /// (as the square of the scalp's normal's up component). 0 combs it only sideways there, so that the
+    /// parting opens into a bare stripe across the crown; 0.6 (the default) combs it back along the
+    /// parting, covering the line with the hair rooted before it.
+    pub crown_sweep: f32,
+    /// How far from the parting hair is combed fully sideways, m: nearer, less (in proportion), so that
+    /// hair rooted at the parting runs along it for a while (back from the face and the crown) instead of
+    /// leaving it at once, and the parting shows as a line where the hair turns, not a bare stripe.
+    /// Default 0.03.
+    pub parting_blend: f32,
 }
 
 impl Default for Combing {
     fn default() -> Self {
-        Self { parting: 0.02, sweep_back: 1.2, lift: 0.00106, layer_spread: 0.0004 }
+        Self {
+            parting: 0.02,
+            sweep_back: 1.2,
+            lift: 0.00106,
+            layer_spread: 0.0004,
+            crown_sweep: 0.6,
+            parting_blend: 0.03,
+        }
     }
 }
 
@@ -469,8 +490,9 @@ impl GroomObstacles {
 
 impl Combing {
     fn validate(&self) -> Result<(), GroomError> {
-        let finite = [self.parting, self.sweep_back, self.lift, self.layer_spread].iter().all(|v| v.is_finite());
-        if !finite || self.sweep_back < 0.0 || self.lift < 0.0 || self.layer_spread < 0.0 {
+        let values =
+            [self.parting, self.sweep_back, self.lift, self.layer_spread, self.crown_sweep, self.parting_blend];
+        if !values.iter().all(|v| v.is_finite()) || values[1..].iter().any(|&v| v < 0.0) || self.parting_blend <= 0.0 {
             return Err(GroomError::Combing(*self));
         }
         Ok(())
@@ -478,11 +500,20 @@ impl Combing {
 
     /// The direction hair at `position` (head-local, on the scalp `scalp`) is combed in, with the
     /// scalp's outward `normal` there: away from the parting, back from the face, down; in the tangent
-    /// plane, unit.
-    fn direction(&self, scalp: &Scalp, position: Vec3, normal: Vec3) -> Vec3 {
-        let sideways = ((position.x - scalp.centre.x - self.parting) / 0.015).clamp(-1.0, 1.0);
+    /// plane, unit. Hair that `hangs` from the scalp turns straight down it below the upper sides.
+    fn direction(&self, scalp: &Scalp, position: Vec3, normal: Vec3, hangs: bool) -> Vec3 {
+        let sideways = ((position.x - scalp.centre.x - self.parting) / self.parting_blend).clamp(-1.0, 1.0);
         let facing_front = (-normal.z).clamp(0.0, 1.0);
-        let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), self.sweep_back * facing_front);
+        let crown = normal.y.max(0.0).powi(2);
+        let back = self.sweep_back * facing_front + self.crown_sweep * crown;
+        let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), back);
+        // Turning straight down the skull from its upper sides to a little under its widest part (the
+        // normal's up component from 0.3 to −0.25): a strand the hanging hair pulls on rests on the skull
+        // only along the line that pull would slide it to, and there it holds without the style hold.
+        // (Short hair, lying all the way, keeps its combed direction, which takes it back from the face
+        // and the temples rather than down under the skull.)
+        let below = if hangs { ((0.3 - normal.y) / 0.55).clamp(0.0, 1.0) } else { 0.0 };
+        let wanted = wanted.lerp(Vec3::NEG_Y, below * below * (3.0 - 2.0 * below));
         let along = wanted.reject_from_normalized(normal);
         if along.length_squared() > 1e-6 {
             along.normalize()
@@ -544,13 +575,19 @@ impl CombedPath<'_> {
         let edge_length = length / segments as f32;
         let mut path = vec![root.position];
         let (mut surface, mut normal) = (root.position, root.normal);
-        let mut tangent = self.combing.direction(self.scalp, surface, normal);
+        // Along the scalp down to its hairline, so that hair covers the skull below its widest part too;
+        // short hair all the way, but not under the skull.
+        let lies_everywhere = style == HairStyle::Short;
+        let mut tangent = self.combing.direction(self.scalp, surface, normal, !lies_everywhere);
         let first_direction = tangent;
         let mut arc = 0.0;
-        // Along the scalp; short hair all the way, the nape's too, but not under the skull.
-        let lies_everywhere = style == HairStyle::Short;
-        while arc < length && (normal.y > 0.0 || (lies_everywhere && normal.y > Self::UNDER_THE_SKULL)) {
-            let combed = self.combing.direction(self.scalp, surface, normal);
+        let lies_on = |normal: Vec3| {
+            normal.y > 0.0
+                || normal.y >= self.scalp.hairline_height(normal)
+                || (lies_everywhere && normal.y > Self::UNDER_THE_SKULL)
+        };
+        while arc < length && lies_on(normal) {
+            let combed = self.combing.direction(self.scalp, surface, normal, !lies_everywhere);
             // Where the combing turns back on itself (its "down" under a skull), the hair leaves the scalp.
             if combed.dot(tangent) < 0.5 {
                 break;
@@ -771,8 +808,11 @@ pub enum GroomError {
     /// The follower clumping is outside 0 to 1.
     #[error("the groom's follower clumping must lie between 0 and 1, got {0}")]
     FollowerClumping(f32),
-    /// A combing parameter is negative or not finite.
-    #[error("the groom's combing needs finite values, with sweep_back, lift and layer_spread not negative: {0:?}")]
+    /// A combing parameter is negative or not finite, or the parting's blend is not positive.
+    #[error(
+        "the groom's combing needs finite values, with sweep_back, lift, layer_spread and crown_sweep not \
+         negative and parting_blend positive: {0:?}"
+    )]
     Combing(Combing),
     /// A scalp mesh has no triangle with an area (and some hair density).
     #[error("the scalp mesh has no triangle with an area and hair to grow")]
