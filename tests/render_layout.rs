@@ -74,12 +74,52 @@ fn hairs_are_laid_out_guide_then_followers_and_relaid_only_on_change() {
 }
 
 #[test]
+fn drawn_hairs_end_short_of_their_tips_by_up_to_the_length_variation() {
+    let (app, head) = moving_head();
+    let mut strips = HairStrips::default();
+    strips.set_layout(layout(&app, head));
+    let (taper, variation) = (0.5, 0.3);
+    let vertices = strips.vertices(1.0, taper, variation);
+    let mut shortened = Vec::new();
+    for hair in strips.hairs() {
+        let edges = hair.nodes - 1;
+        let vertex = |along: u32, side: u32| vertices[(2 * (hair.first_node + along) + side) as usize];
+        let last = vertex(0, 0)[2] >> 16;
+        assert!(last >= 1 && (edges - last) as f32 <= variation * edges as f32 + 0.5, "{last} of {edges} edges");
+        for along in 0..hair.nodes {
+            for side in 0..2 {
+                let vertex = vertex(along, side);
+                let radius = f32::from_bits(vertex[3]);
+                assert_eq!(vertex[2] >> 16, last, "one last node for the whole hair");
+                if along <= last {
+                    // Drawn to its own end, tapered to it.
+                    assert_eq!((vertex[0], vertex[2] >> 1 & 0x7fff), (hair.first_node + along, along));
+                    let expected = 4e-5 * (1.0 - taper * along as f32 / last as f32);
+                    assert!((radius - expected).abs() < 1e-6 * expected, "radius {radius} at {along}");
+                } else {
+                    // Beyond it, its last node again, with no width: no area drawn.
+                    assert_eq!((vertex[0], vertex[2] >> 1 & 0x7fff, radius), (hair.first_node + last, last, 0.0));
+                }
+            }
+        }
+        shortened.push(edges - last);
+    }
+    // Lengths spread over the whole range, not one for every hair; the same each time the mesh is made.
+    let longest_cut = *shortened.iter().max().unwrap();
+    let kinds = shortened.iter().collect::<std::collections::BTreeSet<_>>().len();
+    println!("edges taken off: {kinds} different counts, up to {longest_cut}");
+    assert!(kinds >= 3 && shortened.contains(&0) && longest_cut >= 2, "{shortened:?}");
+    assert_eq!(strips.vertices(1.0, taper, variation), vertices);
+    assert_eq!(strips.vertices(1.0, taper, 0.0), strips.vertices(1.0, taper, 0.0));
+}
+
+#[test]
 fn the_template_mesh_has_two_tapered_sides_per_node_and_two_triangles_per_segment() {
     let (app, head) = moving_head();
     let mut strips = HairStrips::default();
     strips.set_layout(layout(&app, head));
     let (scale, taper) = (1.5, 0.4);
-    let vertices = strips.vertices(scale, taper);
+    let vertices = strips.vertices(scale, taper, 0.0);
     assert_eq!(vertices.len(), 2 * strips.node_count());
     for (index, hair) in strips.hairs().iter().enumerate() {
         for along in 0..hair.nodes {
@@ -265,4 +305,6 @@ fn melanin_darkens_and_reddens_hair_as_in_real_hair() {
     }
     let invalid = HairAppearance { tip_taper: 1.5, ..default() };
     assert!(invalid.validate().unwrap_err().contains("tip_taper"));
+    let invalid = HairAppearance { length_variation: f32::NAN, ..default() };
+    assert!(invalid.validate().unwrap_err().contains("length_variation"));
 }

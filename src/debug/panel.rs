@@ -461,6 +461,7 @@ fn appearance_grid(ui: &mut egui::Ui, appearance: &mut HairAppearance) {
         grid_row(ui, "highlight width (°)", egui::Slider::new(&mut width_degrees, 1.0..=30.0));
         grid_row(ui, "thickness (× real)", egui::Slider::new(&mut appearance.thickness_scale, 0.25..=8.0));
         grid_row(ui, "tip taper", egui::Slider::new(&mut appearance.tip_taper, 0.0..=1.0));
+        grid_row(ui, "length variation", egui::Slider::new(&mut appearance.length_variation, 0.0..=1.0));
         grid_row(ui, "min width (px)", egui::Slider::new(&mut appearance.min_pixel_width, 0.0..=3.0));
         grid_row(ui, "root occlusion", egui::Slider::new(&mut appearance.root_occlusion, 0.0..=1.0));
     });

@@ -425,14 +425,15 @@ fn prepare_hair_meshes(
             Ok(bounds)
         };
         let thickness_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {
-            (old.thickness_scale, old.tip_taper) != (appearance.thickness_scale, appearance.tip_taper)
+            (old.thickness_scale, old.tip_taper, old.length_variation)
+                != (appearance.thickness_scale, appearance.tip_taper, appearance.length_variation)
         });
         if relaid || thickness_changed {
             let strips = &hair_mesh.strips;
             let mut template = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
             template.insert_attribute(
                 ATTRIBUTE_HAIR_VERTEX,
-                strips.vertices(appearance.thickness_scale, appearance.tip_taper),
+                strips.vertices(appearance.thickness_scale, appearance.tip_taper, appearance.length_variation),
             );
             template.insert_attribute(ATTRIBUTE_HAIR_COLOR, strips.colors(|entity| colors.get(entity).ok()));
             template.insert_indices(Indices::U32(strips.indices()));

@@ -86,6 +86,11 @@ pub struct HairAppearance {
     pub thickness_scale: f32,
     /// How much hairs thin towards the tip, 0 to 1: the tip is `1 − tip_taper` of the root's thickness.
     pub tip_taper: f32,
+    /// How much the drawn hairs' lengths vary, 0 to 1: each drawn hair ends short of its strand's tip by
+    /// a fraction of its length drawn (per hair, the same every frame) uniformly from 0 to
+    /// `length_variation`, in whole edges, and tapers to its own end. The ends of a lock are then feathered
+    /// instead of cut straight; the simulated strands keep their lengths. Default 0.15.
+    pub length_variation: f32,
     /// Narrowest a hair is drawn, in pixels (of the view, or of a shadow map's texels). A hair thinner than
     /// this on screen is drawn this wide with its coverage lowered in proportion ([`ribbon_width`]).
     pub min_pixel_width: f32,
@@ -136,6 +141,7 @@ impl HairAppearance {
         highlight_width: 7.0 * std::f32::consts::PI / 180.0,
         thickness_scale: 1.0,
         tip_taper: 0.5,
+        length_variation: 0.15,
         min_pixel_width: 1.0,
         root_occlusion: 0.6,
     };
@@ -164,6 +170,7 @@ impl HairAppearance {
             ("highlight_width", self.highlight_width, 1e-3, 1.5),
             ("thickness_scale", self.thickness_scale, 1e-3, 1e3),
             ("tip_taper", self.tip_taper, 0.0, 1.0),
+            ("length_variation", self.length_variation, 0.0, 1.0),
             ("min_pixel_width", self.min_pixel_width, 0.0, 16.0),
             ("root_occlusion", self.root_occlusion, 0.0, 1.0),
         ];
@@ -174,6 +181,14 @@ impl HairAppearance {
         }
         Ok(())
     }
+}
+
+/// A well-mixed hash of `value` to 0 … 1 (PCG, Jarzynski and Olano 2020), for per-hair variation that
+/// stays the same from frame to frame.
+fn hash01(value: u32) -> f32 {
+    let state = value.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    ((word >> 22) ^ word) as f32 / u32::MAX as f32
 }
 
 /// How wide a ribbon is drawn and how much of it is covered: a hair of `diameter` (m) where one pixel
@@ -342,24 +357,25 @@ impl HairStrips {
     }
 
     /// The template mesh's vertices: two per node (the ribbon's two sides), each `[node, hair, packed,
-    /// radius bits]`, with `packed = side | index along the hair << 1 | (nodes − 1) << 16` and the radius
-    /// (m, tapered linearly to `1 − tip_taper` of the root's at the tip, times `thickness_scale`) as `f32`
-    /// bits. Hairs longer than 32 767 nodes are cut there.
-    pub fn vertices(&self, thickness_scale: f32, tip_taper: f32) -> Vec<[u32; 4]> {
+    /// radius bits]`, with `packed = side | index along the hair << 1 | last << 16` and the radius (m,
+    /// tapered linearly to `1 − tip_taper` of the root's at the hair's last drawn node, times
+    /// `thickness_scale`) as `f32` bits. Each hair is drawn to its node `last`: its own last node, less
+    /// the edges `length_variation` ([`HairAppearance::length_variation`]) takes off it (at least one
+    /// edge stays); its nodes beyond are drawn as its last one, with no width. Hairs longer than 32 767
+    /// nodes are cut there.
+    pub fn vertices(&self, thickness_scale: f32, tip_taper: f32, length_variation: f32) -> Vec<[u32; 4]> {
         let mut vertices = Vec::with_capacity(2 * self.node_count());
         for (index, hair) in self.hairs.iter().enumerate() {
-            let last = hair.nodes.saturating_sub(1).min(0x7fff);
+            let edges = hair.nodes.saturating_sub(1).min(0x7fff);
+            let shorter =
+                (hash01(index as u32 ^ 0x2c1b_3c6d) * length_variation.clamp(0.0, 1.0) * edges as f32).round() as u32;
+            let last = edges.saturating_sub(shorter).max(edges.min(1));
             for along in 0..hair.nodes {
                 let k = along.min(last);
                 let s = if last > 0 { k as f32 / last as f32 } else { 0.0 };
-                let radius = hair.radius * thickness_scale * (1.0 - tip_taper * s);
+                let radius = if along > last { 0.0 } else { hair.radius * thickness_scale * (1.0 - tip_taper * s) };
                 for side in 0..2 {
-                    vertices.push([
-                        hair.first_node + along,
-                        index as u32,
-                        side | k << 1 | last << 16,
-                        radius.to_bits(),
-                    ]);
+                    vertices.push([hair.first_node + k, index as u32, side | k << 1 | last << 16, radius.to_bits()]);
                 }
             }
         }
