@@ -602,7 +602,12 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 segments: rng.usize(3..=16),
                 style,
                 seed: rng.u64(..),
-                combing: rng.bool().then(Combing::default),
+                combing: rng.bool().then(|| Combing {
+                    crown_sweep: if rng.bool() { 3.0 * rng.f32() } else { 0.6 },
+                    parting_blend: if rng.bool() { 1e-4 + 0.2 * rng.f32() } else { 0.03 },
+                    parting: 0.1 * (rng.f32() - 0.5),
+                    ..default()
+                }),
                 followers_per_guide: if rng.bool() { rng.usize(1..=4) } else { 0 },
                 follower_clumping: rng.f32(),
                 gravity_preload: if rng.bool() { rng.f32() } else { 0.0 },

@@ -523,8 +523,10 @@ fn a_groom_of_our_own_with_long_curved_and_upward_hair_keeps_its_shape_at_rest_w
     );
     assert!(free <= 1e-3, "alone, the groom moved {free} m RMS from its shape");
     assert!(on_skull <= 1e-3, "on its skull, the groom moved {on_skull} m RMS from its shape");
-    // The skull holds hair up: the combed hair lies on it.
-    assert!(contacts >= 100, "{contacts} nodes in contact");
+    // The skull holds hair up: the combed hair lies on it, more nodes in contact than there are combed
+    // strands (72; measured 120 with the groom combed only to the skull's widest part, 97 with it laid to
+    // the hairline, which drifts half as far on the skull: 0.20 mm against 0.42).
+    assert!(contacts >= 72, "{contacts} nodes in contact");
     // The fountain is stiffened to stand.
     assert!(stiffening > 1.0);
 }

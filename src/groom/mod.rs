@@ -14,8 +14,9 @@
 //! A [`HairGroom`] spreads its roots evenly over the scalp ellipsoid within a hairline, in one of five
 //! styles (`Straight`, `Wavy`, `Curly`, `Short`, `Long`). By default the hair is **combed** ([`Combing`]:
 //! parting, sweep back, lift, layer spread): each strand leaves its root along the scalp and lies on it,
-//! combed away from a side parting, back from the face and crown and down (straight down below the skull's
-//! widest part), to the hairline, then falls in its style's shape. With `combing: None` each strand grows straight out along the scalp's normal.
+//! combed away from a side parting, back from the face and the crown and down (straight down from the
+//! skull's upper sides), to the hairline, then falls in its style's shape. With `combing: None` each
+//! strand grows straight out along the scalp's normal.
 //!
 //! A groomed shape is not the shape hair rests in under gravity: simulated as it is, it sags.
 //! [`HairStrand::gravity_preload`](crate::simulation::HairStrand::gravity_preload) (1 for groomed hair by

@@ -508,11 +508,11 @@ impl Combing {
         let back = self.sweep_back * facing_front + self.crown_sweep * crown;
         let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), back);
         // Turning straight down the skull from its upper sides to a little under its widest part (the
-        // normal's up component from 0.3 to −0.25): a strand the hanging hair pulls on rests on the skull
+        // normal's up component from 0.5 to −0.25): a strand the hanging hair pulls on rests on the skull
         // only along the line that pull would slide it to, and there it holds without the style hold.
         // (Short hair, lying all the way, keeps its combed direction, which takes it back from the face
         // and the temples rather than down under the skull.)
-        let below = if hangs { ((0.3 - normal.y) / 0.55).clamp(0.0, 1.0) } else { 0.0 };
+        let below = if hangs { ((0.5 - normal.y) / 0.75).clamp(0.0, 1.0) } else { 0.0 };
         let wanted = wanted.lerp(Vec3::NEG_Y, below * below * (3.0 - 2.0 * below));
         let along = wanted.reject_from_normalized(normal);
         if along.length_squared() > 1e-6 {
