@@ -664,7 +664,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
 /// skull's normal's up component, its side, and within 1 cm of the parting), how many are bare, and how
 /// many of those lie within 1 cm of the hairline.
 fn bare_regions(threads: usize, seconds: f32) {
-    use bevy_hair_sim::groom::coverage;
+    use bevy_hair_sim::groom::{ScalpRoot, coverage};
     let scalp = example_scene::SCALP;
     let (mut app, head) = example_app(threads, HairStyle::Straight, (200.0, 50.0), 60);
     for _ in 0..(seconds * 60.0) as usize {
@@ -677,7 +677,6 @@ fn bare_regions(threads: usize, seconds: f32) {
     let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
     let hairs = drawn_hairs(app.world(), &strands);
     let bare = coverage::bare_scalp(&scalp, &pose, hairs, 2000, (0.003, width)).expect("the scalp");
-    let normal = |point: Vec3| ((point - scalp.centre) / scalp.semi_axes / scalp.semi_axes).normalize();
     // The skull outside the hairline, finely sampled.
     let whole_skull = bevy_hair_sim::prelude::Scalp { nape_height: -1.0, brow_height: -1.0, ..scalp };
     let bald: Vec<Vec3> = whole_skull
@@ -688,8 +687,7 @@ fn bare_regions(threads: usize, seconds: f32) {
         .map(|root| root.position)
         .collect();
     let near_the_hairline = |point: Vec3| bald.iter().any(|outside| outside.distance(point) < 0.01);
-    let part = |point: Vec3| {
-        let normal = normal(point);
+    let part = |&ScalpRoot { position, normal }: &ScalpRoot| {
         let height = match normal.y {
             y if y > 0.7 => "top",
             y if y > 0.3 => "upper",
@@ -703,17 +701,17 @@ fn bare_regions(threads: usize, seconds: f32) {
         } else {
             "sides"
         };
-        let parting = (point.x - scalp.centre.x - 0.02).abs() < 0.01 && normal.y > 0.3;
+        let parting = (position.x - scalp.centre.x - 0.02).abs() < 0.01 && normal.y > 0.3;
         (height, side, parting)
     };
     let mut counts: std::collections::BTreeMap<(&str, &str, bool), [usize; 3]> = Default::default();
     for root in scalp.roots(2000).expect("the scalp") {
-        counts.entry(part(root.position)).or_default()[0] += 1;
+        counts.entry(part(&root)).or_default()[0] += 1;
     }
-    for &point in &bare.points {
-        let count = counts.entry(part(point)).or_default();
+    for root in &bare.points {
+        let count = counts.entry(part(root)).or_default();
         count[1] += 1;
-        count[2] += usize::from(near_the_hairline(point));
+        count[2] += usize::from(near_the_hairline(root.position));
     }
     println!();
     println!("The example's scalp after {seconds} s still (held at 200/s, 50 Pa): where it is bare");
@@ -722,7 +720,7 @@ fn bare_regions(threads: usize, seconds: f32) {
     for ((height, side, parting), [all, bare, near]) in counts {
         println!("| {height} | {side} | {} | {all} | {bare} | {near} |", if parting { "yes" } else { "" });
     }
-    println!("| all | | | {} | {} | |", bare.roots, bare.points.len());
+    println!("| all | | | {} | {} | |", bare.judged, bare.points.len());
 }
 
 /// What holding the style costs the example's scene ([`example_head`], the grid's smoothing on): the

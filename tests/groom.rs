@@ -193,18 +193,18 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
         coverage::bare_scalp(&groom.scalp, &Affine3A::IDENTITY, hairs, 2000, (0.003, width)).unwrap()
     };
     let scalp = groom.scalp;
-    let normal = |point: Vec3| ((point - scalp.centre) / scalp.semi_axes / scalp.semi_axes).normalize();
-    let at_the_parting = |point: Vec3| (point.x - scalp.centre.x - 0.02).abs() < 0.01 && normal(point).y > 0.3;
-    let below_the_widest = |point: Vec3| normal(point).y < 0.0;
+    let at_the_parting =
+        |root: &ScalpRoot| (root.position.x - scalp.centre.x - 0.02).abs() < 0.01 && root.normal.y > 0.3;
+    let below_the_widest = |root: &ScalpRoot| root.normal.y < 0.0;
     let roots = scalp.roots(2000).unwrap();
-    let share = |bare: &coverage::BareScalp, part: &dyn Fn(Vec3) -> bool| {
-        let all = roots.iter().filter(|root| part(root.position)).count();
-        bare.points.iter().filter(|&&point| part(point)).count() as f32 / all as f32
+    let share = |bare: &coverage::BareScalp, part: &dyn Fn(&ScalpRoot) -> bool| {
+        let all = roots.iter().filter(|root| part(root)).count();
+        bare.points.iter().filter(|root| part(root)).count() as f32 / all as f32
     };
     let combed = bare(Combing::default());
     // Combed only sideways at the crown, turning fully sideways within 1.5 cm of the parting.
     let parted = bare(Combing { crown_sweep: 0.0, parting_blend: 0.015, ..default() });
-    let everywhere = combed.points.len() as f32 / combed.roots as f32;
+    let everywhere = combed.points.len() as f32 / combed.judged as f32;
     println!(
         "bare: {:.1} % of the scalp, {:.1} % below its widest part, {:.1} % at the parting (combed only \
          sideways at the crown: {:.1} %)",

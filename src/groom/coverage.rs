@@ -19,7 +19,7 @@
 use bevy::math::{Affine3A, IVec3, Vec3};
 use bevy::platform::collections::HashMap;
 
-use super::{GroomError, Scalp};
+use super::{GroomError, Scalp, ScalpRoot};
 
 /// The fraction (0 to 1) of `scalp`'s haired surface the hair does not hide: `samples` points spread
 /// evenly over the haired scalp ([`Scalp::roots`]), each hidden when the segments of `hairs` (each hair's
@@ -34,16 +34,17 @@ pub fn scalp_exposure<'a>(
     (reach, hair_width): (f32, f32),
 ) -> Result<f32, GroomError> {
     let bare = bare_scalp(scalp, head, hairs, samples, (reach, hair_width))?;
-    Ok(if bare.roots == 0 { 1.0 } else { bare.points.len() as f32 / bare.roots as f32 })
+    Ok(if bare.judged == 0 { 1.0 } else { bare.points.len() as f32 / bare.judged as f32 })
 }
 
 /// The points of the scalp [`scalp_exposure`] calls bare, to show where they are (a gizmo, a probe).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct BareScalp {
-    /// The bare points, head-local (on [`Scalp`]'s ellipsoid), m.
-    pub points: Vec<Vec3>,
+    /// The bare points, head-local, each with the skull's outward normal there (as [`Scalp::roots`]
+    /// gives them).
+    pub points: Vec<ScalpRoot>,
     /// How many points were judged.
-    pub roots: usize,
+    pub judged: usize,
 }
 
 /// The points of `scalp` the hair leaves bare, judged as [`scalp_exposure`] judges them.
@@ -54,11 +55,11 @@ pub fn bare_scalp<'a>(
     samples: usize,
     (reach, hair_width): (f32, f32),
 ) -> Result<BareScalp, GroomError> {
-    let local: Vec<Vec3> = scalp.roots(samples)?.iter().map(|root| root.position).collect();
-    if local.is_empty() || !(reach > 0.0 && reach.is_finite()) {
-        return Ok(BareScalp { roots: local.len(), points: local });
+    let roots = scalp.roots(samples)?;
+    if roots.is_empty() || !(reach > 0.0 && reach.is_finite()) {
+        return Ok(BareScalp { judged: roots.len(), points: roots });
     }
-    let points: Vec<Vec3> = local.iter().map(|&point| head.transform_point3(point)).collect();
+    let points: Vec<Vec3> = roots.iter().map(|root| head.transform_point3(root.position)).collect();
     let grid = PointGrid::new(&points, reach);
     // Per point, the length of hair within `reach` of it, m.
     let mut lengths = vec![0.0_f32; points.len()];
@@ -67,17 +68,21 @@ pub fn bare_scalp<'a>(
             grid.add_lengths(ends[0], ends[1], reach, &points, &mut lengths);
         }
     }
-    let disc = std::f32::consts::PI * reach * reach;
-    let bare = local.iter().zip(&lengths).filter(|&(_, &length)| length * hair_width < disc).map(|(&point, _)| point);
-    Ok(BareScalp { points: bare.collect(), roots: local.len() })
+    let judged = roots.len();
+    let bare = roots.into_iter().zip(&lengths).filter(|&(_, &length)| uncovered(length, hair_width, reach));
+    Ok(BareScalp { points: bare.map(|(root, _)| root).collect(), judged })
+}
+
+/// Whether `length` m of hair drawn `hair_width` m wide covers less than the disc of `radius` m.
+fn uncovered(length: f32, hair_width: f32, radius: f32) -> bool {
+    length * hair_width < std::f32::consts::PI * radius * radius
 }
 
 /// The share of points whose hair (`lengths`, m, drawn `hair_width` m wide) covers less than the disc of
 /// `radius` about them.
 fn uncovered_share(lengths: &[f32], hair_width: f32, radius: f32) -> f32 {
-    let disc = std::f32::consts::PI * radius * radius;
-    let uncovered = lengths.iter().filter(|&&length| length * hair_width < disc).count();
-    uncovered as f32 / lengths.len() as f32
+    let count = lengths.iter().filter(|&&length| uncovered(length, hair_width, radius)).count();
+    count as f32 / lengths.len() as f32
 }
 
 /// The fraction (0 to 1) of the haired scalp a far camera looking along `-towards_camera` (world space)
@@ -324,8 +329,8 @@ mod tests {
         // The bare points are those of the left half, head-local, on the skull, one for each the share counts.
         let hairs = world(&right);
         let bare = bare_scalp(&scalp, &head, hairs.iter().map(Vec::as_slice), 2000, (0.004, 3e-3)).unwrap();
-        assert_eq!((bare.points.len() as f32 / bare.roots as f32, bare.roots), (half, 2000));
-        assert!(bare.points.iter().all(|point| point.x < 0.004 && (point.length() - 0.1).abs() < 1e-5));
+        assert_eq!((bare.points.len() as f32 / bare.judged as f32, bare.judged), (half, 2000));
+        assert!(bare.points.iter().all(|root| root.position.x < 0.004 && (root.position.length() - 0.1).abs() < 1e-5));
         // Hair 2 cm above the scalp hides nothing within 4 mm.
         let far: Vec<Vec<Vec3>> = everywhere
             .iter()

@@ -424,11 +424,11 @@ fn prepare_hair_meshes(
             hair_mesh.fresh = bounds.is_some();
             Ok(bounds)
         };
-        let thickness_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {
+        let template_changed = hair_mesh.appearance.as_ref().is_none_or(|old| {
             (old.thickness_scale, old.tip_taper, old.length_variation)
                 != (appearance.thickness_scale, appearance.tip_taper, appearance.length_variation)
         });
-        if relaid || thickness_changed {
+        if relaid || template_changed {
             let strips = &hair_mesh.strips;
             let mut template = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
             template.insert_attribute(
