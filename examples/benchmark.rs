@@ -662,7 +662,8 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
 /// Where the example's scalp is bare ([`coverage::bare_scalp`], as `coverage` judges it) after
 /// `seconds` still, held as the example holds it: of the scalp's 2 000 points in each part (by the
 /// skull's normal's up component, its side, and within 1 cm of the parting), how many are bare, and how
-/// many of those lie within 1 cm of the hairline.
+/// many of those lie in the hairline's fade ([`HairGroom::hairline_fade`], 8 mm), where the hair is drawn
+/// thinning out on purpose.
 fn bare_regions(threads: usize, seconds: f32) {
     use bevy_hair_sim::groom::{ScalpRoot, coverage};
     let scalp = example_scene::SCALP;
@@ -677,16 +678,9 @@ fn bare_regions(threads: usize, seconds: f32) {
     let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
     let hairs = drawn_hairs(app.world(), &strands);
     let bare = coverage::bare_scalp(&scalp, &pose, hairs, 2000, (0.003, width)).expect("the scalp");
-    // The skull outside the hairline, finely sampled.
-    let whole_skull = bevy_hair_sim::prelude::Scalp { nape_height: -1.0, brow_height: -1.0, ..scalp };
-    let bald: Vec<Vec3> = whole_skull
-        .roots(40_000)
-        .expect("the skull")
-        .into_iter()
-        .filter(|root| root.normal.y < scalp.hairline_height(root.normal))
-        .map(|root| root.position)
-        .collect();
-    let near_the_hairline = |point: Vec3| bald.iter().any(|outside| outside.distance(point) < 0.01);
+    // Where the example's groom draws its hair thinning out towards the hairline.
+    let fade = bevy_hair_sim::prelude::HairGroom::default().hairline_fade;
+    let in_the_fade = |point: Vec3| scalp.depth_inside_hairline(point) < fade;
     let part = |&ScalpRoot { position, normal }: &ScalpRoot| {
         let height = match normal.y {
             y if y > 0.7 => "top",
@@ -711,11 +705,11 @@ fn bare_regions(threads: usize, seconds: f32) {
     for root in &bare.points {
         let count = counts.entry(part(root)).or_default();
         count[1] += 1;
-        count[2] += usize::from(near_the_hairline(root.position));
+        count[2] += usize::from(in_the_fade(root.position));
     }
     println!();
     println!("The example's scalp after {seconds} s still (held at 200/s, 50 Pa): where it is bare");
-    println!("| part | side | at the parting | points | bare | of them within 1 cm of the hairline |");
+    println!("| part | side | at the parting | points | bare | of them in the hairline's fade ({} mm) |", 1e3 * fade);
     println!("|---|---|---|---:|---:|---:|");
     for ((height, side, parting), [all, bare, near]) in counts {
         println!("| {height} | {side} | {} | {all} | {bare} | {near} |", if parting { "yes" } else { "" });

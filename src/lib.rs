@@ -94,6 +94,7 @@
 //! | [`HairColliderFromMesh`](collision::HairColliderFromMesh) beside a `Mesh3d` | its [`HairCollider`](collision::HairCollider), baked | [`collision::mesh`] |
 //! | [`HairScalpMesh`](scalp::HairScalpMesh)`(mesh)` on a head | [`ScalpRootBinding`](scalp::ScalpRootBinding) on its strands; [`GroomSurface`](groom::GroomSurface) on the head, which its groom grows on | [`scalp`], [`groom`] |
 //! | [`StrandColors`](groom::StrandColors) on a strand (a groom file's colours) | its hairs drawn in them | [`groom`], [`render`] |
+//! | [`StrandWidths`](groom::StrandWidths) on a strand (a groom's hairline thinning it) | its hairs drawn that much thinner, or left out | [`groom`], [`render`] |
 //! | [`HairOnCharacter`](scalp::HairOnCharacter) on a character's scene root | [`HairHead`](simulation::HairHead), [`HairScalpMesh`](scalp::HairScalpMesh), the groom and colliders on its head joint | [`scalp`] |
 //! | [`StrandForces`](simulation::StrandForces) on a strand, [`HairWind`](wind::HairWind), [`HairWindSource`](wind::HairWindSource) | (cleared after each step) | [`simulation`], [`wind`] |
 //! | [`HairSettings::volume`](simulation::HairSettings::volume), [`RepresentedHairs`](volume::RepresentedHairs) | [`HairVolumeGrids`](volume::HairVolumeGrids) | [`volume`] |
@@ -407,7 +408,8 @@ pub mod prelude {
     pub use crate::groom::GroomFilePlugin;
     pub use crate::groom::{
         Combing, FileStrand, GroomFile, GroomFileError, GroomPlacement, GroomSurface, GroomedStrand, HairGroom,
-        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, StrandColors, UpAxis,
+        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, StrandColors, StrandWidths,
+        UpAxis,
     };
     pub use crate::render::HairAppearance;
     #[cfg(feature = "gpu")]

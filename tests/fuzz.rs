@@ -611,6 +611,7 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 followers_per_guide: if rng.bool() { rng.usize(1..=4) } else { 0 },
                 follower_clumping: rng.f32(),
                 gravity_preload: if rng.bool() { rng.f32() } else { 0.0 },
+                hairline_fade: if rng.bool() { 0.05 * rng.f32() } else { 0.008 },
                 ..default()
             };
             let transform = Transform::from_xyz(index as f32, 1.6, 0.0);

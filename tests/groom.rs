@@ -305,4 +305,74 @@ fn invalid_grooms_are_rejected_with_their_reason() {
         assert!(error.to_string().contains(reason), "{error} should say {reason:?}");
     }
     assert!(HairGroom { strand_count: 0, ..default() }.grow().unwrap().is_empty());
+    for fade in [-0.001, f32::NAN, f32::INFINITY] {
+        let error = HairGroom { hairline_fade: fade, ..default() }.grow().unwrap_err();
+        assert!(matches!(error, GroomError::HairlineFade(_)) && error.to_string().contains("hairline fade"), "{error}");
+    }
+}
+
+#[test]
+fn depth_inside_the_hairline_is_the_distance_along_the_skull_near_it() {
+    // A sphere of 10 cm whose hairline is one circle of latitude (normal up component −0.35): the depth
+    // of a point is its arc from that circle along the meridian, R (latitude − latitude of the hairline).
+    let scalp =
+        Scalp { centre: Vec3::new(0.0, 0.1, 0.0), semi_axes: Vec3::splat(0.1), nape_height: -0.35, brow_height: -0.35 };
+    let hairline = (-0.35_f32).asin();
+    for longitude in [0.0_f32, 1.0, 2.5, 4.0] {
+        for arc in [-0.004_f32, -0.001, 0.0005, 0.002, 0.005, 0.008, 0.012] {
+            let latitude = hairline + arc / 0.1;
+            let direction =
+                Vec3::new(latitude.cos() * longitude.cos(), latitude.sin(), latitude.cos() * longitude.sin());
+            // Off the surface too: the point radially under it is judged.
+            let depth = scalp.depth_inside_hairline(scalp.centre + 0.13 * direction);
+            assert!(
+                (depth - arc).abs() < 0.02 * arc.abs() + 1e-5,
+                "arc {arc} m at longitude {longitude}: depth {depth}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_drawn_hair_thins_out_towards_the_hairline_over_its_fade() {
+    use bevy_hair_sim::groom::{HAIRLINE_SPARSEST, HAIRLINE_THINNEST};
+    let groom = example_groom(HairStyle::Straight, 2000, 10);
+    let grown = groom.grow_with_followers().unwrap();
+    let widths = groom.hairline_widths(&grown);
+    assert_eq!(widths, groom.hairline_widths(&grown), "the same groom thins the same hairs");
+    assert_eq!(widths.len(), grown.len());
+    // Per band of depth inside the hairline (2 mm each, then the rest): hairs drawn, and their mean share.
+    let mut bands = [(0_usize, 0_usize, 0.0_f32); 5];
+    for ((strand, followers), widths) in grown.iter().zip(&widths) {
+        let roots = std::iter::once(strand.nodes[0]).chain(followers.curves.iter().map(|curve| curve[0]));
+        assert_eq!(widths.hairs.len(), 1 + followers.curves.len());
+        for (root, &share) in roots.zip(&widths.hairs) {
+            let depth = groom.scalp.depth_inside_hairline(root);
+            let band = ((depth / 0.002).max(0.0) as usize).min(4);
+            if depth >= groom.hairline_fade {
+                assert_eq!(share, 1.0, "a hair {depth} m inside the hairline is drawn whole");
+            } else {
+                assert!(share == 0.0 || (HAIRLINE_THINNEST..=1.0).contains(&share), "{share} at {depth} m");
+            }
+            bands[band].0 += 1;
+            if share > 0.0 {
+                bands[band].1 += 1;
+                bands[band].2 += share;
+            }
+        }
+    }
+    let drawn: Vec<f32> = bands.iter().map(|&(all, drawn, _)| drawn as f32 / all as f32).collect();
+    let mean: Vec<f32> = bands.iter().map(|&(_, drawn, sum)| sum / drawn as f32).collect();
+    println!(
+        "hairs per 2 mm band from the hairline: {:?}, drawn {drawn:?}, mean share {mean:?}",
+        bands.map(|band| band.0)
+    );
+    // Sparse and thin at the hairline, rising band by band to whole.
+    assert!(bands[0].0 > 200, "enough hairs in the first band to judge it: {}", bands[0].0);
+    assert!((drawn[0] - HAIRLINE_SPARSEST).abs() < 0.12 && mean[0] < HAIRLINE_THINNEST + 0.1, "{drawn:?} {mean:?}");
+    assert!(drawn.windows(2).all(|pair| pair[0] < pair[1]) && mean.windows(2).all(|pair| pair[0] < pair[1]));
+    assert_eq!((drawn[4], mean[4]), (1.0, 1.0));
+    // No fade: every hair whole.
+    let hard = HairGroom { hairline_fade: 0.0, ..groom.clone() };
+    assert!(hard.hairline_widths(&grown).iter().all(|widths| widths.hairs.iter().all(|&share| share == 1.0)));
 }

@@ -79,7 +79,7 @@ fn drawn_hairs_end_short_of_their_tips_by_up_to_the_length_variation() {
     let mut strips = HairStrips::default();
     strips.set_layout(layout(&app, head));
     let (taper, variation) = (0.5, 0.3);
-    let vertices = strips.vertices(1.0, taper, variation);
+    let vertices = strips.vertices((1.0, taper, variation), |_| None);
     let mut shortened = Vec::new();
     for hair in strips.hairs() {
         let edges = hair.nodes - 1;
@@ -109,8 +109,8 @@ fn drawn_hairs_end_short_of_their_tips_by_up_to_the_length_variation() {
     let kinds = shortened.iter().collect::<std::collections::BTreeSet<_>>().len();
     println!("edges taken off: {kinds} different counts, up to {longest_cut}");
     assert!(kinds >= 3 && shortened.contains(&0) && longest_cut >= 2, "{shortened:?}");
-    assert_eq!(strips.vertices(1.0, taper, variation), vertices);
-    assert_eq!(strips.vertices(1.0, taper, 0.0), strips.vertices(1.0, taper, 0.0));
+    assert_eq!(strips.vertices((1.0, taper, variation), |_| None), vertices);
+    assert_eq!(strips.vertices((1.0, taper, 0.0), |_| None), strips.vertices((1.0, taper, 0.0), |_| None));
 }
 
 #[test]
@@ -119,7 +119,7 @@ fn the_template_mesh_has_two_tapered_sides_per_node_and_two_triangles_per_segmen
     let mut strips = HairStrips::default();
     strips.set_layout(layout(&app, head));
     let (scale, taper) = (1.5, 0.4);
-    let vertices = strips.vertices(scale, taper, 0.0);
+    let vertices = strips.vertices((scale, taper, 0.0), |_| None);
     assert_eq!(vertices.len(), 2 * strips.node_count());
     for (index, hair) in strips.hairs().iter().enumerate() {
         for along in 0..hair.nodes {
@@ -307,4 +307,47 @@ fn melanin_darkens_and_reddens_hair_as_in_real_hair() {
     assert!(invalid.validate().unwrap_err().contains("tip_taper"));
     let invalid = HairAppearance { length_variation: f32::NAN, ..default() };
     assert!(invalid.validate().unwrap_err().contains("length_variation"));
+}
+
+#[test]
+fn hairs_are_drawn_with_their_share_of_the_strand_width() {
+    let (app, head) = moving_head();
+    let world = app.world();
+    let mut strips = HairStrips::default();
+    strips.set_layout(layout(&app, head));
+    let guides = strips.guides().to_vec();
+    // The groom gave the strands near its hairline their widths, as it grows them.
+    let groom = world.get::<HairGroom>(head).unwrap();
+    let expected = groom.hairline_widths(&groom.grow_with_followers().unwrap());
+    let given: Vec<Option<&StrandWidths>> =
+        guides.iter().map(|guide| world.get::<StrandWidths>(guide.entity)).collect();
+    for (given, expected) in given.iter().zip(&expected) {
+        let thinned = expected.hairs.iter().any(|&share| share < 1.0);
+        assert_eq!(*given, thinned.then_some(expected), "only strands with a thinned hair carry widths");
+    }
+    assert!(given.iter().any(Option::is_some), "30 guides over the scalp: some root near the hairline");
+    // A strand's own widths: halved, left out, not finite (whole), past 1 (whole), past its list (whole).
+    let own = StrandWidths { hairs: vec![0.5, 0.0, f32::NAN, 2.0] };
+    let widths =
+        |entity: Entity| if entity == guides[0].entity { Some(&own) } else { world.get::<StrandWidths>(entity) };
+    let vertices = strips.vertices((1.0, 0.0, 0.0), widths);
+    let root_radius = |hair: usize| f32::from_bits(vertices[2 * strips.hairs()[hair].first_node as usize][3]);
+    let mut hair = 0;
+    for (guide, given) in guides.iter().zip(&given) {
+        for index in 0..=guide.followers as usize {
+            let share = if guide.entity == guides[0].entity {
+                [0.5, 0.0, 1.0, 1.0].get(index).copied().unwrap_or(1.0)
+            } else {
+                given.map_or(1.0, |given| given.hairs[index])
+            };
+            assert_eq!(root_radius(hair), 4e-5 * share, "hair {index} of guide {}", guide.entity);
+            // Along the whole hair (no taper asked), the same.
+            let drawn = strips.hairs()[hair];
+            for along in 0..drawn.nodes {
+                let vertex = vertices[(2 * (drawn.first_node + along)) as usize];
+                assert_eq!(f32::from_bits(vertex[3]), 4e-5 * share);
+            }
+            hair += 1;
+        }
+    }
 }

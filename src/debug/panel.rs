@@ -74,6 +74,8 @@ struct GroomEdit {
     combed: bool,
     gravity_preload: f32,
     followers_per_guide: usize,
+    /// The hairline's fade, mm.
+    hairline_fade_mm: f32,
 }
 
 impl From<&HairGroom> for GroomEdit {
@@ -85,6 +87,7 @@ impl From<&HairGroom> for GroomEdit {
             combed: groom.combing.is_some(),
             gravity_preload: groom.gravity_preload,
             followers_per_guide: groom.followers_per_guide,
+            hairline_fade_mm: 1e3 * groom.hairline_fade,
         }
     }
 }
@@ -95,6 +98,7 @@ impl GroomEdit {
         (groom.strand_count, groom.segments, groom.style) = (self.strand_count, self.segments, self.style);
         groom.gravity_preload = self.gravity_preload;
         groom.followers_per_guide = self.followers_per_guide;
+        groom.hairline_fade = 1e-3 * self.hairline_fade_mm;
         if self.combed != groom.combing.is_some() {
             groom.combing = self.combed.then(Combing::default);
         }
@@ -287,6 +291,8 @@ fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
         ui.checkbox(&mut groom.combed, "along the scalp, from a parting");
         ui.end_row();
         held |= grid_row(ui, "gravity preload", egui::Slider::new(&mut groom.gravity_preload, 0.0..=1.0)).dragged();
+        held |=
+            grid_row(ui, "hairline fade (mm)", egui::Slider::new(&mut groom.hairline_fade_mm, 0.0..=20.0)).dragged();
     });
     held
 }

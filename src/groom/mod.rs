@@ -94,8 +94,8 @@ pub use file::{
     MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, StrandColors, UpAxis,
 };
 pub use procedural::{
-    Combing, GroomError, GroomObstacles, GroomedStrand, HairGroom, HairStyle, MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS,
-    Scalp, ScalpRoot,
+    Combing, GroomError, GroomObstacles, GroomedStrand, HAIRLINE_SPARSEST, HAIRLINE_THINNEST, HairGroom, HairStyle,
+    MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot, StrandWidths,
 };
 pub use surface::{GroomSurface, ScalpSurface};
 

@@ -91,7 +91,7 @@ impl Scalp {
         let around = GOLDEN_ANGLE * index as f32;
         let on_unit_sphere = Vec3::new(ring * around.cos(), height, ring * around.sin());
         let normal = (on_unit_sphere / self.semi_axes).normalize();
-        (normal.y >= self.hairline_height(normal))
+        self.grows_hair_at(normal)
             .then(|| ScalpRoot { position: self.centre + self.semi_axes * on_unit_sphere, normal })
     }
 
@@ -104,6 +104,37 @@ impl Scalp {
         let face = ((facing_front - 0.3) / 0.4).clamp(0.0, 1.0);
         let face = face * face * (3.0 - 2.0 * face);
         self.nape_height + (self.brow_height - self.nape_height) * face
+    }
+
+    /// Whether hair grows where the skull's outward unit normal (head-local) is `normal`: inside the
+    /// hairline, where `normal.y` is at least [`Scalp::hairline_height`].
+    pub fn grows_hair_at(&self, normal: Vec3) -> bool {
+        normal.y >= self.hairline_height(normal)
+    }
+
+    /// How far inside the hairline the point of the skull radially under `position` (head-local) lies, m,
+    /// along the skull; negative outside. To first order: the hairline's margin there
+    /// (`normal.y − hairline_height`) over how fast it changes along the skull (by central differences
+    /// 1 mm apart), so it is close near the hairline and grows without bound towards the crown.
+    pub fn depth_inside_hairline(&self, position: Vec3) -> f32 {
+        const STEP: f32 = 0.001;
+        let margin = |point: Vec3| {
+            let normal = self.radially_under(point).1;
+            normal.y - self.hairline_height(normal)
+        };
+        let (point, normal) = self.radially_under(position);
+        let (across, along) = normal.any_orthonormal_pair();
+        let slope =
+            |direction: Vec3| (margin(point + STEP * direction) - margin(point - STEP * direction)) / (2.0 * STEP);
+        let gradient = Vec2::new(slope(across), slope(along)).length();
+        let here = margin(point);
+        if gradient > 0.0 { here / gradient } else { here.signum() * f32::INFINITY }
+    }
+
+    /// The point of the skull radially under `point` (from the centre), with the outward unit normal there.
+    fn radially_under(&self, point: Vec3) -> (Vec3, Vec3) {
+        let unit = ((point - self.centre) / self.semi_axes).normalize_or(Vec3::Y);
+        (self.centre + unit * self.semi_axes, (unit / self.semi_axes).normalize())
     }
 
     fn validate(&self) -> Result<(), GroomError> {
@@ -215,6 +246,31 @@ pub struct HairGroom {
     /// shape the shape at rest under gravity, lying on the skull collider where it was combed onto it; 0
     /// lets it sag. Default 1.
     pub gravity_preload: f32,
+    /// Width of the band inside the hairline over which the drawn hair thins out, m, measured along the
+    /// skull ([`Scalp::depth_inside_hairline`]): a hair rooted at the hairline is drawn
+    /// [`HAIRLINE_THINNEST`] as wide, and only [`HAIRLINE_SPARSEST`] of the hairs there are drawn at all,
+    /// both rising smoothly to the whole `hairline_fade` inside, as a real hairline's fine single hairs
+    /// thin into bare skin. Given to the strands as [`StrandWidths`]; only the drawing changes, not the
+    /// simulation. 0: a hard hairline. Default 0.008.
+    pub hairline_fade: f32,
+}
+
+/// How wide a hair rooted right at the hairline is drawn, as a share of its width inside
+/// ([`HairGroom::hairline_fade`]).
+pub const HAIRLINE_THINNEST: f32 = 0.35;
+
+/// The share of the hairs rooted right at the hairline that are drawn ([`HairGroom::hairline_fade`]).
+pub const HAIRLINE_SPARSEST: f32 = 0.3;
+
+/// The share (0 to 1) of its strand's drawn width each hair of a strand is drawn with: the guide's, then
+/// each of its followers' in the order of its [`HairFollowers::curves`]; 0 leaves the hair out. A head's
+/// [`HairGroom`] gives it to the strands it grows by its hairline ([`HairGroom::hairline_fade`]); give it to
+/// strands of your own to thin their hair. The renderer reads it when it lays the head's hair out (when the
+/// strands are spawned or change); a hair it has no share for is drawn whole.
+#[derive(Component, Debug, Clone, Default, PartialEq)]
+pub struct StrandWidths {
+    /// Per drawn hair (the guide first): its share of the strand's width, 0 to 1.
+    pub hairs: Vec<f32>,
 }
 
 impl Default for HairGroom {
@@ -230,6 +286,7 @@ impl Default for HairGroom {
             follower_clumping: 0.0,
             hair_count: 100_000,
             gravity_preload: 1.0,
+            hairline_fade: 0.008,
         }
     }
 }
@@ -370,6 +427,30 @@ impl HairGroom {
         Ok(grown)
     }
 
+    /// How wide each hair of `grown` (as [`HairGroom::grow_with_followers`] grows it) is drawn, by how far
+    /// inside the hairline its root lies ([`HairGroom::hairline_fade`]): one [`StrandWidths`] per strand,
+    /// its guide's share first. Which of the hairs near the hairline are left out is drawn from the
+    /// groom's seed: the same groom thins the same hairs.
+    pub fn hairline_widths(&self, grown: &[(HairStrand, HairFollowers)]) -> Vec<StrandWidths> {
+        let mut random = fastrand::Rng::with_seed(self.seed ^ 0x6861_6972_6c69_6e65);
+        let mut share = |root: Option<&Vec3>| {
+            let drawn = random.f32();
+            let Some(&root) = root.filter(|_| self.hairline_fade > 0.0) else { return 1.0 };
+            let inside = (self.scalp.depth_inside_hairline(root) / self.hairline_fade).clamp(0.0, 1.0);
+            let smooth = inside * inside * (3.0 - 2.0 * inside);
+            let kept = drawn < HAIRLINE_SPARSEST + (1.0 - HAIRLINE_SPARSEST) * smooth;
+            if kept { HAIRLINE_THINNEST + (1.0 - HAIRLINE_THINNEST) * smooth } else { 0.0 }
+        };
+        grown
+            .iter()
+            .map(|(strand, followers)| {
+                let roots =
+                    std::iter::once(strand.nodes.first()).chain(followers.curves.iter().map(|curve| curve.first()));
+                StrandWidths { hairs: roots.map(&mut share).collect() }
+            })
+            .collect()
+    }
+
     fn validate(&self) -> Result<(), GroomError> {
         if self.segments < 2 {
             return Err(GroomError::TooFewSegments(self.segments));
@@ -389,6 +470,9 @@ impl HairGroom {
         }
         if !(0.0..=1.0).contains(&self.follower_clumping) {
             return Err(GroomError::FollowerClumping(self.follower_clumping));
+        }
+        if !(self.hairline_fade >= 0.0 && self.hairline_fade.is_finite()) {
+            return Err(GroomError::HairlineFade(self.hairline_fade));
         }
         if let Some(combing) = &self.combing {
             combing.validate()?;
@@ -552,13 +636,10 @@ impl CombedPath<'_> {
     /// The point of the skull's surface radially under `point` (the nearest point of the scalp mesh, if
     /// combed along one), with the outward normal there.
     fn on_skull(&self, point: Vec3) -> (Vec3, Vec3) {
-        if let Some(surface) = self.surface {
-            return surface.nearest(point);
+        match self.surface {
+            Some(surface) => surface.nearest(point),
+            None => self.scalp.radially_under(point),
         }
-        let local = (point - self.scalp.centre) / self.scalp.semi_axes;
-        let unit = local.normalize_or(Vec3::Y);
-        let surface = self.scalp.centre + unit * self.scalp.semi_axes;
-        (surface, (unit / self.scalp.semi_axes).normalize())
     }
 
     /// The nodes of a strand `length` m long in `segments` equal edges from `root`, and its material
@@ -582,9 +663,7 @@ impl CombedPath<'_> {
         let first_direction = tangent;
         let mut arc = 0.0;
         let lies_on = |normal: Vec3| {
-            normal.y > 0.0
-                || normal.y >= self.scalp.hairline_height(normal)
-                || (lies_everywhere && normal.y > Self::UNDER_THE_SKULL)
+            normal.y > 0.0 || self.scalp.grows_hair_at(normal) || (lies_everywhere && normal.y > Self::UNDER_THE_SKULL)
         };
         while arc < length && lies_on(normal) {
             let combed = self.combing.direction(self.scalp, surface, normal, !lies_everywhere);
@@ -808,6 +887,9 @@ pub enum GroomError {
     /// The follower clumping is outside 0 to 1.
     #[error("the groom's follower clumping must lie between 0 and 1, got {0}")]
     FollowerClumping(f32),
+    /// The hairline's fade is negative or not finite.
+    #[error("the groom's hairline fade must be a width of 0 m or more, got {0}")]
+    HairlineFade(f32),
     /// A combing parameter is negative or not finite, or the parting's blend is not positive.
     #[error(
         "the groom's combing needs finite values, with sweep_back, lift, layer_spread and crown_sweep not \
@@ -886,8 +968,12 @@ pub(super) fn grow_groomed_hair(
             }
         }
         let hairs = RepresentedHairs(groom.hairs_per_strand());
-        commands.spawn_batch(
-            grown.into_iter().map(move |(strand, followers)| (strand, followers, StrandOf(head), GroomedStrand, hairs)),
-        );
+        let widths = groom.hairline_widths(&grown);
+        for ((strand, followers), widths) in grown.into_iter().zip(widths) {
+            let mut spawned = commands.spawn((strand, followers, StrandOf(head), GroomedStrand, hairs));
+            if widths.hairs.iter().any(|&share| share < 1.0) {
+                spawned.insert(widths);
+            }
+        }
     }
 }

@@ -280,7 +280,7 @@ impl ScalpSurface {
                 continue;
             }
             let normal = self.normal_at(index as u32, point);
-            if normal.y < hairline.hairline_height(normal) {
+            if !hairline.grows_hair_at(normal) {
                 continue;
             }
             candidates.push((ScalpRoot { position: point, normal }, density));

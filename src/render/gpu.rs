@@ -22,7 +22,7 @@ use super::compute::{self, GpuHeads};
 use super::feed::{GpuCollider, GuideUpload, LayoutChanged};
 use super::{GuideLayout, HairAppearance, HairStrips};
 use crate::followers::{FollowerNodes, FollowerPlacement};
-use crate::groom::StrandColors;
+use crate::groom::{StrandColors, StrandWidths};
 use crate::schedule::HairDrawSystems;
 use crate::simulation::{
     CheckedSettings, HairHead, HeadMotion, HeadStrands, PackedStrandPose, SimulatedStrand, SteppedElsewhere,
@@ -339,7 +339,7 @@ fn prepare_hair_meshes(
     mut hair_meshes: Query<HairMeshParts>,
     heads: Query<DrawnHead, Without<HairMesh>>,
     strands: Query<DrawnStrand>,
-    colors: Query<&StrandColors>,
+    (colors, widths): (Query<&StrandColors>, Query<&StrandWidths>),
     gpu_steps: Option<Res<GpuStepCount>>,
     stepped_elsewhere: Query<(), With<SteppedElsewhere>>,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -433,7 +433,10 @@ fn prepare_hair_meshes(
             let mut template = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
             template.insert_attribute(
                 ATTRIBUTE_HAIR_VERTEX,
-                strips.vertices(appearance.thickness_scale, appearance.tip_taper, appearance.length_variation),
+                strips.vertices(
+                    (appearance.thickness_scale, appearance.tip_taper, appearance.length_variation),
+                    |entity| widths.get(entity).ok(),
+                ),
             );
             template.insert_attribute(ATTRIBUTE_HAIR_COLOR, strips.colors(|entity| colors.get(entity).ok()));
             template.insert_indices(Indices::U32(strips.indices()));

@@ -40,7 +40,7 @@ use bevy::math::{Vec3, Vec4};
 use bevy::prelude::*;
 
 use crate::followers::FollowerNodes;
-use crate::groom::StrandColors;
+use crate::groom::{StrandColors, StrandWidths};
 use crate::simulation::{SimulatedStrand, StrandNodes};
 use crate::volume::RepresentedHairs;
 
@@ -361,11 +361,24 @@ impl HairStrips {
     /// tapered linearly to `1 − tip_taper` of the root's at the hair's last drawn node, times
     /// `thickness_scale`) as `f32` bits. Each hair is drawn to its node `last`: its own last node, less
     /// the edges `length_variation` ([`HairAppearance::length_variation`]) takes off it (at least one
-    /// edge stays); its nodes beyond are drawn as its last one, with no width. Hairs longer than 32 767
-    /// nodes are cut there.
-    pub fn vertices(&self, thickness_scale: f32, tip_taper: f32, length_variation: f32) -> Vec<[u32; 4]> {
+    /// edge stays); its nodes beyond are drawn as its last one, with no width. Each hair's radius is
+    /// its share of its guide's ([`StrandWidths`], from `widths` by the guide's entity; whole without one,
+    /// clamped to 0 to 1, whole if not finite): a share of 0 draws it with no width. Hairs longer than
+    /// 32 767 nodes are cut there.
+    pub fn vertices<'a>(
+        &self,
+        (thickness_scale, tip_taper, length_variation): (f32, f32, f32),
+        widths: impl Fn(Entity) -> Option<&'a StrandWidths>,
+    ) -> Vec<[u32; 4]> {
         let mut vertices = Vec::with_capacity(2 * self.node_count());
-        for (index, hair) in self.hairs.iter().enumerate() {
+        let shares = self.guides.iter().flat_map(|guide| {
+            let given = widths(guide.entity);
+            (0..=guide.followers as usize).map(move |hair| {
+                let share = given.and_then(|given| given.hairs.get(hair)).copied().unwrap_or(1.0);
+                if share.is_finite() { share.clamp(0.0, 1.0) } else { 1.0 }
+            })
+        });
+        for ((index, hair), share) in self.hairs.iter().enumerate().zip(shares) {
             let edges = hair.nodes.saturating_sub(1).min(0x7fff);
             let shorter =
                 (hash01(index as u32 ^ 0x2c1b_3c6d) * length_variation.clamp(0.0, 1.0) * edges as f32).round() as u32;
@@ -373,7 +386,8 @@ impl HairStrips {
             for along in 0..hair.nodes {
                 let k = along.min(last);
                 let s = if last > 0 { k as f32 / last as f32 } else { 0.0 };
-                let radius = if along > last { 0.0 } else { hair.radius * thickness_scale * (1.0 - tip_taper * s) };
+                let radius =
+                    if along > last { 0.0 } else { hair.radius * share * thickness_scale * (1.0 - tip_taper * s) };
                 for side in 0..2 {
                     vertices.push([hair.first_node + k, index as u32, side | k << 1 | last << 16, radius.to_bits()]);
                 }
