@@ -16,7 +16,9 @@
 //! parting, sweep back, lift, layer spread): each strand leaves its root along the scalp and lies on it,
 //! combed away from a side parting, back from the face and the crown and down (straight down from the
 //! skull's upper sides), to the hairline, then falls in its style's shape. With `combing: None` each
-//! strand grows straight out along the scalp's normal.
+//! strand grows straight out along the scalp's normal. Over the last millimetres inside the hairline
+//! ([`HairGroom::hairline_fade`], 8 mm by default) the drawn hair thins out, fewer and finer hairs, as a
+//! real hairline does ([`StrandWidths`]).
 //!
 //! A groomed shape is not the shape hair rests in under gravity: simulated as it is, it sags.
 //! [`HairStrand::gravity_preload`](crate::simulation::HairStrand::gravity_preload) (1 for groomed hair by
