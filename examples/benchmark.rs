@@ -7,7 +7,7 @@
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`,
-//! `bare`, `hold`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
+//! `bare`, `hold`, `scene`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
 //! compute threads (one per core by default), `--style NAME` to measure one style in `styles`,
 //! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
@@ -150,6 +150,9 @@ fn main() {
     }
     if wanted("hold") {
         hold_cost(threads, if quick { 60 } else { 240 });
+    }
+    if wanted("scene") {
+        example_scene_cost(threads, if quick { 60 } else { 240 });
     }
     if wanted("styles") {
         let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
@@ -743,6 +746,46 @@ fn hold_cost(threads: usize, steps: usize) {
     for (((name, _), times), iterations) in rows.iter().zip(&mut times).zip(&iterations) {
         times.sort_by(f64::total_cmp);
         println!("| {name} | {:.2} | {iterations:.2} |", 1e3 * times[times.len() / 2]);
+    }
+}
+
+/// The example's default scene as the example runs it ([`example_head`]: 2 000 combed guides × 24 edges,
+/// 10 followers each, its five colliders, the grid's velocity smoothing on, the style held at 200/s),
+/// still and shaken as the example shakes it, each for `steps` updates after a still second: median ms
+/// per whole update and, from [`HairStatistics`], the median of its parts: stepping the guides, placing
+/// the followers and the hair–hair grid (issue 32 asks for the whole in 10 ms).
+fn example_scene_cost(threads: usize, steps: usize) {
+    use bevy::prelude::Transform;
+    println!();
+    println!("The example's default scene ({threads} threads), ms per update (medians; target for the whole: 10 ms):");
+    println!("| motion | whole update | guides | followers | grid | the rest |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    type Motion = fn(f32) -> bevy::prelude::Quat;
+    let motions: [(&str, Motion); 2] = [("still", |_| bevy::prelude::Quat::IDENTITY), ("shaken", shaken)];
+    for (name, rotation) in motions {
+        let (mut app, head) = example_app(threads, HairStyle::Straight, (200.0, 0.0), 60);
+        let mut parts = [(); 5].map(|_| Vec::with_capacity(steps));
+        for step in 1..=steps {
+            app.world_mut().get_mut::<Transform>(head).expect("the head exists").rotation =
+                rotation(step as f32 / 60.0);
+            let started = Instant::now();
+            app.update();
+            let whole = started.elapsed().as_secs_f64();
+            let statistics = app.world().resource::<HairStatistics>();
+            let (guides, followers, grid) =
+                (statistics.step_seconds, statistics.follower_seconds, statistics.volume_seconds);
+            for (part, seconds) in
+                parts.iter_mut().zip([whole, guides, followers, grid, whole - guides - followers - grid])
+            {
+                part.push(seconds);
+            }
+        }
+        let median = |times: &mut Vec<f64>| {
+            times.sort_by(f64::total_cmp);
+            1e3 * times[times.len() / 2]
+        };
+        let [whole, guides, followers, grid, rest] = parts.each_mut().map(median);
+        println!("| {name} | {whole:.1} | {guides:.1} | {followers:.1} | {grid:.1} | {rest:.1} |");
     }
 }
 
