@@ -251,7 +251,9 @@ pub struct HairGroom {
     /// [`HAIRLINE_THINNEST`] as wide, and only [`HAIRLINE_SPARSEST`] of the hairs there are drawn at all,
     /// both rising smoothly to the whole `hairline_fade` inside, as a real hairline's fine single hairs
     /// thin into bare skin. Given to the strands as [`StrandWidths`]; only the drawing changes, not the
-    /// simulation. 0: a hard hairline. Default 0.008.
+    /// simulation. A groom grown on a scalp mesh is judged on the [`Scalp`]'s ellipsoid radially under
+    /// each root, so the fade follows the mesh's hairline as closely as the ellipsoid fits the head.
+    /// 0: a hard hairline. Default 0.008.
     pub hairline_fade: f32,
 }
 
