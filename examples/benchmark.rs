@@ -45,6 +45,11 @@ fn median_step_seconds(strands: usize, edges: usize, colliders: usize, threads: 
             started.elapsed().as_secs_f64()
         })
         .collect();
+    median(&mut times)
+}
+
+/// The median of `times` (sorted in place); `times` must not be empty.
+fn median(times: &mut [f64]) -> f64 {
     times.sort_by(f64::total_cmp);
     times[times.len() / 2]
 }
@@ -61,13 +66,7 @@ fn interleaved_median_step_seconds(scenes: &mut [Scene], steps: usize) -> Vec<f6
             times.push(started.elapsed().as_secs_f64());
         }
     }
-    times
-        .into_iter()
-        .map(|mut times| {
-            times.sort_by(f64::total_cmp);
-            times[times.len() / 2]
-        })
-        .collect()
+    times.iter_mut().map(|times| median(times)).collect()
 }
 
 /// The value following `flag` in `args`, parsed.
@@ -744,8 +743,7 @@ fn hold_cost(threads: usize, steps: usize) {
         }
     }
     for (((name, _), times), iterations) in rows.iter().zip(&mut times).zip(&iterations) {
-        times.sort_by(f64::total_cmp);
-        println!("| {name} | {:.2} | {iterations:.2} |", 1e3 * times[times.len() / 2]);
+        println!("| {name} | {:.2} | {iterations:.2} |", 1e3 * median(times));
     }
 }
 
@@ -780,11 +778,7 @@ fn example_scene_cost(threads: usize, steps: usize) {
                 part.push(seconds);
             }
         }
-        let median = |times: &mut Vec<f64>| {
-            times.sort_by(f64::total_cmp);
-            1e3 * times[times.len() / 2]
-        };
-        let [whole, guides, followers, grid, rest] = parts.each_mut().map(median);
+        let [whole, guides, followers, grid, rest] = parts.each_mut().map(|times| 1e3 * median(times));
         println!("| {name} | {whole:.1} | {guides:.1} | {followers:.1} | {grid:.1} | {rest:.1} |");
     }
 }
@@ -911,11 +905,11 @@ fn crowd(threads: usize, steps: usize) {
         }
     }
     for (index, (name, in_view, _)) in rows.into_iter().enumerate() {
-        times[index].sort_by(f64::total_cmp);
+        let step = median(&mut times[index]);
         let HeadsByDetail { full, every_second_step: half, rarer: quarter, carried } = crowds[index].levels();
         println!(
             "| {name} | {in_view} | {:.2} | {:.0} | {:.2} | {full} / {half} / {quarter} / {carried} |",
-            1e3 * times[index][steps / 2],
+            1e3 * step,
             stepped[index] as f64 / steps as f64,
             iterations[index] / stepped[index] as f64
         );
@@ -978,10 +972,7 @@ fn render_preparation(threads: usize, frames: usize) {
         4.0 * staging.len() as f64 / 1e6
     );
     println!("|---|---:|---:|---:|---:|---:|");
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        1e3 * values[values.len() / 2]
-    };
+    let median_ms = |values: &mut Vec<f64>| 1e3 * median(values);
     for threads in [threads, 1] {
         let mut samples = [Vec::new(), Vec::new(), Vec::new(), Vec::new()];
         for frame in 0..frames {
@@ -1002,10 +993,10 @@ fn render_preparation(threads: usize, frames: usize) {
         let [check, fill, copy, total] = &mut samples;
         println!(
             "| | {threads} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            median(check),
-            median(fill),
-            median(copy),
-            median(total)
+            median_ms(check),
+            median_ms(fill),
+            median_ms(copy),
+            median_ms(total)
         );
     }
 }
@@ -1098,12 +1089,9 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
             samples[6].push(packed);
         }
     }
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        1e3 * values[values.len() / 2]
-    };
+    let median_ms = |values: &mut Vec<f64>| 1e3 * median(values);
     let [cpu_placed, cpu_checked, cpu_drawn, gpu_placed, gpu_checked, gpu_drawn, gpu_packed] =
-        samples.map(|mut values| median(&mut values));
+        samples.map(|mut values| median_ms(&mut values));
     println!();
     println!(
         "The example's scene, {guides} guides × {edges} edges with {followers} followers each, {threads} threads, one frame per step (interleaved):"
@@ -1169,10 +1157,6 @@ fn volume_cost(threads: usize, steps: usize) {
             grid[index].push(scene.app.world().resource::<HairStatistics>().volume_seconds);
         }
     }
-    let median = |values: &mut Vec<f64>| {
-        values.sort_by(f64::total_cmp);
-        values[values.len() / 2]
-    };
     for ((name, _), (times, grid)) in rows.iter().zip(times.iter_mut().zip(&mut grid)) {
         let (update, grid) = (median(times), median(grid));
         println!("| {name} | {:.2} | {:.2} | {:.1} % |", 1e3 * update, 1e3 * grid, 100.0 * grid / update);
@@ -1221,9 +1205,8 @@ fn integrators(threads: usize, steps: usize) {
             }
         }
         for (index, (name, ..)) in rows.iter().enumerate() {
-            times[index].sort_by(f64::total_cmp);
-            let median = times[index][steps / 2];
-            println!("| {colliders} | {name} | {:.2} | {:.2} |", 1e3 * median, iterations[index] / steps as f64);
+            let step = median(&mut times[index]);
+            println!("| {colliders} | {name} | {:.2} | {:.2} |", 1e3 * step, iterations[index] / steps as f64);
         }
     }
 }
@@ -1308,17 +1291,14 @@ fn followers_cost(threads: usize, steps: usize) {
                 }
             }
         }
-        let median = |values: &mut Vec<f64>| {
-            values.sort_by(f64::total_cmp);
-            1e3 * values[values.len() / 2]
-        };
+        let median_ms = |values: &mut Vec<f64>| 1e3 * median(values);
         let [simulation, placement, whole] = &mut samples;
         println!(
             "| {guides} × {followers} × 24 | {} | {:.2} | {:.2} | {:.2} |",
             guides * (1 + followers),
-            median(simulation),
-            median(placement),
-            median(whole)
+            median_ms(simulation),
+            median_ms(placement),
+            median_ms(whole)
         );
     }
 }
@@ -1534,10 +1514,7 @@ fn lockstep(threads: usize, steps: usize) {
     }
     let same = copies[0].iter().zip(&copies[1]).all(|(a, b)| a.positions() == b.positions());
     assert!(same, "the lockstep batches ended where the strands alone did");
-    let [alone, batched] = times.map(|mut times| {
-        times.sort_by(f64::total_cmp);
-        times[times.len() / 2]
-    });
+    let [alone, batched] = times.map(|mut times| median(&mut times));
     println!();
     println!(
         "The core's step of {strands} strands × {edges} edges on {threads} threads, alone and in lockstep, stepped in turn:"

@@ -118,16 +118,14 @@ impl Scalp {
     /// 1 mm apart), so it is close near the hairline and grows without bound towards the crown.
     pub fn depth_inside_hairline(&self, position: Vec3) -> f32 {
         const STEP: f32 = 0.001;
-        let margin = |point: Vec3| {
-            let normal = self.radially_under(point).1;
-            normal.y - self.hairline_height(normal)
-        };
+        let margin_at = |normal: Vec3| normal.y - self.hairline_height(normal);
+        let margin = |point: Vec3| margin_at(self.radially_under(point).1);
         let (point, normal) = self.radially_under(position);
         let (across, along) = normal.any_orthonormal_pair();
         let slope =
             |direction: Vec3| (margin(point + STEP * direction) - margin(point - STEP * direction)) / (2.0 * STEP);
         let gradient = Vec2::new(slope(across), slope(along)).length();
-        let here = margin(point);
+        let here = margin_at(normal);
         if gradient > 0.0 { here / gradient } else { here.signum() * f32::INFINITY }
     }
 
