@@ -89,10 +89,8 @@ impl Scalp {
         let height = 1.0 - 2.0 * (index as f32 + 0.5) / total as f32;
         let ring = (1.0 - height * height).max(0.0).sqrt();
         let around = GOLDEN_ANGLE * index as f32;
-        let on_unit_sphere = Vec3::new(ring * around.cos(), height, ring * around.sin());
-        let normal = (on_unit_sphere / self.semi_axes).normalize();
-        self.grows_hair_at(normal)
-            .then(|| ScalpRoot { position: self.centre + self.semi_axes * on_unit_sphere, normal })
+        let root = self.on_skull(Vec3::new(ring * around.cos(), height, ring * around.sin()));
+        self.grows_hair_at(root.normal).then_some(root)
     }
 
     /// The hairline's height in the direction of `normal` (the skull's outward unit normal, head-local),
@@ -119,8 +117,8 @@ impl Scalp {
     pub fn depth_inside_hairline(&self, position: Vec3) -> f32 {
         const STEP: f32 = 0.001;
         let margin_at = |normal: Vec3| normal.y - self.hairline_height(normal);
-        let margin = |point: Vec3| margin_at(self.radially_under(point).1);
-        let (point, normal) = self.radially_under(position);
+        let margin = |point: Vec3| margin_at(self.radially_under(point).normal);
+        let ScalpRoot { position: point, normal } = self.radially_under(position);
         let (across, along) = normal.any_orthonormal_pair();
         let slope =
             |direction: Vec3| (margin(point + STEP * direction) - margin(point - STEP * direction)) / (2.0 * STEP);
@@ -130,9 +128,15 @@ impl Scalp {
     }
 
     /// The point of the skull radially under `point` (from the centre), with the outward unit normal there.
-    fn radially_under(&self, point: Vec3) -> (Vec3, Vec3) {
-        let unit = ((point - self.centre) / self.semi_axes).normalize_or(Vec3::Y);
-        (self.centre + unit * self.semi_axes, (unit / self.semi_axes).normalize())
+    fn radially_under(&self, point: Vec3) -> ScalpRoot {
+        self.on_skull(((point - self.centre) / self.semi_axes).normalize_or(Vec3::Y))
+    }
+
+    /// The point of the skull that `on_unit_sphere` (a unit vector) scales to, with the outward unit
+    /// normal there.
+    fn on_skull(&self, on_unit_sphere: Vec3) -> ScalpRoot {
+        let normal = (on_unit_sphere / self.semi_axes).normalize();
+        ScalpRoot { position: self.centre + self.semi_axes * on_unit_sphere, normal }
     }
 
     fn validate(&self) -> Result<(), GroomError> {
@@ -638,7 +642,10 @@ impl CombedPath<'_> {
     fn on_skull(&self, point: Vec3) -> (Vec3, Vec3) {
         match self.surface {
             Some(surface) => surface.nearest(point),
-            None => self.scalp.radially_under(point),
+            None => {
+                let root = self.scalp.radially_under(point);
+                (root.position, root.normal)
+            }
         }
     }
 
