@@ -756,13 +756,14 @@ fn example_scene_cost(threads: usize, steps: usize) {
     use bevy::prelude::Transform;
     println!();
     println!("The example's default scene ({threads} threads), ms per update (medians; target for the whole: 10 ms):");
-    println!("| motion | whole update | guides | followers | grid | the rest |");
-    println!("|---|---:|---:|---:|---:|---:|");
+    println!("| motion | whole update | guides | followers | grid | the rest | Newton iterations per guide |");
+    println!("|---|---:|---:|---:|---:|---:|---:|");
     type Motion = fn(f32) -> bevy::prelude::Quat;
     let motions: [(&str, Motion); 2] = [("still", |_| bevy::prelude::Quat::IDENTITY), ("shaken", shaken)];
     for (name, rotation) in motions {
         let (mut app, head) = example_app(threads, HairStyle::Straight, (200.0, 0.0), 60);
         let mut parts = [(); 5].map(|_| Vec::with_capacity(steps));
+        let mut iterations = Vec::with_capacity(steps);
         for step in 1..=steps {
             app.world_mut().get_mut::<Transform>(head).expect("the head exists").rotation =
                 rotation(step as f32 / 60.0);
@@ -772,6 +773,7 @@ fn example_scene_cost(threads: usize, steps: usize) {
             let statistics = app.world().resource::<HairStatistics>();
             let (guides, followers, grid) =
                 (statistics.step_seconds, statistics.follower_seconds, statistics.volume_seconds);
+            iterations.push(statistics.mean_newton_iterations);
             for (part, seconds) in
                 parts.iter_mut().zip([whole, guides, followers, grid, whole - guides - followers - grid])
             {
@@ -779,7 +781,8 @@ fn example_scene_cost(threads: usize, steps: usize) {
             }
         }
         let [whole, guides, followers, grid, rest] = parts.each_mut().map(|times| 1e3 * median(times));
-        println!("| {name} | {whole:.1} | {guides:.1} | {followers:.1} | {grid:.1} | {rest:.1} |");
+        let iterations = iterations.iter().sum::<f64>() / steps as f64;
+        println!("| {name} | {whole:.1} | {guides:.1} | {followers:.1} | {grid:.1} | {rest:.1} | {iterations:.2} |");
     }
 }
 

@@ -239,6 +239,7 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal; the
     /// band then holds `L` below the diagonal and `D` on it), or says at which row the matrix showed it
     /// is not positive definite.
+    #[inline]
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
         let mut row = [0];
         match self.factorize_lanes(&mut row) {
