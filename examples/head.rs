@@ -127,6 +127,8 @@ struct Options {
     appearance: HairAppearance,
     /// A level of detail to keep (`None`: chosen from the camera's distance).
     detail: Option<HairDetailLevel>,
+    /// Whether the camera blurs what moves (Bevy's `MotionBlur`, from the hair's motion vectors).
+    motion_blur: bool,
     /// Whether the GPU steps the hair (`HairGpuPlugin`).
     gpu: bool,
 }
@@ -157,7 +159,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--hold 1/S] [--draw hair|lines|both]
-            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off]
+            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -188,6 +190,7 @@ impl Options {
             appearance: HairAppearance::default(),
             detail: None,
             gpu: false,
+            motion_blur: false,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -211,6 +214,7 @@ impl Options {
                 "--grid" => options.volume.enabled = switch()?,
                 "--hold" => options.style_hold = number("a rate in 1/s")?,
                 "--gpu" => options.gpu = switch()?,
+                "--motion-blur" => options.motion_blur = switch()?,
                 "--integrator" => {
                     options.integrator = match value.as_str() {
                         "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,
@@ -348,11 +352,18 @@ fn spawn_scene(
     config.line.width = 1.5;
     hair_gizmos.draw_colliders = options.draw_colliders;
     let yaw = PI + options.yaw_degrees.to_radians();
-    commands.spawn((
-        Camera3d::default(),
-        Transform::default(),
-        Orbit { yaw, pitch: options.pitch_degrees.to_radians(), distance: options.distance },
-    ));
+    let camera = commands
+        .spawn((
+            Camera3d::default(),
+            Transform::default(),
+            Orbit { yaw, pitch: options.pitch_degrees.to_radians(), distance: options.distance },
+        ))
+        .id();
+    if options.motion_blur {
+        // Blurred along each pixel's motion vector over half a frame: the hair's come from where it was
+        // drawn the frame before.
+        commands.entity(camera).insert(bevy::post_process::motion_blur::MotionBlur::default());
+    }
     // The key light casts the hair's shadows, on the head and on the hair itself: one cascade over the
     // 3 m around the camera, so that a shadow texel (4096² map) is under a millimetre.
     commands.spawn((

@@ -9,10 +9,12 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use bevy::app::PluginsState;
+use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::render::storage::ShaderBuffer;
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
@@ -258,4 +260,98 @@ fn frames_walked_from_packed_poses_are_the_material_frames() {
     println!("{checked} directors walked from packed poses: largest angle from the material frame {worst:.2e} rad");
     assert!(checked >= 60 * 12 * 25);
     assert!(worst <= WALKED_DIRECTOR_TOLERANCE, "{worst} rad");
+}
+
+/// What the CPU draws of `app`'s one hair mesh at the fixed clock's fraction `alpha` of a step (its own
+/// follower placement, interpolated as `HairStrips` writes it).
+fn drawn_on_the_cpu(app: &mut App, alpha: f32) -> Vec<f32> {
+    let mut meshes = app.world_mut().query::<&HairMesh>();
+    let layout: Vec<GuideLayout> = meshes.single(app.world()).expect("one hair mesh").strips().guides().to_vec();
+    let world = app.world();
+    let mut expected = HairStrips::default();
+    expected.set_layout(layout.iter().copied());
+    let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+    expected.fill(alpha, 1, lookup).expect("hair to draw");
+    expected.positions().to_vec()
+}
+
+/// The largest distance, m, between the nodes of two position lists (`x y z` per node), and its node.
+fn largest_difference(drawn: &[f32], expected: &[f32]) -> (f32, usize) {
+    assert!(drawn.len() >= expected.len(), "{} floats read back for {}", drawn.len(), expected.len());
+    let at = |values: &[f32], node: usize| Vec3::from_slice(&values[3 * node..3 * node + 3]);
+    (0..expected.len() / 3)
+        .map(|node| (at(drawn, node).distance(at(expected, node)), node))
+        .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a })
+}
+
+/// Reads `buffer` back from the frame `app.update()` draws next, and goes on updating (time standing
+/// still) until it arrives.
+fn read_back_next_frame(app: &mut App, buffers: [Handle<ShaderBuffer>; 2]) -> [Vec<f32>; 2] {
+    let received = [ReadBack::default(), ReadBack::default()];
+    let readers = buffers.map(|buffer| app.world_mut().spawn(Readback::buffer(buffer)).id());
+    for (reader, slot) in readers.iter().zip(&received) {
+        let sink = slot.clone();
+        app.world_mut().entity_mut(*reader).observe(move |event: On<ReadbackComplete>| {
+            let mut slot = sink.0.lock().unwrap();
+            // The first frame's read-back only: later frames drew with time standing still.
+            if slot.is_none() {
+                *slot = Some(event.to_shader_type());
+            }
+        });
+    }
+    for _ in 0..120 {
+        app.update();
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
+        if received.iter().all(|slot| slot.0.lock().unwrap().is_some()) {
+            break;
+        }
+    }
+    for reader in readers {
+        app.world_mut().despawn(reader);
+    }
+    received.map(|slot| slot.0.lock().unwrap().take().expect("a read-back from the GPU in 120 frames"))
+}
+
+#[test]
+fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() {
+    let mut app = rendering_app();
+    assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
+    // A camera that draws motion vectors: only then is the frame before kept.
+    app.world_mut().spawn((Camera3d::default(), MotionVectorPrepass));
+    let groom = HairGroom { strand_count: 150, followers_per_guide: 6, segments: 16, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, PlaceFollowersOnCpu, head_pose(0))).id();
+    for step in 1..=60 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
+        app.update();
+    }
+    // A quarter of a step on, twice, without a step: the drawing moves between the last two steps' poses.
+    let quarter = Duration::from_secs_f64(DT / 4.0);
+    let fixed = app.world().resource::<Time<Fixed>>();
+    let to_quarter = quarter.saturating_sub(fixed.overstep());
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(to_quarter));
+    app.update();
+    let first = app.world().resource::<Time<Fixed>>().overstep_fraction();
+    let before = drawn_on_the_cpu(&mut app, first);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(quarter));
+    let mut meshes = app.world_mut().query::<&HairMesh>();
+    let hair_mesh = meshes.single(app.world()).expect("one hair mesh");
+    let buffers = [hair_mesh.positions_buffer().clone(), hair_mesh.previous_positions_buffer().clone()];
+    let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
+    let second = app.world().resource::<Time<Fixed>>().overstep_fraction();
+    let now = drawn_on_the_cpu(&mut app, second);
+    let (moved, _) = largest_difference(&now, &before);
+    let (off_now, node_now) = largest_difference(&drawn, &now);
+    let (off_before, node_before) = largest_difference(&previous, &before);
+    println!(
+        "drawn at {first:.2} then {second:.2} of a step: the hair moved up to {moved:.2e} m; this frame's buffer \
+         {off_now:.2e} m from the CPU's drawing (node {node_now}), last frame's {off_before:.2e} m (node {node_before})"
+    );
+    assert!(moved > 1e-3, "the hair moved between the two frames ({moved} m): the test sees no motion");
+    assert!(off_now <= 1e-5, "this frame's drawn node {node_now} is {off_now} m from the CPU's");
+    assert!(off_before <= 1e-5, "the previous positions' node {node_before} is {off_before} m from last frame's");
+
+    // Time standing still, the next frame's previous positions are this frame's: no motion.
+    let [drawn, previous] = read_back_next_frame(&mut app, buffers);
+    let (still, node) = largest_difference(&previous, &drawn);
+    assert_eq!(still, 0.0, "standing still, node {node} moved {still} m between frames");
 }

@@ -143,6 +143,8 @@ fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
         // 4× MSAA with alpha to coverage, tonemapped in the shader (an LDR camera).
         &[
             ("MULTISAMPLED", on),
+            ("HAIR_MULTISAMPLED", on),
+            ("HAIR_CAMERA_PREPASS", on),
             ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(4)),
             ("ALPHA_TO_COVERAGE", on),
             ("TONEMAP_IN_SHADER", on),
@@ -152,10 +154,16 @@ fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
             ("SHADOW_FILTER_METHOD_GAUSSIAN", on),
         ],
         // No multisampling (coverage dithered), HDR (tonemapped later).
-        &[("MAY_DISCARD", on), ("SHADOW_FILTER_METHOD_HARDWARE_2X2", on)],
+        &[
+            ("MAY_DISCARD", on),
+            ("SHADOW_FILTER_METHOD_HARDWARE_2X2", on),
+            ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(1)),
+        ],
         // 8× MSAA, orthographic view.
         &[
             ("MULTISAMPLED", on),
+            ("HAIR_MULTISAMPLED", on),
+            ("HAIR_CAMERA_PREPASS", on),
             ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(8)),
             ("ALPHA_TO_COVERAGE", on),
             ("VIEW_PROJECTION_ORTHOGRAPHIC", on),
@@ -168,23 +176,57 @@ fn the_hair_shader_composes_with_bevy_and_validates_in_every_pass() {
         assert!(entries.contains(&(naga::ShaderStage::Vertex, "vertex".into())), "{entries:?}");
         assert!(entries.contains(&(naga::ShaderStage::Fragment, "fragment".into())), "{entries:?}");
     }
-    let prepasses: [&[(&str, ShaderDefValue)]; 3] = [
-        // A shadow map: depth only.
-        &[("PREPASS_PIPELINE", on), ("DEPTH_PREPASS", on), ("MAY_DISCARD", on)],
+    // Each with the fragment stage: Bevy runs it where there is something to write, depth clamping to
+    // emulate, or (without saying `PREPASS_FRAGMENT`) a material that may discard. The hair's own
+    // definitions as `HairMaterial::specialize` gives them.
+    let (one, four) = (("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(1)), ("HAIR_MSAA_SAMPLES", ShaderDefValue::UInt(4)));
+    let prepasses: [&[(&str, ShaderDefValue)]; 5] = [
+        // A shadow map: depth only, whole ribbons.
+        &[("PREPASS_PIPELINE", on), ("DEPTH_PREPASS", on), ("MAY_DISCARD", on), one],
         // A directional light's shadow map where depth clamping is emulated.
-        &[("PREPASS_PIPELINE", on), ("DEPTH_PREPASS", on), ("UNCLIPPED_DEPTH_ORTHO_EMULATION", on)],
-        // A camera's normal and motion-vector prepass.
+        &[
+            ("PREPASS_PIPELINE", on),
+            ("DEPTH_PREPASS", on),
+            ("UNCLIPPED_DEPTH_ORTHO_EMULATION", on),
+            ("PREPASS_FRAGMENT", on),
+            one,
+        ],
+        // A camera's normal and motion-vector prepass, multisampled: the main pass's samples.
         &[
             ("PREPASS_PIPELINE", on),
             ("DEPTH_PREPASS", on),
             ("NORMAL_PREPASS", on),
             ("NORMAL_PREPASS_OR_DEFERRED_PREPASS", on),
             ("MOTION_VECTOR_PREPASS", on),
+            ("PREPASS_FRAGMENT", on),
+            ("HAIR_MULTISAMPLED", on),
+            ("HAIR_CAMERA_PREPASS", on),
+            four,
+        ],
+        // A camera's motion vectors without multisampling: whole pixels, as the main pass keeps them.
+        &[
+            ("PREPASS_PIPELINE", on),
+            ("DEPTH_PREPASS", on),
+            ("MOTION_VECTOR_PREPASS", on),
+            ("PREPASS_FRAGMENT", on),
+            ("HAIR_CAMERA_PREPASS", on),
+            one,
+        ],
+        // A camera's depth prepass alone, multisampled.
+        &[
+            ("PREPASS_PIPELINE", on),
+            ("DEPTH_PREPASS", on),
+            ("MAY_DISCARD", on),
+            ("HAIR_MULTISAMPLED", on),
+            ("HAIR_CAMERA_PREPASS", on),
+            four,
         ],
     ];
     for definitions in prepasses {
         let module = compose(&mut composer, ShaderType::Wgsl, definitions);
-        assert_eq!(entry_points(&module), [(naga::ShaderStage::Vertex, "vertex".to_string())]);
+        let entries = entry_points(&module);
+        assert!(entries.contains(&(naga::ShaderStage::Vertex, "vertex".into())), "{definitions:?}: {entries:?}");
+        assert!(entries.contains(&(naga::ShaderStage::Fragment, "fragment".into())), "{definitions:?}: {entries:?}");
     }
 }
 

@@ -3,16 +3,18 @@
 use bevy::asset::{RenderAssetUsages, embedded_asset};
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::{NoAutoAabb, NoFrustumCulling};
+use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::ecs::query::QueryState;
 use bevy::mesh::{Indices, MeshVertexAttribute, MeshVertexBufferLayoutRef, PrimitiveTopology};
-use bevy::pbr::{MaterialPipeline, MaterialPipelineKey};
+use bevy::pbr::{MaterialPipeline, MaterialPipelineKey, MeshPipelineKey};
 use bevy::prelude::*;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{
-    AsBindGroup, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError, VertexFormat,
+    AsBindGroup, CommandEncoderDescriptor, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError,
+    VertexFormat,
 };
 use bevy::render::renderer::RenderGraphSystems;
-use bevy::render::renderer::{RenderGraph, RenderQueue};
+use bevy::render::renderer::{RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::storage::{GpuShaderBuffer, ShaderBuffer};
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderStartup, RenderSystems};
 use bevy::shader::{ShaderDefVal, ShaderRef};
@@ -92,6 +94,10 @@ pub struct HairMaterial {
     /// Colours and highlights.
     #[uniform(1)]
     pub shading: HairShading,
+    /// The positions drawn the frame before, laid out like `positions`: where the motion-vector prepass
+    /// draws each hair from, so that Bevy's temporal anti-aliasing and motion blur follow the hair.
+    #[storage(2, read_only)]
+    pub previous_positions: Handle<ShaderBuffer>,
 }
 
 /// [`HairAppearance`] as the shader reads it (linear colours, highlight shifts and exponents).
@@ -139,6 +145,11 @@ impl Material for HairMaterial {
         SHADER.into()
     }
 
+    /// A camera's prepasses (depth, normals, motion vectors) on the samples the main pass covers.
+    fn prepass_fragment_shader() -> ShaderRef {
+        SHADER.into()
+    }
+
     /// Bevy's multisampled pipeline without blending (or a discarding one without MSAA). The shader's
     /// alpha stays 1: coverage goes out as a sample mask of its own (see the module docs).
     fn alpha_mode(&self) -> AlphaMode {
@@ -159,10 +170,21 @@ impl Material for HairMaterial {
             ])?];
         // The fragment stage writes its coverage as a sample mask: it needs the sample count (and both
         // stages compile the whole file).
-        let samples = ShaderDefVal::UInt("HAIR_MSAA_SAMPLES".into(), key.mesh_key.msaa_samples());
-        descriptor.vertex.shader_defs.push(samples.clone());
+        // Bevy's prepasses do not say whether they are multisampled (`HAIR_MULTISAMPLED`), nor whether
+        // they draw for a camera, which takes the hair's coverage like the main pass, or for a shadow map,
+        // which takes whole ribbons (`HAIR_CAMERA_PREPASS`; a shadow map is never multisampled, and a
+        // camera's prepass without multisampling is told apart by its normals or motion vectors).
+        let multisampled = key.mesh_key.msaa_samples() > 1;
+        let camera = multisampled
+            || key.mesh_key.intersects(MeshPipelineKey::NORMAL_PREPASS | MeshPipelineKey::MOTION_VECTOR_PREPASS);
+        let definitions = [
+            Some(ShaderDefVal::UInt("HAIR_MSAA_SAMPLES".into(), key.mesh_key.msaa_samples())),
+            multisampled.then(|| "HAIR_MULTISAMPLED".into()),
+            camera.then(|| "HAIR_CAMERA_PREPASS".into()),
+        ];
+        descriptor.vertex.shader_defs.extend(definitions.iter().flatten().cloned());
         if let Some(fragment) = descriptor.fragment.as_mut() {
-            fragment.shader_defs.push(samples);
+            fragment.shader_defs.extend(definitions.into_iter().flatten());
         }
         // A ribbon faces the eye in the main pass and the light in a shadow pass: never cull it.
         descriptor.primitive.cull_mode = None::<Face>;
@@ -199,6 +221,8 @@ pub struct HairMesh {
     /// The appearance last asked for, valid or not.
     requested: Option<HairAppearance>,
     pub(super) buffer: Handle<ShaderBuffer>,
+    /// What `buffer` held the frame before (copied on the GPU at the start of each frame).
+    previous_buffer: Handle<ShaderBuffer>,
 }
 
 /// What one frame sends to the GPU's follower placement.
@@ -244,6 +268,13 @@ impl HairMesh {
         &self.buffer
     }
 
+    /// The storage buffer of the positions drawn the frame before, laid out like
+    /// [`HairMesh::positions_buffer`]: the GPU copies one into the other at the start of every frame, before
+    /// this frame's positions are written, and the motion-vector prepass draws the hair from both.
+    pub fn previous_positions_buffer(&self) -> &Handle<ShaderBuffer> {
+        &self.previous_buffer
+    }
+
     /// Whether the GPU places the followers and draws the nodes (it has their layout).
     pub(super) fn sends_to_gpu(&self) -> bool {
         self.upload_laid_out
@@ -269,8 +300,11 @@ fn spawn_hair_meshes(
     mut materials: ResMut<Assets<HairMaterial>>,
 ) {
     for head in &heads {
-        let material = materials
-            .add(HairMaterial { positions: Handle::default(), shading: HairShading::from(&HairAppearance::default()) });
+        let material = materials.add(HairMaterial {
+            positions: Handle::default(),
+            shading: HairShading::from(&HairAppearance::default()),
+            previous_positions: Handle::default(),
+        });
         commands.entity(head).insert(HasHairMesh);
         commands.spawn((
             Name::new("Hair mesh"),
@@ -447,11 +481,13 @@ fn prepare_hair_meshes(
             // (`upload_hair_positions`), not through the asset.
             let size = (4 * hair_mesh.strips.positions().len()).max(16);
             hair_mesh.buffer = buffers.add(ShaderBuffer::with_size(size, RenderAssetUsages::RENDER_WORLD));
+            hair_mesh.previous_buffer = buffers.add(ShaderBuffer::with_size(size, RenderAssetUsages::RENDER_WORLD));
         }
         if (relaid || appearance_changed)
             && let Some(mut material) = materials.get_mut(&material.0)
         {
             material.positions = hair_mesh.buffer.clone();
+            material.previous_positions = hair_mesh.previous_buffer.clone();
             material.shading = HairShading::from(&appearance);
         }
         if appearance_changed {
@@ -556,11 +592,14 @@ fn send_gpu_fed(
     None
 }
 
-/// This frame's node positions of each head, moved from the main world, with the buffer they go to.
+/// This frame's node positions of each head, moved from the main world, with the buffer they go to; and
+/// every drawn head's buffers of this frame's and last frame's positions.
 #[derive(Resource, Default)]
 struct HairUploads {
     uploads: Vec<(AssetId<ShaderBuffer>, Vec<f32>)>,
+    drawn: Vec<[AssetId<ShaderBuffer>; 2]>,
     query: Option<QueryState<&'static mut HairMesh>>,
+    cameras: Option<QueryState<(), With<MotionVectorPrepass>>>,
 }
 
 /// Swaps each head's freshly written positions with the render world's (equally long) buffer from the
@@ -569,7 +608,14 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
     let uploads = &mut *uploads;
     let query = uploads.query.get_or_insert_with(|| main_world.query::<&mut HairMesh>());
     let mut count = 0;
+    // The frame before is kept only while a camera draws motion vectors.
+    let cameras = uploads.cameras.get_or_insert_with(|| main_world.query_filtered());
+    let motion_vectors = cameras.iter(&main_world).next().is_some();
+    uploads.drawn.clear();
     for mut hair_mesh in query.iter_mut(&mut main_world) {
+        if motion_vectors {
+            uploads.drawn.push([hair_mesh.buffer.id(), hair_mesh.previous_buffer.id()]);
+        }
         if !std::mem::take(&mut hair_mesh.fresh) || hair_mesh.strips.positions().is_empty() {
             continue;
         }
@@ -590,12 +636,30 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
     uploads.uploads.truncate(count);
 }
 
-/// Writes each head's positions into its storage buffer.
+/// Keeps what each head drew last frame (for the motion vectors, while a camera draws them), then writes the heads' new positions
+/// into their storage buffers. The copy is submitted on its own, before the writes: a buffer write is
+/// carried out at the start of the next submission, so the copy sees last frame's positions, whether the
+/// CPU wrote them or the GPU's follower placement did.
 fn upload_hair_positions(
     uploads: Res<HairUploads>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
+    device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
 ) {
+    let mut encoder = None;
+    for [current, previous] in &uploads.drawn {
+        let (Some(current), Some(previous)) = (buffers.get(*current), buffers.get(*previous)) else { continue };
+        let size = current.buffer.size();
+        if size == previous.buffer.size() {
+            let encoder = encoder.get_or_insert_with(|| {
+                device.create_command_encoder(&CommandEncoderDescriptor { label: Some("hair positions kept") })
+            });
+            encoder.copy_buffer_to_buffer(&current.buffer, 0, &previous.buffer, 0, size);
+        }
+    }
+    if let Some(encoder) = encoder {
+        queue.submit([encoder.finish()]);
+    }
     for (id, positions) in &uploads.uploads {
         let Some(buffer) = buffers.get(*id) else { continue };
         let bytes: &[u8] = bytemuck::cast_slice(positions);

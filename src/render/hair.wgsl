@@ -4,10 +4,12 @@
 // with PREPASS_PIPELINE, draws the hair into shadow maps (ribbons then face the light).
 
 #import bevy_pbr::mesh_view_bindings::view
-#import bevy_pbr::mesh_functions::get_world_from_local
+#import bevy_pbr::mesh_functions::{get_world_from_local, get_previous_world_from_local}
 
 #ifdef PREPASS_PIPELINE
-#import bevy_pbr::prepass_io::VertexOutput
+#ifdef MOTION_VECTOR_PREPASS
+#import bevy_pbr::prepass_bindings::previous_view_uniforms
+#endif
 #else
 #import bevy_pbr::{
     mesh_view_bindings as view_bindings,
@@ -32,6 +34,10 @@ struct HairShading {
 
 @group(#{MATERIAL_BIND_GROUP}) @binding(0) var<storage, read> positions: array<f32>;
 @group(#{MATERIAL_BIND_GROUP}) @binding(1) var<uniform> shading: HairShading;
+#ifdef MOTION_VECTOR_PREPASS
+// The positions drawn the frame before, laid out like `positions` (`HairMesh::previous_positions_buffer`).
+@group(#{MATERIAL_BIND_GROUP}) @binding(2) var<storage, read> previous_positions: array<f32>;
+#endif
 
 struct Vertex {
     // node, hair, side | along << 1 | (nodes − 1) << 16, radius (f32 bits)
@@ -107,12 +113,55 @@ fn ribbon(vertex: Vertex, instance_index: u32) -> Ribbon {
     return out;
 }
 
+// A well-mixed hash of a hair's index to 0 … 1 (PCG, Jarzynski and Olano 2020).
+fn hash01(value: u32) -> f32 {
+    let state = value * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return f32((word >> 22u) ^ word) / 4294967295.0;
+}
+
+// The samples of the pixel at `position` that hair `hair` of coverage `coverage` covers (0: none, and the
+// fragment is discarded). Multisampled, a random subset of the pixel's samples, as many as the coverage is
+// worth, drawn per hair and pixel, so that hairs over each other cover independent samples and add up as
+// layers of real hair do (alpha to coverage's fixed pattern per alpha would stack every hair on the same
+// samples); without multisampling, the whole pixel or none, with the coverage as the chance.
+fn covered_samples(coverage: f32, position: vec4<f32>, hair: u32) -> u32 {
+    let hash = u32(position.x) * 1973u + u32(position.y) * 9277u + hair * 26699u;
+#ifdef HAIR_MULTISAMPLED
+    let samples = #{HAIR_MSAA_SAMPLES}u;
+    let covered = min(u32(coverage * f32(samples) + hash01(hash)), samples);
+    let rotation = u32(hash01(hash ^ 0x5bd1e995u) * f32(samples)) % samples;
+    let all = (1u << samples) - 1u;
+    let first = (1u << covered) - 1u;
+    return ((first << rotation) | (first >> (samples - rotation))) & all;
+#else
+    return select(0u, 0xffffffffu, coverage >= hash01(hash));
+#endif
+}
+
 #ifdef PREPASS_PIPELINE
 
+// Bevy's prepass vertex output, with the hair's coverage and index for the same samples as the main pass.
+struct HairPrepassOutput {
+    @builtin(position) position: vec4<f32>,
+    @location(0) world_position: vec4<f32>,
+#ifdef MOTION_VECTOR_PREPASS
+    @location(1) previous_world_position: vec4<f32>,
+#endif
+#ifdef NORMAL_PREPASS_OR_DEFERRED_PREPASS
+    @location(2) world_normal: vec3<f32>,
+#endif
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @location(3) unclipped_depth: f32,
+#endif
+    @location(4) coverage: f32,
+    @location(5) @interpolate(flat) hair: u32,
+}
+
 @vertex
-fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> VertexOutput {
+fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> HairPrepassOutput {
     let ribbon = ribbon(vertex, instance_index);
-    var out: VertexOutput;
+    var out: HairPrepassOutput;
     out.world_position = vec4(ribbon.world_position, 1.0);
     out.position = view.clip_from_world * out.world_position;
 #ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
@@ -123,10 +172,60 @@ fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> Verte
     out.world_normal = towards_eye(ribbon.world_position);
 #endif
 #ifdef MOTION_VECTOR_PREPASS
-    out.previous_world_position = out.world_position;
+    // Where this ribbon vertex was drawn the frame before: its node there, under the mesh's transform
+    // then, with the same offset across the hair (a hair's width is far below a frame's motion).
+    let node = vertex.hair.x;
+    let before = vec3(previous_positions[3u * node], previous_positions[3u * node + 1u], previous_positions[3u * node + 2u]);
+    let now = node_position(node, get_world_from_local(instance_index));
+    let previous_node = (get_previous_world_from_local(instance_index) * vec4(before, 1.0)).xyz;
+    out.previous_world_position = vec4(previous_node + (ribbon.world_position - now), 1.0);
 #endif
-#ifdef VERTEX_OUTPUT_INSTANCE_INDEX
-    out.instance_index = instance_index;
+    out.coverage = ribbon.coverage;
+    out.hair = vertex.hair.y;
+    return out;
+}
+
+struct HairPrepassFragmentOutput {
+#ifdef NORMAL_PREPASS
+    @location(0) normal: vec4<f32>,
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    @location(1) motion_vector: vec2<f32>,
+#endif
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    @builtin(frag_depth) frag_depth: f32,
+#endif
+    // Every sample the ribbon covers, but for a camera's prepass (`HAIR_CAMERA_PREPASS`).
+    @builtin(sample_mask) sample_mask: u32,
+}
+
+// Bevy's prepass outputs (as its default prepass fragment writes them), on the samples the main pass
+// covers: a camera's depth prepass that took the whole ribbon would hide the samples a hair leaves to the
+// hairs behind it. Shadow maps take the whole ribbon, as without this stage. (Bevy runs it for a shadow
+// map too, where the material may discard, without saying `PREPASS_FRAGMENT`: it is always there.)
+@fragment
+fn fragment(in: HairPrepassOutput) -> HairPrepassFragmentOutput {
+    var out: HairPrepassFragmentOutput;
+    out.sample_mask = 0xffffffffu;
+#ifdef NORMAL_PREPASS
+    out.normal = vec4(in.world_normal * 0.5 + vec3(0.5), 1.0);
+#endif
+#ifdef UNCLIPPED_DEPTH_ORTHO_EMULATION
+    out.frag_depth = in.unclipped_depth;
+#endif
+#ifdef MOTION_VECTOR_PREPASS
+    let clip_position_t = view.unjittered_clip_from_world * in.world_position;
+    let clip_position = clip_position_t.xy / clip_position_t.w;
+    let previous_clip_position_t = previous_view_uniforms.clip_from_world * in.previous_world_position;
+    let previous_clip_position = previous_clip_position_t.xy / previous_clip_position_t.w;
+    // UV offsets, as Bevy's prepass writes them: half the clip-space difference, V pointing down.
+    out.motion_vector = (clip_position - previous_clip_position) * vec2(0.5, -0.5);
+#endif
+#ifdef HAIR_CAMERA_PREPASS
+    out.sample_mask = covered_samples(in.coverage, in.position, in.hair);
+    if out.sample_mask == 0u {
+        discard;
+    }
 #endif
     return out;
 }
@@ -169,12 +268,6 @@ fn srgb_to_linear(color: vec3<f32>) -> vec3<f32> {
     return select(pow((color + 0.055) / 1.055, vec3(2.4)), color / 12.92, color <= vec3(0.04045));
 }
 
-// A well-mixed hash of a hair's index to 0 … 1 (PCG, Jarzynski and Olano 2020).
-fn hash01(value: u32) -> f32 {
-    let state = value * 747796405u + 2891336453u;
-    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
-    return f32((word >> 22u) ^ word) / 4294967295.0;
-}
 
 struct HairSurface {
     color: vec3<f32>,
@@ -294,25 +387,12 @@ fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
 #ifdef TONEMAP_IN_SHADER
     out.color = tone_mapping(out.color, view.color_grading);
 #endif
-    // Coverage as a random subset of the pixel's samples, drawn per hair and pixel, so that hairs over
-    // each other cover independent samples and add up as layers of real hair do (alpha to coverage's
-    // fixed pattern per alpha would stack every hair on the same samples).
-    let pixel_hash = u32(in.position.x) * 1973u + u32(in.position.y) * 9277u + in.hair * 26699u;
-#ifdef MULTISAMPLED
-    let samples = #{HAIR_MSAA_SAMPLES}u;
-    let covered = min(u32(in.coverage * f32(samples) + hash01(pixel_hash)), samples);
+    let covered = covered_samples(in.coverage, in.position, in.hair);
     if covered == 0u {
         discard;
     }
-    let rotation = u32(hash01(pixel_hash ^ 0x5bd1e995u) * f32(samples)) % samples;
-    let all = (1u << samples) - 1u;
-    let first = (1u << covered) - 1u;
-    out.sample_mask = ((first << rotation) | (first >> (samples - rotation))) & all;
-#else
-    // Without multisampling: the same, per pixel.
-    if in.coverage < hash01(pixel_hash) {
-        discard;
-    }
+#ifdef MULTISAMPLED
+    out.sample_mask = covered;
 #endif
     return out;
 }
