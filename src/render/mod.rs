@@ -23,15 +23,16 @@
 //! order-independent transparency would cost a list of fragments per pixel. Without multisampling, the
 //! same draw keeps or drops whole pixels.
 //!
-//! **Motion vectors.** While a camera draws motion vectors, each head also keeps the positions it drew the
-//! frame before, in a second buffer of the same layout ([`HairMesh::previous_positions_buffer`]): at the
-//! start of every frame the GPU copies the drawn buffer into it, before anything writes this frame's
-//! positions, whether the CPU uploads them or the GPU places the followers. A camera with Bevy's `MotionVectorPrepass` (which `MotionBlur` and
-//! temporal anti-aliasing ask for) then draws each ribbon vertex from its node there, under the mesh's
-//! transform of the frame before, so that moving hair blurs along its own motion and TAA follows it
-//! instead of smearing it. A head drawn for the first time, or first seen by such a camera, has no frame
-//! before: its first frame's vectors are wrong once. The hair's prepasses cover the same samples as its
-//! main pass, so a camera's depth prepass does not hide the hair behind a hair's uncovered samples.
+//! **Motion vectors.** While a camera draws motion vectors, each head also keeps the positions it drew
+//! the frame before, in a second buffer of the same layout ([`HairMesh::previous_positions_buffer`]): at
+//! the start of every frame the GPU copies the drawn buffer into it, before anything writes this frame's
+//! positions, whether the CPU uploads them or the GPU places the followers. A camera with Bevy's
+//! `MotionVectorPrepass` (which `MotionBlur` and temporal anti-aliasing ask for) then draws each ribbon
+//! vertex from its node there, under the mesh's transform of the frame before, so that moving hair blurs
+//! along its own motion and TAA follows it instead of smearing it. A head drawn for the first time, or
+//! first seen by such a camera, has no frame before: its first frame's vectors are wrong once. The hair's
+//! prepasses cover the same samples as its main pass, so a camera's depth prepass does not hide the hair
+//! behind a hair's uncovered samples.
 //!
 //! **Shading** (`hair.wgsl`): Kajiya and Kay's hair model (SIGGRAPH 1989), diffuse `∝ sin(t, l)` and
 //! specular `∝ sin(t, h)^p`, with Scheuermann's two shifted highlights ("Hair Rendering and Shading",
