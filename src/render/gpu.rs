@@ -603,7 +603,8 @@ struct HairUploads {
 }
 
 /// Swaps each head's freshly written positions with the render world's (equally long) buffer from the
-/// frame before, so that no bytes are copied or allocated here.
+/// frame before, so that no bytes are copied or allocated here; and, while a camera draws motion vectors,
+/// lists every head's buffers of this frame's and last frame's positions.
 fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut<HairUploads>) {
     let uploads = &mut *uploads;
     let query = uploads.query.get_or_insert_with(|| main_world.query::<&mut HairMesh>());
@@ -636,10 +637,10 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
     uploads.uploads.truncate(count);
 }
 
-/// Keeps what each head drew last frame (for the motion vectors, while a camera draws them), then writes the heads' new positions
-/// into their storage buffers. The copy is submitted on its own, before the writes: a buffer write is
-/// carried out at the start of the next submission, so the copy sees last frame's positions, whether the
-/// CPU wrote them or the GPU's follower placement did.
+/// Keeps what each head drew last frame (for the motion vectors, while a camera draws them), then writes
+/// the heads' new positions into their storage buffers. The copy is submitted on its own, before the
+/// writes: a buffer write is carried out at the start of the next submission, so the copy sees last
+/// frame's positions, whether the CPU wrote them or the GPU's follower placement did.
 fn upload_hair_positions(
     uploads: Res<HairUploads>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
