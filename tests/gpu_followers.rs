@@ -316,11 +316,23 @@ fn read_back_next_frame(app: &mut App, buffers: [Handle<ShaderBuffer>; 2]) -> [V
 fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() {
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
-    // A camera that draws motion vectors: only then is the frame before kept.
-    app.world_mut().spawn((Camera3d::default(), MotionVectorPrepass));
     let groom = HairGroom { strand_count: 150, followers_per_guide: 6, segments: 16, ..default() };
     let head = app.world_mut().spawn((HairHead, groom, PlaceFollowersOnCpu, head_pose(0))).id();
     for step in 1..=60 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
+        app.update();
+    }
+    // With no camera drawing motion vectors, the frame before is not kept (nothing is copied).
+    let mut meshes = app.world_mut().query::<&HairMesh>();
+    let hair_mesh = meshes.single(app.world()).expect("one hair mesh");
+    let buffers = [hair_mesh.positions_buffer().clone(), hair_mesh.previous_positions_buffer().clone()];
+    let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
+    assert!(drawn.iter().any(|&value| value != 0.0), "the hair is drawn");
+    assert!(previous.iter().all(|&value| value == 0.0), "the frame before was kept with no camera asking for it");
+    // A camera that draws motion vectors: from now on the frame before is kept.
+    app.world_mut().spawn((Camera3d::default(), MotionVectorPrepass));
+    app.insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    for step in 61..=70 {
         *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
         app.update();
     }
@@ -333,9 +345,6 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
     let first = app.world().resource::<Time<Fixed>>().overstep_fraction();
     let before = drawn_on_the_cpu(&mut app, first);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(quarter));
-    let mut meshes = app.world_mut().query::<&HairMesh>();
-    let hair_mesh = meshes.single(app.world()).expect("one hair mesh");
-    let buffers = [hair_mesh.positions_buffer().clone(), hair_mesh.previous_positions_buffer().clone()];
     let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
     let second = app.world().resource::<Time<Fixed>>().overstep_fraction();
     let now = drawn_on_the_cpu(&mut app, second);
