@@ -13,6 +13,9 @@
 //! ([`super::lockstep`]): one entry holds the same entry of every strand's matrix, and the
 //! factorisation and solves run on all of them at once with the same operations in the same order.
 
+use multiversion::multiversion;
+
+use super::energy::BANDWIDTH;
 use super::lanes::{LaneMask, Lanes, Real};
 
 /// Lower band of a symmetric matrix, stored row by row: row `i` holds columns `i − HALF_BANDWIDTH ..= i`
@@ -197,6 +200,22 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
     }
 }
 
+/// [`BandedMatrix::factorize_lanes`] compiled for the best instruction set the CPU has, chosen when the
+/// program runs. The operations and their order are the same on every one (Rust never fuses a
+/// multiplication and an addition of its own accord), so the result is the same bit for bit; wider
+/// registers only do more of them at once.
+#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+pub(crate) fn factorize_best<T: Real>(matrix: &mut BandedMatrix<BANDWIDTH, T>, failed_rows: &mut [usize]) -> LaneMask {
+    matrix.factorize_lanes(failed_rows)
+}
+
+/// [`BandedMatrix::solve_factorized`] compiled for the best instruction set the CPU has, like
+/// [`factorize_best`].
+#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+pub(crate) fn solve_best<T: Real>(matrix: &mut BandedMatrix<BANDWIDTH, T>, rhs: &mut [T]) {
+    matrix.solve_factorized(rhs);
+}
+
 impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// Entry `(row, column)` of the lower band (`column ≤ row`).
     #[inline]
@@ -239,7 +258,6 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal; the
     /// band then holds `L` below the diagonal and `D` on it), or says at which row the matrix showed it
     /// is not positive definite.
-    #[inline]
     pub fn factorize(&mut self) -> Result<(), NotPositiveDefinite> {
         let mut row = [0];
         match self.factorize_lanes(&mut row) {
@@ -263,6 +281,36 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH, Lanes> {
 mod tests {
     use super::*;
     use crate::rod::test_support::Lcg;
+
+    #[test]
+    fn the_factorisation_for_the_best_instruction_set_gives_the_same_bits() {
+        let mut random = Lcg(11);
+        let size = 131;
+        let (mut best, mut baseline) = (BandedMatrix::<BANDWIDTH>::default(), BandedMatrix::<BANDWIDTH>::default());
+        best.reset(size);
+        for row in 0..size {
+            for column in row.saturating_sub(10)..row {
+                best.add(row, column, random.next());
+            }
+            best.add(row, row, 30.0 + random.next());
+        }
+        baseline.clone_from(&best);
+        let rhs: Vec<f64> = (0..size).map(|_| random.next()).collect();
+        let (mut x_best, mut x_baseline) = (rhs.clone(), rhs);
+        // Dispatched to AVX2 where the CPU has it, against the generic code compiled for the baseline.
+        assert_eq!(factorize_best(&mut best, &mut [0]), 0);
+        solve_best(&mut best, &mut x_best);
+        baseline.factorize().unwrap();
+        baseline.solve_factorized(&mut x_baseline);
+        for (row, (a, b)) in x_best.iter().zip(&x_baseline).enumerate() {
+            assert_eq!(a.to_bits(), b.to_bits(), "row {row}: {a} against {b}");
+        }
+        for row in 0..size {
+            for column in row.saturating_sub(10)..=row {
+                assert_eq!(best.get(row, column).to_bits(), baseline.get(row, column).to_bits());
+            }
+        }
+    }
 
     #[test]
     fn cholesky_solves_a_random_banded_system() {

@@ -19,9 +19,7 @@
 //! the time), and the plugin steps strands one at a time. `docs/performance.md` (issue 32) says why, and
 //! what the lanes still need to pay.
 
-use multiversion::multiversion;
-
-use super::banded::BandedMatrix;
+use super::banded::{BandedMatrix, factorize_best, solve_best};
 use super::contact::Contacts;
 use super::curve::Rod;
 use super::energy::{BANDWIDTH, dof_count};
@@ -145,7 +143,7 @@ impl LockstepWorkspace {
                 self.matrix.set_lane(lane, self.lanes[lane].hessian());
             }
             let mut rows = [0; LANES];
-            let failed = factorize(&mut self.matrix, &mut rows) & active;
+            let failed = factorize_best(&mut self.matrix, &mut rows) & active;
             if failed == 0 {
                 return active;
             }
@@ -178,25 +176,13 @@ impl LockstepWorkspace {
                 entry.0[lane] = -residual;
             }
         }
-        solve(&mut self.matrix, &mut self.solution);
+        solve_best(&mut self.matrix, &mut self.solution);
         for lane in lanes_in(active) {
             for (residual, entry) in self.lanes[lane].residual_mut().iter_mut().zip(&self.solution) {
                 *residual = entry.0[lane];
             }
         }
     }
-}
-
-/// [`BandedMatrix::factorize_lanes`] compiled for the best instruction set the CPU has.
-#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
-fn factorize(matrix: &mut BatchMatrix, failed_rows: &mut [usize; LANES]) -> LaneMask {
-    matrix.factorize_lanes(failed_rows)
-}
-
-/// [`BandedMatrix::solve_factorized`] compiled for the best instruction set the CPU has.
-#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
-fn solve(matrix: &mut BatchMatrix, rhs: &mut [Lanes]) {
-    matrix.solve_factorized(rhs);
 }
 
 #[cfg(test)]

@@ -32,9 +32,8 @@
 
 use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
-use multiversion::multiversion;
 
-use super::banded::NotPositiveDefinite;
+use super::banded::{factorize_best, solve_best};
 use super::contact::{ContactScratch, Contacts, outer_product};
 use super::copy_into;
 use super::curve::Rod;
@@ -186,20 +185,6 @@ impl Anchor {
             && self.damping.is_finite()
             && self.damping >= 0.0
     }
-}
-
-/// [`RodMatrix::factorize`] compiled for the best instruction set the CPU has. The operations and their
-/// order are the same on every one (Rust never fuses a multiplication and an addition of its own
-/// accord), so the result is the same bit for bit; wider registers only do more of them at once.
-#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
-fn factorize(matrix: &mut RodMatrix) -> Result<(), NotPositiveDefinite> {
-    matrix.factorize()
-}
-
-/// [`RodMatrix::solve_factorized`] compiled for the best instruction set the CPU has, like [`factorize`].
-#[multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
-fn solve(matrix: &mut RodMatrix, rhs: &mut [f64]) {
-    matrix.solve_factorized(rhs);
 }
 
 /// What a successful step measured.
@@ -433,7 +418,7 @@ impl Rod {
             self.assemble_and_factorize(params, loads, workspace)?;
             let RodWorkspace { hessian, residual, .. } = workspace;
             residual.iter_mut().for_each(|r| *r = -*r);
-            solve(hessian, residual);
+            solve_best(hessian, residual);
             let update = self.apply_newton_update(params, workspace)?;
             if self.end_newton_iteration(update, params, &mut progress, workspace) {
                 break;
@@ -655,9 +640,10 @@ impl Rod {
         let mut regularisation = 0.0;
         loop {
             self.assemble_newton_system(params, loads, workspace, regularisation);
-            match factorize(&mut workspace.hessian) {
-                Ok(()) => return Ok(()),
-                Err(failure) => regularisation = next_regularisation(regularisation, failure.row)?,
+            let mut row = [0];
+            match factorize_best(&mut workspace.hessian, &mut row) {
+                0 => return Ok(()),
+                _ => regularisation = next_regularisation(regularisation, row[0])?,
             }
         }
     }
@@ -916,37 +902,6 @@ impl Rod {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_factorisation_for_the_best_instruction_set_gives_the_same_bits() {
-        use crate::rod::test_support::Lcg;
-        let mut random = Lcg(11);
-        let size = 131;
-        let (mut best, mut baseline) = (RodMatrix::default(), RodMatrix::default());
-        best.reset(size);
-        for row in 0..size {
-            for column in row.saturating_sub(10)..row {
-                best.add(row, column, random.next());
-            }
-            best.add(row, row, 30.0 + random.next());
-        }
-        baseline.clone_from(&best);
-        let rhs: Vec<f64> = (0..size).map(|_| random.next()).collect();
-        let (mut x_best, mut x_baseline) = (rhs.clone(), rhs);
-        // Dispatched to AVX2 where the CPU has it, against the generic code compiled for the baseline.
-        factorize(&mut best).unwrap();
-        solve(&mut best, &mut x_best);
-        baseline.factorize().unwrap();
-        baseline.solve_factorized(&mut x_baseline);
-        for (row, (a, b)) in x_best.iter().zip(&x_baseline).enumerate() {
-            assert_eq!(a.to_bits(), b.to_bits(), "row {row}: {a} against {b}");
-        }
-        for row in 0..size {
-            for column in row.saturating_sub(10)..=row {
-                assert_eq!(best.get(row, column).to_bits(), baseline.get(row, column).to_bits());
-            }
-        }
-    }
 
     #[test]
     fn invalid_parameters_are_rejected_without_change() {
