@@ -69,6 +69,8 @@ fn towards_eye(position: vec3<f32>) -> vec3<f32> {
 
 struct Ribbon {
     world_position: vec3<f32>,
+    // The node it is expanded from.
+    node_position: vec3<f32>,
     tangent: vec3<f32>,
     across: vec3<f32>,
     side: f32,
@@ -105,6 +107,7 @@ fn ribbon(vertex: Vertex, instance_index: u32) -> Ribbon {
     let width = max(diameter, shading.parameters.z * pixel);
     var out: Ribbon;
     out.world_position = position + across * (0.5 * side * width);
+    out.node_position = position;
     out.tangent = tangent;
     out.across = across;
     out.side = side;
@@ -176,9 +179,8 @@ fn vertex(vertex: Vertex, @builtin(instance_index) instance_index: u32) -> HairP
     // then, with the same offset across the hair (a hair's width is far below a frame's motion).
     let node = vertex.hair.x;
     let before = vec3(previous_positions[3u * node], previous_positions[3u * node + 1u], previous_positions[3u * node + 2u]);
-    let now = node_position(node, get_world_from_local(instance_index));
     let previous_node = (get_previous_world_from_local(instance_index) * vec4(before, 1.0)).xyz;
-    out.previous_world_position = vec4(previous_node + (ribbon.world_position - now), 1.0);
+    out.previous_world_position = vec4(previous_node + (ribbon.world_position - ribbon.node_position), 1.0);
 #endif
     out.coverage = ribbon.coverage;
     out.hair = vertex.hair.y;
