@@ -15,8 +15,9 @@
 //! **Out of the head.** After placement, follower nodes inside one of their head's colliders (grown by
 //! the guide's collision thickness) are moved out to its surface: radially from a sphere's or an
 //! ellipsoid's centre, from a capsule's axis, up from a plane. That is not the nearest surface point of
-//! an elongated ellipsoid, but it is cheap and lands outside; a bounding ball per collider skips the
-//! nodes far from it.
+//! an elongated ellipsoid, but it is cheap and lands outside. Eight nodes are pushed out together, one
+//! per SIMD lane (AVX2 or AVX chosen when the program runs), and a bounding ball per collider skips the
+//! eight when all lie far from it.
 //!
 //! **Data.** A guide's followers live on the guide's entity, contiguous ([`FollowerNodes`]): one
 //! allocation per guide, written by the thread that steps the guide's neighbours, and read by the
@@ -37,8 +38,8 @@ use bevy::ecs::schedule::InternedScheduleLabel;
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::schedule::{HairPrepareSystems, HairStepSystems};
 use crate::simulation::{
-    CheckedSettings, EdgeFrame, HairSettings, HairStatistics, HairStrand, SimulatedStrand, StrandColliders,
-    StrandFrames, StrandNodes, StrandOf, snap_previous,
+    CheckedSettings, HairSettings, HairStatistics, HairStrand, SimulatedStrand, StrandColliders, StrandFrames,
+    StrandNodes, StrandOf, snap_previous,
 };
 
 /// The followers of a guide strand, as spawned: each a curve of as many nodes as the guide's
@@ -71,9 +72,9 @@ pub struct FollowerNodes {
     pub positions: Vec<Vec3>,
     /// Follower node positions after the step before, m.
     pub previous_positions: Vec<Vec3>,
-    /// The guide's material frame at each node this step (scratch, reused).
+    /// The guide's nodes and the material frame `(t, m1, m2)` at each this step (scratch, reused).
     #[reflect(ignore)]
-    node_frames: Vec<Option<EdgeFrame>>,
+    node_frames: Vec<[Vec3; 4]>,
     /// The head's colliders grown by the guide's thickness this step (scratch, reused).
     #[reflect(ignore)]
     colliders: Vec<GrownCollider>,
@@ -180,22 +181,25 @@ impl FollowerNodes {
         let snap = nodes.previous_positions == nodes.positions;
         std::mem::swap(&mut self.previous_positions, &mut self.positions);
         self.positions.clear();
-        // The material frame of the edge arriving at each node (the root edge's at the root).
+        // Each node and the material frame of the edge arriving at it (the root edge's at the root; none
+        // before the first step: the followers then sit on the guide).
         self.node_frames.clear();
-        self.node_frames.extend((0..per).map(|node| frames.material_frame(node.saturating_sub(1))));
+        self.node_frames.extend((0..per).map(|node| {
+            let frame = frames.material_frame(node.saturating_sub(1));
+            let [tangent, m1, m2] = frame.map_or([Vec3::ZERO; 3], |frame| [frame.tangent, frame.m1, frame.m2]);
+            [nodes.positions[node], tangent, m1, m2]
+        }));
         self.colliders.clear();
         self.colliders.extend(colliders.iter().map(|collider| GrownCollider::new(collider, thickness)));
-        for follower in self.offsets.chunks_exact(per) {
-            for (node, offset) in follower.iter().enumerate() {
-                let base = nodes.positions[node];
-                let position = match self.node_frames[node] {
-                    Some(frame) => base + offset.x * frame.tangent + offset.y * frame.m1 + offset.z * frame.m2,
-                    None => base,
-                };
-                let position = if node >= 2 { push_out(position, &self.colliders) } else { position };
-                self.positions.push(position);
+        self.positions.resize(self.offsets.len(), Vec3::ZERO);
+        for (follower, offsets) in self.positions.chunks_exact_mut(per).zip(self.offsets.chunks_exact(per)) {
+            for ((position, offset), &[base, tangent, m1, m2]) in
+                follower.iter_mut().zip(offsets).zip(&self.node_frames)
+            {
+                *position = base + offset.x * tangent + offset.y * m1 + offset.z * m2;
             }
         }
+        push_out(&mut self.positions, per, &self.colliders);
         snap_previous(&mut self.previous_positions, &self.positions, snap);
     }
 }
@@ -207,57 +211,155 @@ struct GrownCollider {
     shape: ColliderShape,
     centre: Vec3,
     rotation: Quat,
+    /// The collider's local axes in world space (the columns of its rotation).
+    axes: [Vec3; 3],
     reach_squared: f32,
 }
+
+/// Follower nodes pushed out of the colliders together, one per SIMD lane (eight `f32`s: an AVX register).
+const PUSH_LANES: usize = 8;
+/// One coordinate of [`PUSH_LANES`] follower nodes.
+type PushLanes = [f32; PUSH_LANES];
 
 impl GrownCollider {
     fn new(collider: &MovingCollider, thickness: f32) -> Self {
         let reach = collider.shape.bounding_radius() as f32 + thickness;
+        let rotation = collider.end.rotation.as_quat();
         Self {
             shape: collider.shape.inflated(f64::from(thickness)),
             centre: collider.end.translation.as_vec3(),
-            rotation: collider.end.rotation.as_quat(),
+            rotation,
+            axes: [rotation * Vec3::X, rotation * Vec3::Y, rotation * Vec3::Z],
             reach_squared: reach * reach,
         }
     }
 
-    /// `world` moved out to the surface if it lies inside: radially from the centre (a sphere, an
-    /// ellipsoid), from the axis (a capsule), straight up (a plane), through the nearest face or from the
-    /// nearest point of the box (a cuboid).
-    fn push_out(&self, world: Vec3) -> Vec3 {
-        let offset = world - self.centre;
-        if offset.length_squared() > self.reach_squared {
-            return world;
+    /// The lanes of `(x, y, z)` that lie inside moved out to the surface: radially from the centre (a
+    /// sphere, an ellipsoid), from the axis (a capsule), straight up (a plane), through the nearest face or
+    /// from the nearest point of the box (a cuboid, a mesh: lane by lane). Each lane's arithmetic is
+    /// branch-free, so the loops compile to SIMD instructions.
+    #[inline(always)]
+    fn push_out(&self, x: &mut PushLanes, y: &mut PushLanes, z: &mut PushLanes) {
+        let c = self.centre;
+        let (ox, oy, oz): (PushLanes, PushLanes, PushLanes) =
+            (lanes(|k| x[k] - c.x), lanes(|k| y[k] - c.y), lanes(|k| z[k] - c.z));
+        let offset = |k: usize| Vec3::new(ox[k], oy[k], oz[k]);
+        let squared = lanes(|k| ox[k] * ox[k] + oy[k] * oy[k] + oz[k] * oz[k]);
+        if squared.iter().fold(true, |far, &squared| far & (squared > self.reach_squared)) {
+            return;
         }
-        let local = self.rotation.inverse() * offset;
-        let outside = match self.shape {
+        let [axis_x, axis_y, axis_z] = self.axes;
+        let moved = [x, y, z];
+        let offsets = [ox, oy, oz];
+        match self.shape {
+            // Radially: `c + o r/|o|` (a node at the very centre goes out along the collider's `y` axis).
             ColliderShape::Sphere { radius } => {
                 let radius = radius as f32;
-                (local.length_squared() < radius * radius).then(|| local.normalize_or(Vec3::Y) * radius)
+                let centred = squared.map(|squared| squared == 0.0);
+                let scale = lanes(|k| if centred[k] { 0.0 } else { radius / squared[k].sqrt() });
+                let shift = std::array::from_fn(|k| axis_y * if centred[k] { radius } else { 0.0 });
+                move_lanes(moved, c, offsets, squared.map(|squared| squared < radius * radius), scale, shift);
             }
+            // From the axis: `c + a ŷ + (o − a ŷ) r/|o − a ŷ|`, `a` the offset along the axis clamped to the
+            // segment, written as `o s + a (1 − s) ŷ` (a node on the axis goes out along the `x` axis).
             ColliderShape::Capsule { radius, half_length } => {
                 let (radius, half_length) = (radius as f32, half_length as f32);
-                let axis = Vec3::new(0.0, local.y.clamp(-half_length, half_length), 0.0);
-                let away = local - axis;
-                (away.length_squared() < radius * radius).then(|| axis + away.normalize_or(Vec3::X) * radius)
+                let along = lanes(|k| offset(k).dot(axis_y).clamp(-half_length, half_length));
+                let away = lanes(|k| (offset(k) - along[k] * axis_y).length_squared());
+                let on_axis = away.map(|away| away == 0.0);
+                let scale = lanes(|k| if on_axis[k] { 0.0 } else { radius / away[k].sqrt() });
+                let shift = std::array::from_fn(|k| {
+                    axis_y * (along[k] * (1.0 - scale[k])) + if on_axis[k] { axis_x * radius } else { Vec3::ZERO }
+                });
+                move_lanes(moved, c, offsets, away.map(|away| away < radius * radius), scale, shift);
             }
+            // Radially, to where the ray from the centre leaves the ellipsoid: `c + o/|R⁻¹o ⊘ a|`.
             ColliderShape::Ellipsoid { semi_axes } => {
-                let scaled = (local / semi_axes.as_vec3()).length();
-                (scaled < 1.0).then(|| if scaled > 0.0 { local / scaled } else { Vec3::Y * semi_axes.y as f32 })
+                let semi_axes = semi_axes.as_vec3();
+                let scaled = lanes(|k| {
+                    let local = Vec3::new(offset(k).dot(axis_x), offset(k).dot(axis_y), offset(k).dot(axis_z));
+                    (local / semi_axes).length()
+                });
+                let centred = scaled.map(|scaled| scaled == 0.0);
+                let scale = lanes(|k| if centred[k] { 0.0 } else { 1.0 / scaled[k] });
+                let shift = std::array::from_fn(|k| axis_y * if centred[k] { semi_axes.y } else { 0.0 });
+                move_lanes(moved, c, offsets, scaled.map(|scaled| scaled < 1.0), scale, shift);
             }
-            ColliderShape::Plane => (local.y < 0.0).then(|| Vec3::new(local.x, 0.0, local.z)),
+            // Straight up its normal: `x − (o·n) n` where `o·n < 0`.
+            ColliderShape::Plane => {
+                let height = lanes(|k| offset(k).dot(axis_y));
+                let (inside, shift) = (height.map(|height| height < 0.0), height.map(|height| axis_y * -height));
+                move_lanes(moved, c, offsets, inside, [1.0; PUSH_LANES], shift);
+            }
             ColliderShape::Cuboid { .. } | ColliderShape::Mesh { .. } => {
-                let local = local.as_dvec3();
-                self.shape.contains(local).then(|| self.shape.closest_surface_point(local).point.as_vec3())
+                let [x, y, z] = moved;
+                for k in 0..PUSH_LANES {
+                    let local = (self.rotation.inverse() * offset(k)).as_dvec3();
+                    if self.shape.contains(local) {
+                        let world = c + self.rotation * self.shape.closest_surface_point(local).point.as_vec3();
+                        (x[k], y[k], z[k]) = (world.x, world.y, world.z);
+                    }
+                }
             }
-        };
-        outside.map_or(world, |local| self.centre + self.rotation * local)
+        }
     }
 }
 
-/// `position` moved out of each of `colliders` it lies in.
-fn push_out(position: Vec3, colliders: &[GrownCollider]) -> Vec3 {
-    colliders.iter().fold(position, |position, collider| collider.push_out(position))
+/// Moves lane `k` of `(x, y, z)` to `centre + offset · scale[k] + shift[k]` where `inside[k]`. Kept out of
+/// line: measured, the loop over the nodes is faster with the move as a call than inlined into it
+/// (`docs/performance.md`, issue 32's fourth pass).
+#[inline(never)]
+fn move_lanes(
+    [x, y, z]: [&mut PushLanes; 3],
+    centre: Vec3,
+    [ox, oy, oz]: [PushLanes; 3],
+    inside: [bool; PUSH_LANES],
+    scale: PushLanes,
+    shift: [Vec3; PUSH_LANES],
+) {
+    if !inside.iter().fold(false, |any, &inside| any | inside) {
+        return;
+    }
+    for k in 0..PUSH_LANES {
+        let world = centre + Vec3::new(ox[k], oy[k], oz[k]) * scale[k] + shift[k];
+        x[k] = if inside[k] { world.x } else { x[k] };
+        y[k] = if inside[k] { world.y } else { y[k] };
+        z[k] = if inside[k] { world.z } else { z[k] };
+    }
+}
+
+/// One value per lane, from `value(lane)`.
+#[inline(always)]
+fn lanes(value: impl FnMut(usize) -> f32) -> PushLanes {
+    std::array::from_fn(value)
+}
+
+/// Every node of `positions` (followers of `per` nodes each, one after another) from the third of its
+/// follower on moved out of each of `colliders` it lies in, [`PUSH_LANES`] nodes at a time. Compiled for
+/// AVX2 with FMA and for AVX besides the baseline, chosen when the program runs.
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn push_out(positions: &mut [Vec3], per: usize, colliders: &[GrownCollider]) {
+    if colliders.is_empty() {
+        return;
+    }
+    for (chunk, nodes) in positions.chunks_mut(PUSH_LANES).enumerate() {
+        // The last chunk's missing lanes repeat its first node and are not written back.
+        let lane = |k: usize| nodes[if k < nodes.len() { k } else { 0 }];
+        let (mut x, mut y, mut z): (PushLanes, PushLanes, PushLanes) = (
+            std::array::from_fn(|k| lane(k).x),
+            std::array::from_fn(|k| lane(k).y),
+            std::array::from_fn(|k| lane(k).z),
+        );
+        for collider in colliders {
+            collider.push_out(&mut x, &mut y, &mut z);
+        }
+        for (k, node) in nodes.iter_mut().enumerate() {
+            // The root and the node after it stay on the guide's.
+            if (chunk * PUSH_LANES + k) % per >= 2 {
+                *node = Vec3::new(x[k], y[k], z[k]);
+            }
+        }
+    }
 }
 
 /// What [`bind_followers`] reads and writes of a guide.
@@ -405,5 +507,86 @@ impl Plugin for HairFollowersPlugin {
                 self.schedule,
                 (bind_followers.in_set(HairPrepareSystems::Bind), place_followers.in_set(HairStepSystems::Follow)),
             );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rod::RigidPose;
+    use bevy::math::DQuat;
+
+    /// The push-out of one node as the GPU's shader writes it (`push_out` in `render/followers.wgsl`): into
+    /// the collider's frame, out to the surface there, and back.
+    fn pushed_one_at_a_time(world: Vec3, collider: &GrownCollider) -> Vec3 {
+        let offset = world - collider.centre;
+        if offset.length_squared() > collider.reach_squared {
+            return world;
+        }
+        let local = collider.rotation.inverse() * offset;
+        let outside = match collider.shape {
+            ColliderShape::Sphere { radius } => {
+                let radius = radius as f32;
+                (local.length_squared() < radius * radius).then(|| local.normalize_or(Vec3::Y) * radius)
+            }
+            ColliderShape::Capsule { radius, half_length } => {
+                let (radius, half_length) = (radius as f32, half_length as f32);
+                let axis = Vec3::new(0.0, local.y.clamp(-half_length, half_length), 0.0);
+                let away = local - axis;
+                (away.length_squared() < radius * radius).then(|| axis + away.normalize_or(Vec3::X) * radius)
+            }
+            ColliderShape::Ellipsoid { semi_axes } => {
+                let scaled = (local / semi_axes.as_vec3()).length();
+                (scaled < 1.0).then(|| local / scaled)
+            }
+            ColliderShape::Plane => (local.y < 0.0).then(|| Vec3::new(local.x, 0.0, local.z)),
+            _ => {
+                let local = local.as_dvec3();
+                collider.shape.contains(local).then(|| collider.shape.closest_surface_point(local).point.as_vec3())
+            }
+        };
+        outside.map_or(world, |local| collider.centre + collider.rotation * local)
+    }
+
+    #[test]
+    fn nodes_in_lanes_are_pushed_out_as_one_at_a_time_and_the_first_two_of_each_follower_stay() {
+        let pose = RigidPose {
+            rotation: DQuat::from_euler(EulerRot::XYZ, 0.4, -0.7, 1.1),
+            translation: DVec3::new(0.02, 1.6, -0.03),
+        };
+        let shapes = [
+            ColliderShape::sphere(0.09),
+            ColliderShape::capsule(0.05, 0.06),
+            ColliderShape::ellipsoid(DVec3::new(0.08, 0.1, 0.12)),
+            ColliderShape::Plane,
+            ColliderShape::cuboid(DVec3::new(0.06, 0.1, 0.04)),
+        ];
+        // 13 followers of 7 nodes (91 nodes: eleven full chunks of lanes and one of three), on a grid
+        // through the colliders.
+        let per = 7;
+        let nodes: Vec<Vec3> = (0..13 * per)
+            .map(|index| {
+                let [i, j, k] = [index % 5, index / 5 % 5, index / 25];
+                pose.translation.as_vec3() + 0.035 * Vec3::new(i as f32 - 2.0, j as f32 - 2.0, k as f32 - 1.5)
+            })
+            .collect();
+        for shape in shapes {
+            let collider = GrownCollider::new(&MovingCollider::fixed(shape.clone(), 0.3, pose), 0.002);
+            let mut lanes = nodes.clone();
+            push_out(&mut lanes, per, std::slice::from_ref(&collider));
+            let mut moved = 0;
+            for (index, (&before, &after)) in nodes.iter().zip(&lanes).enumerate() {
+                let expected = if index % per >= 2 { pushed_one_at_a_time(before, &collider) } else { before };
+                moved += usize::from(expected != before);
+                assert!(
+                    after.distance(expected) < 1e-6,
+                    "{shape:?}: node {index} at {before} pushed to {after}, one at a time to {expected}"
+                );
+                if expected == before {
+                    assert_eq!(after, before, "{shape:?}: node {index} outside moved");
+                }
+            }
+            assert!(moved >= 3, "{shape:?}: only {moved} nodes inside: the test does not reach it");
+        }
     }
 }
