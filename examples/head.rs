@@ -129,6 +129,9 @@ struct Options {
     detail: Option<HairDetailLevel>,
     /// Whether the camera blurs what moves (Bevy's `MotionBlur`, from the hair's motion vectors).
     motion_blur: bool,
+    /// Whether the camera smooths edges over frames (Bevy's `TemporalAntiAliasing`, MSAA off) instead of
+    /// with 4× MSAA.
+    taa: bool,
     /// Whether the GPU steps the hair (`HairGpuPlugin`).
     gpu: bool,
 }
@@ -159,7 +162,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--hold 1/S] [--draw hair|lines|both]
-            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off]
+            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off] [--taa on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
@@ -191,6 +194,7 @@ impl Options {
             detail: None,
             gpu: false,
             motion_blur: false,
+            taa: false,
         };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
@@ -215,6 +219,7 @@ impl Options {
                 "--hold" => options.style_hold = number("a rate in 1/s")?,
                 "--gpu" => options.gpu = switch()?,
                 "--motion-blur" => options.motion_blur = switch()?,
+                "--taa" => options.taa = switch()?,
                 "--integrator" => {
                     options.integrator = match value.as_str() {
                         "bdf2" => bevy_hair_sim::rod::Integrator::Bdf2,
@@ -363,6 +368,11 @@ fn spawn_scene(
         // Blurred along each pixel's motion vector over half a frame: the hair's come from where it was
         // drawn the frame before.
         commands.entity(camera).insert(bevy::post_process::motion_blur::MotionBlur::default());
+    }
+    if options.taa {
+        // Each hair thinner than a pixel is drawn on that share of its pixels, a new draw for each of the
+        // view's eight jitters; TAA averages them into the hair's coverage (it needs MSAA off).
+        commands.entity(camera).insert((bevy::anti_alias::taa::TemporalAntiAliasing::default(), Msaa::Off));
     }
     // The key light casts the hair's shadows, on the head and on the hair itself: one cascade over the
     // 3 m around the camera, so that a shadow texel (4096² map) is under a millimetre.

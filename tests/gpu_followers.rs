@@ -364,3 +364,114 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
     let (still, node) = largest_difference(&previous, &drawn);
     assert_eq!(still, 0.0, "standing still, node {node} moved {still} m between frames");
 }
+
+/// The pixels (RGBA8, row after row) of `image`, as the next frame draws it.
+fn read_back_image(app: &mut App, image: Handle<Image>) -> Vec<u8> {
+    let received = Arc::new(Mutex::new(None::<Vec<u8>>));
+    let sink = received.clone();
+    let reader = app
+        .world_mut()
+        .spawn(Readback::texture(image))
+        .observe(move |event: On<ReadbackComplete>| {
+            sink.lock().unwrap().get_or_insert_with(|| event.data.clone());
+        })
+        .id();
+    for _ in 0..120 {
+        app.update();
+        if received.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    app.world_mut().despawn(reader);
+    received.lock().unwrap().take().expect("a read-back from the GPU in 120 frames")
+}
+
+#[test]
+fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_the_view_and_kept_without() {
+    use bevy::camera::RenderTarget;
+    use bevy::render::camera::TemporalJitter;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+    let mut app = rendering_app();
+    assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
+    // 200 guides seen from 0.6 m on a 320 × 240 image (pixels of 2 mm), drawn a fraction of a pixel thick:
+    // each hair is drawn one pixel wide on that share of its pixels, by chance.
+    const SIZE: (u32, u32) = (320, 240);
+    let mut target = Image::new_fill(
+        Extent3d { width: SIZE.0, height: SIZE.1, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        &[0; 4],
+        TextureFormat::Rgba8UnormSrgb,
+        default(),
+    );
+    target.texture_descriptor.usage |=
+        TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
+    let image = app.world_mut().resource_mut::<Assets<Image>>().add(target);
+    let groom = HairGroom { strand_count: 200, followers_per_guide: 0, segments: 12, ..default() };
+    // Hairs drawn a tenth of a pixel thick or so: each covers its pixels by chance.
+    let appearance = HairAppearance { thickness_scale: 0.01, ..default() };
+    app.world_mut().spawn((HairHead, groom, appearance, Transform::default()));
+    app.world_mut()
+        .spawn((DirectionalLight::default(), Transform::from_xyz(1.0, 2.0, 3.0).looking_at(Vec3::ZERO, Vec3::Y)));
+    let camera = app
+        .world_mut()
+        .spawn((
+            Camera3d::default(),
+            Camera { clear_color: Color::BLACK.into(), ..default() },
+            RenderTarget::Image(image.clone().into()),
+            Msaa::Off,
+            TemporalJitter::default(),
+            Transform::from_xyz(0.0, 0.0, 0.6).looking_at(Vec3::ZERO, Vec3::Y),
+        ))
+        .id();
+    // The hair stands still (no gravity, no step changes it): only the view's jitter changes.
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    for _ in 0..5 {
+        app.update();
+    }
+    let mut frame_with = |app: &mut App, offset: Vec2| {
+        app.world_mut().get_mut::<TemporalJitter>(camera).unwrap().offset = offset;
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
+        read_back_image(app, image.clone())
+    };
+    let hair = |pixels: &[u8]| -> Vec<bool> { pixels.chunks_exact(4).map(|pixel| pixel[..3] != [0, 0, 0]).collect() };
+    // The first frames draw nothing while the pipelines compile.
+    for _ in 0..60 {
+        if hair(&frame_with(&mut app, Vec2::ZERO)).contains(&true) {
+            break;
+        }
+    }
+    // Offsets of a ten-thousandth of a pixel: the geometry covers the same pixel centres, only the seed differs.
+    let still = [hair(&frame_with(&mut app, Vec2::ZERO)), hair(&frame_with(&mut app, Vec2::ZERO))];
+    let jittered = [Vec2::new(1e-4, 0.0), Vec2::new(2e-4, 0.0), Vec2::new(0.0, 1e-4)]
+        .map(|offset| hair(&frame_with(&mut app, offset)));
+    let count = |pixels: &[bool]| pixels.iter().filter(|&&hair| hair).count();
+    let differing = |a: &[bool], b: &[bool]| a.iter().zip(b).filter(|(a, b)| a != b).count();
+    let drawn = count(&still[0]);
+    println!(
+        "{drawn} of {} pixels hair without jitter; with the three jitters {:?}; pixels that differ from the first: {} without jitter, {:?} with",
+        still[0].len(),
+        jittered.each_ref().map(|pixels| count(pixels)),
+        differing(&still[0], &still[1]),
+        jittered.each_ref().map(|pixels| differing(&still[0], pixels)),
+    );
+    assert!(drawn > 1000, "the hair covers {drawn} pixels: the test does not see it");
+    assert_eq!(
+        differing(&still[0], &still[1]),
+        0,
+        "without jitter the hair's pixels changed from one frame to the next"
+    );
+    for pixels in &jittered {
+        let (changed, now) = (differing(&still[0], pixels), count(pixels));
+        // Drawn anew, a pixel hair by chance `c` before changes with chance `2c(1 − c)`: as many pixels
+        // change as are drawn, for hairs of little coverage that seldom overlap. Drawn the same, none.
+        assert!(
+            changed * 2 > drawn,
+            "a new jitter changed only {changed} of {drawn} hair pixels: the draw does not follow it"
+        );
+        let ratio = now as f64 / drawn as f64;
+        assert!(
+            (0.85..1.15).contains(&ratio),
+            "a new jitter drew {now} hair pixels against {drawn}: the coverage changed"
+        );
+    }
+}

@@ -123,13 +123,25 @@ fn hash01(value: u32) -> f32 {
     return f32((word >> 22u) ^ word) / 4294967295.0;
 }
 
+// A seed from the view's sub-pixel jitter (Bevy's `TemporalJitter`, which TAA moves through eight offsets,
+// one a frame), 0 without jitter: the projection's `z` column (perspective) and `w` column (orthographic)
+// carry it. The main pass and the prepass see the same view, so they draw the same pattern.
+fn jitter_seed() -> u32 {
+    let projection = view.clip_from_view;
+    return (bitcast<u32>(projection[2][0]) * 0x27d4eb2du) ^ (bitcast<u32>(projection[2][1]) * 0x165667b1u)
+        ^ (bitcast<u32>(projection[3][0]) * 0x9e3779b1u) ^ (bitcast<u32>(projection[3][1]) * 0x85ebca77u);
+}
+
 // The samples of the pixel at `position` that hair `hair` of coverage `coverage` covers (0: none, and the
 // fragment is discarded). Multisampled, a random subset of the pixel's samples, as many as the coverage is
 // worth, drawn per hair and pixel, so that hairs over each other cover independent samples and add up as
 // layers of real hair do (alpha to coverage's fixed pattern per alpha would stack every hair on the same
-// samples); without multisampling, the whole pixel or none, with the coverage as the chance.
+// samples); without multisampling, the whole pixel or none, with the coverage as the chance. The draw
+// changes with the view's jitter: under TAA every frame of its cycle covers other pixels and samples, and
+// TAA's history averages them into the hair's coverage; without jitter it stays the same from frame to
+// frame (no shimmer).
 fn covered_samples(coverage: f32, position: vec4<f32>, hair: u32) -> u32 {
-    let hash = u32(position.x) * 1973u + u32(position.y) * 9277u + hair * 26699u;
+    let hash = u32(position.x) * 1973u + u32(position.y) * 9277u + hair * 26699u + jitter_seed();
 #ifdef HAIR_MULTISAMPLED
     let samples = #{HAIR_MSAA_SAMPLES}u;
     let covered = min(u32(coverage * f32(samples) + hash01(hash)), samples);

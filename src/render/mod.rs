@@ -21,7 +21,10 @@
 //! keeps depth for shadows, and comes with the 4× MSAA Bevy's cameras have by default; alpha to
 //! coverage's fixed pattern per alpha level would stack every hair on the same samples, and
 //! order-independent transparency would cost a list of fragments per pixel. Without multisampling, the
-//! same draw keeps or drops whole pixels.
+//! same draw keeps or drops whole pixels. The draw changes with the view's sub-pixel jitter (Bevy's
+//! `TemporalJitter`, which temporal anti-aliasing moves through eight offsets, one a frame), so that under
+//! TAA (MSAA off) each frame covers other pixels and TAA's history averages the dither into the hair's
+//! coverage; without jitter the same pixels are drawn every frame, and the hair does not shimmer.
 //!
 //! **Motion vectors.** While a camera draws motion vectors, each head also keeps the positions it drew
 //! the frame before, in a second buffer of the same layout ([`HairMesh::previous_positions_buffer`]): at
