@@ -428,7 +428,7 @@ fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_th
     for _ in 0..5 {
         app.update();
     }
-    let mut frame_with = |app: &mut App, offset: Vec2| {
+    let frame_with = |app: &mut App, offset: Vec2| {
         app.world_mut().get_mut::<TemporalJitter>(camera).unwrap().offset = offset;
         app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
         read_back_image(app, image.clone())
@@ -474,4 +474,92 @@ fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_th
             "a new jitter drew {now} hair pixels against {drawn}: the coverage changed"
         );
     }
+}
+
+#[test]
+fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
+    use bevy::camera::RenderTarget;
+    use bevy::light::CascadeShadowConfigBuilder;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+    let mut app = rendering_app();
+    assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
+    let mut target = Image::new_fill(
+        Extent3d { width: 320, height: 240, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        &[0; 4],
+        TextureFormat::Rgba8UnormSrgb,
+        default(),
+    );
+    target.texture_descriptor.usage |=
+        TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
+    let image = app.world_mut().resource_mut::<Assets<Image>>().add(target);
+    let groom = HairGroom { strand_count: 600, followers_per_guide: 4, segments: 12, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, HairAppearance::default(), Transform::default())).id();
+    // The only light: from above, behind and to the left, its shadow map's texels a millimetre wide.
+    app.world_mut().insert_resource(GlobalAmbientLight::NONE);
+    app.world_mut().spawn((
+        DirectionalLight { illuminance: 10_000.0, shadow_maps_enabled: true, ..default() },
+        Transform::from_xyz(-1.0, 3.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y),
+        CascadeShadowConfigBuilder { num_cascades: 1, maximum_distance: 1.5, ..default() }.build(),
+    ));
+    app.world_mut().spawn((
+        Camera3d::default(),
+        Camera { clear_color: Color::BLACK.into(), ..default() },
+        RenderTarget::Image(image.clone().into()),
+        // Bevy's default tonemapping needs a lookup table the tests do not build.
+        bevy::core_pipeline::tonemapping::Tonemapping::None,
+        Transform::from_xyz(0.45, 0.1, 0.4).looking_at(Vec3::ZERO, Vec3::Y),
+    ));
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    // A few steps to grow the groom; then time stands still.
+    for _ in 0..5 {
+        app.update();
+    }
+    let frame_with = |app: &mut App, penetration: f32| {
+        let mut appearance = app.world_mut().get_mut::<HairAppearance>(head).unwrap();
+        let changed = appearance.light_penetration != penetration;
+        if changed {
+            appearance.light_penetration = penetration;
+        }
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
+        // A few frames to take a new appearance, then one to draw with it.
+        for _ in 0..if changed { 3 } else { 0 } {
+            app.update();
+        }
+        read_back_image(app, image.clone())
+    };
+    // The first frames draw nothing while the pipelines compile.
+    for _ in 0..60 {
+        if frame_with(&mut app, 0.0).chunks_exact(4).any(|pixel| pixel[..3] != [0, 0, 0]) {
+            break;
+        }
+    }
+    let hard = frame_with(&mut app, 0.0);
+    let hair: Vec<usize> = (0..hard.len() / 4).filter(|&pixel| hard[4 * pixel..4 * pixel + 3] != [0, 0, 0]).collect();
+    let brightness = |pixels: &[u8]| {
+        hair.iter()
+            .map(|&pixel| pixels[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>())
+            .sum::<f64>()
+            / (3.0 * hair.len() as f64)
+    };
+    let hard = brightness(&hard);
+    let rows: Vec<(f32, f64)> = [0.002, 0.008, 0.05]
+        .into_iter()
+        .map(|penetration| (penetration, brightness(&frame_with(&mut app, penetration))))
+        .collect();
+    println!(
+        "{} hair pixels; mean brightness (0–255): hard shadows {hard:.2}; by light penetration (m) {rows:?}",
+        hair.len()
+    );
+    assert!(hair.len() > 3000, "{} hair pixels: the test does not see the hair", hair.len());
+    for pair in rows.windows(2) {
+        let ((shallow, darker), (deep, lighter)) = (pair[0], pair[1]);
+        assert!(
+            lighter > 1.05 * darker,
+            "light penetrating {deep} m lights the hair {lighter:.2}, {shallow} m {darker:.2}: no deeper"
+        );
+    }
+    // The shadow map's hard shadow, offset 2 cm towards the light (Bevy's default depth bias), leaves lit the
+    // hair behind less than 2 cm of hair; light that penetrates 2 mm darkens it.
+    assert!(hard > 1.2 * rows[0].1, "hard shadows light the hair {hard:.2}, 2 mm of penetration {:.2}", rows[0].1);
 }

@@ -470,6 +470,16 @@ fn appearance_grid(ui: &mut egui::Ui, appearance: &mut HairAppearance) {
         grid_row(ui, "length variation", egui::Slider::new(&mut appearance.length_variation, 0.0..=1.0));
         grid_row(ui, "min width (px)", egui::Slider::new(&mut appearance.min_pixel_width, 0.0..=3.0));
         grid_row(ui, "root occlusion", egui::Slider::new(&mut appearance.root_occlusion, 0.0..=1.0));
+        grid_row(
+            ui,
+            "light penetration (mm)",
+            egui::Slider::from_get_set(0.0..=20.0, |value| {
+                if let Some(mm) = value {
+                    appearance.light_penetration = mm as f32 * 1e-3;
+                }
+                f64::from(appearance.light_penetration) * 1e3
+            }),
+        );
     });
     if (tilt_degrees - appearance.cuticle_tilt.to_degrees()).abs() > 1e-4 {
         appearance.cuticle_tilt = tilt_degrees.to_radians();

@@ -111,6 +111,8 @@ pub struct HairShading {
     pub highlights: Vec4,
     /// Specular strength, colour variation, minimum width in pixels, root occlusion.
     pub parameters: Vec4,
+    /// Light penetration, m (0: the shadow maps' hard shadows), and three unused.
+    pub deep_shadows: Vec4,
 }
 
 impl From<&HairAppearance> for HairShading {
@@ -128,6 +130,7 @@ impl From<&HairAppearance> for HairShading {
                 appearance.min_pixel_width,
                 appearance.root_occlusion,
             ),
+            deep_shadows: Vec4::new(appearance.light_penetration, 0.0, 0.0, 0.0),
         }
     }
 }

@@ -30,6 +30,8 @@ struct HairShading {
     highlights: vec4<f32>,
     // specular strength, colour variation, minimum width (pixels), root occlusion
     parameters: vec4<f32>,
+    // light penetration (m; 0: the shadow maps' hard shadows), unused × 3
+    deep_shadows: vec4<f32>,
 }
 
 @group(#{MATERIAL_BIND_GROUP}) @binding(0) var<storage, read> positions: array<f32>;
@@ -319,6 +321,44 @@ struct HairFragmentOutput {
 #endif
 }
 
+// The share of directional light `light_id`'s light that reaches `position` through the hair in front of
+// it (TressFX's deep shadow from an ordinary shadow map): `exp(−d / penetration)`, `d` the depth, m,
+// between the point and the nearest thing the light's shadow map holds there (another hair, or the head,
+// whose depth darkens it fully), averaged over 3 × 3 texels of the cascade the point is in. Light reaches
+// hair behind a few hairs dimmed rather than not at all, as it does through real hair.
+fn light_through_hair(light_id: u32, position: vec3<f32>, view_z: f32, penetration: f32) -> f32 {
+    let light = &view_bindings::lights.directional_lights[light_id];
+    let cascade_index = shadows::get_cascade_index(light_id, view_z);
+    if cascade_index >= (*light).num_cascades {
+        return 1.0;
+    }
+    let local = shadows::world_to_directional_light_local(light_id, cascade_index, vec4(position, 1.0));
+    if local.w == 0.0 {
+        return 1.0;
+    }
+    // Depth is `clip_from_world`'s third row times the position (orthographic): its length is depth per metre.
+    let clip = (*light).cascades[cascade_index].clip_from_world;
+    let depth_per_metre = length(vec3(clip[0][2], clip[1][2], clip[2][2]));
+    let size = vec2<i32>(textureDimensions(view_bindings::directional_shadow_textures));
+    let texel = vec2<i32>(local.xy * vec2<f32>(size));
+    let layer = i32((*light).depth_texture_base_index + cascade_index);
+    var light_share = 0.0;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let at = clamp(texel + vec2(dx, dy), vec2(0), size - 1);
+#ifdef NO_ARRAY_TEXTURES_SUPPORT
+            let nearest = textureLoad(view_bindings::directional_shadow_textures, at, 0);
+#else
+            let nearest = textureLoad(view_bindings::directional_shadow_textures, at, layer, 0);
+#endif
+            // Reversed depth: what lies nearer the light has the greater depth.
+            let depth = max(nearest - local.z, 0.0) / depth_per_metre;
+            light_share += exp(-depth / penetration);
+        }
+    }
+    return light_share / 9.0;
+}
+
 @fragment
 fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
     let tangent = normalize(in.tangent);
@@ -358,7 +398,11 @@ fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
         let direction = (*light).direction_to_light.xyz;
         var shadow = 1.0;
         if ((*light).flags & mesh_view_types::DIRECTIONAL_LIGHT_FLAGS_SHADOWS_ENABLED_BIT) != 0u {
-            shadow = shadows::fetch_directional_shadow(i, world_position, normal, view_z, in.position.xy);
+            if shading.deep_shadows.x > 0.0 {
+                shadow = light_through_hair(i, in.world_position, view_z, shading.deep_shadows.x);
+            } else {
+                shadow = shadows::fetch_directional_shadow(i, world_position, normal, view_z, in.position.xy);
+            }
         }
         light_sum += shadow * shade(surface, direction, (*light).color.rgb);
     }

@@ -43,7 +43,9 @@
 //! tinted by the hair's colour, through the fibre and back, shifted towards the tip and broader. Shifts and
 //! widths follow Marschner et al. (SIGGRAPH 2003): the cuticle scales tilt by `α` ≈ 2–4°, the reflection
 //! `R` shifts by `−2α`, the `TRT` lobe by `+3α`, and `TRT` is twice as wide as `R`. Colours can come from
-//! melanin ([`HairAppearance::from_melanin`]).
+//! melanin ([`HairAppearance::from_melanin`]). Directional lights reach into the hair as through real
+//! hair, dimmed `exp(−d / penetration)` by the depth `d` of hair in front in the light's shadow map
+//! (TressFX's deep shadows; [`HairAppearance::light_penetration`]).
 //!
 //! The CPU side ([`HairStrips`], [`ribbon_width`], [`HairAppearance`]) needs no renderer; the plugin that
 //! draws ([`HairRenderPlugin`]) needs the crate's `render` feature.
@@ -112,6 +114,13 @@ pub struct HairAppearance {
     /// `1 − root_occlusion` at the root to 1 at the tip, a cheap stand-in for the light the hair above
     /// takes (the shadow maps handle direct light).
     pub root_occlusion: f32,
+    /// How deep a directional light's light gets into the hair, m: behind a depth `d` of hair (measured in
+    /// the light's shadow map from the nearest hair or head in front) a hair gets `exp(−d / light_penetration)`
+    /// of it, as light through real hair dims layer after layer (TressFX's deep shadows). 0 keeps the
+    /// shadow map's hard shadow, which (offset towards the light by its depth bias, 2 cm by Bevy's
+    /// default) leaves the hair behind a little hair fully lit and the hair behind more fully dark. Point
+    /// and spot lights always cast hard shadows. Default 4 mm.
+    pub light_penetration: f32,
 }
 
 impl Default for HairAppearance {
@@ -158,6 +167,7 @@ impl HairAppearance {
         length_variation: 0.15,
         min_pixel_width: 1.0,
         root_occlusion: 0.6,
+        light_penetration: 0.004,
     };
 
     /// Natural hair colours by melanin, for menus: black, dark brown, brown, auburn, red, blonde, light
@@ -187,6 +197,7 @@ impl HairAppearance {
             ("length_variation", self.length_variation, 0.0, 1.0),
             ("min_pixel_width", self.min_pixel_width, 0.0, 16.0),
             ("root_occlusion", self.root_occlusion, 0.0, 1.0),
+            ("light_penetration", self.light_penetration, 0.0, 1.0),
         ];
         for (name, value, low, high) in fields {
             if !(low..=high).contains(&value) {
