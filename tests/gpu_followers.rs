@@ -1,7 +1,8 @@
 //! Followers placed and hair interpolated on the GPU (`src/render/followers.wgsl`) against the CPU's
 //! placement (`src/followers`) and drawing (`HairStrips::fill`), on a real adapter: Mesa's software
-//! Vulkan (lavapipe) on a machine without a GPU, which `.ci/run` installs. Without any adapter the test
-//! fails (Bevy's renderer cannot start); it never skips.
+//! Vulkan (lavapipe) on a machine without a GPU, which `.ci/run` installs; and what the hair shader
+//! draws there: motion vectors, the coverage under a jittered view (TAA), light through the hair. Without
+//! any adapter the tests fail (Bevy's renderer cannot start); they never skip.
 
 mod common;
 
@@ -365,6 +366,21 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
     assert_eq!(still, 0.0, "standing still, node {node} moved {still} m between frames");
 }
 
+/// An sRGB image of `width` × `height` pixels, black, that a camera can draw into and the test read back.
+fn render_target(app: &mut App, width: u32, height: u32) -> Handle<Image> {
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+    let mut target = Image::new_fill(
+        Extent3d { width, height, depth_or_array_layers: 1 },
+        TextureDimension::D2,
+        &[0; 4],
+        TextureFormat::Rgba8UnormSrgb,
+        default(),
+    );
+    target.texture_descriptor.usage |=
+        TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
+    app.world_mut().resource_mut::<Assets<Image>>().add(target)
+}
+
 /// The pixels (RGBA8, row after row) of `image`, as the next frame draws it.
 fn read_back_image(app: &mut App, image: Handle<Image>) -> Vec<u8> {
     let received = Arc::new(Mutex::new(None::<Vec<u8>>));
@@ -390,22 +406,11 @@ fn read_back_image(app: &mut App, image: Handle<Image>) -> Vec<u8> {
 fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_the_view_and_kept_without() {
     use bevy::camera::RenderTarget;
     use bevy::render::camera::TemporalJitter;
-    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     // 200 guides seen from 0.6 m on a 320 × 240 image (pixels of 2 mm), drawn a fraction of a pixel thick:
     // each hair is drawn one pixel wide on that share of its pixels, by chance.
-    const SIZE: (u32, u32) = (320, 240);
-    let mut target = Image::new_fill(
-        Extent3d { width: SIZE.0, height: SIZE.1, depth_or_array_layers: 1 },
-        TextureDimension::D2,
-        &[0; 4],
-        TextureFormat::Rgba8UnormSrgb,
-        default(),
-    );
-    target.texture_descriptor.usage |=
-        TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
-    let image = app.world_mut().resource_mut::<Assets<Image>>().add(target);
+    let image = render_target(&mut app, 320, 240);
     let groom = HairGroom { strand_count: 200, followers_per_guide: 0, segments: 12, ..default() };
     // Hairs drawn a tenth of a pixel thick or so: each covers its pixels by chance.
     let appearance = HairAppearance { thickness_scale: 0.01, ..default() };
@@ -480,19 +485,9 @@ fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_th
 fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
     use bevy::camera::RenderTarget;
     use bevy::light::CascadeShadowConfigBuilder;
-    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
-    let mut target = Image::new_fill(
-        Extent3d { width: 320, height: 240, depth_or_array_layers: 1 },
-        TextureDimension::D2,
-        &[0; 4],
-        TextureFormat::Rgba8UnormSrgb,
-        default(),
-    );
-    target.texture_descriptor.usage |=
-        TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING;
-    let image = app.world_mut().resource_mut::<Assets<Image>>().add(target);
+    let image = render_target(&mut app, 320, 240);
     let groom = HairGroom { strand_count: 600, followers_per_guide: 4, segments: 12, ..default() };
     let head = app.world_mut().spawn((HairHead, groom, HairAppearance::default(), Transform::default())).id();
     // The only light: from above, behind and to the left, its shadow map's texels a millimetre wide.
