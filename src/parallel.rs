@@ -1,7 +1,15 @@
 //! How the passes over many strands use the machine: work spread over Bevy's compute pool (shared by the
 //! hair–hair grid and the renderer's preparation), and memory asked for ahead of its use.
 
+use bevy::ecs::batching::BatchingStrategy;
 use bevy::tasks::ComputeTaskPool;
+
+/// How a parallel query over the strands splits them when strands cost unequal amounts (contacts, levels
+/// of detail): many small batches per thread, so that no thread waits long on another (two big batches
+/// left the followers' placement 1.5 times as fast on two threads as on one; sixteen a thread, 1.8).
+pub(crate) fn uneven_batches(per_thread: usize) -> BatchingStrategy {
+    BatchingStrategy::new().batches_per_thread(per_thread)
+}
 
 /// Runs `task` on every item of `work`, on Bevy's compute pool when it has `threads` > 1 threads.
 pub(crate) fn run_in_parallel<W: Send>(threads: usize, work: impl Iterator<Item = W>, task: impl Fn(W) + Sync) {

@@ -35,6 +35,7 @@ use bevy::prelude::*;
 
 use bevy::ecs::schedule::InternedScheduleLabel;
 
+use crate::parallel::uneven_batches;
 use crate::rod::{ColliderShape, MovingCollider, Rod, RodMaterial};
 use crate::schedule::{HairPrepareSystems, HairStepSystems};
 use crate::simulation::{
@@ -471,22 +472,27 @@ fn place_followers(
         }
     }
     if any_asked {
-        guides.par_iter_mut().for_each(|(strand, nodes, frames, mut followers, strand_of, marked)| {
-            if followers.offsets.is_empty() {
-                return;
-            }
-            if !asked(marked, strand_of) {
-                unplaced(&mut followers);
-                return;
-            }
-            let thickness = strand.contact_thickness(margin) as f32;
-            followers.place(nodes, frames, colliders.of(strand_of), thickness);
-        });
+        guides.par_iter_mut().batching_strategy(uneven_batches(PLACE_BATCHES_PER_THREAD)).for_each(
+            |(strand, nodes, frames, mut followers, strand_of, marked)| {
+                if followers.offsets.is_empty() {
+                    return;
+                }
+                if !asked(marked, strand_of) {
+                    unplaced(&mut followers);
+                    return;
+                }
+                let thickness = strand.contact_thickness(margin) as f32;
+                followers.place(nodes, frames, colliders.of(strand_of), thickness);
+            },
+        );
         count = guides.iter().map(|(_, _, _, followers, ..)| followers.count()).sum();
     }
     statistics.followers = count;
     statistics.follower_seconds = started.elapsed().as_secs_f64();
 }
+
+/// Batches of guides per compute thread in [`place_followers`].
+const PLACE_BATCHES_PER_THREAD: usize = 16;
 
 /// Follower hairs (see the [module documentation](self)): binds each guide's [`HairFollowers`] in
 /// [`HairPrepareSystems::Bind`] and places them after every step in [`HairStepSystems::Follow`]. Part of

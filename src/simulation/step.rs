@@ -1,12 +1,12 @@
 //! The systems of one simulation step: pin roots to heads, step every strand in parallel, report
 //! faults, write the drawn poses.
 
-use bevy::ecs::batching::BatchingStrategy;
 use bevy::math::DVec3;
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
+use crate::parallel::uneven_batches;
 use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
 use crate::simulation::{
     HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose, SimulatedStrand,
@@ -344,8 +344,7 @@ pub(crate) fn step_strands(
     let now = time.elapsed_secs_f64();
     // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
     // and others not), and big batches leave one thread waiting on another.
-    let batching = BatchingStrategy::new().batches_per_thread(STEP_BATCHES_PER_THREAD);
-    strands.par_iter_mut().batching_strategy(batching).for_each(
+    strands.par_iter_mut().batching_strategy(uneven_batches(STEP_BATCHES_PER_THREAD)).for_each(
         |(entity, mut strand, mut forces, mut nodes, mut frames, mut pose, strand_of)| {
             let contacts =
                 Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
