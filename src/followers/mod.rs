@@ -211,7 +211,6 @@ impl FollowerNodes {
 struct GrownCollider {
     shape: ColliderShape,
     centre: Vec3,
-    rotation: Quat,
     /// The collider's local axes in world space (the columns of its rotation).
     axes: [Vec3; 3],
     reach_squared: f32,
@@ -229,10 +228,15 @@ impl GrownCollider {
         Self {
             shape: collider.shape.inflated(f64::from(thickness)),
             centre: collider.end.translation.as_vec3(),
-            rotation,
             axes: [rotation * Vec3::X, rotation * Vec3::Y, rotation * Vec3::Z],
             reach_squared: reach * reach,
         }
+    }
+
+    /// `offset` (world, from the centre) in the collider's frame.
+    #[inline(always)]
+    fn to_local(&self, offset: Vec3) -> Vec3 {
+        Vec3::new(offset.dot(self.axes[0]), offset.dot(self.axes[1]), offset.dot(self.axes[2]))
     }
 
     /// The lanes of `(x, y, z)` that lie inside moved out to the surface: radially from the centre (a
@@ -277,10 +281,7 @@ impl GrownCollider {
             // Radially, to where the ray from the centre leaves the ellipsoid: `c + o/|R⁻¹o ⊘ a|`.
             ColliderShape::Ellipsoid { semi_axes } => {
                 let semi_axes = semi_axes.as_vec3();
-                let scaled = lanes(|k| {
-                    let local = Vec3::new(offset(k).dot(axis_x), offset(k).dot(axis_y), offset(k).dot(axis_z));
-                    (local / semi_axes).length()
-                });
+                let scaled = lanes(|k| (self.to_local(offset(k)) / semi_axes).length());
                 let centred = scaled.map(|scaled| scaled == 0.0);
                 let scale = lanes(|k| if centred[k] { 0.0 } else { 1.0 / scaled[k] });
                 let shift = std::array::from_fn(|k| axis_y * if centred[k] { semi_axes.y } else { 0.0 });
@@ -295,9 +296,10 @@ impl GrownCollider {
             ColliderShape::Cuboid { .. } | ColliderShape::Mesh { .. } => {
                 let [x, y, z] = moved;
                 for k in 0..PUSH_LANES {
-                    let local = (self.rotation.inverse() * offset(k)).as_dvec3();
+                    let local = self.to_local(offset(k)).as_dvec3();
                     if self.shape.contains(local) {
-                        let world = c + self.rotation * self.shape.closest_surface_point(local).point.as_vec3();
+                        let surface = self.shape.closest_surface_point(local).point.as_vec3();
+                        let world = c + axis_x * surface.x + axis_y * surface.y + axis_z * surface.z;
                         (x[k], y[k], z[k]) = (world.x, world.y, world.z);
                     }
                 }
@@ -346,11 +348,7 @@ fn push_out(positions: &mut [Vec3], per: usize, colliders: &[GrownCollider]) {
     for (chunk, nodes) in positions.chunks_mut(PUSH_LANES).enumerate() {
         // The last chunk's missing lanes repeat its first node and are not written back.
         let lane = |k: usize| nodes[if k < nodes.len() { k } else { 0 }];
-        let (mut x, mut y, mut z): (PushLanes, PushLanes, PushLanes) = (
-            std::array::from_fn(|k| lane(k).x),
-            std::array::from_fn(|k| lane(k).y),
-            std::array::from_fn(|k| lane(k).z),
-        );
+        let (mut x, mut y, mut z) = (lanes(|k| lane(k).x), lanes(|k| lane(k).y), lanes(|k| lane(k).z));
         for collider in colliders {
             collider.push_out(&mut x, &mut y, &mut z);
         }
@@ -524,12 +522,12 @@ mod tests {
 
     /// The push-out of one node as the GPU's shader writes it (`push_out` in `render/followers.wgsl`): into
     /// the collider's frame, out to the surface there, and back.
-    fn pushed_one_at_a_time(world: Vec3, collider: &GrownCollider) -> Vec3 {
+    fn pushed_one_at_a_time(world: Vec3, collider: &GrownCollider, rotation: Quat) -> Vec3 {
         let offset = world - collider.centre;
         if offset.length_squared() > collider.reach_squared {
             return world;
         }
-        let local = collider.rotation.inverse() * offset;
+        let local = rotation.inverse() * offset;
         let outside = match collider.shape {
             ColliderShape::Sphere { radius } => {
                 let radius = radius as f32;
@@ -551,7 +549,7 @@ mod tests {
                 collider.shape.contains(local).then(|| collider.shape.closest_surface_point(local).point.as_vec3())
             }
         };
-        outside.map_or(world, |local| collider.centre + collider.rotation * local)
+        outside.map_or(world, |local| collider.centre + rotation * local)
     }
 
     #[test]
@@ -576,13 +574,15 @@ mod tests {
                 pose.translation.as_vec3() + 0.035 * Vec3::new(i as f32 - 2.0, j as f32 - 2.0, k as f32 - 1.5)
             })
             .collect();
+        let rotation = pose.rotation.as_quat();
         for shape in shapes {
             let collider = GrownCollider::new(&MovingCollider::fixed(shape.clone(), 0.3, pose), 0.002);
             let mut lanes = nodes.clone();
             push_out(&mut lanes, per, std::slice::from_ref(&collider));
             let mut moved = 0;
             for (index, (&before, &after)) in nodes.iter().zip(&lanes).enumerate() {
-                let expected = if index % per >= 2 { pushed_one_at_a_time(before, &collider) } else { before };
+                let expected =
+                    if index % per >= 2 { pushed_one_at_a_time(before, &collider, rotation) } else { before };
                 moved += usize::from(expected != before);
                 assert!(
                     after.distance(expected) < 1e-6,
