@@ -97,6 +97,10 @@ struct Options {
     strands: usize,
     /// Follower hairs per simulated strand.
     followers: usize,
+    /// How much each guide's followers gather onto it towards the tip, 0 to 1 (`HairGroom::follower_clumping`).
+    clumping: f32,
+    /// How far followers stray across their guide towards the tip, m (`HairGroom::follower_scatter`).
+    scatter: f32,
     segments: usize,
     /// Camera angle around the head, degrees from straight in front (positive: the head's left).
     yaw_degrees: f32,
@@ -158,7 +162,7 @@ impl Drawing {
 
 impl Options {
     const USAGE: &str = "usage: head [--screenshot PATH] [--frames N] [--style straight|wavy|curly|short|long]
-            [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--segments N] [--yaw DEGREES]
+            [--animate still|nod|shake|turn|sway|flick] [--strands N] [--followers N] [--clumping 0-1] [--scatter MM] [--segments N] [--yaw DEGREES]
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--hold 1/S] [--draw hair|lines|both]
@@ -174,6 +178,8 @@ impl Options {
             animation: Animation::Still,
             strands: groom.strand_count,
             followers: 10,
+            clumping: groom.follower_clumping,
+            scatter: groom.follower_scatter,
             segments: groom.segments,
             yaw_degrees: 35.0,
             distance: 0.85,
@@ -209,6 +215,8 @@ impl Options {
                 "--frames" => options.frames = number("a count")? as u32,
                 "--strands" => options.strands = number("a count")? as usize,
                 "--followers" => options.followers = number("a count")? as usize,
+                "--clumping" => options.clumping = number("a share from 0 to 1")?,
+                "--scatter" => options.scatter = 1e-3 * number("a distance in mm")?,
                 "--segments" => options.segments = number("a count")? as usize,
                 "--yaw" => options.yaw_degrees = number("an angle in degrees")?,
                 "--pitch" => options.pitch_degrees = number("an angle in degrees")?,
@@ -404,6 +412,8 @@ fn spawn_scene(
         seed: 1,
         combing: options.combed.then(Combing::default),
         followers_per_guide: options.followers,
+        follower_clumping: options.clumping,
+        follower_scatter: options.scatter,
         ..default()
     };
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
@@ -573,6 +583,8 @@ fn switch_groom(
                 scalp: SCALP,
                 combing: options.combed.then(Combing::default),
                 followers_per_guide: options.followers,
+                follower_clumping: options.clumping,
+                follower_scatter: options.scatter,
                 ..default()
             };
             commands.entity(head).remove::<(HairGroomFile, PlacedGroomFile)>().insert(groom);

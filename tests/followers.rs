@@ -13,7 +13,8 @@ fn follower_nodes(app: &App, head: Entity) -> Vec<Vec3> {
     guides.iter().flat_map(|&guide| app.world().get::<FollowerNodes>(guide).unwrap().positions.clone()).collect()
 }
 
-/// A weightless head at 1.6 m with an uncombed groom of `guides` guides and `followers` followers each.
+/// A weightless head at 1.6 m with an uncombed groom of `guides` guides and `followers` followers each,
+/// neither clumped nor scattered.
 fn weightless_head(guides: usize, followers: usize) -> (App, Entity, HairGroom) {
     let mut app = hair_app();
     app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
@@ -24,6 +25,9 @@ fn weightless_head(guides: usize, followers: usize) -> (App, Entity, HairGroom) 
         style: HairStyle::Curly,
         combing: None,
         gravity_preload: 0.0,
+        // Each follower exactly its own curve, moved with its guide.
+        follower_clumping: 0.0,
+        follower_scatter: 0.0,
         ..default()
     };
     let head = app.world_mut().spawn((HairHead, groom.clone(), Transform::from_xyz(0.0, 1.6, 0.0))).id();
@@ -78,7 +82,7 @@ fn a_twisted_guide_turns_its_followers_around_it_by_the_same_angle() {
     let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
     let follower: Vec<Vec3> = guide.nodes.iter().map(|node| *node + Vec3::Y * 0.005).collect();
     let entity =
-        app.world_mut().spawn((guide, HairFollowers { curves: vec![follower], clumping: 0.0 }, StrandOf(head))).id();
+        app.world_mut().spawn((guide, HairFollowers { curves: vec![follower], ..default() }, StrandOf(head))).id();
     app.update();
     // A rest twist of 0.1 rad at every vertex turns the tip's edge by 0.9 rad about the strand.
     for twist in &mut app.world_mut().get_mut::<StrandRestShape>(entity).unwrap().twists[1..10] {
@@ -170,7 +174,7 @@ fn clumping_gathers_followers_onto_their_guide_towards_the_tip() {
     for clumping in [0.0, 0.5, 1.0] {
         let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
         let follower: Vec<Vec3> = guide.nodes.iter().map(|node| *node + Vec3::Y * 0.004).collect();
-        let followers = HairFollowers { curves: vec![follower], clumping };
+        let followers = HairFollowers { curves: vec![follower], clumping, ..default() };
         strands.push(app.world_mut().spawn((guide, followers, StrandOf(head))).id());
     }
     app.update();
@@ -185,6 +189,129 @@ fn clumping_gathers_followers_onto_their_guide_towards_the_tip() {
     }
     let groom = HairGroom { follower_clumping: 1.5, followers_per_guide: 2, ..default() };
     assert!(groom.grow_with_followers().unwrap_err().to_string().contains("clumping"));
+}
+
+/// A weightless, straight 10 cm guide along X with `count` followers around it, 4 mm away in the plane
+/// across it at evenly turning angles, spawned with `variation`; each follower's placed nodes after two
+/// updates with the guide's nodes.
+fn placed_around_one_guide(count: usize, variation: impl Fn(&mut HairFollowers)) -> (Vec<Vec<Vec3>>, Vec<Vec3>) {
+    let mut app = hair_app();
+    app.world_mut().resource_mut::<HairSettings>().gravity = Vec3::ZERO;
+    let head = app.world_mut().spawn((HairHead, Transform::default())).id();
+    let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
+    let curves = (0..count)
+        .map(|k| {
+            let angle = std::f32::consts::TAU * k as f32 / count as f32;
+            let across = 0.004 * Vec3::new(0.0, angle.cos(), angle.sin());
+            guide.nodes.iter().map(|node| *node + across).collect()
+        })
+        .collect();
+    let mut followers = HairFollowers { curves, ..default() };
+    variation(&mut followers);
+    let entity = app.world_mut().spawn((guide, followers, StrandOf(head))).id();
+    app.update();
+    app.update();
+    let guide = app.world().get::<StrandNodes>(entity).unwrap().positions.clone();
+    let placed = app.world().get::<FollowerNodes>(entity).unwrap();
+    assert_eq!(placed.rejection(), None);
+    ((0..count).map(|k| placed.follower(k).to_vec()).collect(), guide)
+}
+
+#[test]
+fn each_follower_draws_its_own_clumping_and_scatter_from_its_root() {
+    const COUNT: usize = 400;
+    // Clumping 0.5 varied by 0.6: each follower's tip 4 mm × (1 − c) from the guide's, c uniform on
+    // [0.2, 0.8], so the tips' gaps spread uniformly over [0.8, 3.2] mm with mean 2 mm.
+    let (followers, guide) = placed_around_one_guide(COUNT, |followers| {
+        (followers.clumping, followers.clumping_variation) = (0.5, 0.6);
+    });
+    let gaps: Vec<f32> = followers.iter().map(|follower| follower[10].distance(guide[10])).collect();
+    let (least, most) = gaps.iter().fold((f32::MAX, 0.0_f32), |(a, b), &gap| (a.min(gap), b.max(gap)));
+    let mean = gaps.iter().sum::<f32>() / COUNT as f32;
+    println!(
+        "clumping 0.5 ± 0.3: tips {:.3} to {:.3} mm from the guide's, mean {:.3} mm",
+        1e3 * least,
+        1e3 * most,
+        1e3 * mean
+    );
+    for (follower, gap) in followers.iter().zip(&gaps) {
+        assert!((follower[0].distance(guide[0]) - 0.004).abs() < 1e-6, "a root moved");
+        // Linear in s: the midpoint's gap is halfway between the root's and the tip's.
+        let middle = follower[5].distance(guide[5]);
+        assert!((middle - 0.5 * (0.004 + gap)).abs() < 1e-6, "middle {middle}, tip {gap}");
+    }
+    assert!(least >= 0.0008 - 1e-6 && most <= 0.0032 + 1e-6, "{least} to {most} m");
+    assert!(least < 0.0010 && most > 0.0030, "the gaps do not cover their range: {least} to {most} m");
+    // The mean of 400 uniform draws on a 2.4 mm range: within 3 standard errors (0.10 mm).
+    assert!((mean - 0.002).abs() < 1e-4, "mean {mean} m");
+    let distinct = {
+        let mut sorted: Vec<u32> = gaps.iter().map(|gap| (gap * 1e7) as u32).collect();
+        sorted.sort_unstable();
+        sorted.dedup();
+        sorted.len()
+    };
+    assert!(distinct > COUNT * 9 / 10, "{distinct} distinct gaps of {COUNT}");
+
+    // Scatter 3 mm: each follower moves across the guide by `a s²` (a uniform on [0, 3] mm) in a turning
+    // direction; the root stays, the midpoint moves a quarter of the tip's amount.
+    let scatter = 0.003;
+    let (scattered, _) = placed_around_one_guide(COUNT, |followers| followers.scatter = scatter);
+    let (plain, _) = placed_around_one_guide(COUNT, |_| {});
+    let mut tip_moves = Vec::new();
+    let mut direction_sum = Vec3::ZERO;
+    for (moved, still) in scattered.iter().zip(&plain) {
+        assert!(moved[0].distance(still[0]) < 1e-7, "a root moved");
+        let (tip, middle) = (moved[10] - still[10], moved[5] - still[5]);
+        assert!(tip.x.abs() < 1e-6 && middle.x.abs() < 1e-6, "moved along the guide: {tip}, {middle}");
+        assert!((middle.length() - 0.25 * tip.length()).abs() < 2e-7, "middle {middle}, tip {tip}");
+        assert!(tip.length() <= scatter + 1e-6, "{tip}");
+        tip_moves.push(tip.length());
+        direction_sum += tip.normalize_or_zero();
+    }
+    let mean = tip_moves.iter().sum::<f32>() / COUNT as f32;
+    let largest = tip_moves.iter().fold(0.0_f32, |a, &b| a.max(b));
+    let bias = direction_sum.length() / COUNT as f32;
+    println!(
+        "scatter 3 mm: tips moved {:.3} mm on average, at most {:.3} mm; mean direction {bias:.3}",
+        1e3 * mean,
+        1e3 * largest
+    );
+    // Uniform on [0, 3] mm: mean 1.5 mm within 3 standard errors (0.13 mm); directions spread all round.
+    assert!((mean - 0.0015).abs() < 1.3e-4, "mean {mean} m");
+    assert!(largest > 0.0028, "{largest} m");
+    assert!(bias < 0.15, "the tips lean one way: {bias}");
+
+    // The same roots draw the same variation, bound again.
+    let (again, _) = placed_around_one_guide(COUNT, |followers| followers.scatter = scatter);
+    assert_eq!(again, scattered);
+
+    // Out of range: refused by name, and no follower placed.
+    let mut app = hair_app();
+    let head = app.world_mut().spawn((HairHead, Transform::default())).id();
+    let bad = [(0.5, 1.5, 0.0, "clumping variation"), (0.5, 0.2, -0.001, "scatter"), (0.5, 0.2, f32::NAN, "scatter")];
+    let entities: Vec<Entity> = bad
+        .iter()
+        .map(|&(clumping, clumping_variation, scatter, _)| {
+            let guide = HairStrand::straight(Vec3::ZERO, Vec3::X, 0.1, 10);
+            let curves = vec![guide.nodes.iter().map(|node| *node + Vec3::Y * 0.004).collect()];
+            let followers = HairFollowers { curves, clumping, clumping_variation, scatter };
+            app.world_mut().spawn((guide, followers, StrandOf(head))).id()
+        })
+        .collect();
+    app.update();
+    for (entity, (.., name)) in entities.into_iter().zip(bad) {
+        let placed = app.world().get::<FollowerNodes>(entity).unwrap();
+        let rejection = placed.rejection().unwrap_or_default();
+        assert!(rejection.contains(name), "{rejection:?} does not name the {name}");
+        assert!(!placed.is_placed());
+    }
+    for (groom, name) in [
+        (HairGroom { follower_clumping_variation: -0.1, ..default() }, "variation"),
+        (HairGroom { follower_scatter: f32::INFINITY, ..default() }, "scatter"),
+    ] {
+        let error = HairGroom { followers_per_guide: 2, strand_count: 10, ..groom }.grow_with_followers().unwrap_err();
+        assert!(error.to_string().contains(name), "{error}");
+    }
 }
 
 #[test]

@@ -420,7 +420,7 @@ fn random_spec(rng: &mut fastrand::Rng) -> HairStrand {
 }
 
 /// Followers for `spec`: its curve shifted a little per follower; now and then of the wrong length, with
-/// a NaN node, or with a clumping out of range.
+/// a NaN node, or with a clumping, clumping variation or scatter out of range.
 fn random_followers(rng: &mut fastrand::Rng, spec: &HairStrand) -> HairFollowers {
     let curves = (0..rng.usize(1..=4))
         .map(|_| {
@@ -434,7 +434,12 @@ fn random_followers(rng: &mut fastrand::Rng, spec: &HairStrand) -> HairFollowers
             curve
         })
         .collect();
-    HairFollowers { curves, clumping: sometimes_bad(rng, 0.05, |rng| rng.f64()) as f32 }
+    HairFollowers {
+        curves,
+        clumping: sometimes_bad(rng, 0.05, |rng| rng.f64()) as f32,
+        clumping_variation: sometimes_bad(rng, 0.05, |rng| rng.f64()) as f32,
+        scatter: sometimes_bad(rng, 0.05, |rng| 0.01 * rng.f64()) as f32,
+    }
 }
 
 /// The bytes of a small groom file, `.tfx` (the flag) or `.hair`: a few curved strands over a 10 cm

@@ -80,7 +80,7 @@ fn a_zero_material_direction_is_rejected_and_a_tiny_one_is_a_direction() {
     let nodes: Vec<Vec3> = (0..=8).map(|i| Vec3::new(0.0, 0.1, 0.0) + Vec3::Y * 0.01 * i as f32).collect();
     let follower: Vec<Vec3> = nodes.iter().map(|node| *node + Vec3::X * 0.002).collect();
     let zero = HairStrand { material_direction: Vec3::ZERO, ..HairStrand::from_nodes(nodes.clone(), Vec3::X) };
-    let followers = HairFollowers { curves: vec![follower], clumping: 0.0 };
+    let followers = HairFollowers { curves: vec![follower], ..HairFollowers::default() };
     let rejected = app.world_mut().spawn((zero, followers, StrandOf(head))).id();
     let tiny = app.world_mut().spawn((HairStrand::from_nodes(nodes, Vec3::new(1e-45, 0.0, 0.0)), StrandOf(head))).id();
     for _ in 0..3 {
@@ -285,7 +285,7 @@ fn groom_sizes_placements_and_followers_are_validated() {
     let mut app = hair_app();
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
     let nodes: Vec<Vec3> = (0..=6).map(|i| Vec3::new(0.0, 0.1 + 0.01 * i as f32, 0.0)).collect();
-    let short = HairFollowers { curves: vec![nodes[..5].to_vec()], clumping: 0.0 };
+    let short = HairFollowers { curves: vec![nodes[..5].to_vec()], ..HairFollowers::default() };
     let guide = app.world_mut().spawn((HairStrand::from_nodes(nodes, Vec3::X), short, StrandOf(head))).id();
     logs::take();
     for update in 0..10 {

@@ -74,6 +74,10 @@ struct GroomEdit {
     combed: bool,
     gravity_preload: f32,
     followers_per_guide: usize,
+    follower_clumping: f32,
+    follower_clumping_variation: f32,
+    /// The followers' scatter, mm.
+    follower_scatter_mm: f32,
     /// The hairline's fade, mm.
     hairline_fade_mm: f32,
 }
@@ -87,6 +91,9 @@ impl From<&HairGroom> for GroomEdit {
             combed: groom.combing.is_some(),
             gravity_preload: groom.gravity_preload,
             followers_per_guide: groom.followers_per_guide,
+            follower_clumping: groom.follower_clumping,
+            follower_clumping_variation: groom.follower_clumping_variation,
+            follower_scatter_mm: 1e3 * groom.follower_scatter,
             hairline_fade_mm: 1e3 * groom.hairline_fade,
         }
     }
@@ -98,6 +105,9 @@ impl GroomEdit {
         (groom.strand_count, groom.segments, groom.style) = (self.strand_count, self.segments, self.style);
         groom.gravity_preload = self.gravity_preload;
         groom.followers_per_guide = self.followers_per_guide;
+        groom.follower_clumping = self.follower_clumping;
+        groom.follower_clumping_variation = self.follower_clumping_variation;
+        groom.follower_scatter = 1e-3 * self.follower_scatter_mm;
         groom.hairline_fade = 1e-3 * self.hairline_fade_mm;
         if self.combed != groom.combing.is_some() {
             groom.combing = self.combed.then(Combing::default);
@@ -280,6 +290,11 @@ fn groom_grid(ui: &mut egui::Ui, groom: &mut GroomEdit) -> bool {
         held |= grid_row(ui, "edges per strand", egui::Slider::new(&mut groom.segments, 2..=64)).dragged();
         held |=
             grid_row(ui, "followers per strand", egui::Slider::new(&mut groom.followers_per_guide, 0..=30)).dragged();
+        held |= grid_row(ui, "follower clumping", egui::Slider::new(&mut groom.follower_clumping, 0.0..=1.0)).dragged();
+        held |= grid_row(ui, "  its variation", egui::Slider::new(&mut groom.follower_clumping_variation, 0.0..=1.0))
+            .dragged();
+        held |= grid_row(ui, "follower scatter (mm)", egui::Slider::new(&mut groom.follower_scatter_mm, 0.0..=20.0))
+            .dragged();
         ui.label("style");
         ui.horizontal_wrapped(|ui| {
             for style in HairStyle::ALL {

@@ -10,7 +10,10 @@
 //! that twist is carried; blending two or three guides (Unity's hair, Jolt) spreads followers more
 //! smoothly between guides that move apart, but averages away the twist and costs a multiple. Here the
 //! followers of one guide are its clump; how far they spread is how far their roots lie from the guide's
-//! (the groom spreads them evenly between guide roots).
+//! (the groom spreads them evenly between guide roots). Each follower's own clumping and scatter
+//! ([`HairFollowers::clumping_variation`], [`HairFollowers::scatter`]) are drawn from its root when it is
+//! bound and kept in its rest offsets, so the GPU's placement needs nothing more and a wisp's hairs do not
+//! move as one rigid lock.
 //!
 //! **Out of the head.** After placement, follower nodes inside one of their head's colliders (grown by
 //! the guide's collision thickness) are moved out to its surface: radially from a sphere's or an
@@ -28,6 +31,8 @@
 //! drawn, by the same scheme from the guides' nodes and frames, and [`FollowerNodes`] stays unplaced
 //! (its [`FollowerNodes::positions`] empty) except for the heads or guides marked
 //! [`PlaceFollowersOnCpu`]: mark those whose followers the game reads.
+
+use std::f64::consts::{PI, TAU};
 
 use bevy::math::{DVec3, Vec3};
 use bevy::platform::time::Instant;
@@ -57,6 +62,37 @@ pub struct HairFollowers {
     /// offset from the guide is scaled by `1 − clumping · s`, with `s` from 0 at the root to 1 at the
     /// tip. 0 (the default) keeps every follower's own rest shape; 1 brings the tips onto the guide's.
     pub clumping: f32,
+    /// How much each follower's clumping differs from [`HairFollowers::clumping`], 0 to 1: follower `k`
+    /// gathers by `clumping · (1 + clumping_variation · (2 u_k − 1))` (at most 1), with `u_k` drawn
+    /// uniformly from 0 to 1 per follower, so that a wisp's hairs do not all end on one cone. 0 (the
+    /// default): every follower gathers alike.
+    pub clumping_variation: f32,
+    /// How far a follower strays from its place around the guide towards its tip, m: each follower is
+    /// moved across its guide by `a_k s² (cos φ_k(s) m1 + sin φ_k(s) m2)` in the guide's rest material
+    /// frame, with `s` from 0 at the root to 1 at the tip, an amplitude `a_k` drawn uniformly from 0 to
+    /// `scatter` per follower, and a direction `φ_k(s) = φ_k + ψ_k s` that turns by up to half a turn
+    /// from root to tip (`φ_k` and `ψ_k ∈ [−π, π]` drawn per follower). The roots stay where they are.
+    /// Production grooms call it noise: it breaks a wisp's hairs out of one rigid lock. 0 (the default):
+    /// none. Finite, not negative.
+    pub scatter: f32,
+}
+
+/// Per follower, what [`HairFollowers::clumping_variation`] and [`HairFollowers::scatter`] draw: four
+/// numbers uniform on `[0, 1)` from its root, the same every time it is bound (SplitMix64 of the root's
+/// bits, so a follower keeps its variation however the curves are ordered).
+fn follower_draws(root: Vec3) -> [f32; 4] {
+    let mut state = (u64::from(root.x.to_bits()) << 32 | u64::from(root.y.to_bits()))
+        ^ u64::from(root.z.to_bits()).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    std::array::from_fn(|_| {
+        // SplitMix64 (Steele, Lea and Flood 2014).
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        // The top 24 bits: exactly representable, below 1.
+        (z >> 40) as f32 / (1u32 << 24) as f32
+    })
 }
 
 /// Where a guide's followers are, world space, single precision: written every step after the guides'
@@ -106,7 +142,7 @@ impl FollowerNodes {
     }
 
     /// Each follower node's rest offset from the guide's node of the same index, in the guide's material
-    /// frame there `(t, m1, m2)`, m: follower after follower, as bound (clumping included).
+    /// frame there `(t, m1, m2)`, m: follower after follower, as bound (clumping and scatter included).
     pub fn rest_offsets(&self) -> &[Vec3] {
         &self.offsets
     }
@@ -138,11 +174,18 @@ impl FollowerNodes {
     }
 
     /// Binds `followers` to the guide `spec` at rest: each node's offset in the guide's rest material
-    /// frames, gathered towards the tip by the clumping.
+    /// frames, gathered towards the tip by its clumping and moved across the guide by its scatter.
     fn bind(&mut self, spec: &HairStrand, followers: &HairFollowers, default: &RodMaterial) -> Result<(), String> {
-        let (curves, clumping) = (&followers.curves, followers.clumping);
+        let HairFollowers { curves, clumping, clumping_variation, scatter } = followers;
+        let (clumping, variation, scatter) = (f64::from(*clumping), f64::from(*clumping_variation), *scatter);
         if !(0.0..=1.0).contains(&clumping) {
             return Err(format!("the clumping {clumping} is not between 0 and 1"));
+        }
+        if !(0.0..=1.0).contains(&variation) {
+            return Err(format!("the clumping variation {variation} is not between 0 and 1"));
+        }
+        if !(scatter.is_finite() && scatter >= 0.0) {
+            return Err(format!("the scatter {scatter} m is not a finite length of 0 or more"));
         }
         let nodes = spec.nodes.len();
         if let Some((index, curve)) = curves.iter().enumerate().find(|(_, curve)| curve.len() != nodes) {
@@ -157,12 +200,24 @@ impl FollowerNodes {
         self.nodes_per_follower = nodes;
         self.offsets.clear();
         for curve in curves {
+            let [clump_draw, amplitude_draw, angle_draw, turn_draw] = follower_draws(curve[0]).map(f64::from);
+            let clumping = (clumping * (1.0 + variation * (2.0 * clump_draw - 1.0))).min(1.0);
+            let amplitude = f64::from(scatter) * amplitude_draw;
+            let (angle, turn) = (TAU * angle_draw, PI * (2.0 * turn_draw - 1.0));
             for (node, point) in curve.iter().enumerate() {
                 let frame = rod.material_frame(node.saturating_sub(1));
-                let gathered = 1.0 - f64::from(clumping) * node as f64 / (nodes - 1) as f64;
-                let offset = gathered * (point.as_dvec3() - local[node]);
-                self.offsets
-                    .push(DVec3::new(offset.dot(frame.tangent), offset.dot(frame.m1), offset.dot(frame.m2)).as_vec3());
+                let s = node as f64 / (nodes - 1) as f64;
+                let offset = (1.0 - clumping * s) * (point.as_dvec3() - local[node]);
+                let (sin, cos) = (angle + turn * s).sin_cos();
+                let strayed = amplitude * s * s;
+                self.offsets.push(
+                    DVec3::new(
+                        offset.dot(frame.tangent),
+                        offset.dot(frame.m1) + strayed * cos,
+                        offset.dot(frame.m2) + strayed * sin,
+                    )
+                    .as_vec3(),
+                );
             }
         }
         self.positions.clear();

@@ -237,9 +237,16 @@ pub struct HairGroom {
     /// simulates every hair drawn.
     pub followers_per_guide: usize,
     /// How much followers gather onto their guide towards the tip, 0 to 1 (see
-    /// [`HairFollowers::clumping`]). Default 0: each follower keeps its guide's groomed shape, moved onto
-    /// its own root.
+    /// [`HairFollowers::clumping`]). Default 0.4: a wisp's tips gather to 0.6 of its spread at the root, so
+    /// that its ends taper instead of ending as one flat-edged lock; 0 keeps each follower its guide's
+    /// groomed shape, moved onto its own root.
     pub follower_clumping: f32,
+    /// How much each follower's clumping differs from `follower_clumping`, 0 to 1 (see
+    /// [`HairFollowers::clumping_variation`]). Default 0.5.
+    pub follower_clumping_variation: f32,
+    /// How far a follower strays from its place around the guide towards its tip, m, drawn per follower
+    /// (see [`HairFollowers::scatter`]). Default 0.004: up to 4 mm at the tip.
+    pub follower_scatter: f32,
     /// Hairs on the head the groom stands for, in the hair's volume ([`crate::volume`]): each strand is
     /// counted as `hair_count / strand_count` hairs (at least itself and its followers; see
     /// [`RepresentedHairs`]). A human head has 90 000 to 150 000 hairs. Default 100 000.
@@ -287,7 +294,9 @@ impl Default for HairGroom {
             seed: 0,
             combing: Some(Combing::default()),
             followers_per_guide: 0,
-            follower_clumping: 0.0,
+            follower_clumping: 0.4,
+            follower_clumping_variation: 0.5,
+            follower_scatter: 0.004,
             hair_count: 100_000,
             gravity_preload: 1.0,
             hairline_fade: 0.008,
@@ -411,7 +420,12 @@ impl HairGroom {
         let mut random = fastrand::Rng::with_seed(self.seed);
         let mut grown: Vec<(HairStrand, HairFollowers)> = Vec::with_capacity(guide_roots.len());
         for &root in &guide_roots {
-            let followers = HairFollowers { clumping: self.follower_clumping, ..HairFollowers::default() };
+            let followers = HairFollowers {
+                clumping: self.follower_clumping,
+                clumping_variation: self.follower_clumping_variation,
+                scatter: self.follower_scatter,
+                ..HairFollowers::default()
+            };
             grown.push((self.grow_strand(root, surface, obstacles, &mut random), followers));
         }
         // A follower is its guide's shape moved onto its own root: grown on its own, it would leave its guide
@@ -474,6 +488,12 @@ impl HairGroom {
         }
         if !(0.0..=1.0).contains(&self.follower_clumping) {
             return Err(GroomError::FollowerClumping(self.follower_clumping));
+        }
+        if !(0.0..=1.0).contains(&self.follower_clumping_variation) {
+            return Err(GroomError::FollowerClumpingVariation(self.follower_clumping_variation));
+        }
+        if !(self.follower_scatter >= 0.0 && self.follower_scatter.is_finite()) {
+            return Err(GroomError::FollowerScatter(self.follower_scatter));
         }
         if !(self.hairline_fade >= 0.0 && self.hairline_fade.is_finite()) {
             return Err(GroomError::HairlineFade(self.hairline_fade));
@@ -894,6 +914,12 @@ pub enum GroomError {
     /// The follower clumping is outside 0 to 1.
     #[error("the groom's follower clumping must lie between 0 and 1, got {0}")]
     FollowerClumping(f32),
+    /// The follower clumping's variation is outside 0 to 1.
+    #[error("the groom's follower clumping variation must lie between 0 and 1, got {0}")]
+    FollowerClumpingVariation(f32),
+    /// The follower scatter is negative or not finite.
+    #[error("the groom's follower scatter must be a length of 0 m or more, got {0}")]
+    FollowerScatter(f32),
     /// The hairline's fade is negative or not finite.
     #[error("the groom's hairline fade must be a width of 0 m or more, got {0}")]
     HairlineFade(f32),
