@@ -37,12 +37,12 @@ fn main() {
         end: RigidPose { rotation: DQuat::IDENTITY, translation: head },
     };
     let step =
-        GpuHeadStep { rotation: DQuat::IDENTITY, translation: head, colliders: vec![skull], air_velocity: DVec3::ZERO };
+        GpuHeadStep { rotation: DQuat::IDENTITY, translation: head, colliders: vec![skull], ..Default::default() };
     println!("{:>8} {:>6} {:>12} {:>14}", "guides", "edges", "ms/step", "µs/strand");
     for (count, steps) in [(2_000, 20), (10_000, 5)] {
         let rods = groom(count, head);
         let inputs: Vec<GpuStrandInput> =
-            rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4 }).collect();
+            rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
         let mut solver = GpuStrandSolver::new(&device, &inputs, &[(DQuat::IDENTITY, head)]).unwrap();
         // The first step compiles the pipeline on some drivers: not timed.
         solver.step(&device, &queue, &params, std::slice::from_ref(&step)).unwrap();

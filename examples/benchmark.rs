@@ -170,7 +170,6 @@ fn main() {
 mod gpu {
     use std::time::Instant;
 
-    use bevy::math::DVec3;
     use bevy::prelude::Entity;
     use bevy_hair_sim::gpu::{
         GpuHeadStep, GpuStrandInput, GpuStrandSolver, bind_whole_buffers, compute_layout, compute_pipeline,
@@ -267,7 +266,7 @@ mod gpu {
                 .map(|&strand| {
                     let simulated = world.get::<SimulatedStrand>(strand).expect("built");
                     let thickness = f64::from(simulated.collision_thickness(margin));
-                    GpuStrandInput { rod: simulated.rod(), head: 0, thickness }
+                    GpuStrandInput { rod: simulated.rod(), head: 0, thickness, groomed: None }
                 })
                 .collect();
             let (translation, rotation) = Scene::head_pose(WARM_UP_STEPS);
@@ -313,8 +312,7 @@ mod gpu {
                 let mut head = GpuHeadStep {
                     rotation: rotation.as_dquat(),
                     translation: translation.as_dvec3(),
-                    colliders: Vec::new(),
-                    air_velocity: DVec3::ZERO,
+                    ..GpuHeadStep::default()
                 };
                 let at = RigidPose { rotation: head.rotation, translation: head.translation };
                 self.skull.start = self.skull.end;

@@ -6,8 +6,9 @@
 //! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
 //! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
 //! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
-//! inextensibility, and contact with the head's spheres, capsules, ellipsoids and planes with Coulomb
-//! friction. The banded Newton system of each strand (half-bandwidth 10, ≤ 255 unknowns) is assembled and
+//! inextensibility, contact with the head's spheres, capsules, ellipsoids and planes with Coulomb
+//! friction, and the style hold (springs towards each strand's groomed places carried with its head,
+//! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU). The banded Newton system of each strand (half-bandwidth 10, ≤ 255 unknowns) is assembled and
 //! factorised (`L D Lᵀ`) in the invocation's private memory; buffers are vertex-major, so neighbouring
 //! invocations read neighbouring memory.
 //!

@@ -21,11 +21,13 @@ const MAX_GROUPS: u32 = 65_535;
 /// The most nodes a strand stepped on the GPU may have (`MAX_NODES` in the shader: its private arrays).
 pub const MAX_GPU_NODES: usize = 40;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
-const REST_ROWS: usize = 4;
+const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 5;
-const HEAD_ROWS: usize = 4;
+const HEAD_ROWS: usize = 5;
 const COLLIDER_ROWS: usize = 5;
 const STRAND_FLOATS: usize = 4;
+/// The arc-length fraction written for the nodes of a strand that is not held: past any reach (at most 1).
+const HELD_NOWHERE: f64 = 2.0;
 /// `Params` of the shader: sixteen words.
 const PARAMS_BYTES: u64 = 64;
 
@@ -75,6 +77,12 @@ pub enum GpuStepError {
         /// The strand's index in the input.
         strand: usize,
     },
+    /// A strand whose groomed places ([`GpuStrandInput::groomed`]) are not one finite point per node.
+    #[error("strand {strand}'s groomed places for the style hold are not one finite point per node")]
+    Groomed {
+        /// The strand's index in the input.
+        strand: usize,
+    },
     /// A strand on a head that was not given.
     #[error("strand {strand} is on head {head}, but only {heads} heads were given")]
     NoSuchHead {
@@ -93,8 +101,11 @@ pub enum GpuStepError {
         /// The collider's index among the head's.
         collider: usize,
     },
-    /// A head's pose, air or collider is not finite, or its rotation not a unit quaternion.
-    #[error("head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit)")]
+    /// A head's pose, air or collider is not finite, its rotation not a unit quaternion, or its style hold's
+    /// rate negative or not finite or its reach outside 0 to 1.
+    #[error(
+        "head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit), or its style hold is out of range"
+    )]
     InvalidHead {
         /// The head's index.
         head: usize,
@@ -115,6 +126,11 @@ pub struct GpuStrandInput<'a> {
     pub head: usize,
     /// Distance from the centre line kept outside colliders, m (the strand's radius plus a margin).
     pub thickness: f64,
+    /// Where the style hold draws each node, in its head's local space (one per node, m), or `None` for a
+    /// strand that is not held: a critically damped spring `−m k (x − x̄) − m c (v − v̄)` inside the solve,
+    /// `x̄` the place carried with the head, as [`crate::rod::Anchor`] on the CPU, with `√k = c/2` from the
+    /// head's [`GpuHeadStep::hold_rate`] and [`GpuHeadStep::hold_reach`].
+    pub groomed: Option<&'a [DVec3]>,
 }
 
 /// A head's motion over one step: its pose at the step's end, its colliders (poses at the step's start
@@ -129,6 +145,14 @@ pub struct GpuHeadStep {
     pub colliders: Vec<MovingCollider>,
     /// The air's velocity around the head, m/s (the drag acts on the hair's velocity relative to it).
     pub air_velocity: DVec3,
+    /// How fast the style hold draws its strands' nodes back to their groomed places
+    /// ([`GpuStrandInput::groomed`]) at the root, 1/s: the angular frequency `ω` of a node's spring
+    /// alone (`k = ω²`, critically damped `c = 2ω`). 0 (the default) holds nothing. Finite, not negative.
+    pub hold_rate: f64,
+    /// How far along each strand the hold reaches, as a fraction of its length, 0 to 1: the frequency
+    /// falls off as `hold_rate (1 − smoothstep(s/(reach·L)))` and is 0 beyond, as
+    /// `HairStyleHold::angular_frequency` on the CPU.
+    pub hold_reach: f64,
 }
 
 /// What a strand's last GPU step reported.
@@ -329,6 +353,12 @@ impl GpuStrandUpload {
             if targets[0].is_none() || targets[1].is_none() || strand.rod.constraints().twist_targets[0].is_none() {
                 return Err(GpuStepError::Unrooted { strand: index });
             }
+            if strand
+                .groomed
+                .is_some_and(|groomed| groomed.len() != nodes || !groomed.iter().all(|place| place.is_finite()))
+            {
+                return Err(GpuStepError::Groomed { strand: index });
+            }
         }
         let padded = strand_count.max(1);
         let mut words = vec![[0_u32; 4]; padded];
@@ -357,6 +387,9 @@ impl GpuStrandUpload {
             let frames = rod.frames();
             let shape = rod.rest_shape();
             let inertia = rod.inertia();
+            // Arc length from the root as a fraction of the strand's length, for the hold's fade (past 1
+            // where the strand is not held).
+            let mut along = if strand.groomed.is_some() { 0.0 } else { HELD_NOWHERE };
             for node in 0..nodes {
                 let edge = node < nodes - 1;
                 let at = |row: usize| (node * REST_ROWS + row) * padded + s;
@@ -379,6 +412,11 @@ impl GpuStrandUpload {
                 let reference_twist = frames.reference_twist.get(node).copied().unwrap_or(0.0);
                 rest[at(2)] = vec4(local(rod_state.positions[node]), twist);
                 rest[at(3)] = vec4(director, reference_twist);
+                let groomed = strand.groomed.and_then(|groomed| groomed.get(node)).copied().unwrap_or_default();
+                rest[at(4)] = vec4(groomed, along);
+                if edge {
+                    along += shape.lengths[node] / rod.rest_length();
+                }
                 let row = |row: usize| (node * STATE_ROWS + row) * padded + s;
                 let rate = if edge { rod_state.twist_rates[node] } else { 0.0 };
                 state[row(0)] = vec4(rotation * local(rod_state.positions[node]), twist);
@@ -521,6 +559,9 @@ impl GpuStrandSolver {
                 && head.rotation.is_finite()
                 && (head.rotation.length() - 1.0).abs() < 1e-3
                 && head.air_velocity.is_finite()
+                && head.hold_rate.is_finite()
+                && head.hold_rate >= 0.0
+                && (0.0..=1.0).contains(&head.hold_reach)
                 && head
                     .colliders
                     .iter()
@@ -551,7 +592,8 @@ impl GpuStrandSolver {
                 head.rotation.as_quat().to_array(),
                 vec4(before.1 - head.translation, 0.0),
                 vec4(head.air_velocity, 0.0),
-                [f32::from_bits(first as u32), f32::from_bits(count), 0.0, 0.0],
+                [f32::from_bits(first as u32), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
+                before.0.as_quat().to_array(),
             ]);
         }
         for (pose, head) in self.head_poses.iter_mut().zip(heads) {

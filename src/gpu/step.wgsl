@@ -50,14 +50,17 @@ const STRAND_WORDS: u32 = 1u;
 // (root material direction, 0).
 const STRAND_FLOATS: u32 = 4u;
 // Rest data per node: (rest length of edge i, Voronoi length of vertex i, κ̄₁, κ̄₂), (τ̄, mass, twist
-// inertia of edge i, 0), (rest pose node, θ), (rest pose reference director, reference twist).
-const REST_ROWS: u32 = 4u;
+// inertia of edge i, 0), (rest pose node, θ), (rest pose reference director, reference twist), (the node's
+// groomed place for the style hold, head-local; its arc length from the root over the strand's, past 1
+// where the strand is not held).
+const REST_ROWS: u32 = 5u;
 // State per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
 // back, 0), (reference director of edge i, reference twist at vertex i).
 const STATE_ROWS: u32 = 5u;
 // Per head: (rotation at the step's end), (shift of the origin: translation before − after, 0), (the air's
-// velocity, 0), (first collider, colliders, 0, 0 as bits).
-const HEAD_ROWS: u32 = 4u;
+// velocity, 0), (first collider, colliders as bits, the style hold's rate in 1/s and its reach), (rotation
+// at the step's start).
+const HEAD_ROWS: u32 = 5u;
 // Per collider: (centre at the start, relative to its head's new translation; bounding radius),
 // (rotation at the start), (centre at the end; friction), (rotation at the end), (shape: sphere
 // (r, 0, 0, 0), capsule (r, half length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3)).
@@ -191,6 +194,18 @@ fn head_row(row: u32) -> vec4<f32> {
 // The root's targets this step (head-relative): node 0, node 1, the material direction.
 fn root_target(row: u32) -> vec3<f32> {
     return rotate(head_row(0u), strand_floats[strand * STRAND_FLOATS + 1u + row].xyz);
+}
+
+// The style hold's angular frequency at `along` (the arc length from the root over the strand's), 1/s:
+// `rate (1 − smoothstep(along/reach))`, 0 beyond the reach (`HairStyleHold::angular_frequency`).
+fn hold_frequency(along: f32) -> f32 {
+    let rate = head_row(3u).z;
+    let reach = head_row(3u).w;
+    if reach <= 0.0 || along >= reach {
+        return 0.0;
+    }
+    let s = along / reach;
+    return rate * (1.0 - s * s * (3.0 - 2.0 * s));
 }
 
 fn edge_count() -> u32 {
@@ -651,13 +666,26 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             let gamma = mass * params.air_damping;
             let along = 1.0 - params.axial_drag_ratio;
             let drag_force = gamma * (relative - along * dot(t, relative) * t);
-            let residual = mass / (h * h) * (offset - h * v_hat[i]) + drag_force - mass * gravity;
+            var residual = mass / (h * h) * (offset - h * v_hat[i]) + drag_force - mass * gravity;
+            var diagonal = mass / (h * h) + gamma / h;
+            // The style hold: `m k (x − x̄) + m c (v − v̄)` towards the groomed place carried with the head
+            // (`Anchor` on the CPU); the root edge is prescribed.
+            let held = rest_at(i, 4u);
+            let frequency = hold_frequency(held.w);
+            if frequency > 0.0 && i >= 2u {
+                let k = frequency * frequency;
+                let c = 2.0 * frequency;
+                let place = rotate(head_row(0u), held.xyz);
+                let place_velocity = (place - rotate(head_row(4u), held.xyz) - head_row(1u).xyz) / params.dt;
+                residual += mass * k * (x[i] - place) + mass * c * (offset / h - place_velocity);
+                diagonal += mass * (k + c / h);
+            }
             for (var a = 0u; a < 3u; a++) {
                 rhs[4u * i + a] += residual[a];
                 for (var b = 0u; b <= a; b++) {
                     var value = gamma / h * (-along * t[a] * t[b]);
                     if a == b {
-                        value += mass / (h * h) + gamma / h;
+                        value += diagonal;
                     }
                     band[band_index(4u * i + a, 4u * i + b)] += value;
                 }

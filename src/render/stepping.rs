@@ -53,8 +53,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// free of it). Cuboids and mesh colliders are the CPU's alone and are left out, with one warning per
 /// head. The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
 /// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
-/// detail, the hair–hair grid, the style hold ([`HairSettings::style_hold`]) and the followers' own
-/// collisions on the CPU are not applied to GPU strands.
+/// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
+/// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
+/// strand's groomed pose carried with its head.
 ///
 /// **The components are read back** asynchronously at [`HairGpuSettings::read_back`]: the GPU copies the
 /// state into a buffer the CPU maps once the GPU is done, and the first frame that finds it mapped writes
@@ -271,12 +272,15 @@ fn choose_gpu_strands(
         })
         .collect();
     let margin = f64::from(hair_settings.collision_margin);
+    let groomed: Vec<Option<Vec<DVec3>>> = chosen.iter().map(|&(.., strand)| strand.groomed_in_head()).collect();
     let inputs: Vec<GpuStrandInput> = chosen
         .iter()
-        .map(|&(head, _, strand)| GpuStrandInput {
+        .zip(&groomed)
+        .map(|(&(head, _, strand), groomed)| GpuStrandInput {
             rod: strand.rod(),
             head: head_list.binary_search(&head).unwrap_or(0),
             thickness: strand.contact_thickness(margin),
+            groomed: groomed.as_deref(),
         })
         .collect();
     let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
@@ -323,12 +327,13 @@ fn choose_gpu_strands(
     }
 }
 
-/// Sends this fixed step to the render world: each head's pose, its colliders the GPU meets and the air
-/// at it, and whether to read back after it.
+/// Sends this fixed step to the render world: each head's pose, its colliders the GPU meets, the air at it
+/// and the style hold, and whether to read back after it.
 #[allow(clippy::too_many_arguments)]
 fn order_gpu_step(
     time: Res<Time>,
     checked: Res<CheckedSettings>,
+    hair_settings: Res<HairSettings>,
     mut settings: ResMut<HairGpuSettings>,
     mut queue: ResMut<GpuStepQueue>,
     mut status: ResMut<HairGpuStatus>,
@@ -344,6 +349,8 @@ fn order_gpu_step(
     }
     let queue = &mut *queue;
     let now = time.elapsed_secs_f64();
+    // Valid whenever the checked parameters are (invalid settings hold the hair until fixed).
+    let hold = hair_settings.style_hold;
     let mut steps = Vec::with_capacity(queue.heads.len());
     for &head in &queue.heads {
         let Ok(motion) = heads.get(head) else {
@@ -373,6 +380,8 @@ fn order_gpu_step(
             translation: pose.translation,
             colliders: met,
             air_velocity: air.as_dvec3(),
+            hold_rate: f64::from(hold.rate),
+            hold_reach: f64::from(hold.reach),
         });
     }
     queue.since_read_back += 1;

@@ -196,7 +196,7 @@ pub struct HairStatistics {
 /// the solve, the springs hold against the strand's own free tail and inertia in the same step, at any
 /// rate without going unstable. A held node gives way to a steady force `F` by `F/(m_i ω_i²)`: under
 /// gravity it rests `g/ω_i²` below its place, 0.25 mm at the root at 200/s, 2.7 mm at 60/s, with either
-/// integrator. Strands stepped elsewhere (on the GPU) are not held.
+/// integrator. Strands stepped on the GPU (`HairGpuPlugin`) are held by the same springs in its solve.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Default, Clone, PartialEq)]
 pub struct HairStyleHold {

@@ -442,6 +442,15 @@ impl SimulatedStrand {
         self.anchor.is_some().then(|| self.spawn_head.rigid_motion_to(&self.head))
     }
 
+    /// The strand's groomed pose ([`Rod::initial_positions`]) in its head's local space (rigidly, without
+    /// the head's scale), where the style hold draws it; `None` for a strand without a head.
+    pub(crate) fn groomed_in_head(&self) -> Option<Vec<DVec3>> {
+        self.anchor.is_some().then(|| {
+            let (rotation, translation) = self.spawn_head.rigid_motion_to(&ScaledPose::default());
+            self.rod.initial_positions().iter().map(|&place| rotation * place + translation).collect()
+        })
+    }
+
     /// How many fixed steps this strand's coming step spans (more than one at a coarser level of detail).
     pub(crate) fn fixed_steps_in_step(&self) -> u32 {
         self.detail.elapsed.max(1)
