@@ -330,10 +330,15 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
     let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
     assert!(drawn.iter().any(|&value| value != 0.0), "the hair is drawn");
     assert!(previous.iter().all(|&value| value == 0.0), "the frame before was kept with no camera asking for it");
-    // A camera that draws motion vectors: from now on the frame before is kept.
+    // A camera that draws motion vectors: from now on the frame before is kept. Its first frame has none
+    // kept: the hair starts still there (its frame before is made this frame's), not from zeros.
     app.world_mut().spawn((Camera3d::default(), MotionVectorPrepass));
     app.insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
-    for step in 61..=70 {
+    *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(61);
+    let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
+    let (first, node) = largest_difference(&previous, &drawn);
+    assert_eq!(first, 0.0, "on the first frame with motion vectors, node {node} moved {first} m");
+    for step in 62..=70 {
         *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
         app.update();
     }
@@ -364,6 +369,43 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
     let [drawn, previous] = read_back_next_frame(&mut app, buffers);
     let (still, node) = largest_difference(&previous, &drawn);
     assert_eq!(still, 0.0, "standing still, node {node} moved {still} m between frames");
+}
+
+#[test]
+fn hair_placed_on_the_gpu_starts_still_under_motion_vectors_and_then_moves() {
+    let mut app = rendering_app();
+    assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
+    // The followers placed where they are drawn, on the GPU (the renderer's default).
+    let groom = HairGroom { strand_count: 150, followers_per_guide: 6, segments: 16, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, head_pose(0))).id();
+    for step in 1..=30 {
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(step);
+        app.update();
+    }
+    let mut meshes = app.world_mut().query::<&HairMesh>();
+    let hair_mesh = meshes.single(app.world()).expect("one hair mesh");
+    let buffers = [hair_mesh.positions_buffer().clone(), hair_mesh.previous_positions_buffer().clone()];
+    // Until the GPU's pipelines are built (asynchronously), nothing is drawn.
+    let drawn_yet = |app: &mut App| read_back_next_frame(app, buffers.clone())[0].iter().any(|&value| value != 0.0);
+    assert!((0..20).any(|_| drawn_yet(&mut app)), "the GPU never drew the hair");
+    // The first frame a camera draws motion vectors: the frame before is what the GPU just placed and drew
+    // (without it, zeros: every vector from the origin).
+    app.world_mut().spawn((Camera3d::default(), MotionVectorPrepass));
+    app.insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(31);
+    let [drawn, previous] = read_back_next_frame(&mut app, buffers.clone());
+    assert!(drawn.iter().any(|&value| value != 0.0), "the hair is drawn");
+    let (first, node) = largest_difference(&previous, &drawn);
+    assert_eq!(first, 0.0, "on the first frame with motion vectors, node {node} moved {first} m");
+    // The next frame, a step on: the frame before is kept, and the hair moved from it.
+    app.insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    *app.world_mut().get_mut::<Transform>(head).unwrap() = head_pose(32);
+    let [drawn_next, previous_next] = read_back_next_frame(&mut app, buffers);
+    let (moved, _) = largest_difference(&drawn_next, &previous_next);
+    let (kept, node) = largest_difference(&previous_next, &drawn);
+    println!("placed on the GPU: the hair moved up to {moved:.2e} m in the frame after the first");
+    assert!(moved > 1e-3, "the hair did not move ({moved} m): the test sees no motion");
+    assert_eq!(kept, 0.0, "the frame before is not what was drawn: node {node} {kept} m off");
 }
 
 /// An sRGB image of `width` × `height` pixels, black, that a camera can draw into and the test read back.

@@ -85,10 +85,33 @@ fn spawn_head(app: &mut App) -> (Entity, Entity) {
     // Without a gravity preload, the hair falls onto the skull and swings: a motion both steps must
     // follow. (Preloaded, this groom on a still head drifts off its rest pose on the CPU too, by 2 cm in a
     // second from 10⁻⁸ m: an unstable equilibrium, where any difference between the steps grows alike.)
-    let groom = HairGroom { strand_count: 64, followers_per_guide: 4, segments: 16, gravity_preload: 0.0, ..default() };
+    spawn_groom(
+        app,
+        HairGroom { strand_count: 64, followers_per_guide: 4, segments: 16, gravity_preload: 0.0, ..default() },
+    )
+}
+
+/// Spawns a head with `groom` and its skull; returns the head and the skull.
+fn spawn_groom(app: &mut App, groom: HairGroom) -> (Entity, Entity) {
     let head = app.world_mut().spawn((HairHead, groom, head_pose(0))).id();
     let skull = app.world_mut().spawn((HairCollider::sphere(SKULL), HairColliderOf(head), head_pose(0))).id();
     (head, skull)
+}
+
+/// Shakes the GPU's and the CPU's heads `steps` steps side by side, then pauses the GPU's app until the
+/// components hold its last step; returns its status.
+fn shake_side_by_side(
+    (gpu, gpu_head): (&mut App, (Entity, Entity)),
+    (cpu, cpu_head): (&mut App, (Entity, Entity)),
+    steps: usize,
+) -> HairGpuStatus {
+    for number in 1..=steps {
+        step(gpu, gpu_head, number);
+        step(cpu, cpu_head, number);
+    }
+    gpu.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(gpu);
+    gpu.world().resource::<HairGpuStatus>().clone()
 }
 
 /// Moves the head and skull to `step`'s pose and runs one update.
@@ -124,14 +147,7 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     let mut cpu = app(false);
     let gpu_head = spawn_head(&mut gpu);
     let cpu_head = spawn_head(&mut cpu);
-    for number in 1..=SHAKING_STEPS {
-        step(&mut gpu, gpu_head, number);
-        step(&mut cpu, cpu_head, number);
-    }
-    gpu.world_mut().resource_mut::<HairPause>().paused = true;
-    wait_for_read_back(&mut gpu);
-
-    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    let status = shake_side_by_side((&mut gpu, gpu_head), (&mut cpu, cpu_head), SHAKING_STEPS);
     println!("{status:?}");
     assert_eq!(status.error, None);
     assert_eq!(status.strands, 64, "every guide is on the GPU");
@@ -334,20 +350,12 @@ fn the_gpu_holds_the_style_as_the_cpu_does() {
     let held = |gpu: bool| {
         let mut app = app(gpu);
         app.world_mut().resource_mut::<HairSettings>().style_hold = hold;
-        let groom = HairGroom { strand_count: 64, followers_per_guide: 0, segments: 16, ..default() };
-        let head = app.world_mut().spawn((HairHead, groom, head_pose(0))).id();
-        let skull = app.world_mut().spawn((HairCollider::sphere(SKULL), HairColliderOf(head), head_pose(0))).id();
-        (app, (head, skull))
+        let head = spawn_groom(&mut app, HairGroom { strand_count: 64, segments: 16, ..default() });
+        (app, head)
     };
     let ((mut gpu, gpu_head), (mut cpu, cpu_head)) = (held(true), held(false));
     let steps = 60;
-    for number in 1..=steps {
-        step(&mut gpu, gpu_head, number);
-        step(&mut cpu, cpu_head, number);
-    }
-    gpu.world_mut().resource_mut::<HairPause>().paused = true;
-    wait_for_read_back(&mut gpu);
-    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    let status = shake_side_by_side((&mut gpu, gpu_head), (&mut cpu, cpu_head), steps);
     assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 64, 0), "{status:?}");
     let pose = head_pose(steps);
     let (gpu_style, cpu_style) = (out_of_style(&gpu, gpu_head.0, pose), out_of_style(&cpu, cpu_head.0, pose));

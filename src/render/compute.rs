@@ -494,6 +494,8 @@ pub(super) fn dispatch_gpu_followers(
     pipeline_cache: Res<PipelineCache>,
     #[cfg(feature = "gpu")] stepping: Option<Res<super::stepping::GpuHairRender>>,
     #[cfg(feature = "gpu")] queue: Res<RenderQueue>,
+    uploads: Res<super::gpu::HairUploads>,
+    buffers: Res<RenderAssets<GpuShaderBuffer>>,
 ) {
     let Some(pipelines) = pipelines else { return };
     let pipeline = |id| pipeline_cache.get_compute_pipeline(id);
@@ -549,4 +551,8 @@ pub(super) fn dispatch_gpu_followers(
         pass.set_bind_group(0, draw_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
     }
+    drop(pass);
+    // A head drawn for the first time while a camera draws motion vectors starts still: its frame before
+    // is what was just drawn (see `upload_hair_positions`).
+    super::gpu::copy_drawn_to_previous(uploads.first_drawn(), &buffers, render_context.command_encoder());
 }

@@ -7,11 +7,12 @@ use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::ecs::query::QueryState;
 use bevy::mesh::{Indices, MeshVertexAttribute, MeshVertexBufferLayoutRef, PrimitiveTopology};
 use bevy::pbr::{MaterialPipeline, MaterialPipelineKey, MeshPipelineKey};
+use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{
-    AsBindGroup, CommandEncoderDescriptor, Face, RenderPipelineDescriptor, ShaderType, SpecializedMeshPipelineError,
-    VertexFormat,
+    AsBindGroup, CommandEncoder, CommandEncoderDescriptor, Face, RenderPipelineDescriptor, ShaderType,
+    SpecializedMeshPipelineError, VertexFormat,
 };
 use bevy::render::renderer::RenderGraphSystems;
 use bevy::render::renderer::{RenderDevice, RenderGraph, RenderQueue};
@@ -598,9 +599,17 @@ fn send_gpu_fed(
 /// This frame's node positions of each head, moved from the main world, with the buffer they go to; and
 /// every drawn head's buffers of this frame's and last frame's positions.
 #[derive(Resource, Default)]
-struct HairUploads {
+pub(super) struct HairUploads {
     uploads: Vec<(AssetId<ShaderBuffer>, Vec<f32>)>,
+    /// Each head's buffers of this frame's and last frame's positions, while a camera draws motion vectors.
     drawn: Vec<[AssetId<ShaderBuffer>; 2]>,
+    /// The pairs of `drawn` whose frame before was not kept (a head drawn for the first time, or for the
+    /// first time while a camera draws motion vectors): their previous positions are made this frame's once
+    /// those are written, so that their first motion vectors are zero rather than from wherever the buffer
+    /// last was.
+    first_drawn: Vec<[AssetId<ShaderBuffer>; 2]>,
+    /// The drawn buffers whose frame before was kept last frame, and this frame's (swapped each frame).
+    kept: [HashSet<AssetId<ShaderBuffer>>; 2],
     query: Option<QueryState<&'static mut HairMesh>>,
     cameras: Option<QueryState<(), With<MotionVectorPrepass>>>,
 }
@@ -616,9 +625,19 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
     let cameras = uploads.cameras.get_or_insert_with(|| main_world.query_filtered());
     let motion_vectors = cameras.iter(&main_world).next().is_some();
     uploads.drawn.clear();
+    uploads.first_drawn.clear();
+    let [kept_before, kept_now] = &mut uploads.kept;
+    std::mem::swap(kept_before, kept_now);
+    kept_now.clear();
     for mut hair_mesh in query.iter_mut(&mut main_world) {
         if motion_vectors {
-            uploads.drawn.push([hair_mesh.buffer.id(), hair_mesh.previous_buffer.id()]);
+            let pair = [hair_mesh.buffer.id(), hair_mesh.previous_buffer.id()];
+            if kept_before.contains(&pair[0]) {
+                uploads.drawn.push(pair);
+            } else {
+                uploads.first_drawn.push(pair);
+            }
+            kept_now.insert(pair[0]);
         }
         if !std::mem::take(&mut hair_mesh.fresh) || hair_mesh.strips.positions().is_empty() {
             continue;
@@ -643,32 +662,58 @@ fn extract_hair_positions(mut main_world: ResMut<MainWorld>, mut uploads: ResMut
 /// Keeps what each head drew last frame (for the motion vectors, while a camera draws them), then writes
 /// the heads' new positions into their storage buffers. The copy is submitted on its own, before the
 /// writes: a buffer write is carried out at the start of the next submission, so the copy sees last
-/// frame's positions, whether the CPU wrote them or the GPU's follower placement did.
+/// frame's positions, whether the CPU wrote them or the GPU's follower placement did. A head drawn for the
+/// first time has no frame before: its positions are copied after the writes instead (and again after the
+/// GPU's follower placement, `compute::dispatch_gpu_followers`), so that it starts still.
 fn upload_hair_positions(
     uploads: Res<HairUploads>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
 ) {
-    let mut encoder = None;
-    for [current, previous] in &uploads.drawn {
-        let (Some(current), Some(previous)) = (buffers.get(*current), buffers.get(*previous)) else { continue };
-        let size = current.buffer.size();
-        if size == previous.buffer.size() {
-            let encoder = encoder.get_or_insert_with(|| {
-                device.create_command_encoder(&CommandEncoderDescriptor { label: Some("hair positions kept") })
-            });
-            encoder.copy_buffer_to_buffer(&current.buffer, 0, &previous.buffer, 0, size);
+    let copy = |pairs: &[[AssetId<ShaderBuffer>; 2]], label: &'static str| {
+        if pairs.is_empty() {
+            return;
         }
-    }
-    if let Some(encoder) = encoder {
-        queue.submit([encoder.finish()]);
-    }
+        let mut encoder = device.create_command_encoder(&CommandEncoderDescriptor { label: Some(label) });
+        if copy_drawn_to_previous(pairs, &buffers, &mut encoder) {
+            queue.submit([encoder.finish()]);
+        }
+    };
+    copy(&uploads.drawn, "hair positions kept");
     for (id, positions) in &uploads.uploads {
         let Some(buffer) = buffers.get(*id) else { continue };
         let bytes: &[u8] = bytemuck::cast_slice(positions);
         if buffer.buffer.size() >= bytes.len() as u64 && !bytes.is_empty() {
             queue.write_buffer(&buffer.buffer, 0, bytes);
         }
+    }
+    copy(&uploads.first_drawn, "hair positions kept, first frame");
+}
+
+/// Records into `encoder` a copy of each pair's drawn positions (`[this frame's, last frame's]` buffers)
+/// into its last frame's buffer; returns whether it recorded any.
+pub(super) fn copy_drawn_to_previous(
+    pairs: &[[AssetId<ShaderBuffer>; 2]],
+    buffers: &RenderAssets<GpuShaderBuffer>,
+    encoder: &mut CommandEncoder,
+) -> bool {
+    let mut any = false;
+    for [current, previous] in pairs {
+        let (Some(current), Some(previous)) = (buffers.get(*current), buffers.get(*previous)) else { continue };
+        let size = current.buffer.size();
+        if size == previous.buffer.size() {
+            encoder.copy_buffer_to_buffer(&current.buffer, 0, &previous.buffer, 0, size);
+            any = true;
+        }
+    }
+    any
+}
+
+impl HairUploads {
+    /// The heads drawn this frame for the first time while a camera draws motion vectors (see
+    /// [`HairUploads::first_drawn`]).
+    pub(super) fn first_drawn(&self) -> &[[AssetId<ShaderBuffer>; 2]] {
+        &self.first_drawn
     }
 }

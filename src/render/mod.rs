@@ -33,7 +33,8 @@
 //! `MotionVectorPrepass` (which `MotionBlur` and temporal anti-aliasing ask for) then draws each ribbon
 //! vertex from its node there, under the mesh's transform of the frame before, so that moving hair blurs
 //! along its own motion and TAA follows it instead of smearing it. A head drawn for the first time, or
-//! first seen by such a camera, has no frame before: its first frame's vectors are wrong once. The hair's
+//! first seen by such a camera, has no frame before: it starts still (its frame before is made what it
+//! draws in that frame, once written, whether the CPU or the GPU placed it). The hair's
 //! prepasses cover the same samples as its main pass, so a camera's depth prepass does not hide the hair
 //! behind a hair's uncovered samples.
 //!
