@@ -138,11 +138,11 @@ fn a_held_strand_follows_its_moving_head_as_on_the_cpu() {
         let states = gpu.read_back(&device, &queue);
         let states_unheld = gpu_unheld.read_back(&device, &queue);
         assert!(states.status[0].fault.is_none(), "step {step}: {:?}", states.status[0]);
-        for node in 0..=edges {
+        for (node, place) in places.iter().enumerate() {
             let (on_gpu, cpu) = (states.positions[0][node], held.positions()[node]);
             squares[0] += (on_gpu - cpu).length_squared();
-            squares[1] += (cpu - places[node]).length_squared();
-            squares[2] += (unheld.positions()[node] - places[node]).length_squared();
+            squares[1] += (cpu - *place).length_squared();
+            squares[2] += (unheld.positions()[node] - *place).length_squared();
             squares[3] += (states_unheld.positions[0][node] - unheld.positions()[node]).length_squared();
             count += 1;
         }

@@ -487,6 +487,7 @@ fn workgroups(invocations: u32) -> (u32, u32) {
 
 /// Walks each head's guide frames and places its followers when a step came, and writes every drawn node
 /// for this frame (in the render graph, before the cameras draw).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn dispatch_gpu_followers(
     mut render_context: RenderContext,
     mut gpu: ResMut<GpuHeads>,

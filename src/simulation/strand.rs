@@ -444,6 +444,7 @@ impl SimulatedStrand {
 
     /// The strand's groomed pose ([`Rod::initial_positions`]) in its head's local space (rigidly, without
     /// the head's scale), where the style hold draws it; `None` for a strand without a head.
+    #[cfg(feature = "gpu")]
     pub(crate) fn groomed_in_head(&self) -> Option<Vec<DVec3>> {
         self.anchor.is_some().then(|| {
             let (rotation, translation) = self.spawn_head.rigid_motion_to(&ScaledPose::default());
