@@ -9,7 +9,8 @@
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`,
 //! `bare`, `hold`, `scene`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
 //! compute threads (one per core by default), `--style NAME` to measure one style in `styles`,
-//! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`. Bevy's task pools are set
+//! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`, `--air-damping G` the air's
+//! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
 
 #[path = "../benches/support/counting_allocator.rs"]
@@ -94,7 +95,8 @@ fn main() {
         .enumerate()
         .filter(|&(index, arg)| {
             !arg.starts_with("--")
-                && (index == 0 || !["--threads", "--style", "--motion"].contains(&args[index - 1].as_str()))
+                && (index == 0
+                    || !["--threads", "--style", "--motion", "--air-damping"].contains(&args[index - 1].as_str()))
         })
         .map(|(_, arg)| arg.as_str())
         .collect();
@@ -141,8 +143,9 @@ fn main() {
         crowd(threads, steps);
     }
     if wanted("coverage") {
-        let motion = args.iter().position(|arg| arg == "--motion").and_then(|position| args.get(position + 1));
-        coverage(threads, if quick { 1.0 } else { 4.0 }, motion.map(String::as_str));
+        let value = |flag: &str| args.iter().position(|arg| arg == flag).and_then(|position| args.get(position + 1));
+        let air_damping = value("--air-damping").map(|value| value.parse::<f32>().expect("--air-damping needs 1/s"));
+        coverage(threads, if quick { 1.0 } else { 4.0 }, value("--motion").map(String::as_str), air_damping);
     }
     if wanted("bare") {
         bare_regions(threads, if quick { 1.0 } else { 4.0 });
@@ -574,7 +577,7 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
 /// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
 /// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
 /// ([`HairStyleHold`] at 200/s).
-fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
+fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Option<f32>) {
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
@@ -591,8 +594,9 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     println!();
     // A camera behind the body and a little above it (the face looks along −Z).
     const BEHIND: Vec3 = Vec3::new(0.0, 0.3, 1.0);
+    let air = air_damping.unwrap_or(HairSettings::default().air_damping);
     println!(
-        "The example's scene moving, {seconds} s each: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
+        "The example's scene moving, {seconds} s each, air drag {air}/s after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
     );
     println!(
         "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
@@ -605,6 +609,9 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>) {
     let runs = motions.flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
     for ((name, rotation), (hold, pressure)) in runs {
         let (mut app, head) = example_app(threads, HairStyle::Straight, (hold, pressure), 60);
+        if let Some(air_damping) = air_damping {
+            app.world_mut().resource_mut::<HairSettings>().air_damping = air_damping;
+        }
         let head_pose = |app: &bevy::prelude::App| {
             let transform = app.world().get::<Transform>(head).expect("the head exists");
             bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation)

@@ -78,21 +78,12 @@ pub struct HairFollowers {
 }
 
 /// Per follower, what [`HairFollowers::clumping_variation`] and [`HairFollowers::scatter`] draw: four
-/// numbers uniform on `[0, 1)` from its root, the same every time it is bound (SplitMix64 of the root's
-/// bits, so a follower keeps its variation however the curves are ordered).
+/// numbers uniform on `[0, 1)`, seeded by its root's bits, so that a follower draws the same every time it
+/// is bound, however the curves are ordered.
 fn follower_draws(root: Vec3) -> [f32; 4] {
-    let mut state = (u64::from(root.x.to_bits()) << 32 | u64::from(root.y.to_bits()))
-        ^ u64::from(root.z.to_bits()).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    std::array::from_fn(|_| {
-        // SplitMix64 (Steele, Lea and Flood 2014).
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        // The top 24 bits: exactly representable, below 1.
-        (z >> 40) as f32 / (1u32 << 24) as f32
-    })
+    let [x, y, z] = root.to_array().map(|coordinate| u64::from(coordinate.to_bits()));
+    let mut random = fastrand::Rng::with_seed((x << 32 | y) ^ (z << 16));
+    std::array::from_fn(|_| random.f32())
 }
 
 /// Where a guide's followers are, world space, single precision: written every step after the guides'
