@@ -15,6 +15,12 @@ fn main() {
             DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
             HairPlugin::default(),
         ))
+        // The groomed style held near the roots, and hair pressing on hair (both off by default).
+        .insert_resource(HairSettings {
+            style_hold: HairStyleHold { rate: 200.0, ..default() },
+            volume: HairVolume { enabled: true, ..default() },
+            ..default()
+        })
         .add_systems(Startup, setup)
         .add_systems(Update, nod)
         .run();
