@@ -169,6 +169,22 @@ impl Options {
             [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off] [--taa on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
 
+    /// The procedural groom these options ask for, on the example's scalp.
+    fn procedural_groom(&self) -> HairGroom {
+        HairGroom {
+            scalp: SCALP,
+            strand_count: self.strands,
+            segments: self.segments,
+            style: self.style,
+            seed: 1,
+            combing: self.combed.then(Combing::default),
+            followers_per_guide: self.followers,
+            follower_clumping: self.clumping,
+            follower_scatter: self.scatter,
+            ..default()
+        }
+    }
+
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let groom = HairGroom::default();
         let mut options = Self {
@@ -404,18 +420,7 @@ fn spawn_scene(
         (Mesh3d(meshes.add(mesh)), MeshMaterial3d(material.clone()), transform)
     };
     let scalp = SCALP;
-    let groom = HairGroom {
-        scalp,
-        strand_count: options.strands,
-        segments: options.segments,
-        style: options.style,
-        seed: 1,
-        combing: options.combed.then(Combing::default),
-        followers_per_guide: options.followers,
-        follower_clumping: options.clumping,
-        follower_scatter: options.scatter,
-        ..default()
-    };
+    let groom = options.procedural_groom();
     let body = commands.spawn((Body::default(), Transform::default(), Visibility::default())).id();
     let head = commands
         .spawn((
@@ -575,18 +580,7 @@ fn switch_groom(
     strands.iter().for_each(|strand| commands.entity(strand).despawn());
     for (head, from_file) in &heads {
         if from_file {
-            let groom = HairGroom {
-                strand_count: options.strands,
-                segments: options.segments,
-                style: options.style,
-                seed: 1,
-                scalp: SCALP,
-                combing: options.combed.then(Combing::default),
-                followers_per_guide: options.followers,
-                follower_clumping: options.clumping,
-                follower_scatter: options.scatter,
-                ..default()
-            };
+            let groom = options.procedural_groom();
             commands.entity(head).remove::<(HairGroomFile, PlacedGroomFile)>().insert(groom);
         } else {
             commands.entity(head).remove::<HairGroom>().insert(ratboy_groom(&assets, options.segments));

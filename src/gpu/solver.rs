@@ -390,6 +390,7 @@ impl GpuStrandUpload {
             // Arc length from the root as a fraction of the strand's length, for the hold's fade (past 1
             // where the strand is not held).
             let mut along = if strand.groomed.is_some() { 0.0 } else { HELD_NOWHERE };
+            let length = rod.rest_length();
             for node in 0..nodes {
                 let edge = node < nodes - 1;
                 let at = |row: usize| (node * REST_ROWS + row) * padded + s;
@@ -415,7 +416,7 @@ impl GpuStrandUpload {
                 let groomed = strand.groomed.and_then(|groomed| groomed.get(node)).copied().unwrap_or_default();
                 rest[at(4)] = vec4(groomed, along);
                 if edge {
-                    along += shape.lengths[node] / rod.rest_length();
+                    along += shape.lengths[node] / length;
                 }
                 let row = |row: usize| (node * STATE_ROWS + row) * padded + s;
                 let rate = if edge { rod_state.twist_rates[node] } else { 0.0 };

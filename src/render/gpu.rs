@@ -601,11 +601,12 @@ fn send_gpu_fed(
 #[derive(Resource, Default)]
 pub(super) struct HairUploads {
     uploads: Vec<(AssetId<ShaderBuffer>, Vec<f32>)>,
-    /// Each head's buffers of this frame's and last frame's positions, while a camera draws motion vectors.
+    /// While a camera draws motion vectors, the buffers of this frame's and last frame's positions of each
+    /// head whose frame before was kept: last frame's are copied in before this frame's are written.
     drawn: Vec<[AssetId<ShaderBuffer>; 2]>,
-    /// The pairs of `drawn` whose frame before was not kept (a head drawn for the first time, or for the
-    /// first time while a camera draws motion vectors): their previous positions are made this frame's once
-    /// those are written, so that their first motion vectors are zero rather than from wherever the buffer
+    /// The same for each head whose frame before was not kept (a head drawn for the first time, or for the
+    /// first time while a camera draws motion vectors): its previous positions are made this frame's once
+    /// those are written, so that its first motion vectors are zero rather than from wherever the buffer
     /// last was.
     first_drawn: Vec<[AssetId<ShaderBuffer>; 2]>,
     /// The drawn buffers whose frame before was kept last frame, and this frame's (swapped each frame).
