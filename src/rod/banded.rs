@@ -89,29 +89,8 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
     /// prescribed unknowns do not pay for the whole matrix.
     #[inline(always)]
     pub fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[T], out: &mut [T]) {
-        let (width, band, size) = (Self::WIDTH, HALF_BANDWIDTH, self.size);
-        let columns = columns.start..columns.end.min(size);
-        let Self { values, padded, product, .. } = self;
-        // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around (sized in `reset`).
-        padded.fill(T::default());
-        padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
-        product.fill(T::default());
-        // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
-        // The rows that meet the columns: `columns.start ..< columns.end + band`.
-        for row in columns.start..(columns.end + band).min(size) {
-            let lower = &values[row * width..(row + 1) * width];
-            let near = &padded[row..row + width];
-            let x_row = near[band];
-            let mut sum = T::default();
-            for ((&entry, &x), out) in lower.iter().zip(near).zip(&mut product[row..row + width]) {
-                sum += entry * x;
-                // The transposed entry `(column, row)`, above the diagonal.
-                *out += entry * x_row;
-            }
-            // The diagonal was counted twice.
-            product[row + band] += sum - lower[band] * x_row;
-        }
-        out[..size].copy_from_slice(&product[band..band + size]);
+        let Self { values, padded, product, size, .. } = self;
+        band_product::<HALF_BANDWIDTH, T>(|index| values[index], *size, columns, x, padded, product, out);
     }
 
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
@@ -267,13 +246,121 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     }
 }
 
-impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH, Lanes> {
-    /// Makes `lane` of every entry that of `matrix`, which has this matrix's size.
-    pub(crate) fn set_lane(&mut self, lane: usize, matrix: &BandedMatrix<HALF_BANDWIDTH>) {
-        debug_assert_eq!(self.size, matrix.size);
-        for (entry, &value) in self.values.iter_mut().zip(&matrix.values) {
-            entry.0[lane] = value;
+/// `out = A x` for the symmetric band whose stored entry `index` (row by row, as in [`BandedMatrix`])
+/// is `entry(index)`, where only `x[columns]` may be non-zero; `padded` and `product` are scratch of
+/// `size + 2 HALF_BANDWIDTH` entries. One strand's matrix and its lane of a batch's matrix share it, so
+/// both give the same bits.
+#[inline(always)]
+fn band_product<const HALF_BANDWIDTH: usize, T: Real>(
+    entry: impl Fn(usize) -> T,
+    size: usize,
+    columns: std::ops::Range<usize>,
+    x: &[T],
+    padded: &mut [T],
+    product: &mut [T],
+    out: &mut [T],
+) {
+    let (width, band) = (HALF_BANDWIDTH + 1, HALF_BANDWIDTH);
+    let columns = columns.start..columns.end.min(size);
+    // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around.
+    padded.fill(T::default());
+    padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
+    product.fill(T::default());
+    // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
+    // The rows that meet the columns: `columns.start ..< columns.end + band`.
+    for row in columns.start..(columns.end + band).min(size) {
+        let near = &padded[row..row + width];
+        let x_row = near[band];
+        let mut sum = T::default();
+        for (k, (&x, out)) in near.iter().zip(&mut product[row..row + width]).enumerate() {
+            let entry = entry(row * width + k);
+            sum += entry * x;
+            // The transposed entry `(column, row)`, above the diagonal.
+            *out += entry * x_row;
         }
+        // The diagonal was counted twice.
+        product[row + band] += sum - entry(row * width + band) * x_row;
+    }
+    out[..size].copy_from_slice(&product[band..band + size]);
+}
+
+/// A strand's Newton matrix as the terms after the elastic ones write it ([`super::solver`]): the
+/// strand's own [`BandedMatrix`], or its lane of a lockstep batch's ([`MatrixLane`]).
+pub(crate) trait StrandMatrix {
+    /// Adds `value` to the symmetric entry `(row, column)`; either order of indices is accepted.
+    fn add(&mut self, row: usize, column: usize, value: f64);
+    /// Multiplies every diagonal entry by `factor`.
+    fn scale_diagonal(&mut self, factor: f64);
+    /// Replaces row and column `dof` by those of the identity.
+    fn set_identity_row(&mut self, dof: usize);
+    /// `out = A x` where only `x[columns]` may be non-zero.
+    fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]);
+}
+
+impl<const HALF_BANDWIDTH: usize> StrandMatrix for BandedMatrix<HALF_BANDWIDTH> {
+    #[inline]
+    fn add(&mut self, row: usize, column: usize, value: f64) {
+        BandedMatrix::add(self, row, column, value);
+    }
+
+    fn scale_diagonal(&mut self, factor: f64) {
+        BandedMatrix::scale_diagonal(self, factor);
+    }
+
+    fn set_identity_row(&mut self, dof: usize) {
+        BandedMatrix::set_identity_row(self, dof);
+    }
+
+    fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
+        BandedMatrix::multiply_columns(self, columns, x, out);
+    }
+}
+
+/// One lane of a lockstep batch's matrix, written as its strand's own matrix would be (the same
+/// operations on the same values, so the same bits), with scratch for products.
+pub(crate) struct MatrixLane<'a, const HALF_BANDWIDTH: usize> {
+    pub matrix: &'a mut BandedMatrix<HALF_BANDWIDTH, Lanes>,
+    pub lane: usize,
+    /// Two vectors for [`StrandMatrix::multiply_columns`] (sized there).
+    pub scratch: &'a mut [Vec<f64>; 2],
+}
+
+impl<const HALF_BANDWIDTH: usize> StrandMatrix for MatrixLane<'_, HALF_BANDWIDTH> {
+    #[inline]
+    fn add(&mut self, row: usize, column: usize, value: f64) {
+        let (row, column) = if row >= column { (row, column) } else { (column, row) };
+        let index = self.matrix.index(row, column);
+        self.matrix.values[index].0[self.lane] += value;
+    }
+
+    fn scale_diagonal(&mut self, factor: f64) {
+        for row in 0..self.matrix.size {
+            let index = self.matrix.index(row, row);
+            self.matrix.values[index].0[self.lane] *= factor;
+        }
+    }
+
+    fn set_identity_row(&mut self, dof: usize) {
+        let (band, lane, size) = (HALF_BANDWIDTH, self.lane, self.matrix.size);
+        for column in dof.saturating_sub(band)..dof {
+            let index = self.matrix.index(dof, column);
+            self.matrix.values[index].0[lane] = 0.0;
+        }
+        for row in dof + 1..=(dof + band).min(size - 1) {
+            let index = self.matrix.index(row, dof);
+            self.matrix.values[index].0[lane] = 0.0;
+        }
+        let index = self.matrix.index(dof, dof);
+        self.matrix.values[index].0[lane] = 1.0;
+    }
+
+    fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
+        let (size, lane) = (self.matrix.size, self.lane);
+        let [padded, product] = &mut *self.scratch;
+        padded.resize(size + 2 * HALF_BANDWIDTH, 0.0);
+        product.resize(size + 2 * HALF_BANDWIDTH, 0.0);
+        let values = &self.matrix.values;
+        band_product::<HALF_BANDWIDTH, f64>(|index| values[index].0[lane], size, columns, x, padded, product, out);
     }
 }
 

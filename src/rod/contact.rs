@@ -33,7 +33,8 @@ use bevy::math::{DMat3, DVec3};
 use super::collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
 use super::copy_into;
 use super::curve::Rod;
-use super::energy::{RodMatrix, node_dof};
+use super::banded::StrandMatrix;
+use super::energy::node_dof;
 use super::error::RodError;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
@@ -419,7 +420,7 @@ impl Rod {
         params: &StepParams,
         inertia_scale: f64,
         residual: &mut [f64],
-        hessian: &mut RodMatrix,
+        hessian: &mut impl StrandMatrix,
     ) {
         let ContactScratch { nearby, touching, normal_forces, touched, .. } = scratch;
         for contact in touching.iter_mut() {

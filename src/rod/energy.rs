@@ -4,10 +4,11 @@
 //! Unknowns are ordered `x_0, θ^0, x_1, θ^1, …, θ^{n−1}, x_n` (4 per edge, 3 for the last node), so a
 //! bending or twisting term touches 11 consecutive unknowns and the Hessian has half-bandwidth 10.
 
-use bevy::math::{DVec2, DVec3};
+use bevy::math::DVec3;
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
+use super::lanes::{Real, Vector};
 
 /// Half-bandwidth of a rod's Hessian in the interleaved ordering.
 pub(crate) const BANDWIDTH: usize = 10;
@@ -72,20 +73,135 @@ pub(crate) fn edge_geometry(rod: &Rod, out: &mut Vec<EdgeGeometry>) {
     }));
 }
 
+/// An edge's geometry as the elastic terms read it: [`EdgeGeometry`] for one strand (`f64`), or the
+/// same of every strand of a lockstep batch ([`Lanes`](super::lanes::Lanes)).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct EdgeFrame<T> {
+    pub tangent: Vector<T>,
+    pub length: T,
+    pub inverse_length: T,
+    pub m1: Vector<T>,
+    pub m2: Vector<T>,
+}
+
+impl From<&EdgeGeometry> for EdgeFrame<f64> {
+    #[inline(always)]
+    fn from(edge: &EdgeGeometry) -> Self {
+        Self {
+            tangent: edge.tangent.into(),
+            length: edge.length,
+            inverse_length: edge.inverse_length,
+            m1: edge.m1.into(),
+            m2: edge.m2.into(),
+        }
+    }
+}
+
+/// The elastic moduli the terms weigh their strains with (see [`Stiffness`]), N and N·m².
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Moduli<T> {
+    pub stretching: T,
+    pub bending_1: T,
+    pub bending_2: T,
+    pub twisting: T,
+}
+
+/// What the elastic terms read of a strand: one strand's own data (`T = f64`), or that of every strand
+/// of a lockstep batch, lane by lane.
+pub(crate) trait ElasticSource<T: Real> {
+    /// Number of edges.
+    fn edge_count(&self) -> usize;
+    /// The moduli.
+    fn moduli(&self) -> Moduli<T>;
+    /// The current geometry of an edge.
+    fn edge(&self, edge: usize) -> EdgeFrame<T>;
+    /// The rest length `|ē|` of an edge, m.
+    fn rest_length(&self, edge: usize) -> T;
+    /// The twist `θ^i − θ^{i−1} + m_ref,i` at an interior vertex, rad.
+    fn twist(&self, vertex: usize) -> T;
+    /// The Voronoi length `l_i` of an interior vertex, m.
+    fn voronoi_length(&self, vertex: usize) -> T;
+    /// The rest curvatures `(κ̄₁, κ̄₂)` of an interior vertex.
+    fn rest_curvature(&self, vertex: usize) -> [T; 2];
+    /// The rest twist `τ̄` of an interior vertex, rad.
+    fn rest_twist(&self, vertex: usize) -> T;
+}
+
+/// One strand's elastic data: the rod and its edges' geometry (from [`edge_geometry`]).
+pub(crate) struct StrandElastic<'a> {
+    pub rod: &'a Rod,
+    pub edges: &'a [EdgeGeometry],
+}
+
+impl ElasticSource<f64> for StrandElastic<'_> {
+    #[inline(always)]
+    fn edge_count(&self) -> usize {
+        self.rod.edge_count()
+    }
+
+    #[inline(always)]
+    fn moduli(&self) -> Moduli<f64> {
+        let stiffness = self.rod.stiffness();
+        Moduli {
+            stretching: stiffness.stretching,
+            bending_1: stiffness.bending_1,
+            bending_2: stiffness.bending_2,
+            twisting: stiffness.twisting,
+        }
+    }
+
+    #[inline(always)]
+    fn edge(&self, edge: usize) -> EdgeFrame<f64> {
+        (&self.edges[edge]).into()
+    }
+
+    #[inline(always)]
+    fn rest_length(&self, edge: usize) -> f64 {
+        self.rod.rest.lengths[edge]
+    }
+
+    #[inline(always)]
+    fn twist(&self, vertex: usize) -> f64 {
+        vertex_twist(self.rod, vertex)
+    }
+
+    #[inline(always)]
+    fn voronoi_length(&self, vertex: usize) -> f64 {
+        self.rod.rest.voronoi_lengths[vertex]
+    }
+
+    #[inline(always)]
+    fn rest_curvature(&self, vertex: usize) -> [f64; 2] {
+        self.rod.rest.curvatures[vertex].to_array()
+    }
+
+    #[inline(always)]
+    fn rest_twist(&self, vertex: usize) -> f64 {
+        self.rod.rest.twists[vertex]
+    }
+}
+
+/// The twist `θ^i − θ^{i−1} + m_ref,i` at interior vertex `vertex` of a rod, rad.
+#[inline(always)]
+pub(crate) fn vertex_twist(rod: &Rod, vertex: usize) -> f64 {
+    rod.state.twist[vertex] - rod.state.twist[vertex - 1] + rod.frames.reference_twist[vertex]
+}
+
 /// Material curvatures and twist at one vertex with their gradients over the vertex's 11 unknowns
 /// `[x_{i−1}, θ^{i−1}, x_i, θ^i, x_{i+1}]` (reference frames carried by time-parallel transport).
 #[derive(Debug, Clone, Copy)]
-pub(crate) struct VertexStrain {
-    pub kappa: DVec2,
-    pub twist: f64,
-    pub grad_kappa_1: [f64; STENCIL],
-    pub grad_kappa_2: [f64; STENCIL],
-    pub grad_twist: [f64; STENCIL],
+pub(crate) struct VertexStrain<T = f64> {
+    pub kappa: [T; 2],
+    pub twist: T,
+    pub grad_kappa_1: [T; STENCIL],
+    pub grad_kappa_2: [T; STENCIL],
+    pub grad_twist: [T; STENCIL],
 }
 
 /// Writes the node gradients of a quantity from its edge gradients (`∂/∂x_{i−1} = −∂/∂e^{i−1}`,
 /// `∂/∂x_i = ∂/∂e^{i−1} − ∂/∂e^i`, `∂/∂x_{i+1} = ∂/∂e^i`) and its two twist derivatives.
-fn scatter_vertex_gradient(d_previous: DVec3, d_next: DVec3, d_theta: [f64; 2]) -> [f64; STENCIL] {
+#[inline(always)]
+fn scatter_vertex_gradient<T: Real>(d_previous: Vector<T>, d_next: Vector<T>, d_theta: [T; 2]) -> [T; STENCIL] {
     let (a, b, c) = (-d_previous, d_previous - d_next, d_next);
     [a.x, a.y, a.z, d_theta[0], b.x, b.y, b.z, d_theta[1], c.x, c.y, c.z]
 }
@@ -93,34 +209,51 @@ fn scatter_vertex_gradient(d_previous: DVec3, d_next: DVec3, d_theta: [f64; 2]) 
 /// Curvatures `κ₁ = ½ κb·(m2^{i−1}+m2^i)`, `κ₂ = −½ κb·(m1^{i−1}+m1^i)`, twist `τ` and their gradients
 /// (Bergou et al. 2008, §7; with `χ = 1 + t^{i−1}·t^i`, `t̃ = (t^{i−1}+t^i)/χ`, `m̃ = (m^{i−1}+m^i)/χ`).
 pub(crate) fn vertex_strain(previous: &EdgeGeometry, next: &EdgeGeometry, twist: f64) -> VertexStrain {
+    strain_at(&previous.into(), &next.into(), twist)
+}
+
+/// [`vertex_strain`] for one strand or a batch's lanes.
+#[inline(always)]
+fn strain_at<T: Real>(previous: &EdgeFrame<T>, next: &EdgeFrame<T>, twist: T) -> VertexStrain<T> {
     let (t0, t1) = (previous.tangent, next.tangent);
+    let (one, half) = (T::splat(1.0), T::splat(0.5));
     // One division for the vertex: `1/χ`, with `κb = 2 t^{i−1} × t^i / χ` (see `curvature_binormal`).
-    let inverse_chi = 1.0 / (1.0 + t0.dot(t1));
-    let binormal = 2.0 * inverse_chi * t0.cross(t1);
-    let tilde_t = inverse_chi * (t0 + t1);
-    let tilde_m1 = inverse_chi * (previous.m1 + next.m1);
-    let tilde_m2 = inverse_chi * (previous.m2 + next.m2);
-    let kappa_1 = 0.5 * binormal.dot(previous.m2 + next.m2);
-    let kappa_2 = -0.5 * binormal.dot(previous.m1 + next.m1);
+    let inverse_chi = one / (one + t0.dot(t1));
+    let binormal = t0.cross(t1).scale(T::splat(2.0) * inverse_chi);
+    let tilde_t = (t0 + t1).scale(inverse_chi);
+    let tilde_m1 = (previous.m1 + next.m1).scale(inverse_chi);
+    let tilde_m2 = (previous.m2 + next.m2).scale(inverse_chi);
+    let kappa_1 = half * binormal.dot(previous.m2 + next.m2);
+    let kappa_2 = -half * binormal.dot(previous.m1 + next.m1);
     let (inverse_0, inverse_1) = (previous.inverse_length, next.inverse_length);
 
     let grad_kappa_1 = scatter_vertex_gradient(
-        (-kappa_1 * tilde_t + t1.cross(tilde_m2)) * inverse_0,
-        (-kappa_1 * tilde_t - t0.cross(tilde_m2)) * inverse_1,
-        [-0.5 * binormal.dot(previous.m1), -0.5 * binormal.dot(next.m1)],
+        (tilde_t.scale(-kappa_1) + t1.cross(tilde_m2)).scale(inverse_0),
+        (tilde_t.scale(-kappa_1) - t0.cross(tilde_m2)).scale(inverse_1),
+        [-half * binormal.dot(previous.m1), -half * binormal.dot(next.m1)],
     );
     let grad_kappa_2 = scatter_vertex_gradient(
-        (-kappa_2 * tilde_t - t1.cross(tilde_m1)) * inverse_0,
-        (-kappa_2 * tilde_t + t0.cross(tilde_m1)) * inverse_1,
-        [-0.5 * binormal.dot(previous.m2), -0.5 * binormal.dot(next.m2)],
+        (tilde_t.scale(-kappa_2) - t1.cross(tilde_m1)).scale(inverse_0),
+        (tilde_t.scale(-kappa_2) + t0.cross(tilde_m1)).scale(inverse_1),
+        [-half * binormal.dot(previous.m2), -half * binormal.dot(next.m2)],
     );
-    let grad_twist = scatter_vertex_gradient(0.5 * binormal * inverse_0, 0.5 * binormal * inverse_1, [-1.0, 1.0]);
-    VertexStrain { kappa: DVec2::new(kappa_1, kappa_2), twist, grad_kappa_1, grad_kappa_2, grad_twist }
+    let grad_twist = scatter_vertex_gradient(
+        binormal.scale(half).scale(inverse_0),
+        binormal.scale(half).scale(inverse_1),
+        [-one, one],
+    );
+    VertexStrain { kappa: [kappa_1, kappa_2], twist, grad_kappa_1, grad_kappa_2, grad_twist }
 }
 
 /// Adds `Σ_k scales_k · g_k g_kᵀ` (the Gauss–Newton terms of one vertex) to the Hessian, over the vertex
 /// stencil whose first unknown is `offset`, writing each row's band as one contiguous run.
-fn add_vertex_hessian(hessian: &mut RodMatrix, offset: usize, scales: [f64; 3], gradients: [&[f64; STENCIL]; 3]) {
+#[inline(always)]
+fn add_vertex_hessian<T: Real>(
+    hessian: &mut BandedMatrix<BANDWIDTH, T>,
+    offset: usize,
+    scales: [T; 3],
+    gradients: [&[T; STENCIL]; 3],
+) {
     const WIDTH: usize = BANDWIDTH + 1;
     let rows = hessian.band_rows_mut(offset..offset + STENCIL);
     let [g0, g1, g2] = gradients;
@@ -135,7 +268,8 @@ fn add_vertex_hessian(hessian: &mut RodMatrix, offset: usize, scales: [f64; 3], 
 
 /// Adds the stretching Hessian block `K` of the edge whose first unknown is `start` (its nodes at
 /// `start` and `start + 4`): `K` on both diagonal blocks and `−K` between them.
-fn add_edge_hessian(hessian: &mut RodMatrix, start: usize, block: &[[f64; 3]; 3]) {
+#[inline(always)]
+fn add_edge_hessian<T: Real>(hessian: &mut BandedMatrix<BANDWIDTH, T>, start: usize, block: &[[T; 3]; 3]) {
     const WIDTH: usize = BANDWIDTH + 1;
     let (first_node, second_node) = hessian.band_rows_mut(start..start + 7).split_at_mut(4 * WIDTH);
     for a in 0..3 {
@@ -183,41 +317,54 @@ pub(crate) fn add_elastic_derivatives(
     rod: &Rod,
     edges: &[EdgeGeometry],
     gradient: &mut [f64],
-    mut hessian: Option<(&mut RodMatrix, f64)>,
+    hessian: Option<(&mut RodMatrix, f64)>,
 ) {
-    let stiffness = *rod.stiffness();
-    for (edge, geometry) in edges.iter().enumerate() {
-        let rest = rod.rest.lengths[edge];
-        let force = stiffness.stretching * (geometry.length / rest - 1.0);
+    add_elastic_terms(&StrandElastic { rod, edges }, gradient, hessian);
+}
+
+/// [`add_elastic_derivatives`] for one strand, or for every strand of a lockstep batch at once (the
+/// same operations in the same order in every lane).
+#[inline(always)]
+pub(crate) fn add_elastic_terms<T: Real>(
+    source: &impl ElasticSource<T>,
+    gradient: &mut [T],
+    mut hessian: Option<(&mut BandedMatrix<BANDWIDTH, T>, T)>,
+) {
+    let moduli = source.moduli();
+    let (zero, one) = (T::splat(0.0), T::splat(1.0));
+    for edge in 0..source.edge_count() {
+        let geometry = source.edge(edge);
+        let rest = source.rest_length(edge);
+        let force = moduli.stretching * (geometry.length / rest - one);
         let (start, end) = (node_dof(edge), node_dof(edge + 1));
+        let t = geometry.tangent.to_array();
         for axis in 0..3 {
-            gradient[start + axis] -= force * geometry.tangent[axis];
-            gradient[end + axis] += force * geometry.tangent[axis];
+            gradient[start + axis] -= force * t[axis];
+            gradient[end + axis] += force * t[axis];
         }
         if let Some((hessian, scale)) = hessian.as_mut() {
-            let axial = *scale * stiffness.stretching / rest;
-            let transverse = axial * (1.0 - rest / geometry.length).max(0.0);
-            let t = geometry.tangent.to_array();
+            let axial = *scale * moduli.stretching / rest;
+            let transverse = axial * (one - rest / geometry.length).max(zero);
             let block = std::array::from_fn(|a| {
-                std::array::from_fn(|b| (axial - transverse) * t[a] * t[b] + if a == b { transverse } else { 0.0 })
+                std::array::from_fn(|b| (axial - transverse) * t[a] * t[b] + if a == b { transverse } else { zero })
             });
             add_edge_hessian(hessian, start, &block);
         }
     }
-    for vertex in 1..rod.edge_count() {
-        let twist = rod.state.twist[vertex] - rod.state.twist[vertex - 1] + rod.frames.reference_twist[vertex];
-        let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist);
-        let inverse_length = 1.0 / rod.rest.voronoi_lengths[vertex];
-        let bend = strain.kappa - rod.rest.curvatures[vertex];
-        let turn = strain.twist - rod.rest.twists[vertex];
+    for vertex in 1..source.edge_count() {
+        let strain = strain_at(&source.edge(vertex - 1), &source.edge(vertex), source.twist(vertex));
+        let inverse_length = one / source.voronoi_length(vertex);
+        let rest_curvature = source.rest_curvature(vertex);
+        let bend = [strain.kappa[0] - rest_curvature[0], strain.kappa[1] - rest_curvature[1]];
+        let turn = strain.twist - source.rest_twist(vertex);
         let coefficients = [
-            (stiffness.bending_1 * inverse_length, bend.x, &strain.grad_kappa_1),
-            (stiffness.bending_2 * inverse_length, bend.y, &strain.grad_kappa_2),
-            (stiffness.twisting * inverse_length, turn, &strain.grad_twist),
+            (moduli.bending_1 * inverse_length, bend[0], &strain.grad_kappa_1),
+            (moduli.bending_2 * inverse_length, bend[1], &strain.grad_kappa_2),
+            (moduli.twisting * inverse_length, turn, &strain.grad_twist),
         ];
         let offset = node_dof(vertex - 1);
         for (modulus, deviation, grad) in coefficients {
-            for (slot, value) in gradient[offset..offset + STENCIL].iter_mut().zip(grad) {
+            for (slot, &value) in gradient[offset..offset + STENCIL].iter_mut().zip(grad) {
                 *slot += modulus * deviation * value;
             }
         }

@@ -28,6 +28,7 @@ pub(crate) trait Real:
     + Sub<Output = Self>
     + Mul<Output = Self>
     + Div<Output = Self>
+    + Neg<Output = Self>
     + AddAssign
     + SubAssign
     + MulAssign
@@ -38,6 +39,8 @@ pub(crate) trait Real:
     fn splat(value: f64) -> Self;
     /// The lanes (bit `k` for lane `k`) whose value is not a finite positive number.
     fn not_positive_finite(self) -> LaneMask;
+    /// The larger of the two, lane by lane, as [`f64::max`] takes it.
+    fn max(self, other: Self) -> Self;
 }
 
 impl Real for f64 {
@@ -52,6 +55,11 @@ impl Real for f64 {
     fn not_positive_finite(self) -> LaneMask {
         LaneMask::from(!(self > 0.0 && self.is_finite()))
     }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        f64::max(self, other)
+    }
 }
 
 /// One `f64` per strand of a lockstep batch.
@@ -60,12 +68,6 @@ impl Real for f64 {
 pub struct Lanes(pub [f64; LANES]);
 
 impl Lanes {
-    /// The lanes from a function of the lane's index.
-    #[inline(always)]
-    pub fn from_fn(value: impl FnMut(usize) -> f64) -> Self {
-        Self(std::array::from_fn(value))
-    }
-
     /// Lane by lane `f(self, other)`.
     #[inline(always)]
     fn zip(self, other: Self, f: impl Fn(f64, f64) -> f64) -> Self {
@@ -84,6 +86,11 @@ impl Real for Lanes {
     #[inline(always)]
     fn not_positive_finite(self) -> LaneMask {
         self.0.iter().enumerate().fold(0, |mask, (lane, &value)| mask | (value.not_positive_finite() << lane))
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        self.zip(other, f64::max)
     }
 }
 
@@ -125,13 +132,84 @@ impl Neg for Lanes {
     }
 }
 
+/// A 3-vector of [`Real`]s: a `DVec3` of one strand (`Vector<f64>`), or the same vector of every strand
+/// of a batch (`Vector<Lanes>`). Its operations are glam's `DVec3` operations term by term, in the same
+/// order, so a strand's result is bit for bit what glam would give.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Vector<T> {
+    pub x: T,
+    pub y: T,
+    pub z: T,
+}
+
+impl<T: Real> Vector<T> {
+    /// `a · b`, summed as glam sums it: `(x x' + y y') + z z'`.
+    #[inline(always)]
+    pub fn dot(self, other: Self) -> T {
+        self.x * other.x + self.y * other.y + self.z * other.z
+    }
+
+    /// `a × b`, with glam's terms.
+    #[inline(always)]
+    pub fn cross(self, other: Self) -> Self {
+        Self {
+            x: self.y * other.z - other.y * self.z,
+            y: self.z * other.x - other.z * self.x,
+            z: self.x * other.y - other.x * self.y,
+        }
+    }
+
+    /// `s a`.
+    #[inline(always)]
+    pub fn scale(self, factor: T) -> Self {
+        Self { x: factor * self.x, y: factor * self.y, z: factor * self.z }
+    }
+
+    /// The components in order.
+    #[inline(always)]
+    pub fn to_array(self) -> [T; 3] {
+        [self.x, self.y, self.z]
+    }
+}
+
+impl From<bevy::math::DVec3> for Vector<f64> {
+    #[inline(always)]
+    fn from(v: bevy::math::DVec3) -> Self {
+        Self { x: v.x, y: v.y, z: v.z }
+    }
+}
+
+impl<T: Real> Add for Vector<T> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, other: Self) -> Self {
+        Self { x: self.x + other.x, y: self.y + other.y, z: self.z + other.z }
+    }
+}
+
+impl<T: Real> Sub for Vector<T> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, other: Self) -> Self {
+        Self { x: self.x - other.x, y: self.y - other.y, z: self.z - other.z }
+    }
+}
+
+impl<T: Real> Neg for Vector<T> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Self { x: -self.x, y: -self.y, z: -self.z }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn operations_act_lane_by_lane() {
-        let a = Lanes::from_fn(|lane| lane as f64 + 1.0);
+        let a = Lanes([1.0, 2.0, 3.0, 4.0]);
         let b = Lanes::splat(2.0);
         assert_eq!((a + b).0[3], 6.0);
         assert_eq!((a - b).0[0], -1.0);

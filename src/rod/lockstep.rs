@@ -19,14 +19,18 @@
 //! the time), and the plugin steps strands one at a time. `docs/performance.md` (issue 32) says why, and
 //! what the lanes still need to pay.
 
-use super::banded::{BandedMatrix, factorize_best, solve_best};
+use bevy::math::DVec3;
+
+use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
 use super::contact::Contacts;
 use super::curve::Rod;
-use super::energy::{BANDWIDTH, dof_count};
+use super::energy::{
+    BANDWIDTH, EdgeFrame, EdgeGeometry, ElasticSource, Moduli, add_elastic_terms, dof_count, vertex_twist,
+};
 use super::error::StepError;
-use super::lanes::{LaneMask, Lanes, lanes_in};
+use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
-use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, next_regularisation};
+use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, next_regularisation};
 
 pub use super::lanes::LANES;
 
@@ -50,7 +54,127 @@ pub struct LockstepStrand<'r, 'l> {
 pub struct LockstepWorkspace {
     lanes: [RodWorkspace; LANES],
     matrix: BatchMatrix,
+    /// The elastic gradient, then the right-hand side and the solution.
     solution: Vec<Lanes>,
+    elastic: BatchElastic,
+    /// Scratch for products on one lane of the matrix.
+    product_scratch: [Vec<f64>; 2],
+}
+
+/// What the elastic terms read of a batch's strands, lane by lane ([`ElasticSource`]): the rest shape
+/// and moduli, gathered once a step, and the edges' geometry and the twists, gathered at each
+/// assembly.
+#[derive(Debug, Clone, Default)]
+struct BatchElastic {
+    moduli: Moduli<Lanes>,
+    rest_lengths: Vec<Lanes>,
+    voronoi_lengths: Vec<Lanes>,
+    rest_curvatures: Vec<[Lanes; 2]>,
+    rest_twists: Vec<Lanes>,
+    edges: Vec<EdgeFrame<Lanes>>,
+    twists: Vec<Lanes>,
+}
+
+/// Writes `value` into `lane` of a vector of lanes.
+#[inline(always)]
+fn set_vector_lane(vector: &mut Vector<Lanes>, lane: usize, value: DVec3) {
+    (vector.x.0[lane], vector.y.0[lane], vector.z.0[lane]) = (value.x, value.y, value.z);
+}
+
+impl BatchElastic {
+    /// Sizes everything for strands of `edge_count` edges (allocating only when it grows).
+    fn resize(&mut self, edge_count: usize) {
+        self.rest_lengths.resize(edge_count, Lanes::default());
+        self.voronoi_lengths.resize(edge_count, Lanes::default());
+        self.rest_curvatures.resize(edge_count, Default::default());
+        self.rest_twists.resize(edge_count, Lanes::default());
+        self.edges.resize(edge_count, EdgeFrame::default());
+        self.twists.resize(edge_count, Lanes::default());
+    }
+
+    /// Takes `rod`'s rest shape and moduli into `lane`.
+    fn gather_rest(&mut self, lane: usize, rod: &Rod) {
+        let stiffness = rod.stiffness();
+        self.moduli.stretching.0[lane] = stiffness.stretching;
+        self.moduli.bending_1.0[lane] = stiffness.bending_1;
+        self.moduli.bending_2.0[lane] = stiffness.bending_2;
+        self.moduli.twisting.0[lane] = stiffness.twisting;
+        let rest = &rod.rest;
+        for (entry, &length) in self.rest_lengths.iter_mut().zip(&rest.lengths) {
+            entry.0[lane] = length;
+        }
+        // Interior vertices only: `1 ..< edge_count`.
+        let vertices = 1..rod.edge_count();
+        for vertex in vertices {
+            self.voronoi_lengths[vertex].0[lane] = rest.voronoi_lengths[vertex];
+            self.rest_curvatures[vertex][0].0[lane] = rest.curvatures[vertex].x;
+            self.rest_curvatures[vertex][1].0[lane] = rest.curvatures[vertex].y;
+            self.rest_twists[vertex].0[lane] = rest.twists[vertex];
+        }
+    }
+
+    /// Takes `rod`'s current edges (`edges`, from its workspace) and twists into `lane`.
+    fn gather_state(&mut self, lane: usize, rod: &Rod, edges: &[EdgeGeometry]) {
+        for (entry, edge) in self.edges.iter_mut().zip(edges) {
+            set_vector_lane(&mut entry.tangent, lane, edge.tangent);
+            entry.length.0[lane] = edge.length;
+            entry.inverse_length.0[lane] = edge.inverse_length;
+            set_vector_lane(&mut entry.m1, lane, edge.m1);
+            set_vector_lane(&mut entry.m2, lane, edge.m2);
+        }
+        for vertex in 1..rod.edge_count() {
+            self.twists[vertex].0[lane] = vertex_twist(rod, vertex);
+        }
+    }
+}
+
+impl ElasticSource<Lanes> for BatchElastic {
+    #[inline(always)]
+    fn edge_count(&self) -> usize {
+        self.edges.len()
+    }
+
+    #[inline(always)]
+    fn moduli(&self) -> Moduli<Lanes> {
+        self.moduli
+    }
+
+    #[inline(always)]
+    fn edge(&self, edge: usize) -> EdgeFrame<Lanes> {
+        self.edges[edge]
+    }
+
+    #[inline(always)]
+    fn rest_length(&self, edge: usize) -> Lanes {
+        self.rest_lengths[edge]
+    }
+
+    #[inline(always)]
+    fn twist(&self, vertex: usize) -> Lanes {
+        self.twists[vertex]
+    }
+
+    #[inline(always)]
+    fn voronoi_length(&self, vertex: usize) -> Lanes {
+        self.voronoi_lengths[vertex]
+    }
+
+    #[inline(always)]
+    fn rest_curvature(&self, vertex: usize) -> [Lanes; 2] {
+        self.rest_curvatures[vertex]
+    }
+
+    #[inline(always)]
+    fn rest_twist(&self, vertex: usize) -> Lanes {
+        self.rest_twists[vertex]
+    }
+}
+
+/// The elastic terms of a batch, compiled for the best instruction set the CPU has (see
+/// [`factorize_best`]): the same bits on every one.
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn add_batch_elastic_terms(source: &BatchElastic, gradient: &mut [Lanes], matrix: &mut BatchMatrix, scale: Lanes) {
+    add_elastic_terms(source, gradient, Some((matrix, scale)));
 }
 
 /// The result of each strand of a batch, in the batch's order (`None` past its end).
@@ -72,6 +196,7 @@ impl LockstepWorkspace {
             return results;
         };
         let nodes = first.rod.node_count();
+        self.elastic.resize(nodes - 1);
         let mut active: LaneMask = 0;
         for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
             let LockstepStrand { rod, loads, contacts } = strand;
@@ -85,6 +210,7 @@ impl LockstepWorkspace {
             }
             rod.begin_step(workspace);
             rod.begin_integration(params, contacts, workspace);
+            self.elastic.gather_rest(lane, rod);
             active |= 1 << lane;
         }
         let size = dof_count(nodes);
@@ -115,8 +241,9 @@ impl LockstepWorkspace {
     }
 
     /// Assembles the Newton system of each `active` lane's strand and factorises them together, each
-    /// lane with its own Levenberg–Marquardt shift (see [`Rod::step_with_loads`]). Returns the lanes
-    /// still going: a lane whose system does not factorise even with the largest shift ends with
+    /// lane with its own Levenberg–Marquardt shift (see [`Rod::step_with_loads`]). The elastic terms
+    /// are assembled in lanes, straight into the batch's matrix; the others lane by lane. Returns the
+    /// lanes still going: a lane whose system does not factorise even with the largest shift ends with
     /// its error in `results`.
     fn assemble_and_factorize(
         &mut self,
@@ -127,33 +254,35 @@ impl LockstepWorkspace {
         results: &mut LockstepResults,
     ) -> LaneMask {
         let mut regularisation = [0.0; LANES];
-        let mut assemble = active;
-        // Sized once per node count: every going lane is written whole below, and the others are
-        // never read.
-        if self.matrix.size() != size {
-            self.matrix.reset(size);
+        for lane in lanes_in(active) {
+            let (rod, workspace) = (&*strands[lane].rod, &mut self.lanes[lane]);
+            rod.begin_assembly(workspace);
+            self.elastic.gather_state(lane, rod, workspace.edges());
         }
         loop {
-            for lane in lanes_in(assemble) {
-                let strand = &mut strands[lane];
-                strand.rod.assemble_newton_system(params, &strand.loads, &mut self.lanes[lane], regularisation[lane]);
-            }
             // Every going lane again: the factorisation wrote over the last attempt.
+            self.matrix.reset(size);
+            self.solution.clear();
+            self.solution.resize(size, Lanes::default());
+            let scale = Lanes::splat(damped_scale(params));
+            add_batch_elastic_terms(&self.elastic, &mut self.solution, &mut self.matrix, scale);
             for lane in lanes_in(active) {
-                self.matrix.set_lane(lane, self.lanes[lane].hessian());
+                let strand = &mut strands[lane];
+                let workspace = &mut self.lanes[lane];
+                for (residual, gradient) in workspace.residual_mut().iter_mut().zip(&self.solution) {
+                    *residual = gradient.0[lane];
+                }
+                let mut matrix = MatrixLane { matrix: &mut self.matrix, lane, scratch: &mut self.product_scratch };
+                strand.rod.add_inelastic_terms(params, &strand.loads, workspace, &mut matrix, regularisation[lane]);
             }
             let mut rows = [0; LANES];
             let failed = factorize_best(&mut self.matrix, &mut rows) & active;
             if failed == 0 {
                 return active;
             }
-            assemble = 0;
             for lane in lanes_in(failed) {
                 match next_regularisation(regularisation[lane], rows[lane]) {
-                    Ok(shift) => {
-                        regularisation[lane] = shift;
-                        assemble |= 1 << lane;
-                    }
+                    Ok(shift) => regularisation[lane] = shift,
                     Err(error) => {
                         results[lane] = Some(strands[lane].rod.end_step(Err(error), &mut self.lanes[lane]));
                         active &= !(1 << lane);

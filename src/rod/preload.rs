@@ -26,7 +26,7 @@
 use bevy::math::{DMat4, DVec2, DVec3, DVec4};
 
 use super::curve::{MAX_REST_TWIST, MAX_TURNING_ANGLE, Rod};
-use super::energy::{EdgeGeometry, edge_geometry, vertex_strain};
+use super::energy::{EdgeGeometry, edge_geometry, vertex_strain, vertex_twist};
 use super::error::RodError;
 
 /// The largest turn between two edges a preloaded rest shape asks for, rad (150°): short of
@@ -245,11 +245,8 @@ impl Rod {
         let mut node_force: Vec<DVec3> = (0..nodes).map(|node| -self.inertia.masses[node] * gravity).collect();
         let mut edge_torque = vec![0.0; edge_count];
         let mut stresses = vec![None; nodes];
-        let twist_at = |vertex: usize| {
-            self.state.twist[vertex] - self.state.twist[vertex - 1] + self.frames.reference_twist[vertex]
-        };
         for vertex in (1..edge_count).rev() {
-            let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], twist_at(vertex));
+            let strain = vertex_strain(&edges[vertex - 1], &edges[vertex], vertex_twist(self, vertex));
             let gradients = [&strain.grad_kappa_1, &strain.grad_kappa_2, &strain.grad_twist];
             // Columns: each stress's force on node v + 1 (stencil 8..11) and torque on edge v (7); the
             // tension's force on node v + 1 is along the edge.

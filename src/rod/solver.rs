@@ -33,7 +33,7 @@
 use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
-use super::banded::{factorize_best, solve_best};
+use super::banded::{StrandMatrix, factorize_best, solve_best};
 use super::contact::{ContactScratch, Contacts, outer_product};
 use super::copy_into;
 use super::curve::Rod;
@@ -135,7 +135,7 @@ pub(super) struct NewtonProgress {
 }
 
 /// The elastic Hessian's factor `1 + β/dt` with internal damping.
-fn damped_scale(params: &StepParams) -> f64 {
+pub(super) fn damped_scale(params: &StepParams) -> f64 {
     1.0 + params.internal_damping / params.dt
 }
 
@@ -229,9 +229,9 @@ impl RodWorkspace {
         self.stopwatch.set_enabled(enabled);
     }
 
-    /// The matrix of the last Newton system assembled.
-    pub(super) fn hessian(&self) -> &RodMatrix {
-        &self.hessian
+    /// The edges' geometry at the last assembly.
+    pub(super) fn edges(&self) -> &[EdgeGeometry] {
+        &self.edges
     }
 
     /// The residual of the last Newton system assembled (its right-hand side negated), or its
@@ -659,46 +659,60 @@ impl Rod {
         workspace: &mut RodWorkspace,
         regularisation: f64,
     ) {
-        let size = dof_count(self.node_count());
+        self.begin_assembly(workspace);
+        let RodWorkspace { hessian, residual, edges, .. } = workspace;
+        hessian.reset(residual.len());
+        add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale(params))));
+        // Taken out for the other terms, which see the workspace whole (an exchange of pointers).
+        let mut hessian = std::mem::take(&mut workspace.hessian);
+        self.add_inelastic_terms(params, loads, workspace, &mut hessian, regularisation);
+        workspace.hessian = hessian;
+    }
+
+    /// The start of an assembly: the edges' geometry, and the residual at zero.
+    pub(super) fn begin_assembly(&self, workspace: &mut RodWorkspace) {
         edge_geometry(self, &mut workspace.edges);
         workspace.residual.clear();
-        workspace.residual.resize(size, 0.0);
-        workspace.hessian.reset(size);
-        self.add_elastic_forces(params, workspace);
-        self.add_internal_damping(params, workspace);
-        self.add_inertia_and_external_forces(params, loads, workspace);
+        workspace.residual.resize(dof_count(self.node_count()), 0.0);
+    }
+
+    /// The Newton system's terms after the elastic ones (in `matrix`, the residual in the workspace):
+    /// internal damping, inertia with gravity and external forces, contact, the diagonal scaled by
+    /// `1 + regularisation`, prescribed unknowns.
+    pub(super) fn add_inelastic_terms(
+        &self,
+        params: &StepParams,
+        loads: &StepLoads,
+        workspace: &mut RodWorkspace,
+        matrix: &mut impl StrandMatrix,
+        regularisation: f64,
+    ) {
+        self.add_internal_damping(params, workspace, matrix);
+        self.add_inertia_and_external_forces(params, loads, workspace, matrix);
         workspace.stopwatch.lap(Part::Forces);
-        let RodWorkspace { hessian, residual, saved, contacts, stopwatch, scheme, .. } = workspace;
+        let RodWorkspace { residual, saved, contacts, stopwatch, scheme, .. } = workspace;
         self.add_contact_forces(
             contacts,
             &saved.state.positions,
             params,
             scheme.inertia_scale(params),
             residual,
-            hessian,
+            matrix,
         );
         stopwatch.lap(Part::Collisions);
         if regularisation > 0.0 {
-            hessian.scale_diagonal(1.0 + regularisation);
+            matrix.scale_diagonal(1.0 + regularisation);
         }
-        self.add_prescribed_unknowns(workspace);
-    }
-
-    /// The elastic forces `∇E` and their Hessian `H` ([`super::energy`]), the Hessian scaled by
-    /// `1 + β/dt` for internal damping.
-    fn add_elastic_forces(&self, params: &StepParams, workspace: &mut RodWorkspace) {
-        let RodWorkspace { hessian, residual, edges, .. } = workspace;
-        add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale(params))));
+        self.add_prescribed_unknowns(workspace, matrix);
     }
 
     /// Internal (Rayleigh) friction `β/dt H (q − q̃)` on the deformation since the first guess `q̃` (the
     /// strand carried with its root), not on that rigid motion. Along each edge the stretching part
     /// damps the true change of length, since `H Δq` would count a turn by `φ` as a stretch by `φ²/2`
     /// times the huge axial stiffness.
-    fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace) {
+    fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
         let size = dof_count(self.node_count());
         let RodWorkspace {
-            hessian,
             residual,
             displacement,
             damping_force,
@@ -723,7 +737,7 @@ impl Rod {
         for edge in 0..self.edge_count() {
             displacement[twist_dof(edge)] = self.state.twist[edge] - carried_twist[edge];
         }
-        hessian.multiply(displacement, damping_force);
+        hessian.multiply_columns(0..size, displacement, damping_force);
         let damped_scale = damped_scale(params);
         let axial_stiffness = damped_scale * self.stiffness().stretching;
         for (edge, geometry) in edges.iter().enumerate() {
@@ -753,8 +767,14 @@ impl Rod {
     /// `air_velocities`), spin drag `γ J θ̇`, the anchors' springs and dampers `m k (x − x̄) + m c (v − v̄)`
     /// ([`Anchor`]), with Hessian `M/h² + D/h + M (K + C/h)`, and the forces: gravity `M g` and
     /// `external_forces` (N).
-    fn add_inertia_and_external_forces(&self, params: &StepParams, loads: &StepLoads, workspace: &mut RodWorkspace) {
-        let RodWorkspace { hessian, residual, saved, scheme, .. } = workspace;
+    fn add_inertia_and_external_forces(
+        &self,
+        params: &StepParams,
+        loads: &StepLoads,
+        workspace: &mut RodWorkspace,
+        hessian: &mut impl StrandMatrix,
+    ) {
+        let RodWorkspace { residual, saved, scheme, .. } = workspace;
         let (h, gamma) = (scheme.h, params.air_damping);
         let tangents = &saved.frames.tangents;
         for node in 0..self.node_count() {
@@ -806,9 +826,9 @@ impl Rod {
 
     /// Prescribed unknowns (pins, clamps) move by their remaining displacement `d`: their rows become
     /// identity rows with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
-    fn add_prescribed_unknowns(&self, workspace: &mut RodWorkspace) {
+    fn add_prescribed_unknowns(&self, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
         let size = dof_count(self.node_count());
-        let RodWorkspace { hessian, residual, prescribed, damping_force: coupling, .. } = workspace;
+        let RodWorkspace { residual, prescribed, damping_force: coupling, .. } = workspace;
         prescribed.clear();
         prescribed.resize(size, 0.0);
         for node in 0..self.node_count() {
