@@ -41,6 +41,20 @@ pub(crate) trait Real:
     fn not_positive_finite(self) -> LaneMask;
     /// The larger of the two, lane by lane, as [`f64::max`] takes it.
     fn max(self, other: Self) -> Self;
+    /// The square root, lane by lane.
+    fn sqrt(self) -> Self;
+    /// The absolute value, lane by lane.
+    fn abs(self) -> Self;
+    /// The lanes where `self < other`.
+    fn lt(self, other: Self) -> LaneMask;
+    /// The lanes where `self <= other`.
+    fn le(self, other: Self) -> LaneMask;
+    /// The lanes where `self > other`.
+    fn gt(self, other: Self) -> LaneMask;
+    /// The lanes where `self == other`.
+    fn eq(self, other: Self) -> LaneMask;
+    /// `if_set` in the lanes of `mask`, `otherwise` in the others.
+    fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self;
 }
 
 impl Real for f64 {
@@ -60,6 +74,41 @@ impl Real for f64 {
     fn max(self, other: Self) -> Self {
         f64::max(self, other)
     }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+
+    #[inline(always)]
+    fn lt(self, other: Self) -> LaneMask {
+        LaneMask::from(self < other)
+    }
+
+    #[inline(always)]
+    fn le(self, other: Self) -> LaneMask {
+        LaneMask::from(self <= other)
+    }
+
+    #[inline(always)]
+    fn gt(self, other: Self) -> LaneMask {
+        LaneMask::from(self > other)
+    }
+
+    #[inline(always)]
+    fn eq(self, other: Self) -> LaneMask {
+        LaneMask::from(self == other)
+    }
+
+    #[inline(always)]
+    fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self {
+        if mask & 1 != 0 { if_set } else { otherwise }
+    }
 }
 
 /// One `f64` per strand of a lockstep batch.
@@ -68,6 +117,12 @@ impl Real for f64 {
 pub struct Lanes(pub [f64; LANES]);
 
 impl Lanes {
+    /// The lanes where `test(self, other)` holds.
+    #[inline(always)]
+    fn compare(self, other: Self, test: impl Fn(f64, f64) -> bool) -> LaneMask {
+        (0..LANES).fold(0, |mask, lane| mask | (LaneMask::from(test(self.0[lane], other.0[lane])) << lane))
+    }
+
     /// Lane by lane `f(self, other)`.
     #[inline(always)]
     fn zip(self, other: Self, f: impl Fn(f64, f64) -> f64) -> Self {
@@ -91,6 +146,41 @@ impl Real for Lanes {
     #[inline(always)]
     fn max(self, other: Self) -> Self {
         self.zip(other, f64::max)
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Self(self.0.map(f64::sqrt))
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Self(self.0.map(f64::abs))
+    }
+
+    #[inline(always)]
+    fn lt(self, other: Self) -> LaneMask {
+        self.compare(other, |a, b| a < b)
+    }
+
+    #[inline(always)]
+    fn le(self, other: Self) -> LaneMask {
+        self.compare(other, |a, b| a <= b)
+    }
+
+    #[inline(always)]
+    fn gt(self, other: Self) -> LaneMask {
+        self.compare(other, |a, b| a > b)
+    }
+
+    #[inline(always)]
+    fn eq(self, other: Self) -> LaneMask {
+        self.compare(other, |a, b| a == b)
+    }
+
+    #[inline(always)]
+    fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self {
+        Self(std::array::from_fn(|lane| if mask & (1 << lane) != 0 { if_set.0[lane] } else { otherwise.0[lane] }))
     }
 }
 
@@ -165,10 +255,64 @@ impl<T: Real> Vector<T> {
         Self { x: factor * self.x, y: factor * self.y, z: factor * self.z }
     }
 
+    /// `a / s`, component by component.
+    #[inline(always)]
+    pub fn divide(self, divisor: T) -> Self {
+        Self { x: self.x / divisor, y: self.y / divisor, z: self.z / divisor }
+    }
+
+    /// `|a|`, as glam takes it: `√(a · a)`.
+    #[inline(always)]
+    pub fn length(self) -> T {
+        self.dot(self).sqrt()
+    }
+
     /// The components in order.
     #[inline(always)]
     pub fn to_array(self) -> [T; 3] {
         [self.x, self.y, self.z]
+    }
+
+    /// `if_set` in the lanes of `mask`, `otherwise` in the others.
+    #[inline(always)]
+    pub fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self {
+        Self {
+            x: T::select(mask, if_set.x, otherwise.x),
+            y: T::select(mask, if_set.y, otherwise.y),
+            z: T::select(mask, if_set.z, otherwise.z),
+        }
+    }
+}
+
+/// A list of points, one strand's (`[DVec3]`, read as `Vector<f64>`) or a batch's (`[Vector<Lanes>]`).
+pub(crate) trait Points<T> {
+    /// Point `index`.
+    fn point(&self, index: usize) -> Vector<T>;
+    /// Sets point `index`.
+    fn set_point(&mut self, index: usize, value: Vector<T>);
+}
+
+impl Points<f64> for [bevy::math::DVec3] {
+    #[inline(always)]
+    fn point(&self, index: usize) -> Vector<f64> {
+        self[index].into()
+    }
+
+    #[inline(always)]
+    fn set_point(&mut self, index: usize, value: Vector<f64>) {
+        self[index] = bevy::math::DVec3::new(value.x, value.y, value.z);
+    }
+}
+
+impl<T: Copy> Points<T> for [Vector<T>] {
+    #[inline(always)]
+    fn point(&self, index: usize) -> Vector<T> {
+        self[index]
+    }
+
+    #[inline(always)]
+    fn set_point(&mut self, index: usize, value: Vector<T>) {
+        self[index] = value;
     }
 }
 

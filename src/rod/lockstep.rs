@@ -30,6 +30,7 @@ use super::energy::{
 use super::error::StepError;
 use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
+use super::projection::{LengthConstraints, ProjectionScratch, TridiagonalScratch, project_points};
 use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, next_regularisation};
 
 pub use super::lanes::LANES;
@@ -57,6 +58,7 @@ pub struct LockstepWorkspace {
     /// The elastic gradient, then the right-hand side and the solution.
     solution: Vec<Lanes>,
     elastic: BatchElastic,
+    projection: BatchProjection,
     /// Scratch for products on one lane of the matrix.
     product_scratch: [Vec<f64>; 2],
 }
@@ -170,6 +172,58 @@ impl ElasticSource<Lanes> for BatchElastic {
     }
 }
 
+/// What the projection onto the edge lengths works on for a batch's strands, lane by lane.
+#[derive(Debug, Clone, Default)]
+struct BatchProjection {
+    points: Vec<Vector<Lanes>>,
+    target_lengths: Vec<Lanes>,
+    inverse_masses: Vec<Lanes>,
+    contact_normals: Vec<Vector<Lanes>>,
+    scratch: TridiagonalScratch<Lanes>,
+}
+
+impl BatchProjection {
+    /// Sizes everything for strands of `nodes` nodes (allocating only when it grows).
+    fn resize(&mut self, nodes: usize) {
+        self.points.resize(nodes, Vector::default());
+        self.target_lengths.resize(nodes - 1, Lanes::default());
+        self.inverse_masses.resize(nodes, Lanes::default());
+        self.contact_normals.resize(nodes, Vector::default());
+    }
+
+    /// Takes `rod`'s positions and what its projection holds it to into `lane`.
+    fn gather(&mut self, lane: usize, rod: &Rod, projection: &ProjectionScratch) {
+        for (point, &position) in self.points.iter_mut().zip(rod.positions()) {
+            set_vector_lane(point, lane, position);
+        }
+        for (entry, &length) in self.target_lengths.iter_mut().zip(&projection.target_lengths) {
+            entry.0[lane] = length;
+        }
+        for (entry, &mass) in self.inverse_masses.iter_mut().zip(&projection.inverse_masses) {
+            entry.0[lane] = mass;
+        }
+        for (entry, &normal) in self.contact_normals.iter_mut().zip(&projection.contact_normals) {
+            set_vector_lane(entry, lane, normal);
+        }
+    }
+
+    /// Puts `lane`'s projected positions back into `rod`.
+    fn scatter(&self, lane: usize, rod: &mut Rod) {
+        for (position, point) in rod.state.positions.iter_mut().zip(&self.points) {
+            *position = DVec3::new(point.x.0[lane], point.y.0[lane], point.z.0[lane]);
+        }
+    }
+}
+
+/// The projection of a batch's `lanes` onto their edge lengths, compiled for the best instruction set
+/// the CPU has (see [`factorize_best`]). Returns each lane's iterations.
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn project_batch(batch: &mut BatchProjection, params: &StepParams, lanes: LaneMask) -> [u32; LANES] {
+    let BatchProjection { points, target_lengths, inverse_masses, contact_normals, scratch } = batch;
+    let constraints = LengthConstraints { target_lengths, inverse_masses, contact_normals: &contact_normals[..] };
+    project_points(&mut points[..], &constraints, params, scratch, lanes)
+}
+
 /// The elastic terms of a batch, compiled for the best instruction set the CPU has (see
 /// [`factorize_best`]): the same bits on every one.
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
@@ -197,6 +251,7 @@ impl LockstepWorkspace {
         };
         let nodes = first.rod.node_count();
         self.elastic.resize(nodes - 1);
+        self.projection.resize(nodes);
         let mut active: LaneMask = 0;
         for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
             let LockstepStrand { rod, loads, contacts } = strand;
@@ -221,17 +276,30 @@ impl LockstepWorkspace {
                 break;
             }
             self.solve(active, size);
+            let mut last = [false; LANES];
+            let mut projecting: LaneMask = 0;
             for lane in lanes_in(active) {
+                let (rod, workspace) = (&mut *strands[lane].rod, &mut self.lanes[lane]);
+                match rod.apply_newton_update(params, workspace) {
+                    Err(error) => {
+                        results[lane] = Some(rod.end_step(Err(error), workspace));
+                        active &= !(1 << lane);
+                    }
+                    Ok(update) => {
+                        last[lane] = rod.begin_projection(update, params, &mut progress[lane], workspace);
+                        self.projection.gather(lane, rod, workspace.projection());
+                        projecting |= 1 << lane;
+                    }
+                }
+            }
+            let iterations = project_batch(&mut self.projection, params, projecting);
+            for lane in lanes_in(projecting) {
                 let strand = &mut strands[lane];
-                let workspace = &mut self.lanes[lane];
-                let rod = &mut *strand.rod;
-                let finished = match rod.apply_newton_update(params, workspace) {
-                    Err(error) => Some(Err(error)),
-                    Ok(update) => rod
-                        .end_newton_iteration(update, params, &mut progress[lane], workspace)
-                        .then(|| rod.finish_integration(params, &strand.contacts, progress[lane], workspace)),
-                };
-                if let Some(result) = finished {
+                let (rod, workspace) = (&mut *strand.rod, &mut self.lanes[lane]);
+                self.projection.scatter(lane, rod);
+                rod.end_projection(last[lane], iterations[lane], &mut progress[lane], workspace);
+                if last[lane] {
+                    let result = rod.finish_integration(params, &strand.contacts, progress[lane], workspace);
                     results[lane] = Some(rod.end_step(result, workspace));
                     active &= !(1 << lane);
                 }

@@ -229,6 +229,11 @@ impl RodWorkspace {
         self.stopwatch.set_enabled(enabled);
     }
 
+    /// What the projection of the last Newton iteration holds the strand to.
+    pub(super) fn projection(&self) -> &ProjectionScratch {
+        &self.projection
+    }
+
     /// The edges' geometry at the last assembly.
     pub(super) fn edges(&self) -> &[EdgeGeometry] {
         &self.edges
@@ -446,10 +451,25 @@ impl Rod {
     /// Returns whether the iterations are over (converged, or out of iterations).
     pub(super) fn end_newton_iteration(
         &mut self,
-        (fraction, contacts_changed): (f64, bool),
+        update: (f64, bool),
         params: &StepParams,
         progress: &mut NewtonProgress,
         workspace: &mut RodWorkspace,
+    ) -> bool {
+        let last = self.begin_projection(update, params, progress, workspace);
+        let iterations = project_edge_lengths(self, params, &mut workspace.projection);
+        self.end_projection(last, iterations, progress, workspace);
+        last
+    }
+
+    /// [`Rod::end_newton_iteration`] up to the projection: counts the iteration, and, when it is the
+    /// last, puts the prescribed unknowns on their targets. Returns whether it is the last.
+    pub(super) fn begin_projection(
+        &mut self,
+        (fraction, contacts_changed): (f64, bool),
+        params: &StepParams,
+        progress: &mut NewtonProgress,
+        workspace: &RodWorkspace,
     ) -> bool {
         progress.newton_iterations += 1;
         let linearisation_error = length_error(self, &workspace.projection.target_lengths);
@@ -458,13 +478,24 @@ impl Rod {
         if last {
             self.snap_to_targets();
         }
-        progress.projection_iterations += project_edge_lengths(self, params, &mut workspace.projection);
+        last
+    }
+
+    /// [`Rod::end_newton_iteration`] after the projection, which took `iterations`: the frames
+    /// refreshed unless this was the `last` iteration.
+    pub(super) fn end_projection(
+        &mut self,
+        last: bool,
+        iterations: u32,
+        progress: &mut NewtonProgress,
+        workspace: &mut RodWorkspace,
+    ) {
+        progress.projection_iterations += iterations;
         workspace.stopwatch.lap(Part::Constraints);
         if !last {
             self.refresh_frames();
             workspace.stopwatch.lap(Part::Frames);
         }
-        last
     }
 
     /// What a step does after its Newton iterations: contacts resolved, the strain bound kept, frames,
