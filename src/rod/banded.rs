@@ -295,6 +295,8 @@ pub(crate) trait StrandMatrix {
     fn set_identity_row(&mut self, dof: usize);
     /// `out = A x` where only `x[columns]` may be non-zero.
     fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]);
+    /// `out = A x` with the matrix as the elastic terms left it, before any other term was added.
+    fn multiply_elastic(&mut self, x: &[f64], out: &mut [f64]);
 }
 
 impl<const HALF_BANDWIDTH: usize> StrandMatrix for BandedMatrix<HALF_BANDWIDTH> {
@@ -314,6 +316,11 @@ impl<const HALF_BANDWIDTH: usize> StrandMatrix for BandedMatrix<HALF_BANDWIDTH> 
     fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {
         BandedMatrix::multiply_columns(self, columns, x, out);
     }
+
+    /// Called right after the elastic terms: the product with the whole matrix.
+    fn multiply_elastic(&mut self, x: &[f64], out: &mut [f64]) {
+        BandedMatrix::multiply_columns(self, 0..self.size, x, out);
+    }
 }
 
 /// One lane of a lockstep batch's matrix, written as its strand's own matrix would be (the same
@@ -323,6 +330,9 @@ pub(crate) struct MatrixLane<'a, const HALF_BANDWIDTH: usize> {
     pub lane: usize,
     /// Two vectors for [`StrandMatrix::multiply_columns`] (sized there).
     pub scratch: &'a mut [Vec<f64>; 2],
+    /// The product of the elastic terms' matrix with each lane's `x` of
+    /// [`StrandMatrix::multiply_elastic`], computed in lanes before the lane's other terms.
+    pub elastic_product: &'a [Lanes],
 }
 
 impl<const HALF_BANDWIDTH: usize> StrandMatrix for MatrixLane<'_, HALF_BANDWIDTH> {
@@ -361,6 +371,12 @@ impl<const HALF_BANDWIDTH: usize> StrandMatrix for MatrixLane<'_, HALF_BANDWIDTH
         product.resize(size + 2 * HALF_BANDWIDTH, 0.0);
         let values = &self.matrix.values;
         band_product::<HALF_BANDWIDTH, f64>(|index| values[index].0[lane], size, columns, x, padded, product, out);
+    }
+
+    fn multiply_elastic(&mut self, _x: &[f64], out: &mut [f64]) {
+        for (out, product) in out.iter_mut().zip(self.elastic_product) {
+            *out = product.0[self.lane];
+        }
     }
 }
 

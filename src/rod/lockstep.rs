@@ -61,6 +61,10 @@ pub struct LockstepWorkspace {
     projection: BatchProjection,
     /// Scratch for products on one lane of the matrix.
     product_scratch: [Vec<f64>; 2],
+    /// The lanes' deformations since their first guess, and the elastic terms' matrix times them
+    /// (internal damping).
+    displacement: Vec<Lanes>,
+    elastic_product: Vec<Lanes>,
 }
 
 /// What the elastic terms read of a batch's strands, lane by lane ([`ElasticSource`]): the rest shape
@@ -224,6 +228,13 @@ fn project_batch(batch: &mut BatchProjection, params: &StepParams, lanes: LaneMa
     project_points(&mut points[..], &constraints, params, scratch, lanes)
 }
 
+/// `out = A x` for a batch's matrix, compiled for the best instruction set the CPU has (see
+/// [`factorize_best`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn multiply_batch(matrix: &mut BatchMatrix, x: &[Lanes], out: &mut [Lanes]) {
+    matrix.multiply(x, out);
+}
+
 /// The elastic terms of a batch, compiled for the best instruction set the CPU has (see
 /// [`factorize_best`]): the same bits on every one.
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
@@ -334,13 +345,35 @@ impl LockstepWorkspace {
             self.solution.resize(size, Lanes::default());
             let scale = Lanes::splat(damped_scale(params));
             add_batch_elastic_terms(&self.elastic, &mut self.solution, &mut self.matrix, scale);
+            // Internal damping's product with the elastic terms' matrix, for every lane at once.
+            self.displacement.clear();
+            self.displacement.resize(size, Lanes::default());
+            let mut damped: LaneMask = 0;
+            for lane in lanes_in(active) {
+                let workspace = &mut self.lanes[lane];
+                if strands[lane].rod.damped_displacement(params, workspace) {
+                    for (entry, &value) in self.displacement.iter_mut().zip(workspace.displacement()) {
+                        entry.0[lane] = value;
+                    }
+                    damped |= 1 << lane;
+                }
+            }
+            self.elastic_product.resize(size, Lanes::default());
+            if damped != 0 {
+                multiply_batch(&mut self.matrix, &self.displacement, &mut self.elastic_product);
+            }
             for lane in lanes_in(active) {
                 let strand = &mut strands[lane];
                 let workspace = &mut self.lanes[lane];
                 for (residual, gradient) in workspace.residual_mut().iter_mut().zip(&self.solution) {
                     *residual = gradient.0[lane];
                 }
-                let mut matrix = MatrixLane { matrix: &mut self.matrix, lane, scratch: &mut self.product_scratch };
+                let mut matrix = MatrixLane {
+                    matrix: &mut self.matrix,
+                    lane,
+                    scratch: &mut self.product_scratch,
+                    elastic_product: &self.elastic_product,
+                };
                 strand.rod.add_inelastic_terms(params, &strand.loads, workspace, &mut matrix, regularisation[lane]);
             }
             let mut rows = [0; LANES];

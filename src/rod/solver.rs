@@ -234,6 +234,11 @@ impl RodWorkspace {
         &self.projection
     }
 
+    /// The displacement [`Rod::damped_displacement`] wrote.
+    pub(super) fn displacement(&self) -> &[f64] {
+        &self.displacement
+    }
+
     /// The edges' geometry at the last assembly.
     pub(super) fn edges(&self) -> &[EdgeGeometry] {
         &self.edges
@@ -742,33 +747,12 @@ impl Rod {
     /// damps the true change of length, since `H Δq` would count a turn by `φ` as a stretch by `φ²/2`
     /// times the huge axial stiffness.
     fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
-        let size = dof_count(self.node_count());
-        let RodWorkspace {
-            residual,
-            displacement,
-            damping_force,
-            edges,
-            carried_positions,
-            carried_twist,
-            ..
-        } = workspace;
-        let beta = params.internal_damping;
-        // On the first iteration the iterate is where the strand was carried: nothing to damp yet.
-        let damped = beta > 0.0 && (self.state.positions != *carried_positions || self.state.twist != *carried_twist);
-        // Sized on every iteration (a no-op once grown), so that no later step allocates.
-        displacement.resize(size, 0.0);
-        damping_force.resize(size, 0.0);
-        if !damped {
+        if !self.damped_displacement(params, workspace) {
             return;
         }
-        for node in 0..self.node_count() {
-            let offset = self.state.positions[node] - carried_positions[node];
-            displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-        }
-        for edge in 0..self.edge_count() {
-            displacement[twist_dof(edge)] = self.state.twist[edge] - carried_twist[edge];
-        }
-        hessian.multiply_columns(0..size, displacement, damping_force);
+        let beta = params.internal_damping;
+        let RodWorkspace { residual, displacement, damping_force, edges, carried_positions, .. } = workspace;
+        hessian.multiply_elastic(displacement, damping_force);
         let damped_scale = damped_scale(params);
         let axial_stiffness = damped_scale * self.stiffness().stretching;
         for (edge, geometry) in edges.iter().enumerate() {
@@ -790,6 +774,29 @@ impl Rod {
         for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
             *r += factor * f;
         }
+    }
+
+    /// Writes the deformation since the first guess, `q − q̃`, into the workspace's displacement, and
+    /// says whether internal damping acts on it (not on the first iteration, which starts at `q̃`).
+    pub(super) fn damped_displacement(&self, params: &StepParams, workspace: &mut RodWorkspace) -> bool {
+        let size = dof_count(self.node_count());
+        let RodWorkspace { displacement, damping_force, carried_positions, carried_twist, .. } = workspace;
+        // On the first iteration the iterate is where the strand was carried: nothing to damp yet.
+        let damped = params.internal_damping > 0.0
+            && (self.state.positions != *carried_positions || self.state.twist != *carried_twist);
+        // Sized on every iteration (a no-op once grown), so that no later step allocates.
+        displacement.resize(size, 0.0);
+        damping_force.resize(size, 0.0);
+        if damped {
+            for node in 0..self.node_count() {
+                let offset = self.state.positions[node] - carried_positions[node];
+                displacement[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
+            }
+            for edge in 0..self.edge_count() {
+                displacement[twist_dof(edge)] = self.state.twist[edge] - carried_twist[edge];
+            }
+        }
+        damped
     }
 
     /// Inertia `M (q − x̂ − h v̂)/h²` of the nodes and of the edges' spin (see [`Scheme`]), the air drag
