@@ -30,10 +30,10 @@ use std::ops::Range;
 
 use bevy::math::{DMat3, DVec3};
 
+use super::banded::StrandMatrix;
 use super::collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
 use super::copy_into;
 use super::curve::Rod;
-use super::banded::StrandMatrix;
 use super::energy::node_dof;
 use super::error::RodError;
 use super::params::StepParams;

@@ -213,9 +213,8 @@ fn gauss_seidel_sweep<T: Real, N: Points<T> + ?Sized>(
         let end_move = constraints.mobility(edge + 1, direction);
         let total = direction.dot(start_move + end_move);
         // Left as it is: an edge of no length, or one held at both ends.
-        let moving = lanes
-            & !length.eq(T::splat(0.0))
-            & !total.le(T::splat(HELD_EDGE) * (masses[edge] + masses[edge + 1]));
+        let moving =
+            lanes & !length.eq(T::splat(0.0)) & !total.le(T::splat(HELD_EDGE) * (masses[edge] + masses[edge + 1]));
         let excess = (length - constraints.target_lengths[edge]) / total;
         points.set_point(edge, Vector::select(moving, first + start_move.scale(excess), first));
         points.set_point(edge + 1, Vector::select(moving, second - end_move.scale(excess), second));

@@ -6,8 +6,15 @@ use bevy::platform::time::Instant;
 use bevy::prelude::*;
 use bevy::utils::Parallel;
 
-use crate::parallel::uneven_batches;
-use crate::rod::{Contacts, MovingCollider, Rod, RodWorkspace, StepError, StepParams, held_reach};
+use arrayvec::ArrayVec;
+use bevy::ecs::query::QueryItem;
+use bevy::tasks::ComputeTaskPool;
+
+use crate::parallel::run_in_parallel;
+use crate::rod::{
+    Contacts, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, Rod, StepError, StepParams, StepReport,
+    held_reach,
+};
 use crate::simulation::{
     HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose, SimulatedStrand,
     StepOutcome, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
@@ -190,7 +197,7 @@ pub(crate) fn pin_roots(
 /// cache for every strand it steps, and the tally of those strands.
 #[derive(Default)]
 pub(crate) struct StepThread {
-    workspace: RodWorkspace,
+    workspace: LockstepWorkspace,
     tally: StepTally,
 }
 
@@ -306,8 +313,8 @@ fn pack_pose(
     tally.timed_pose_seconds += taken.as_secs_f64() - clock.as_secs_f64();
 }
 
-/// Batches of strands per compute thread in [`step_strands`].
-const STEP_BATCHES_PER_THREAD: usize = 64;
+/// Tasks of strands per compute thread in [`step_strands`].
+const STEP_TASKS_PER_THREAD: usize = 64;
 
 /// What [`step_strands`] reads and writes of each strand.
 type StepItem = (
@@ -320,9 +327,18 @@ type StepItem = (
     Option<&'static StrandOf>,
 );
 
+/// What every strand's step shares in [`step_strands`].
+struct StepContext<'a> {
+    params: Option<StepParams>,
+    collision_margin: f64,
+    now: f64,
+    colliders: &'a StrandColliders<'a, 'a>,
+}
+
 /// Steps every strand in parallel, against the colliders of its head (the shared ones for a strand
-/// with no head); a strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with
-/// a [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on. A strand whose
+/// with no head), four strands of one node count at a time in SIMD lanes ([`LockstepWorkspace`]); a
+/// strand whose step fails is reset or quarantined (see [`SimulatedStrand`]) and reported with a
+/// [`StrandFault`] message (and in the log, see [`FaultLog`]), and the others go on. A strand whose
 /// head is at a coarser level of detail is stepped only on its turns, by as many fixed steps as have
 /// passed, and drawn carried with its head in between (see [`crate::detail`]); while the settings are
 /// invalid every strand is drawn so (see [`check_settings`]). A strand not stepped whose state was
@@ -332,79 +348,39 @@ pub(crate) fn step_strands(
     time: Res<Time>,
     checked: Res<CheckedSettings>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<StepItem, Without<SteppedElsewhere>>,
+    strands: Query<StepItem, Without<SteppedElsewhere>>,
     elsewhere: Query<(), With<SteppedElsewhere>>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
     mut fault_log: Local<FaultLog>,
+    mut order: Local<Vec<(usize, Entity)>>,
 ) {
-    let (valid, collision_margin) = (checked.params, checked.collision_margin);
+    let valid = checked.params;
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
-    // Small batches: strands cost unequal amounts (contacts, and levels of detail that step some heads now
-    // and others not), and big batches leave one thread waiting on another.
-    strands.par_iter_mut().batching_strategy(uneven_batches(STEP_BATCHES_PER_THREAD)).for_each(
-        |(entity, mut strand, mut forces, mut nodes, mut frames, mut pose, strand_of)| {
-            let contacts =
-                Contacts { colliders: colliders.of(strand_of), thickness: strand.contact_thickness(collision_margin) };
-            threads.scope(|StepThread { workspace, tally }| {
-                // The strand's components and pose, written while the strand is in this core's cache.
-                let mut write = |strand: &mut SimulatedStrand, stepped: Option<u32>, tally: &mut StepTally| {
-                    let snapped = strand.write_components(stepped, &mut nodes, &mut frames);
-                    if let Some(pose) = pose.as_mut() {
-                        pack_pose(pose, &nodes, &frames, (contacts.thickness, snapped), tally);
-                    }
-                };
-                let params = match valid {
-                    Some(params) if strand.detail.due && !strand.preload_pending() => params,
-                    _ => {
-                        // A coarser level of detail, invalid settings, or a preload waiting for a
-                        // collider: not stepped now, drawn carried with its head, once its state is known
-                        // to be drawable.
-                        forces.clear();
-                        if let Some(StepOutcome::Faulted { error, first_of_episode, quarantine }) =
-                            strand.check_unstepped(now)
-                        {
-                            let message = StrandFault { strand: entity, error };
-                            tally.faults.push(Fault { message, first_of_episode, quarantine });
-                        }
-                        write(&mut strand, None, tally);
-                        tally.unstepped += 1;
-                        tally.quarantined += usize::from(strand.is_quarantined());
-                        return;
-                    }
-                };
-                let steps = strand.detail.take_elapsed();
-                let longer;
-                let params = if steps == 1 {
-                    &params
-                } else {
-                    longer = longer_step_params(&params, steps);
-                    &longer
-                };
-                let outcome = strand.advance(now, params, &forces, &contacts, workspace);
-                forces.clear();
-                write(&mut strand, Some(steps), tally);
-                tally.strands += 1;
-                tally.nodes += strand.rod().node_count();
-                tally.quarantined += usize::from(strand.is_quarantined());
-                match outcome {
-                    StepOutcome::Stepped(report) => {
-                        tally.newton_iterations += u64::from(report.newton_iterations);
-                        tally.contacts += report.contacts as usize;
-                        tally.max_strain = tally.max_strain.max(report.max_strain);
-                    }
-                    StepOutcome::Held => {}
-                    StepOutcome::Faulted { error, first_of_episode, quarantine } => tally.faults.push(Fault {
-                        message: StrandFault { strand: entity, error },
-                        first_of_episode,
-                        quarantine,
-                    }),
-                }
-            });
-        },
-    );
+    // Strands of one node count side by side, so that they share lockstep batches; the order changes
+    // no strand's result (a strand in a batch ends bit for bit where it would alone).
+    order.clear();
+    order.extend(strands.iter().map(|(entity, strand, ..)| (strand.rod().node_count(), entity)));
+    order.sort_unstable();
+    // Small tasks: strands cost unequal amounts (contacts, and levels of detail that step some heads now
+    // and others not), and big tasks leave one thread waiting on another.
+    let thread_count = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).max(1);
+    let per_task = order.len().div_ceil(thread_count * STEP_TASKS_PER_THREAD).next_multiple_of(LANES).max(LANES);
+    let context = StepContext { params: valid, collision_margin: checked.collision_margin, now, colliders: &colliders };
+    let (strands, threads_ref) = (&strands, &*threads);
+    run_in_parallel(thread_count, order.chunks(per_task), |task| {
+        threads_ref.scope(|thread| {
+            for batch in task.chunks(LANES) {
+                // SAFETY: each entity is in `order` once (a query yields each of its entities once), and
+                // each chunk of `order` goes to one task: no two items alive at once are of one entity.
+                let mut items: ArrayVec<_, LANES> =
+                    batch.iter().filter_map(|&(_, entity)| unsafe { strands.get_unchecked(entity) }.ok()).collect();
+                step_batch(&context, &mut items, thread);
+            }
+        });
+    });
 
     let (mut strands_stepped, mut nodes_stepped, mut newton_iterations, mut contacts, mut max_strain) =
         (0, 0, 0, 0, 0.0_f64);
@@ -444,4 +420,121 @@ pub(crate) fn step_strands(
     statistics.contacts = contacts;
     statistics.mean_newton_iterations =
         if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };
+}
+
+/// A strand of a lockstep batch, as the query gives it.
+type BatchItem<'w, 's> = QueryItem<'w, 's, StepItem>;
+
+/// Steps up to [`LANES`] strands: those due to take one step together in lockstep, those that take
+/// several (a coarser level of detail) one at a time, and records each in the thread's tally.
+fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepThread) {
+    let StepThread { workspace, tally } = thread;
+    let contacts_of = |strand: &SimulatedStrand, strand_of: Option<&StrandOf>| Contacts {
+        colliders: context.colliders.of(strand_of),
+        thickness: strand.contact_thickness(context.collision_margin),
+    };
+    // What each strand does: not stepped (drawn carried with its head), done before its rod is
+    // stepped, or its rod stepped by some fixed steps.
+    let mut steps = [0; LANES];
+    let mut starts = [None; LANES];
+    let mut outcomes: [Option<StepOutcome>; LANES] = Default::default();
+    for (index, (entity, strand, forces, nodes, frames, pose, strand_of)) in items.iter_mut().enumerate() {
+        let stepped = context.params.is_some() && strand.detail.due && !strand.preload_pending();
+        if !stepped {
+            // A coarser level of detail, invalid settings, or a preload waiting for a collider: not
+            // stepped now, drawn carried with its head, once its state is known to be drawable.
+            forces.clear();
+            if let Some(StepOutcome::Faulted { error, first_of_episode, quarantine }) =
+                strand.check_unstepped(context.now)
+            {
+                let message = StrandFault { strand: *entity, error };
+                tally.faults.push(Fault { message, first_of_episode, quarantine });
+            }
+            let thickness = contacts_of(strand, *strand_of).thickness;
+            write_strand(strand, None, (nodes, frames, pose.as_deref_mut()), thickness, tally);
+            tally.unstepped += 1;
+            tally.quarantined += usize::from(strand.is_quarantined());
+            continue;
+        }
+        steps[index] = strand.detail.take_elapsed();
+        match strand.begin_advance(context.now) {
+            Err(outcome) => outcomes[index] = Some(outcome),
+            Ok(start) => match strand.take_pin_error() {
+                Some(error) => {
+                    let result = Err(StepError::InvalidInput(error));
+                    outcomes[index] = Some(strand.finish_advance(context.now, start, result));
+                }
+                None => starts[index] = Some(start),
+            },
+        }
+    }
+    let Some(params) = context.params else {
+        return;
+    };
+    // The rods: those of one step in lockstep, the others alone with their longer step.
+    let mut results: [Option<Result<StepReport, StepError>>; LANES] = Default::default();
+    {
+        let mut together = ArrayVec::<_, LANES>::new();
+        let mut lanes = ArrayVec::<usize, LANES>::new();
+        for (index, (_, strand, forces, .., strand_of)) in items.iter_mut().enumerate() {
+            if starts[index].is_none() {
+                continue;
+            }
+            let contacts = contacts_of(strand, *strand_of);
+            let strand = LockstepStrand { rod: strand.rod_to_step(), loads: forces.loads(), contacts };
+            if steps[index] == 1 {
+                together.push(strand);
+                lanes.push(index);
+            } else {
+                let longer = longer_step_params(&params, steps[index]);
+                results[index] = workspace.step(&longer, &mut [strand])[0].take();
+            }
+        }
+        for (index, result) in lanes.into_iter().zip(workspace.step(&params, &mut together)) {
+            results[index] = result;
+        }
+    }
+    for (index, (entity, strand, forces, nodes, frames, pose, strand_of)) in items.iter_mut().enumerate() {
+        let outcome = match (starts[index], results[index].take()) {
+            (Some(start), Some(result)) => strand.finish_advance(context.now, start, result),
+            _ => match outcomes[index].take() {
+                Some(outcome) => outcome,
+                None => continue,
+            },
+        };
+        forces.clear();
+        let thickness = contacts_of(strand, *strand_of).thickness;
+        write_strand(strand, Some(steps[index]), (nodes, frames, pose.as_deref_mut()), thickness, tally);
+        tally.strands += 1;
+        tally.nodes += strand.rod().node_count();
+        tally.quarantined += usize::from(strand.is_quarantined());
+        match outcome {
+            StepOutcome::Stepped(report) => {
+                tally.newton_iterations += u64::from(report.newton_iterations);
+                tally.contacts += report.contacts as usize;
+                tally.max_strain = tally.max_strain.max(report.max_strain);
+            }
+            StepOutcome::Held => {}
+            StepOutcome::Faulted { error, first_of_episode, quarantine } => tally.faults.push(Fault {
+                message: StrandFault { strand: *entity, error },
+                first_of_episode,
+                quarantine,
+            }),
+        }
+    }
+}
+
+/// Writes a strand's components and packed pose (while the strand is in this core's cache), after
+/// `stepped` fixed steps or none, with its contact thickness (m).
+fn write_strand(
+    strand: &mut SimulatedStrand,
+    stepped: Option<u32>,
+    (nodes, frames, pose): (&mut StrandNodes, &mut StrandFrames, Option<&mut PackedStrandPose>),
+    thickness: f64,
+    tally: &mut StepTally,
+) {
+    let snapped = strand.write_components(stepped, nodes, frames);
+    if let Some(pose) = pose {
+        pack_pose(pose, nodes, frames, (thickness, snapped), tally);
+    }
 }

@@ -5,10 +5,7 @@ use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::rod::{
-    Anchor, Contacts, PreloadReport, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepLoads, StepParams,
-    StepReport,
-};
+use crate::rod::{Anchor, PreloadReport, Rod, RodError, RodMaterial, StepError, StepLoads, StepReport};
 use crate::simulation::{
     HairDetailLevel, HairSettings, HeadMotion, ScaledPose, StrandDetail, StrandFrames, StrandNodes, StrandOf,
     StrandRestShape, data::RestShapeScratch,
@@ -199,6 +196,14 @@ pub struct StrandHealth {
     pub last_fault: f64,
     /// Simulated time until which the strand is held in quarantine, s; `None` when it is not.
     pub quarantined_until: Option<f64>,
+}
+
+/// What a strand's step needs from its start to its end ([`SimulatedStrand::begin_advance`]): the
+/// head pose the step brings the rod to, and whether this is the retry after a quarantine.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct AdvanceStart {
+    to: ScaledPose,
+    retried: bool,
 }
 
 /// What [`SimulatedStrand`]'s step did.
@@ -534,16 +539,9 @@ impl SimulatedStrand {
         state.history.dt = 0.0;
     }
 
-    /// Advances the strand by one step at simulated time `now` (s), kept outside the colliders of
-    /// `contacts`, with the calling thread's `workspace`; handles faults and quarantine (see [`SimulatedStrand`]).
-    pub(crate) fn advance(
-        &mut self,
-        now: f64,
-        params: &StepParams,
-        forces: &StrandForces,
-        contacts: &Contacts,
-        workspace: &mut RodWorkspace,
-    ) -> StepOutcome {
+    /// The start of a step at simulated time `now` (s): what [`SimulatedStrand::finish_advance`] needs,
+    /// or the outcome when the strand is not to be stepped (quarantined: held in its rest pose).
+    pub(crate) fn begin_advance(&mut self, now: f64) -> Result<AdvanceStart, StepOutcome> {
         self.rod_written = false;
         // The step brings the root to its clamp at the head's pose now: the rod is at that pose after it,
         // whatever happens (stepped, reset onto the head, or carried there when the step is skipped).
@@ -553,15 +551,34 @@ impl SimulatedStrand {
                 self.head = to;
                 self.reset_to_rest();
                 self.pin_error = None;
-                return StepOutcome::Held;
+                return Err(StepOutcome::Held);
             }
             Some(_) => true,
             None => false,
         };
-        let result = match self.pin_error.take() {
-            Some(error) => Err(StepError::InvalidInput(error)),
-            None => self.rod.step_with_loads(params, &forces.loads(), contacts, workspace),
-        };
+        Ok(AdvanceStart { to, retried })
+    }
+
+    /// The error that keeps the root from following its head at this step, if any: the step is then
+    /// skipped ([`StepError::InvalidInput`]).
+    pub(crate) fn take_pin_error(&mut self) -> Option<RodError> {
+        self.pin_error.take()
+    }
+
+    /// The rod, to be stepped between [`SimulatedStrand::begin_advance`] and
+    /// [`SimulatedStrand::finish_advance`].
+    pub(crate) fn rod_to_step(&mut self) -> &mut Rod {
+        &mut self.rod
+    }
+
+    /// The end of a step begun with [`SimulatedStrand::begin_advance`], whose rod step gave `result`:
+    /// records a success, or handles the fault (see [`SimulatedStrand`]).
+    pub(crate) fn finish_advance(
+        &mut self,
+        now: f64,
+        AdvanceStart { to, retried }: AdvanceStart,
+        result: Result<StepReport, StepError>,
+    ) -> StepOutcome {
         let error = match result {
             Ok(report) => {
                 self.head = to;
