@@ -140,7 +140,8 @@ impl Real for Lanes {
 
     #[inline(always)]
     fn not_positive_finite(self) -> LaneMask {
-        self.0.iter().enumerate().fold(0, |mask, (lane, &value)| mask | (value.not_positive_finite() << lane))
+        // `0 < x < ∞` is `x > 0 && x.is_finite()` (NaN fails both), in two comparisons of all lanes.
+        !(self.gt(Self::splat(0.0)) & self.lt(Self::splat(f64::INFINITY))) & ((1 << LANES) - 1)
     }
 
     #[inline(always)]
