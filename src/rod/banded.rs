@@ -139,9 +139,13 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
             }
             for (t, &factor) in column.iter().enumerate() {
                 // A(j + 1 + t, j + 1 ..= j + 1 + t): positions `band − t ..= band` of row `j + 1 + t`.
+                // A loop of fixed length with a test that is known once it is unrolled, so that the
+                // compiler unrolls it whole for wide entries too.
                 let start = (1 + t) * width + band - t;
-                for (value, &other) in rows[start..=start + t].iter_mut().zip(&scaled[..=t]) {
-                    *value -= factor * other;
+                for (k, &other) in scaled.iter().enumerate() {
+                    if k <= t {
+                        rows[start + k] -= factor * other;
+                    }
                 }
             }
         }
