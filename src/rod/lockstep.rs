@@ -13,11 +13,12 @@
 //! would put it, whatever strands share its batch. A strand that fails rolls back and reports alone;
 //! one whose iterations end early is left out of its batch's later iterations.
 //!
-//! Where it stands: only the factorisation and the substitutions run in lanes. The systems are
-//! assembled strand by strand and copied in, and the projection and the frames run strand by strand.
-//! So a batch is not faster yet than its strands stepped one at a time (`benchmark lockstep`: 1.09–1.14×
-//! the time), and the plugin steps strands one at a time. `docs/performance.md` (issue 32) says why, and
-//! what the lanes still need to pay.
+//! What runs in lanes: the elastic terms (assembled straight into the batch's matrix, from one source
+//! shared with the one-strand step), internal damping's product, the factorisation, the substitutions
+//! and the projection onto the edge lengths. Each strand's other terms (inertia, loads, contact,
+//! prescribed unknowns) are written into its own lane, and its frames, trust region and contacts are
+//! handled strand by strand. The plugin steps its strands this way; `benchmark lockstep` compares the
+//! two paths (`docs/performance.md`, issue 32).
 
 use bevy::math::DVec3;
 
@@ -249,8 +250,7 @@ impl LockstepWorkspace {
     /// Advances up to [`LANES`] strands by `params.dt` together, each exactly as
     /// [`Rod::step_with_loads`] would (same result, bit for bit; the same roll-back on failure), and
     /// returns their results in order. Strands whose node count differs from the first's are stepped
-    /// alone. Not faster yet than stepping them one at a time: only the factorisation and the
-    /// substitutions run in SIMD lanes so far (`docs/performance.md`, issue 32).
+    /// alone.
     ///
     /// # Panics
     /// With more than [`LANES`] strands.
