@@ -6,7 +6,9 @@ use bevy::reflect::Reflect;
 
 use super::copy_into;
 use super::error::RodError;
-use super::frames::{material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle};
+use super::frames::{
+    carry_reference_frames, material_directors, parallel_transport, perpendicular_unit, signed_angle, wrap_angle,
+};
 use super::material::{RodMaterial, Stiffness};
 use super::state::{RestShape, RodConstraints, RodFrames, RodInertia, RodSnapshot, RodState, StepHistory};
 
@@ -618,23 +620,15 @@ impl Rod {
     /// to onto the edge's current tangent, then updates the reference twists, continuing each from its
     /// previous value so that they do not wrap at ±π.
     pub(crate) fn refresh_frames(&mut self) {
-        for edge in 0..self.edge_count() {
-            let tangent = (self.state.positions[edge + 1] - self.state.positions[edge]).normalize();
-            let carried =
-                parallel_transport(self.frames.reference_directors[edge], self.frames.tangents[edge], tangent);
-            self.frames.reference_directors[edge] = perpendicular_unit(carried, tangent).unwrap_or(carried);
-            self.frames.tangents[edge] = tangent;
-        }
-        for vertex in 1..self.edge_count() {
-            let carried = parallel_transport(
-                self.frames.reference_directors[vertex - 1],
-                self.frames.tangents[vertex - 1],
-                self.frames.tangents[vertex],
-            );
-            let angle = signed_angle(carried, self.frames.reference_directors[vertex], self.frames.tangents[vertex]);
-            let previous = self.frames.reference_twist[vertex];
-            self.frames.reference_twist[vertex] = previous + wrap_angle(angle - previous);
-        }
+        let edge_count = self.edge_count();
+        let RodFrames { tangents, reference_directors, reference_twist, .. } = &mut self.frames;
+        carry_reference_frames(
+            &self.state.positions[..],
+            &mut tangents[..],
+            &mut reference_directors[..],
+            reference_twist,
+            edge_count,
+        );
     }
 
     /// The change of `θ^edge` that turns the edge's `m1` onto its clamp's material direction once the

@@ -2,6 +2,8 @@
 
 use bevy::math::DVec3;
 
+use super::lanes::{LaneMask, Points, Real, Vector, lanes_in};
+
 /// Parallel transport `P(from → to) v`: the minimal rotation taking unit tangent `from` to unit tangent `to`,
 /// applied to `v`. With `b = from × to` and `c = from · to`: `P v = c v + b × v + (b · v) b / (1 + c)`.
 ///
@@ -47,6 +49,59 @@ pub fn perpendicular_unit(v: DVec3, tangent: DVec3) -> Option<DVec3> {
 pub fn wrap_angle(a: f64) -> f64 {
     let pi = std::f64::consts::PI;
     a - (2.0 * pi) * ((a + pi) / (2.0 * pi)).floor()
+}
+
+/// The reference frames carried to the current positions, for one strand (`f64`) or a lockstep
+/// batch's lanes, with the same operations as [`parallel_transport`], [`perpendicular_unit`],
+/// [`signed_angle`] and [`wrap_angle`] in every lane: each edge's tangent and reference director carried
+/// by parallel transport in time, then each interior vertex's reference twist, continued from its last
+/// value (see `Rod::refresh_frames`).
+#[inline(always)]
+pub(crate) fn carry_reference_frames<T: Real>(
+    positions: &(impl Points<T> + ?Sized),
+    tangents: &mut (impl Points<T> + ?Sized),
+    directors: &mut (impl Points<T> + ?Sized),
+    reference_twist: &mut [T],
+    edge_count: usize,
+) {
+    let one = T::splat(1.0);
+    for edge in 0..edge_count {
+        let e = positions.point(edge + 1) - positions.point(edge);
+        let tangent = e.scale(one / e.length());
+        let carried = transport(directors.point(edge), tangents.point(edge), tangent);
+        // `perpendicular_unit(carried, tangent).unwrap_or(carried)`.
+        let perpendicular = carried - tangent.scale(carried.dot(tangent));
+        let length = perpendicular.length();
+        let usable = length.lt(T::splat(f64::INFINITY)) & length.gt(T::splat(1e-9) * carried.length());
+        directors.set_point(edge, Vector::select(usable, perpendicular.divide(length), carried));
+        tangents.set_point(edge, tangent);
+    }
+    let (pi, two_pi) = (T::splat(std::f64::consts::PI), T::splat(2.0 * std::f64::consts::PI));
+    for vertex in 1..edge_count {
+        let tangent = tangents.point(vertex);
+        let carried = transport(directors.point(vertex - 1), tangents.point(vertex - 1), tangent);
+        let director = directors.point(vertex);
+        let angle = carried.cross(director).dot(tangent).atan2(carried.dot(director));
+        let previous = reference_twist[vertex];
+        let turn = angle - previous;
+        reference_twist[vertex] = previous + (turn - two_pi * ((turn + pi) / two_pi).floor());
+    }
+}
+
+/// [`parallel_transport`] in every lane (its rare case of opposite tangents lane by lane).
+#[inline(always)]
+fn transport<T: Real>(v: Vector<T>, from: Vector<T>, to: Vector<T>) -> Vector<T> {
+    let axis = from.cross(to);
+    let cosine = from.dot(to);
+    let one = T::splat(1.0);
+    let mut carried = v.scale(cosine) + axis.cross(v) + axis.scale(axis.dot(v) / (one + cosine));
+    let opposite: LaneMask = (one + cosine).lt(T::splat(1e-12));
+    if opposite != 0 {
+        for lane in lanes_in(opposite) {
+            carried.set_lane(lane, parallel_transport(v.lane(lane), from.lane(lane), to.lane(lane)));
+        }
+    }
+    carried
 }
 
 #[cfg(test)]

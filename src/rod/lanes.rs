@@ -55,6 +55,14 @@ pub(crate) trait Real:
     fn eq(self, other: Self) -> LaneMask;
     /// `if_set` in the lanes of `mask`, `otherwise` in the others.
     fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self;
+    /// `atan2(self, x)`, lane by lane (std's).
+    fn atan2(self, x: Self) -> Self;
+    /// The largest integer not above, lane by lane.
+    fn floor(self) -> Self;
+    /// The value of lane `lane`.
+    fn lane(self, lane: usize) -> f64;
+    /// Sets lane `lane` to `value`.
+    fn set_lane(&mut self, lane: usize, value: f64);
 }
 
 impl Real for f64 {
@@ -108,6 +116,26 @@ impl Real for f64 {
     #[inline(always)]
     fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self {
         if mask & 1 != 0 { if_set } else { otherwise }
+    }
+
+    #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        f64::atan2(self, x)
+    }
+
+    #[inline(always)]
+    fn floor(self) -> Self {
+        f64::floor(self)
+    }
+
+    #[inline(always)]
+    fn lane(self, _lane: usize) -> f64 {
+        self
+    }
+
+    #[inline(always)]
+    fn set_lane(&mut self, _lane: usize, value: f64) {
+        *self = value;
     }
 }
 
@@ -182,6 +210,26 @@ impl Real for Lanes {
     #[inline(always)]
     fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self {
         Self(std::array::from_fn(|lane| if mask & (1 << lane) != 0 { if_set.0[lane] } else { otherwise.0[lane] }))
+    }
+
+    #[inline(always)]
+    fn atan2(self, x: Self) -> Self {
+        self.zip(x, f64::atan2)
+    }
+
+    #[inline(always)]
+    fn floor(self) -> Self {
+        Self(self.0.map(f64::floor))
+    }
+
+    #[inline(always)]
+    fn lane(self, lane: usize) -> f64 {
+        self.0[lane]
+    }
+
+    #[inline(always)]
+    fn set_lane(&mut self, lane: usize, value: f64) {
+        self.0[lane] = value;
     }
 }
 
@@ -272,6 +320,20 @@ impl<T: Real> Vector<T> {
     #[inline(always)]
     pub fn to_array(self) -> [T; 3] {
         [self.x, self.y, self.z]
+    }
+
+    /// Lane `lane` as a `DVec3`.
+    #[inline(always)]
+    pub fn lane(self, lane: usize) -> bevy::math::DVec3 {
+        bevy::math::DVec3::new(self.x.lane(lane), self.y.lane(lane), self.z.lane(lane))
+    }
+
+    /// Sets lane `lane` to `value`.
+    #[inline(always)]
+    pub fn set_lane(&mut self, lane: usize, value: bevy::math::DVec3) {
+        self.x.set_lane(lane, value.x);
+        self.y.set_lane(lane, value.y);
+        self.z.set_lane(lane, value.z);
     }
 
     /// `if_set` in the lanes of `mask`, `otherwise` in the others.

@@ -29,6 +29,7 @@ use super::energy::{
     BANDWIDTH, EdgeFrame, EdgeGeometry, ElasticSource, Moduli, add_elastic_terms, dof_count, vertex_twist,
 };
 use super::error::StepError;
+use super::frames::carry_reference_frames;
 use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
 use super::projection::{LengthConstraints, ProjectionScratch, TridiagonalScratch, project_points};
@@ -60,6 +61,7 @@ pub struct LockstepWorkspace {
     solution: Vec<Lanes>,
     elastic: BatchElastic,
     projection: BatchProjection,
+    frames: BatchFrames,
     /// Scratch for products on one lane of the matrix.
     product_scratch: [Vec<f64>; 2],
     /// The lanes' deformations since their first guess, and the elastic terms' matrix times them
@@ -236,6 +238,65 @@ fn multiply_batch(matrix: &mut BatchMatrix, x: &[Lanes], out: &mut [Lanes]) {
     matrix.multiply(x, out);
 }
 
+/// The reference frames of a batch's strands, lane by lane, refreshed together.
+#[derive(Debug, Clone, Default)]
+struct BatchFrames {
+    positions: Vec<Vector<Lanes>>,
+    tangents: Vec<Vector<Lanes>>,
+    directors: Vec<Vector<Lanes>>,
+    reference_twist: Vec<Lanes>,
+}
+
+impl BatchFrames {
+    /// Sizes everything for strands of `nodes` nodes (allocating only when it grows).
+    fn resize(&mut self, nodes: usize) {
+        self.positions.resize(nodes, Vector::default());
+        self.tangents.resize(nodes - 1, Vector::default());
+        self.directors.resize(nodes - 1, Vector::default());
+        self.reference_twist.resize(nodes - 1, Lanes::default());
+    }
+
+    /// Takes `rod`'s positions and frames into `lane`.
+    fn gather(&mut self, lane: usize, rod: &Rod) {
+        for (entry, &position) in self.positions.iter_mut().zip(rod.positions()) {
+            entry.set_lane(lane, position);
+        }
+        let frames = &rod.frames;
+        for (entry, &tangent) in self.tangents.iter_mut().zip(&frames.tangents) {
+            entry.set_lane(lane, tangent);
+        }
+        for (entry, &director) in self.directors.iter_mut().zip(&frames.reference_directors) {
+            entry.set_lane(lane, director);
+        }
+        for (entry, &twist) in self.reference_twist.iter_mut().zip(&frames.reference_twist) {
+            entry.0[lane] = twist;
+        }
+    }
+
+    /// Puts `lane`'s refreshed frames back into `rod`.
+    fn scatter(&self, lane: usize, rod: &mut Rod) {
+        let frames = &mut rod.frames;
+        for (tangent, entry) in frames.tangents.iter_mut().zip(&self.tangents) {
+            *tangent = entry.lane(lane);
+        }
+        for (director, entry) in frames.reference_directors.iter_mut().zip(&self.directors) {
+            *director = entry.lane(lane);
+        }
+        for (twist, entry) in frames.reference_twist.iter_mut().zip(&self.reference_twist) {
+            *twist = entry.0[lane];
+        }
+    }
+}
+
+/// `Rod::refresh_frames` for every lane of a batch, compiled for the best instruction set the CPU has
+/// (see [`factorize_best`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn refresh_batch_frames(frames: &mut BatchFrames) {
+    let BatchFrames { positions, tangents, directors, reference_twist } = frames;
+    let edge_count = tangents.len();
+    carry_reference_frames(&positions[..], &mut tangents[..], &mut directors[..], reference_twist, edge_count);
+}
+
 /// The elastic terms of a batch, compiled for the best instruction set the CPU has (see
 /// [`factorize_best`]): the same bits on every one.
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
@@ -263,6 +324,7 @@ impl LockstepWorkspace {
         let nodes = first.rod.node_count();
         self.elastic.resize(nodes - 1);
         self.projection.resize(nodes);
+        self.frames.resize(nodes);
         let mut active: LaneMask = 0;
         for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
             let LockstepStrand { rod, loads, contacts } = strand;
@@ -304,13 +366,25 @@ impl LockstepWorkspace {
                 }
             }
             let iterations = project_batch(&mut self.projection, params, projecting);
+            // Each lane's frames are refreshed next, in lanes: after the projection, or, on its last
+            // iteration, after its contacts and strain bound.
+            let mut endings = [None; LANES];
             for lane in lanes_in(projecting) {
                 let strand = &mut strands[lane];
                 let (rod, workspace) = (&mut *strand.rod, &mut self.lanes[lane]);
                 self.projection.scatter(lane, rod);
-                rod.end_projection(last[lane], iterations[lane], &mut progress[lane], workspace);
+                rod.end_projection(iterations[lane], &mut progress[lane], workspace);
                 if last[lane] {
-                    let result = rod.finish_integration(params, &strand.contacts, progress[lane], workspace);
+                    endings[lane] = Some(rod.end_iterations(params, &strand.contacts, progress[lane], workspace));
+                }
+                self.frames.gather(lane, rod);
+            }
+            refresh_batch_frames(&mut self.frames);
+            for lane in lanes_in(projecting) {
+                let (rod, workspace) = (&mut *strands[lane].rod, &mut self.lanes[lane]);
+                self.frames.scatter(lane, rod);
+                if let Some(ending) = endings[lane] {
+                    let result = rod.end_integration(params, ending, workspace);
                     results[lane] = Some(rod.end_step(result, workspace));
                     active &= !(1 << lane);
                 }

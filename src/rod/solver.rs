@@ -134,6 +134,16 @@ pub(super) struct NewtonProgress {
     projection_iterations: u32,
 }
 
+/// What a step's Newton iterations ended with ([`Rod::end_iterations`]).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct IterationsEnd {
+    newton_iterations: u32,
+    projection_iterations: u32,
+    contact_count: u32,
+    /// The most strained edge and its strain.
+    strain: (usize, f64),
+}
+
 /// The elastic Hessian's factor `1 + β/dt` with internal damping.
 pub(super) fn damped_scale(params: &StepParams) -> f64 {
     1.0 + params.internal_damping / params.dt
@@ -463,7 +473,11 @@ impl Rod {
     ) -> bool {
         let last = self.begin_projection(update, params, progress, workspace);
         let iterations = project_edge_lengths(self, params, &mut workspace.projection);
-        self.end_projection(last, iterations, progress, workspace);
+        self.end_projection(iterations, progress, workspace);
+        if !last {
+            self.refresh_frames();
+            workspace.stopwatch.lap(Part::Frames);
+        }
         last
     }
 
@@ -486,21 +500,11 @@ impl Rod {
         last
     }
 
-    /// [`Rod::end_newton_iteration`] after the projection, which took `iterations`: the frames
-    /// refreshed unless this was the `last` iteration.
-    pub(super) fn end_projection(
-        &mut self,
-        last: bool,
-        iterations: u32,
-        progress: &mut NewtonProgress,
-        workspace: &mut RodWorkspace,
-    ) {
+    /// [`Rod::end_newton_iteration`] after the projection, which took `iterations` (the frames are
+    /// refreshed next, unless the iteration was the last).
+    pub(super) fn end_projection(&self, iterations: u32, progress: &mut NewtonProgress, workspace: &mut RodWorkspace) {
         progress.projection_iterations += iterations;
         workspace.stopwatch.lap(Part::Constraints);
-        if !last {
-            self.refresh_frames();
-            workspace.stopwatch.lap(Part::Frames);
-        }
     }
 
     /// What a step does after its Newton iterations: contacts resolved, the strain bound kept, frames,
@@ -512,6 +516,20 @@ impl Rod {
         progress: NewtonProgress,
         workspace: &mut RodWorkspace,
     ) -> Result<StepReport, StepError> {
+        let ending = self.end_iterations(params, contacts, progress, workspace);
+        self.refresh_frames();
+        workspace.stopwatch.lap(Part::Frames);
+        self.end_integration(params, ending, workspace)
+    }
+
+    /// [`Rod::finish_integration`] up to the frames: contacts resolved and the strain bound kept.
+    pub(super) fn end_iterations(
+        &mut self,
+        params: &StepParams,
+        contacts: &Contacts,
+        progress: NewtonProgress,
+        workspace: &mut RodWorkspace,
+    ) -> IterationsEnd {
         let NewtonProgress { newton_iterations, mut projection_iterations } = progress;
         let mut contact_count = 0;
         if !contacts.colliders.is_empty() {
@@ -532,9 +550,18 @@ impl Rod {
             strain = self.max_strain();
             workspace.stopwatch.lap(Part::Constraints);
         }
-        self.refresh_frames();
-        workspace.stopwatch.lap(Part::Frames);
+        IterationsEnd { newton_iterations, projection_iterations, contact_count, strain }
+    }
 
+    /// [`Rod::finish_integration`] after the frames: velocities, and the checks that the result is
+    /// finite and within the bound.
+    pub(super) fn end_integration(
+        &mut self,
+        params: &StepParams,
+        ending: IterationsEnd,
+        workspace: &mut RodWorkspace,
+    ) -> Result<StepReport, StepError> {
+        let IterationsEnd { newton_iterations, projection_iterations, contact_count, strain } = ending;
         self.update_velocities(params, workspace);
         let finite = |node: usize| {
             self.state.positions[node].is_finite()
