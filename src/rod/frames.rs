@@ -77,14 +77,13 @@ pub(crate) fn carry_reference_frames<T: Real>(
         tangents.set_point(edge, tangent);
     }
     let (pi, two_pi) = (T::splat(std::f64::consts::PI), T::splat(2.0 * std::f64::consts::PI));
-    for vertex in 1..edge_count {
+    for (vertex, twist) in reference_twist.iter_mut().enumerate().take(edge_count).skip(1) {
         let tangent = tangents.point(vertex);
         let carried = transport(directors.point(vertex - 1), tangents.point(vertex - 1), tangent);
         let director = directors.point(vertex);
         let angle = carried.cross(director).dot(tangent).atan2(carried.dot(director));
-        let previous = reference_twist[vertex];
-        let turn = angle - previous;
-        reference_twist[vertex] = previous + (turn - two_pi * ((turn + pi) / two_pi).floor());
+        let turn = angle - *twist;
+        *twist += turn - two_pi * ((turn + pi) / two_pi).floor();
     }
 }
 
