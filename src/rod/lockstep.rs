@@ -14,10 +14,10 @@
 //! one whose iterations end early is left out of its batch's later iterations.
 //!
 //! What runs in lanes: the elastic terms (assembled straight into the batch's matrix, from one source
-//! shared with the one-strand step), internal damping's product, the factorisation, the substitutions
-//! and the projection onto the edge lengths. Each strand's other terms (inertia, loads, contact,
-//! prescribed unknowns) are written into its own lane, and its frames, trust region and contacts are
-//! handled strand by strand. The plugin steps its strands this way; `benchmark lockstep` compares the
+//! shared with the one-strand step), internal damping's product, the factorisation, the substitutions,
+//! the projection onto the edge lengths and the reference frames. Each strand's other terms (inertia,
+//! loads, contact, prescribed unknowns) are written into its own lane, and its trust region and
+//! contacts are handled strand by strand. The plugin steps its strands this way; `benchmark lockstep` compares the
 //! two paths (`docs/performance.md`, issue 32).
 
 use bevy::math::DVec3;
