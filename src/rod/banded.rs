@@ -93,6 +93,37 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
         band_product::<HALF_BANDWIDTH, T>(|index| values[index], *size, columns, x, padded, product, out);
     }
 
+    /// [`BandedMatrix::add`] in lane `lane` of the entries (0 for `f64`).
+    #[inline]
+    pub(crate) fn add_in_lane(&mut self, lane: usize, row: usize, column: usize, value: f64) {
+        let (row, column) = if row >= column { (row, column) } else { (column, row) };
+        let index = self.index(row, column);
+        *self.values[index].lane_mut(lane) += value;
+    }
+
+    /// [`BandedMatrix::scale_diagonal`] in lane `lane` of the entries (0 for `f64`).
+    pub(crate) fn scale_diagonal_in_lane(&mut self, lane: usize, factor: f64) {
+        for row in 0..self.size {
+            let index = self.index(row, row);
+            *self.values[index].lane_mut(lane) *= factor;
+        }
+    }
+
+    /// [`BandedMatrix::set_identity_row`] in lane `lane` of the entries (0 for `f64`).
+    pub(crate) fn set_identity_row_in_lane(&mut self, lane: usize, dof: usize) {
+        let band = HALF_BANDWIDTH;
+        for column in dof.saturating_sub(band)..dof {
+            let index = self.index(dof, column);
+            *self.values[index].lane_mut(lane) = 0.0;
+        }
+        for row in dof + 1..=(dof + band).min(self.size - 1) {
+            let index = self.index(row, dof);
+            *self.values[index].lane_mut(lane) = 0.0;
+        }
+        let index = self.index(dof, dof);
+        *self.values[index].lane_mut(lane) = 1.0;
+    }
+
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
     /// band then holds `L` below the diagonal and `D` on it, and the reciprocals of `D` are kept so that
     /// [`BandedMatrix::solve_factorized`] does not divide. Returns the lanes (bit `k` for lane `k`)
@@ -209,33 +240,18 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
     /// Adds `value` to the symmetric entry `(row, column)`; either order of indices is accepted.
     #[inline]
     pub fn add(&mut self, row: usize, column: usize, value: f64) {
-        let (row, column) = if row >= column { (row, column) } else { (column, row) };
-        let index = self.index(row, column);
-        self.values[index] += value;
+        self.add_in_lane(0, row, column, value);
     }
 
     /// Multiplies every diagonal entry by `factor` (a Levenberg–Marquardt shift `λ diag(A)` with
     /// `factor = 1 + λ`).
     pub fn scale_diagonal(&mut self, factor: f64) {
-        for row in 0..self.size {
-            let index = self.index(row, row);
-            self.values[index] *= factor;
-        }
+        self.scale_diagonal_in_lane(0, factor);
     }
 
     /// Replaces row and column `dof` by those of the identity, decoupling that unknown.
     pub fn set_identity_row(&mut self, dof: usize) {
-        let band = HALF_BANDWIDTH;
-        for column in dof.saturating_sub(band)..dof {
-            let index = self.index(dof, column);
-            self.values[index] = 0.0;
-        }
-        for row in dof + 1..=(dof + band).min(self.size - 1) {
-            let index = self.index(row, dof);
-            self.values[index] = 0.0;
-        }
-        let index = self.index(dof, dof);
-        self.values[index] = 1.0;
+        self.set_identity_row_in_lane(0, dof);
     }
 
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal; the
@@ -342,30 +358,15 @@ pub(crate) struct MatrixLane<'a, const HALF_BANDWIDTH: usize> {
 impl<const HALF_BANDWIDTH: usize> StrandMatrix for MatrixLane<'_, HALF_BANDWIDTH> {
     #[inline]
     fn add(&mut self, row: usize, column: usize, value: f64) {
-        let (row, column) = if row >= column { (row, column) } else { (column, row) };
-        let index = self.matrix.index(row, column);
-        self.matrix.values[index].0[self.lane] += value;
+        self.matrix.add_in_lane(self.lane, row, column, value);
     }
 
     fn scale_diagonal(&mut self, factor: f64) {
-        for row in 0..self.matrix.size {
-            let index = self.matrix.index(row, row);
-            self.matrix.values[index].0[self.lane] *= factor;
-        }
+        self.matrix.scale_diagonal_in_lane(self.lane, factor);
     }
 
     fn set_identity_row(&mut self, dof: usize) {
-        let (band, lane, size) = (HALF_BANDWIDTH, self.lane, self.matrix.size);
-        for column in dof.saturating_sub(band)..dof {
-            let index = self.matrix.index(dof, column);
-            self.matrix.values[index].0[lane] = 0.0;
-        }
-        for row in dof + 1..=(dof + band).min(size - 1) {
-            let index = self.matrix.index(row, dof);
-            self.matrix.values[index].0[lane] = 0.0;
-        }
-        let index = self.matrix.index(dof, dof);
-        self.matrix.values[index].0[lane] = 1.0;
+        self.matrix.set_identity_row_in_lane(self.lane, dof);
     }
 
     fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[f64], out: &mut [f64]) {

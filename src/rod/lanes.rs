@@ -61,8 +61,8 @@ pub(crate) trait Real:
     fn floor(self) -> Self;
     /// The value of lane `lane`.
     fn lane(self, lane: usize) -> f64;
-    /// Sets lane `lane` to `value`.
-    fn set_lane(&mut self, lane: usize, value: f64);
+    /// Lane `lane`, to write.
+    fn lane_mut(&mut self, lane: usize) -> &mut f64;
 }
 
 impl Real for f64 {
@@ -134,8 +134,8 @@ impl Real for f64 {
     }
 
     #[inline(always)]
-    fn set_lane(&mut self, _lane: usize, value: f64) {
-        *self = value;
+    fn lane_mut(&mut self, _lane: usize) -> &mut f64 {
+        self
     }
 }
 
@@ -228,8 +228,8 @@ impl Real for Lanes {
     }
 
     #[inline(always)]
-    fn set_lane(&mut self, lane: usize, value: f64) {
-        self.0[lane] = value;
+    fn lane_mut(&mut self, lane: usize) -> &mut f64 {
+        &mut self.0[lane]
     }
 }
 
@@ -331,9 +331,7 @@ impl<T: Real> Vector<T> {
     /// Sets lane `lane` to `value`.
     #[inline(always)]
     pub fn set_lane(&mut self, lane: usize, value: bevy::math::DVec3) {
-        self.x.set_lane(lane, value.x);
-        self.y.set_lane(lane, value.y);
-        self.z.set_lane(lane, value.z);
+        (*self.x.lane_mut(lane), *self.y.lane_mut(lane), *self.z.lane_mut(lane)) = (value.x, value.y, value.z);
     }
 
     /// `if_set` in the lanes of `mask`, `otherwise` in the others.

@@ -20,8 +20,6 @@
 //! contacts are handled strand by strand. The plugin steps its strands this way; `benchmark lockstep` compares the
 //! two paths (`docs/performance.md`, issue 32).
 
-use bevy::math::DVec3;
-
 use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
 use super::contact::Contacts;
 use super::curve::Rod;
@@ -84,12 +82,6 @@ struct BatchElastic {
     twists: Vec<Lanes>,
 }
 
-/// Writes `value` into `lane` of a vector of lanes.
-#[inline(always)]
-fn set_vector_lane(vector: &mut Vector<Lanes>, lane: usize, value: DVec3) {
-    (vector.x.0[lane], vector.y.0[lane], vector.z.0[lane]) = (value.x, value.y, value.z);
-}
-
 impl BatchElastic {
     /// Sizes everything for strands of `edge_count` edges (allocating only when it grows).
     fn resize(&mut self, edge_count: usize) {
@@ -125,11 +117,11 @@ impl BatchElastic {
     /// Takes `rod`'s current edges (`edges`, from its workspace) and twists into `lane`.
     fn gather_state(&mut self, lane: usize, rod: &Rod, edges: &[EdgeGeometry]) {
         for (entry, edge) in self.edges.iter_mut().zip(edges) {
-            set_vector_lane(&mut entry.tangent, lane, edge.tangent);
+            entry.tangent.set_lane(lane, edge.tangent);
             entry.length.0[lane] = edge.length;
             entry.inverse_length.0[lane] = edge.inverse_length;
-            set_vector_lane(&mut entry.m1, lane, edge.m1);
-            set_vector_lane(&mut entry.m2, lane, edge.m2);
+            entry.m1.set_lane(lane, edge.m1);
+            entry.m2.set_lane(lane, edge.m2);
         }
         for vertex in 1..rod.edge_count() {
             self.twists[vertex].0[lane] = vertex_twist(rod, vertex);
@@ -201,7 +193,7 @@ impl BatchProjection {
     /// Takes `rod`'s positions and what its projection holds it to into `lane`.
     fn gather(&mut self, lane: usize, rod: &Rod, projection: &ProjectionScratch) {
         for (point, &position) in self.points.iter_mut().zip(rod.positions()) {
-            set_vector_lane(point, lane, position);
+            point.set_lane(lane, position);
         }
         for (entry, &length) in self.target_lengths.iter_mut().zip(&projection.target_lengths) {
             entry.0[lane] = length;
@@ -210,14 +202,14 @@ impl BatchProjection {
             entry.0[lane] = mass;
         }
         for (entry, &normal) in self.contact_normals.iter_mut().zip(&projection.contact_normals) {
-            set_vector_lane(entry, lane, normal);
+            entry.set_lane(lane, normal);
         }
     }
 
     /// Puts `lane`'s projected positions back into `rod`.
     fn scatter(&self, lane: usize, rod: &mut Rod) {
         for (position, point) in rod.state.positions.iter_mut().zip(&self.points) {
-            *position = DVec3::new(point.x.0[lane], point.y.0[lane], point.z.0[lane]);
+            *position = point.lane(lane);
         }
     }
 }
@@ -448,7 +440,9 @@ impl LockstepWorkspace {
                     scratch: &mut self.product_scratch,
                     elastic_product: &self.elastic_product,
                 };
-                strand.rod.add_inelastic_terms(params, &strand.loads, workspace, &mut matrix, regularisation[lane]);
+                let damped = damped & (1 << lane) != 0;
+                let (loads, shift) = (&strand.loads, regularisation[lane]);
+                strand.rod.add_inelastic_terms(params, loads, workspace, &mut matrix, damped, shift);
             }
             let mut rows = [0; LANES];
             let failed = factorize_best(&mut self.matrix, &mut rows) & active;

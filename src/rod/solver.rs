@@ -726,9 +726,10 @@ impl Rod {
         let RodWorkspace { hessian, residual, edges, .. } = workspace;
         hessian.reset(residual.len());
         add_elastic_derivatives(self, edges, residual, Some((hessian, damped_scale(params))));
+        let damped = self.damped_displacement(params, workspace);
         // Taken out for the other terms, which see the workspace whole (an exchange of pointers).
         let mut hessian = std::mem::take(&mut workspace.hessian);
-        self.add_inelastic_terms(params, loads, workspace, &mut hessian, regularisation);
+        self.add_inelastic_terms(params, loads, workspace, &mut hessian, damped, regularisation);
         workspace.hessian = hessian;
     }
 
@@ -740,17 +741,21 @@ impl Rod {
     }
 
     /// The Newton system's terms after the elastic ones (in `matrix`, the residual in the workspace):
-    /// internal damping, inertia with gravity and external forces, contact, the diagonal scaled by
-    /// `1 + regularisation`, prescribed unknowns.
+    /// internal damping when `damped` (on the displacement [`Rod::damped_displacement`] wrote), inertia
+    /// with gravity and external forces, contact, the diagonal scaled by `1 + regularisation`,
+    /// prescribed unknowns.
     pub(super) fn add_inelastic_terms(
         &self,
         params: &StepParams,
         loads: &StepLoads,
         workspace: &mut RodWorkspace,
         matrix: &mut impl StrandMatrix,
+        damped: bool,
         regularisation: f64,
     ) {
-        self.add_internal_damping(params, workspace, matrix);
+        if damped {
+            self.add_internal_damping(params, workspace, matrix);
+        }
         self.add_inertia_and_external_forces(params, loads, workspace, matrix);
         workspace.stopwatch.lap(Part::Forces);
         let RodWorkspace { residual, saved, contacts, stopwatch, scheme, .. } = workspace;
@@ -774,9 +779,6 @@ impl Rod {
     /// damps the true change of length, since `H Δq` would count a turn by `φ` as a stretch by `φ²/2`
     /// times the huge axial stiffness.
     fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
-        if !self.damped_displacement(params, workspace) {
-            return;
-        }
         let beta = params.internal_damping;
         let RodWorkspace { residual, displacement, damping_force, edges, carried_positions, .. } = workspace;
         hessian.multiply_elastic(displacement, damping_force);

@@ -438,7 +438,7 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
     let mut steps = [0; LANES];
     let mut starts = [None; LANES];
     let mut outcomes: [Option<StepOutcome>; LANES] = Default::default();
-    for (index, (entity, strand, forces, nodes, frames, pose, strand_of)) in items.iter_mut().enumerate() {
+    for (index, (entity, strand, forces, nodes, frames, pose, _)) in items.iter_mut().enumerate() {
         let stepped = context.params.is_some() && strand.detail.due && !strand.preload_pending();
         if !stepped {
             // A coarser level of detail, invalid settings, or a preload waiting for a collider: not
@@ -450,8 +450,7 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
                 let message = StrandFault { strand: *entity, error };
                 tally.faults.push(Fault { message, first_of_episode, quarantine });
             }
-            let thickness = contacts_of(strand, *strand_of).thickness;
-            write_strand(strand, None, (nodes, frames, pose.as_deref_mut()), thickness, tally);
+            write_strand(strand, None, (nodes, frames, pose.as_deref_mut()), context.collision_margin, tally);
             tally.unstepped += 1;
             tally.quarantined += usize::from(strand.is_quarantined());
             continue;
@@ -494,7 +493,7 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
             results[index] = result;
         }
     }
-    for (index, (entity, strand, forces, nodes, frames, pose, strand_of)) in items.iter_mut().enumerate() {
+    for (index, (entity, strand, forces, nodes, frames, pose, _)) in items.iter_mut().enumerate() {
         let outcome = match (starts[index], results[index].take()) {
             (Some(start), Some(result)) => strand.finish_advance(context.now, start, result),
             _ => match outcomes[index].take() {
@@ -503,8 +502,8 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
             },
         };
         forces.clear();
-        let thickness = contacts_of(strand, *strand_of).thickness;
-        write_strand(strand, Some(steps[index]), (nodes, frames, pose.as_deref_mut()), thickness, tally);
+        let parts = (&mut **nodes, &mut **frames, pose.as_deref_mut());
+        write_strand(strand, Some(steps[index]), parts, context.collision_margin, tally);
         tally.strands += 1;
         tally.nodes += strand.rod().node_count();
         tally.quarantined += usize::from(strand.is_quarantined());
@@ -525,16 +524,17 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
 }
 
 /// Writes a strand's components and packed pose (while the strand is in this core's cache), after
-/// `stepped` fixed steps or none, with its contact thickness (m).
+/// `stepped` fixed steps or none, with its contact thickness for `collision_margin` (m).
 fn write_strand(
     strand: &mut SimulatedStrand,
     stepped: Option<u32>,
     (nodes, frames, pose): (&mut StrandNodes, &mut StrandFrames, Option<&mut PackedStrandPose>),
-    thickness: f64,
+    collision_margin: f64,
     tally: &mut StepTally,
 ) {
     let snapped = strand.write_components(stepped, nodes, frames);
     if let Some(pose) = pose {
+        let thickness = strand.contact_thickness(collision_margin);
         pack_pose(pose, nodes, frames, (thickness, snapped), tally);
     }
 }
