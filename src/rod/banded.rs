@@ -81,6 +81,7 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
     }
 
     /// `out = A x` for the symmetric matrix.
+    #[inline(always)]
     pub fn multiply(&mut self, x: &[T], out: &mut [T]) {
         self.multiply_columns(0..self.size, x, out);
     }
@@ -91,6 +92,15 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
     pub fn multiply_columns(&mut self, columns: std::ops::Range<usize>, x: &[T], out: &mut [T]) {
         let Self { values, padded, product, size, .. } = self;
         band_product::<HALF_BANDWIDTH, T>(|index| values[index], *size, columns, x, padded, product, out);
+    }
+
+    /// Adds `value` to the symmetric entry `(row, column)` of every lane; either order of indices is
+    /// accepted.
+    #[inline(always)]
+    pub(crate) fn add_entry(&mut self, row: usize, column: usize, value: T) {
+        let (row, column) = if row >= column { (row, column) } else { (column, row) };
+        let index = self.index(row, column);
+        self.values[index] += value;
     }
 
     /// [`BandedMatrix::add`] in lane `lane` of the entries (0 for `f64`).

@@ -604,16 +604,27 @@ impl Rod {
         if let Some(node) = self.state.twist.iter().position(|t| !t.is_finite()) {
             return Some((node, "twist not finite"));
         }
-        let coincident = |edge: usize| {
-            let length = (self.state.positions[edge + 1] - self.state.positions[edge]).length();
-            length <= MIN_RELATIVE_EDGE_LENGTH * self.rest.lengths[edge]
-        };
-        if let Some(edge) = (0..self.edge_count()).find(|&edge| coincident(edge)) {
-            return Some((edge, "on top of the next node"));
+        // One pass over the edges with no division: an edge's squared length against its minimum, and
+        // consecutive edges `a`, `b` folded when `a·b < cos(π − gap) |a| |b|`.
+        let positions = &self.state.positions;
+        let fold_cosine = (std::f64::consts::PI - FOLDED_STATE_GAP).cos();
+        let (mut previous, mut fold) = (None, None);
+        for edge in 0..self.edge_count() {
+            let e = positions[edge + 1] - positions[edge];
+            let squared = e.length_squared();
+            let minimum = MIN_RELATIVE_EDGE_LENGTH * self.rest.lengths[edge];
+            if squared <= minimum * minimum {
+                return Some((edge, "on top of the next node"));
+            }
+            if fold.is_none()
+                && previous
+                    .is_some_and(|(a, a_squared): (DVec3, f64)| a.dot(e) < fold_cosine * (a_squared * squared).sqrt())
+            {
+                fold = Some(edge);
+            }
+            previous = Some((e, squared));
         }
-        let tangents = self.state.positions.windows(2).map(|pair| (pair[1] - pair[0]).normalize());
-        first_fold(tangents, std::f64::consts::PI - FOLDED_STATE_GAP)
-            .map(|edge| (edge + 1, "edges folded onto each other"))
+        fold.map(|node| (node, "edges folded onto each other"))
     }
 
     /// Time-parallel transport: carries each edge's reference director from the tangent it was adapted

@@ -8,7 +8,7 @@ use bevy::math::DVec3;
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
-use super::lanes::{Real, Vector};
+use super::lanes::{Real, Vector, matrix3};
 
 /// Half-bandwidth of a rod's Hessian in the interleaved ordering.
 pub(crate) const BANDWIDTH: usize = 10;
@@ -345,9 +345,7 @@ pub(crate) fn add_elastic_terms<T: Real>(
         if let Some((hessian, scale)) = hessian.as_mut() {
             let axial = *scale * moduli.stretching / rest;
             let transverse = axial * (one - rest / geometry.length).max(zero);
-            let block = std::array::from_fn(|a| {
-                std::array::from_fn(|b| (axial - transverse) * t[a] * t[b] + if a == b { transverse } else { zero })
-            });
+            let block = matrix3(|a, b| (axial - transverse) * t[a] * t[b] + if a == b { transverse } else { zero });
             add_edge_hessian(hessian, start, &block);
         }
     }

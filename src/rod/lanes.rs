@@ -271,6 +271,17 @@ impl Neg for Lanes {
     }
 }
 
+/// The 3 × 3 matrix with entries `entry(row, column)`, written out so that the compiler inlines
+/// `entry` (`std::array::from_fn` leaves its closure out of line, one call per entry).
+#[inline(always)]
+pub(crate) fn matrix3<T>(entry: impl Fn(usize, usize) -> T) -> [[T; 3]; 3] {
+    [
+        [entry(0, 0), entry(0, 1), entry(0, 2)],
+        [entry(1, 0), entry(1, 1), entry(1, 2)],
+        [entry(2, 0), entry(2, 1), entry(2, 2)],
+    ]
+}
+
 /// A 3-vector of [`Real`]s: a `DVec3` of one strand (`Vector<f64>`), or the same vector of every strand
 /// of a batch (`Vector<Lanes>`). Its operations are glam's `DVec3` operations term by term, in the same
 /// order, so a strand's result is bit for bit what glam would give.

@@ -28,6 +28,7 @@ use super::energy::{
 };
 use super::error::StepError;
 use super::frames::carry_reference_frames;
+use super::inertia::{InertiaSource, NodeAnchor, add_inertia_terms};
 use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
 use super::projection::{LengthConstraints, ProjectionScratch, TridiagonalScratch, project_points};
@@ -58,6 +59,7 @@ pub struct LockstepWorkspace {
     /// The elastic gradient, then the right-hand side and the solution.
     solution: Vec<Lanes>,
     elastic: BatchElastic,
+    inertia: BatchInertia,
     projection: BatchProjection,
     frames: BatchFrames,
     /// Scratch for products on one lane of the matrix.
@@ -66,6 +68,8 @@ pub struct LockstepWorkspace {
     /// (internal damping).
     displacement: Vec<Lanes>,
     elastic_product: Vec<Lanes>,
+    /// The damped lanes' internal damping forces.
+    damping_force: Vec<Lanes>,
 }
 
 /// What the elastic terms read of a batch's strands, lane by lane ([`ElasticSource`]): the rest shape
@@ -168,6 +172,201 @@ impl ElasticSource<Lanes> for BatchElastic {
     #[inline(always)]
     fn rest_twist(&self, vertex: usize) -> Lanes {
         self.rest_twists[vertex]
+    }
+}
+
+/// What the inertia terms read of a batch's strands, lane by lane ([`InertiaSource`]): the scheme, the
+/// step's start and the loads, gathered once a step (a load is zero in the lanes of strands without
+/// it), and the iterate, gathered at each assembly.
+#[derive(Debug, Clone, Default)]
+struct BatchInertia {
+    scheme_step: Lanes,
+    masses: Vec<Lanes>,
+    positions: Vec<Vector<Lanes>>,
+    predicted_positions: Vec<Vector<Lanes>>,
+    predicted_velocities: Vec<Vector<Lanes>>,
+    start_tangents: Vec<Vector<Lanes>>,
+    forces: Option<Vec<Vector<Lanes>>>,
+    air_velocities: Option<Vec<Vector<Lanes>>>,
+    anchors: Option<Vec<NodeAnchor<Lanes>>>,
+    twist_inertias: Vec<Lanes>,
+    twist_changes: Vec<Lanes>,
+    start_twist_rates: Vec<Lanes>,
+    /// Storage for the loads while no strand of the batch has them (kept so that none allocates).
+    spare: (Vec<Vector<Lanes>>, Vec<Vector<Lanes>>, Vec<NodeAnchor<Lanes>>),
+}
+
+impl BatchInertia {
+    /// Sizes everything for strands of `nodes` nodes, with no load yet (allocating only when it grows).
+    fn begin(&mut self, nodes: usize) {
+        self.masses.resize(nodes, Lanes::default());
+        self.positions.resize(nodes, Vector::default());
+        self.predicted_positions.resize(nodes, Vector::default());
+        self.predicted_velocities.resize(nodes, Vector::default());
+        self.start_tangents.resize(nodes - 1, Vector::default());
+        self.twist_inertias.resize(nodes - 1, Lanes::default());
+        self.twist_changes.resize(nodes - 1, Lanes::default());
+        self.start_twist_rates.resize(nodes - 1, Lanes::default());
+        let (forces, air, anchors) = &mut self.spare;
+        if let Some(taken) = self.forces.take() {
+            *forces = taken;
+        }
+        if let Some(taken) = self.air_velocities.take() {
+            *air = taken;
+        }
+        if let Some(taken) = self.anchors.take() {
+            *anchors = taken;
+        }
+    }
+
+    /// Takes what the step of `strand` starts from into `lane`.
+    fn gather_step(&mut self, lane: usize, strand: &impl InertiaSource<f64>) {
+        *self.scheme_step.lane_mut(lane) = strand.scheme_step();
+        for (node, mass) in self.masses.iter_mut().enumerate() {
+            *mass.lane_mut(lane) = strand.mass(node);
+            self.predicted_positions[node].set_lane(lane, strand.predicted_position(node).lane(0));
+            self.predicted_velocities[node].set_lane(lane, strand.predicted_velocity(node).lane(0));
+        }
+        for (edge, tangent) in self.start_tangents.iter_mut().enumerate() {
+            tangent.set_lane(lane, strand.start_tangent(edge).lane(0));
+            *self.twist_inertias[edge].lane_mut(lane) = strand.twist_inertia(edge);
+            *self.start_twist_rates[edge].lane_mut(lane) = strand.start_twist_rate(edge);
+        }
+        let nodes = self.masses.len();
+        let (forces, air, anchors) = &mut self.spare;
+        gather_load(
+            &mut self.forces,
+            forces,
+            nodes,
+            |node| strand.force(node),
+            |entry, value| {
+                entry.set_lane(lane, value.lane(0));
+            },
+        );
+        gather_load(
+            &mut self.air_velocities,
+            air,
+            nodes,
+            |node| strand.air_velocity(node),
+            |entry, value| {
+                entry.set_lane(lane, value.lane(0));
+            },
+        );
+        gather_load(
+            &mut self.anchors,
+            anchors,
+            nodes,
+            |node| strand.anchor(node),
+            |entry, value| {
+                entry.target.set_lane(lane, value.target.lane(0));
+                entry.target_velocity.set_lane(lane, value.target_velocity.lane(0));
+                *entry.stiffness.lane_mut(lane) = value.stiffness;
+                *entry.damping.lane_mut(lane) = value.damping;
+            },
+        );
+    }
+
+    /// Takes `strand`'s current iterate into `lane`.
+    fn gather_iterate(&mut self, lane: usize, strand: &impl InertiaSource<f64>) {
+        for (node, position) in self.positions.iter_mut().enumerate() {
+            position.set_lane(lane, strand.position(node).lane(0));
+        }
+        for (edge, change) in self.twist_changes.iter_mut().enumerate() {
+            *change.lane_mut(lane) = strand.twist_change(edge);
+        }
+    }
+}
+
+/// Puts a strand's load (`value` of each node, if it has the load) into its lane of the batch's (`set`): the
+/// first strand with the load brings the batch's storage out of `spare`, zero in every lane; a strand
+/// without it leaves its lane at zero.
+fn gather_load<V: Copy + Default, W>(
+    batch: &mut Option<Vec<V>>,
+    spare: &mut Vec<V>,
+    nodes: usize,
+    value: impl Fn(usize) -> Option<W>,
+    mut set: impl FnMut(&mut V, W),
+) {
+    if value(0).is_none() {
+        return;
+    }
+    let entries = batch.get_or_insert_with(|| {
+        let mut entries = std::mem::take(spare);
+        entries.clear();
+        entries.resize(nodes, V::default());
+        entries
+    });
+    for (node, entry) in entries.iter_mut().enumerate() {
+        if let Some(value) = value(node) {
+            set(entry, value);
+        }
+    }
+}
+
+impl InertiaSource<Lanes> for BatchInertia {
+    #[inline(always)]
+    fn node_count(&self) -> usize {
+        self.masses.len()
+    }
+
+    #[inline(always)]
+    fn scheme_step(&self) -> Lanes {
+        self.scheme_step
+    }
+
+    #[inline(always)]
+    fn mass(&self, node: usize) -> Lanes {
+        self.masses[node]
+    }
+
+    #[inline(always)]
+    fn position(&self, node: usize) -> Vector<Lanes> {
+        self.positions[node]
+    }
+
+    #[inline(always)]
+    fn predicted_position(&self, node: usize) -> Vector<Lanes> {
+        self.predicted_positions[node]
+    }
+
+    #[inline(always)]
+    fn predicted_velocity(&self, node: usize) -> Vector<Lanes> {
+        self.predicted_velocities[node]
+    }
+
+    #[inline(always)]
+    fn start_tangent(&self, edge: usize) -> Vector<Lanes> {
+        self.start_tangents[edge]
+    }
+
+    #[inline(always)]
+    fn force(&self, node: usize) -> Option<Vector<Lanes>> {
+        self.forces.as_ref().map(|forces| forces[node])
+    }
+
+    #[inline(always)]
+    fn air_velocity(&self, node: usize) -> Option<Vector<Lanes>> {
+        self.air_velocities.as_ref().map(|air| air[node])
+    }
+
+    #[inline(always)]
+    fn anchor(&self, node: usize) -> Option<NodeAnchor<Lanes>> {
+        self.anchors.as_ref().map(|anchors| anchors[node])
+    }
+
+    #[inline(always)]
+    fn twist_inertia(&self, edge: usize) -> Lanes {
+        self.twist_inertias[edge]
+    }
+
+    #[inline(always)]
+    fn twist_change(&self, edge: usize) -> Lanes {
+        self.twist_changes[edge]
+    }
+
+    #[inline(always)]
+    fn start_twist_rate(&self, edge: usize) -> Lanes {
+        self.start_twist_rates[edge]
     }
 }
 
@@ -289,6 +488,18 @@ fn refresh_batch_frames(frames: &mut BatchFrames) {
     carry_reference_frames(&positions[..], &mut tangents[..], &mut directors[..], reference_twist, edge_count);
 }
 
+/// The inertia terms of a batch, compiled for the best instruction set the CPU has (see
+/// [`factorize_best`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn add_batch_inertia_terms(
+    source: &BatchInertia,
+    params: &StepParams,
+    residual: &mut [Lanes],
+    matrix: &mut BatchMatrix,
+) {
+    add_inertia_terms(source, params, residual, matrix);
+}
+
 /// The elastic terms of a batch, compiled for the best instruction set the CPU has (see
 /// [`factorize_best`]): the same bits on every one.
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
@@ -317,6 +528,7 @@ impl LockstepWorkspace {
         self.elastic.resize(nodes - 1);
         self.projection.resize(nodes);
         self.frames.resize(nodes);
+        self.inertia.begin(nodes);
         let mut active: LaneMask = 0;
         for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
             let LockstepStrand { rod, loads, contacts } = strand;
@@ -331,6 +543,7 @@ impl LockstepWorkspace {
             rod.begin_step(workspace);
             rod.begin_integration(params, contacts, workspace);
             self.elastic.gather_rest(lane, rod);
+            self.inertia.gather_step(lane, &rod.inertia_source(workspace, loads));
             active |= 1 << lane;
         }
         let size = dof_count(nodes);
@@ -403,6 +616,7 @@ impl LockstepWorkspace {
             let (rod, workspace) = (&*strands[lane].rod, &mut self.lanes[lane]);
             rod.begin_assembly(workspace);
             self.elastic.gather_state(lane, rod, workspace.edges());
+            self.inertia.gather_iterate(lane, &rod.inertia_source(workspace, &strands[lane].loads));
         }
         loop {
             // Every going lane again: the factorisation wrote over the last attempt.
@@ -428,8 +642,11 @@ impl LockstepWorkspace {
             if damped != 0 {
                 multiply_batch(&mut self.matrix, &self.displacement, &mut self.elastic_product);
             }
+            if damped != 0 {
+                self.add_damping_forces(params, strands, damped);
+            }
+            add_batch_inertia_terms(&self.inertia, params, &mut self.solution, &mut self.matrix);
             for lane in lanes_in(active) {
-                let strand = &mut strands[lane];
                 let workspace = &mut self.lanes[lane];
                 for (residual, gradient) in workspace.residual_mut().iter_mut().zip(&self.solution) {
                     *residual = gradient.0[lane];
@@ -440,9 +657,12 @@ impl LockstepWorkspace {
                     scratch: &mut self.product_scratch,
                     elastic_product: &self.elastic_product,
                 };
-                let damped = damped & (1 << lane) != 0;
-                let (loads, shift) = (&strand.loads, regularisation[lane]);
-                strand.rod.add_inelastic_terms(params, loads, workspace, &mut matrix, damped, shift);
+                strands[lane].rod.add_contact_and_prescribed_terms(
+                    params,
+                    workspace,
+                    &mut matrix,
+                    regularisation[lane],
+                );
             }
             let mut rows = [0; LANES];
             let failed = factorize_best(&mut self.matrix, &mut rows) & active;
@@ -461,6 +681,31 @@ impl LockstepWorkspace {
             if active == 0 {
                 return 0;
             }
+        }
+    }
+
+    /// Internal damping of the `damped` lanes (on the displacements and the elastic product in the
+    /// workspace), added to the batch's residual in lanes.
+    fn add_damping_forces(&mut self, params: &StepParams, strands: &[LockstepStrand], damped: LaneMask) {
+        self.damping_force.clear();
+        self.damping_force.resize(self.solution.len(), Lanes::default());
+        let mut factor = 0.0;
+        for lane in lanes_in(damped) {
+            let workspace = &mut self.lanes[lane];
+            let mut matrix = MatrixLane {
+                matrix: &mut self.matrix,
+                lane,
+                scratch: &mut self.product_scratch,
+                elastic_product: &self.elastic_product,
+            };
+            factor = strands[lane].rod.internal_damping_force(params, workspace, &mut matrix);
+            for (entry, &force) in self.damping_force.iter_mut().zip(workspace.damping_force()) {
+                entry.0[lane] = force;
+            }
+        }
+        let factor = Lanes::splat(factor);
+        for (residual, &force) in self.solution.iter_mut().zip(&self.damping_force) {
+            *residual = Lanes::select(damped, *residual + factor * force, *residual);
         }
     }
 
@@ -489,7 +734,7 @@ mod tests {
 
     use super::*;
     use crate::rod::test_support::Lcg;
-    use crate::rod::{ColliderShape, MovingCollider, RigidPose, RodMaterial};
+    use crate::rod::{Anchor, ColliderShape, MovingCollider, RigidPose, RodMaterial};
 
     /// A 20 cm hair of `edges` edges leaving its root at `angle` from the horizontal, root clamped.
     fn hair(edges: usize, angle: f64) -> Rod {
@@ -515,7 +760,8 @@ mod tests {
     #[test]
     fn a_batch_steps_each_strand_exactly_as_alone() {
         // Five hairs in a batch of four and one: different shapes, one with another node count (stepped
-        // alone), a ball under two of them, wind on one, a force that is not finite on one at one step.
+        // alone), a ball under two of them, wind on one, anchors on one, forces on one (not finite at
+        // one step).
         let angles = [0.0, 0.4, -0.7, 1.2, -0.2];
         let edge_counts = [24, 24, 24, 16, 24];
         let make = || -> Vec<Rod> { angles.iter().zip(edge_counts).map(|(&a, e)| hair(e, a)).collect() };
@@ -534,9 +780,19 @@ mod tests {
         let mut random = Lcg(3);
         let wind: Vec<DVec3> = (0..=24).map(|_| 3.0 * random.vector()).collect();
         let bad_forces = vec![DVec3::new(f64::NAN, 0.0, 0.0); 25];
+        let forces: Vec<DVec3> = (0..=24).map(|_| 1e-6 * random.vector()).collect();
+        let anchors: Vec<Anchor> = (0..=24)
+            .map(|node| Anchor {
+                target: DVec3::new(0.008 * node as f64, -0.002 * node as f64, 0.0),
+                target_velocity: 0.1 * random.vector(),
+                stiffness: 50.0,
+                damping: 5.0,
+            })
+            .collect();
         let loads = |strand: usize, step: usize| StepLoads {
             air_velocities: (strand == 1).then_some(&wind[..]),
-            forces: (strand == 2 && step == 7).then_some(&bad_forces[..]),
+            forces: (strand == 2).then_some(if step == 7 { &bad_forces[..] } else { &forces[..] }),
+            anchors: (strand == 0).then_some(&anchors[..]),
             ..StepLoads::default()
         };
         let params = StepParams::default();

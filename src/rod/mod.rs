@@ -31,6 +31,7 @@ mod distance_field;
 mod energy;
 mod error;
 pub mod frames;
+mod inertia;
 mod lanes;
 mod lockstep;
 mod material;

@@ -34,12 +34,14 @@ use bevy::math::{DMat3, DVec3};
 use bevy::reflect::Reflect;
 
 use super::banded::{StrandMatrix, factorize_best, solve_best};
-use super::contact::{ContactScratch, Contacts, outer_product};
+use super::contact::{ContactScratch, Contacts};
 use super::copy_into;
 use super::curve::Rod;
 use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count, edge_geometry, node_dof, twist_dof};
 use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
+use super::inertia::{InertiaSource, NodeAnchor, add_inertia_terms};
+use super::lanes::Vector;
 use super::params::Integrator;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
@@ -197,6 +199,83 @@ impl Anchor {
     }
 }
 
+/// One strand's [`InertiaSource`]: its rod at the current iterate, its step's scheme and start, its loads.
+pub(super) struct StrandInertia<'a> {
+    rod: &'a Rod,
+    workspace: &'a RodWorkspace,
+    loads: &'a StepLoads<'a>,
+}
+
+impl InertiaSource<f64> for StrandInertia<'_> {
+    #[inline(always)]
+    fn node_count(&self) -> usize {
+        self.rod.node_count()
+    }
+
+    #[inline(always)]
+    fn scheme_step(&self) -> f64 {
+        self.workspace.scheme.h
+    }
+
+    #[inline(always)]
+    fn mass(&self, node: usize) -> f64 {
+        self.rod.inertia.masses[node]
+    }
+
+    #[inline(always)]
+    fn position(&self, node: usize) -> Vector<f64> {
+        self.rod.state.positions[node].into()
+    }
+
+    #[inline(always)]
+    fn predicted_position(&self, node: usize) -> Vector<f64> {
+        self.workspace.scheme.positions[node].into()
+    }
+
+    #[inline(always)]
+    fn predicted_velocity(&self, node: usize) -> Vector<f64> {
+        self.workspace.scheme.velocities[node].into()
+    }
+
+    #[inline(always)]
+    fn start_tangent(&self, edge: usize) -> Vector<f64> {
+        self.workspace.saved.frames.tangents[edge].into()
+    }
+
+    #[inline(always)]
+    fn force(&self, node: usize) -> Option<Vector<f64>> {
+        self.loads.forces.map(|forces| forces[node].into())
+    }
+
+    #[inline(always)]
+    fn air_velocity(&self, node: usize) -> Option<Vector<f64>> {
+        self.loads.air_velocities.map(|air| air[node].into())
+    }
+
+    #[inline(always)]
+    fn anchor(&self, node: usize) -> Option<NodeAnchor<f64>> {
+        self.loads.anchors.map(|anchors| {
+            let Anchor { target, target_velocity, stiffness, damping } = anchors[node];
+            NodeAnchor { target: target.into(), target_velocity: target_velocity.into(), stiffness, damping }
+        })
+    }
+
+    #[inline(always)]
+    fn twist_inertia(&self, edge: usize) -> f64 {
+        self.rod.inertia.twist_inertias[edge]
+    }
+
+    #[inline(always)]
+    fn twist_change(&self, edge: usize) -> f64 {
+        self.rod.state.twist[edge] - self.workspace.saved.state.twist[edge]
+    }
+
+    #[inline(always)]
+    fn start_twist_rate(&self, edge: usize) -> f64 {
+        self.workspace.saved.state.twist_rates[edge]
+    }
+}
+
 /// What a successful step measured.
 #[derive(Debug, Clone, Copy, PartialEq, Reflect)]
 pub struct StepReport {
@@ -247,6 +326,11 @@ impl RodWorkspace {
     /// The displacement [`Rod::damped_displacement`] wrote.
     pub(super) fn displacement(&self) -> &[f64] {
         &self.displacement
+    }
+
+    /// The force [`Rod::internal_damping_force`] wrote.
+    pub(super) fn damping_force(&self) -> &[f64] {
+        &self.damping_force
     }
 
     /// The edges' geometry at the last assembly.
@@ -729,7 +813,14 @@ impl Rod {
         let damped = self.damped_displacement(params, workspace);
         // Taken out for the other terms, which see the workspace whole (an exchange of pointers).
         let mut hessian = std::mem::take(&mut workspace.hessian);
-        self.add_inelastic_terms(params, loads, workspace, &mut hessian, damped, regularisation);
+        if damped {
+            self.add_internal_damping(params, workspace, &mut hessian);
+        }
+        let mut residual = std::mem::take(&mut workspace.residual);
+        add_inertia_terms(&self.inertia_source(workspace, loads), params, &mut residual, &mut hessian);
+        workspace.residual = residual;
+        workspace.stopwatch.lap(Part::Forces);
+        self.add_contact_and_prescribed_terms(params, workspace, &mut hessian, regularisation);
         workspace.hessian = hessian;
     }
 
@@ -740,24 +831,21 @@ impl Rod {
         workspace.residual.resize(dof_count(self.node_count()), 0.0);
     }
 
-    /// The Newton system's terms after the elastic ones (in `matrix`, the residual in the workspace):
-    /// internal damping when `damped` (on the displacement [`Rod::damped_displacement`] wrote), inertia
-    /// with gravity and external forces, contact, the diagonal scaled by `1 + regularisation`,
-    /// prescribed unknowns.
-    pub(super) fn add_inelastic_terms(
+    /// What the inertia terms read of this strand at its current iterate ([`add_inertia_terms`]).
+    pub(super) fn inertia_source<'a>(&'a self, workspace: &'a RodWorkspace, loads: &'a StepLoads) -> StrandInertia<'a> {
+        StrandInertia { rod: self, workspace, loads }
+    }
+
+    /// The Newton system's terms after the elastic ones, internal damping and inertia (in `matrix`, the
+    /// residual in the workspace): contact, the diagonal scaled by `1 + regularisation`, prescribed
+    /// unknowns.
+    pub(super) fn add_contact_and_prescribed_terms(
         &self,
         params: &StepParams,
-        loads: &StepLoads,
         workspace: &mut RodWorkspace,
         matrix: &mut impl StrandMatrix,
-        damped: bool,
         regularisation: f64,
     ) {
-        if damped {
-            self.add_internal_damping(params, workspace, matrix);
-        }
-        self.add_inertia_and_external_forces(params, loads, workspace, matrix);
-        workspace.stopwatch.lap(Part::Forces);
         let RodWorkspace { residual, saved, contacts, stopwatch, scheme, .. } = workspace;
         self.add_contact_forces(
             contacts,
@@ -779,8 +867,22 @@ impl Rod {
     /// damps the true change of length, since `H Δq` would count a turn by `φ` as a stretch by `φ²/2`
     /// times the huge axial stiffness.
     fn add_internal_damping(&self, params: &StepParams, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
-        let beta = params.internal_damping;
-        let RodWorkspace { residual, displacement, damping_force, edges, carried_positions, .. } = workspace;
+        let factor = self.internal_damping_force(params, workspace, hessian);
+        let RodWorkspace { residual, damping_force, .. } = workspace;
+        for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
+            *r += factor * f;
+        }
+    }
+
+    /// [`Rod::add_internal_damping`] up to its residual: writes `H (q − q̃)` with the stretching part
+    /// corrected into the workspace's damping force, and returns the factor the residual takes it with.
+    pub(super) fn internal_damping_force(
+        &self,
+        params: &StepParams,
+        workspace: &mut RodWorkspace,
+        hessian: &mut impl StrandMatrix,
+    ) -> f64 {
+        let RodWorkspace { displacement, damping_force, edges, carried_positions, .. } = workspace;
         hessian.multiply_elastic(displacement, damping_force);
         let damped_scale = damped_scale(params);
         let axial_stiffness = damped_scale * self.stiffness().stretching;
@@ -799,10 +901,7 @@ impl Rod {
             }
         }
         // The product was with the damped `(1 + β/dt) H`.
-        let factor = beta / params.dt / damped_scale;
-        for (r, f) in residual.iter_mut().zip(damping_force.iter()) {
-            *r += factor * f;
-        }
+        params.internal_damping / params.dt / damped_scale
     }
 
     /// Writes the deformation since the first guess, `q − q̃`, into the workspace's displacement, and
@@ -826,69 +925,6 @@ impl Rod {
             }
         }
         damped
-    }
-
-    /// Inertia `M (q − x̂ − h v̂)/h²` of the nodes and of the edges' spin (see [`Scheme`]), the air drag
-    /// `D (v − u)` with `v = (q − x̂)/h` (see [`StepParams::air_damping`]: `D = m γ [I − (1 − r) t tᵀ]` per
-    /// node, `t` its tangent at the start of the step, `u` the air's velocity, still air without
-    /// `air_velocities`), spin drag `γ J θ̇`, the anchors' springs and dampers `m k (x − x̄) + m c (v − v̄)`
-    /// ([`Anchor`]), with Hessian `M/h² + D/h + M (K + C/h)`, and the forces: gravity `M g` and
-    /// `external_forces` (N).
-    fn add_inertia_and_external_forces(
-        &self,
-        params: &StepParams,
-        loads: &StepLoads,
-        workspace: &mut RodWorkspace,
-        hessian: &mut impl StrandMatrix,
-    ) {
-        let RodWorkspace { residual, saved, scheme, .. } = workspace;
-        let (h, gamma) = (scheme.h, params.air_damping);
-        let tangents = &saved.frames.tangents;
-        for node in 0..self.node_count() {
-            let mass = self.inertia.masses[node];
-            let mut force = mass * params.gravity;
-            if let Some(forces) = loads.forces {
-                force += forces[node];
-            }
-            let offset = self.state.positions[node] - scheme.positions[node];
-            let mut relative_velocity = offset / h;
-            if let Some(air) = loads.air_velocities {
-                relative_velocity -= air[node];
-            }
-            // The drag tensor m γ [I − (1 − r) t tᵀ] with the node's tangent, the mean of its edges'.
-            let tangent = match node {
-                0 => tangents[0],
-                n if n == self.edge_count() => tangents[n - 1],
-                n => (tangents[n - 1] + tangents[n]).normalize_or(tangents[n]),
-            };
-            let drag = mass * gamma * (DMat3::IDENTITY - (1.0 - params.axial_drag_ratio) * outer_product(tangent));
-            let mut residual_node =
-                mass / (h * h) * (offset - h * scheme.velocities[node]) + drag * relative_velocity - force;
-            let mut diagonal = mass / (h * h);
-            if let Some(anchor) = loads.anchors.map(|anchors| anchors[node]) {
-                residual_node += mass * anchor.stiffness * (self.state.positions[node] - anchor.target)
-                    + mass * anchor.damping * (offset / h - anchor.target_velocity);
-                diagonal += mass * (anchor.stiffness + anchor.damping / h);
-            }
-            let block = DMat3::from_diagonal(DVec3::splat(diagonal)) + drag / h;
-            for row in 0..3 {
-                let dof = node_dof(node) + row;
-                residual[dof] += residual_node[row];
-                for column in 0..=row {
-                    hessian.add(dof, node_dof(node) + column, block.col(column)[row]);
-                }
-            }
-        }
-        // The twists by backward Euler (see [`Scheme`]).
-        let (dt, twist_scale) = (params.dt, 1.0 / (params.dt * params.dt) + gamma / params.dt);
-        for edge in 0..self.edge_count() {
-            let inertia = self.inertia.twist_inertias[edge];
-            let offset = self.state.twist[edge] - saved.state.twist[edge];
-            let dof = twist_dof(edge);
-            residual[dof] +=
-                inertia / (dt * dt) * (offset - dt * saved.state.twist_rates[edge]) + gamma * inertia / dt * offset;
-            hessian.add(dof, dof, inertia * twist_scale);
-        }
     }
 
     /// Prescribed unknowns (pins, clamps) move by their remaining displacement `d`: their rows become
