@@ -65,12 +65,55 @@ pub(crate) struct EdgeGeometry {
 
 /// Fills `out` with each edge's geometry (frames must be fresh: see `Rod::refresh_frames`).
 pub(crate) fn edge_geometry(rod: &Rod, out: &mut Vec<EdgeGeometry>) {
+    let (positions, frames, twist) = (&rod.state.positions, &rod.frames, &rod.state.twist);
     out.clear();
     out.extend((0..rod.edge_count()).map(|edge| {
-        let frame = rod.material_frame(edge);
-        let length = (rod.state.positions[edge + 1] - rod.state.positions[edge]).length();
-        EdgeGeometry { tangent: frame.tangent, length, inverse_length: 1.0 / length, m1: frame.m1, m2: frame.m2 }
+        let frame = edge_frame::<f64>(
+            positions[edge].into(),
+            positions[edge + 1].into(),
+            frames.tangents[edge].into(),
+            frames.reference_directors[edge].into(),
+            twist[edge],
+        );
+        EdgeGeometry::from(&frame)
     }));
+}
+
+/// An edge's geometry from its end points, its unit tangent and reference director (fresh) and its
+/// twist `θ`, for one strand or a lockstep batch: `|e|`, `1/|e|` and the material directors
+/// `m1 = cos θ a1 + sin θ a2`, `m2 = −sin θ a1 + cos θ a2` with `a2 = t × a1`
+/// ([`super::frames::material_directors`], with [`Real::sin_cos`]).
+#[inline(always)]
+pub(crate) fn edge_frame<T: Real>(
+    start: Vector<T>,
+    end: Vector<T>,
+    tangent: Vector<T>,
+    reference: Vector<T>,
+    twist: T,
+) -> EdgeFrame<T> {
+    let length = (end - start).length();
+    let reference_2 = tangent.cross(reference);
+    let (sin, cos) = twist.sin_cos();
+    EdgeFrame {
+        tangent,
+        length,
+        inverse_length: T::splat(1.0) / length,
+        m1: reference.scale(cos) + reference_2.scale(sin),
+        m2: reference_2.scale(cos) - reference.scale(sin),
+    }
+}
+
+impl From<&EdgeFrame<f64>> for EdgeGeometry {
+    #[inline(always)]
+    fn from(frame: &EdgeFrame<f64>) -> Self {
+        Self {
+            tangent: frame.tangent.lane(0),
+            length: frame.length,
+            inverse_length: frame.inverse_length,
+            m1: frame.m1.lane(0),
+            m2: frame.m2.lane(0),
+        }
+    }
 }
 
 /// An edge's geometry as the elastic terms read it: [`EdgeGeometry`] for one strand (`f64`), or the

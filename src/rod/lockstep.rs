@@ -24,7 +24,7 @@ use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
 use super::contact::Contacts;
 use super::curve::Rod;
 use super::energy::{
-    BANDWIDTH, EdgeFrame, EdgeGeometry, ElasticSource, Moduli, add_elastic_terms, dof_count, vertex_twist,
+    BANDWIDTH, EdgeFrame, EdgeGeometry, ElasticSource, Moduli, add_elastic_terms, dof_count, edge_frame, vertex_twist,
 };
 use super::error::StepError;
 use super::frames::carry_reference_frames;
@@ -73,8 +73,8 @@ pub struct LockstepWorkspace {
 }
 
 /// What the elastic terms read of a batch's strands, lane by lane ([`ElasticSource`]): the rest shape
-/// and moduli, gathered once a step, and the edges' geometry and the twists, gathered at each
-/// assembly.
+/// and moduli, gathered once a step, and the frames and twists, gathered at each assembly, from which
+/// the edges' geometry is computed in lanes ([`batch_edge_frames`]).
 #[derive(Debug, Clone, Default)]
 struct BatchElastic {
     moduli: Moduli<Lanes>,
@@ -82,7 +82,11 @@ struct BatchElastic {
     voronoi_lengths: Vec<Lanes>,
     rest_curvatures: Vec<[Lanes; 2]>,
     rest_twists: Vec<Lanes>,
+    tangents: Vec<Vector<Lanes>>,
+    directors: Vec<Vector<Lanes>>,
+    edge_twists: Vec<Lanes>,
     edges: Vec<EdgeFrame<Lanes>>,
+    /// The twist of each interior vertex.
     twists: Vec<Lanes>,
 }
 
@@ -93,6 +97,9 @@ impl BatchElastic {
         self.voronoi_lengths.resize(edge_count, Lanes::default());
         self.rest_curvatures.resize(edge_count, Default::default());
         self.rest_twists.resize(edge_count, Lanes::default());
+        self.tangents.resize(edge_count, Vector::default());
+        self.directors.resize(edge_count, Vector::default());
+        self.edge_twists.resize(edge_count, Lanes::default());
         self.edges.resize(edge_count, EdgeFrame::default());
         self.twists.resize(edge_count, Lanes::default());
     }
@@ -118,18 +125,40 @@ impl BatchElastic {
         }
     }
 
-    /// Takes `rod`'s current edges (`edges`, from its workspace) and twists into `lane`.
-    fn gather_state(&mut self, lane: usize, rod: &Rod, edges: &[EdgeGeometry]) {
-        for (entry, edge) in self.edges.iter_mut().zip(edges) {
-            entry.tangent.set_lane(lane, edge.tangent);
-            entry.length.0[lane] = edge.length;
-            entry.inverse_length.0[lane] = edge.inverse_length;
-            entry.m1.set_lane(lane, edge.m1);
-            entry.m2.set_lane(lane, edge.m2);
+    /// Takes `rod`'s current frames and twists into `lane`.
+    fn gather_state(&mut self, lane: usize, rod: &Rod) {
+        let frames = &rod.frames;
+        for (edge, &tangent) in frames.tangents.iter().enumerate() {
+            self.tangents[edge].set_lane(lane, tangent);
+            self.directors[edge].set_lane(lane, frames.reference_directors[edge]);
+            self.edge_twists[edge].0[lane] = rod.state.twist[edge];
         }
         for vertex in 1..rod.edge_count() {
             self.twists[vertex].0[lane] = vertex_twist(rod, vertex);
         }
+    }
+
+    /// Writes `lane`'s edges' geometry into `edges` (a strand's workspace).
+    fn scatter_edges(&self, lane: usize, edges: &mut Vec<EdgeGeometry>) {
+        edges.clear();
+        edges.extend(self.edges.iter().map(|edge| EdgeGeometry {
+            tangent: edge.tangent.lane(lane),
+            length: edge.length.0[lane],
+            inverse_length: edge.inverse_length.0[lane],
+            m1: edge.m1.lane(lane),
+            m2: edge.m2.lane(lane),
+        }));
+    }
+}
+
+/// The edges' geometry of a batch from its nodes' `positions` and its gathered frames and twists
+/// (`energy::edge_geometry` in lanes), compiled for the best instruction set the CPU has (see
+/// [`factorize_best`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn batch_edge_frames(elastic: &mut BatchElastic, positions: &[Vector<Lanes>]) {
+    let BatchElastic { tangents, directors, edge_twists, edges, .. } = elastic;
+    for (edge, frame) in edges.iter_mut().enumerate() {
+        *frame = edge_frame(positions[edge], positions[edge + 1], tangents[edge], directors[edge], edge_twists[edge]);
     }
 }
 
@@ -614,10 +643,11 @@ impl LockstepWorkspace {
         let mut regularisation = [0.0; LANES];
         for lane in lanes_in(active) {
             let (rod, workspace) = (&*strands[lane].rod, &mut self.lanes[lane]);
-            rod.begin_assembly(workspace);
-            self.elastic.gather_state(lane, rod, workspace.edges());
+            rod.clear_residual(workspace);
+            self.elastic.gather_state(lane, rod);
             self.inertia.gather_iterate(lane, &rod.inertia_source(workspace, &strands[lane].loads));
         }
+        batch_edge_frames(&mut self.elastic, &self.inertia.positions);
         loop {
             // Every going lane again: the factorisation wrote over the last attempt.
             self.matrix.reset(size);
@@ -692,6 +722,7 @@ impl LockstepWorkspace {
         let mut factor = 0.0;
         for lane in lanes_in(damped) {
             let workspace = &mut self.lanes[lane];
+            self.elastic.scatter_edges(lane, workspace.edges_mut());
             let mut matrix = MatrixLane {
                 matrix: &mut self.matrix,
                 lane,

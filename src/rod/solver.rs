@@ -333,9 +333,9 @@ impl RodWorkspace {
         &self.damping_force
     }
 
-    /// The edges' geometry at the last assembly.
-    pub(super) fn edges(&self) -> &[EdgeGeometry] {
-        &self.edges
+    /// The edges' geometry at the last assembly, to write (internal damping reads it).
+    pub(super) fn edges_mut(&mut self) -> &mut Vec<EdgeGeometry> {
+        &mut self.edges
     }
 
     /// The residual of the last Newton system assembled (its right-hand side negated), or its
@@ -827,6 +827,11 @@ impl Rod {
     /// The start of an assembly: the edges' geometry, and the residual at zero.
     pub(super) fn begin_assembly(&self, workspace: &mut RodWorkspace) {
         edge_geometry(self, &mut workspace.edges);
+        self.clear_residual(workspace);
+    }
+
+    /// The workspace's residual at zero, sized for this strand.
+    pub(super) fn clear_residual(&self, workspace: &mut RodWorkspace) {
         workspace.residual.clear();
         workspace.residual.resize(dof_count(self.node_count()), 0.0);
     }
