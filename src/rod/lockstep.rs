@@ -32,7 +32,10 @@ use super::inertia::{InertiaSource, NodeAnchor, add_inertia_terms};
 use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
 use super::projection::{LengthConstraints, ProjectionScratch, TridiagonalScratch, project_points};
-use super::solver::{NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, next_regularisation};
+use super::solver::{
+    NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, first_non_finite_update, newton_update,
+    next_regularisation,
+};
 
 pub use super::lanes::LANES;
 
@@ -70,6 +73,8 @@ pub struct LockstepWorkspace {
     elastic_product: Vec<Lanes>,
     /// The damped lanes' internal damping forces.
     damping_force: Vec<Lanes>,
+    /// The lanes in which each edge is free (not both its nodes held) this step.
+    free_edges: Vec<LaneMask>,
 }
 
 /// What the elastic terms read of a batch's strands, lane by lane ([`ElasticSource`]): the rest shape
@@ -418,13 +423,11 @@ impl BatchProjection {
         self.contact_normals.resize(nodes, Vector::default());
     }
 
-    /// Takes `rod`'s positions and what its projection holds it to into `lane`.
+    /// Takes `rod`'s positions and what its projection holds it to into `lane` (but the target
+    /// lengths, which [`batch_newton_update`] wrote).
     fn gather(&mut self, lane: usize, rod: &Rod, projection: &ProjectionScratch) {
         for (point, &position) in self.points.iter_mut().zip(rod.positions()) {
             point.set_lane(lane, position);
-        }
-        for (entry, &length) in self.target_lengths.iter_mut().zip(&projection.target_lengths) {
-            entry.0[lane] = length;
         }
         for (entry, &mass) in self.inverse_masses.iter_mut().zip(&projection.inverse_masses) {
             entry.0[lane] = mass;
@@ -517,6 +520,40 @@ fn refresh_batch_frames(frames: &mut BatchFrames) {
     carry_reference_frames(&positions[..], &mut tangents[..], &mut directors[..], reference_twist, edge_count);
 }
 
+/// Writes `lane`'s updated iterate (`positions`, `twists`) into its rod and its edges' target lengths
+/// into its workspace, after [`batch_newton_update`].
+fn scatter_update(
+    lane: usize,
+    (positions, twists, target_lengths): (&[Vector<Lanes>], &[Lanes], &[Lanes]),
+    rod: &mut Rod,
+    workspace: &mut RodWorkspace,
+) {
+    for (position, point) in rod.state.positions.iter_mut().zip(positions) {
+        *position = point.lane(lane);
+    }
+    for (twist, entry) in rod.state.twist.iter_mut().zip(twists) {
+        *twist = entry.0[lane];
+    }
+    let targets = &mut workspace.projection_mut().target_lengths;
+    targets.clear();
+    targets.extend(target_lengths.iter().map(|length| length.0[lane]));
+}
+
+/// `solver::newton_update` for a batch's lanes, compiled for the best instruction set the CPU has
+/// (see [`factorize_best`]).
+#[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
+fn batch_newton_update(
+    positions: &mut [Vector<Lanes>],
+    twist: &mut [Lanes],
+    update: &[Lanes],
+    rest_lengths: &[Lanes],
+    free_edges: &[LaneMask],
+    params: &StepParams,
+    target_lengths: &mut Vec<Lanes>,
+) -> (Lanes, LaneMask) {
+    newton_update(positions, twist, update, rest_lengths, |edge| free_edges[edge], params, target_lengths)
+}
+
 /// The inertia terms of a batch, compiled for the best instruction set the CPU has (see
 /// [`factorize_best`]).
 #[multiversion::multiversion(targets("x86_64+avx2+fma", "x86_64+avx"))]
@@ -558,6 +595,8 @@ impl LockstepWorkspace {
         self.projection.resize(nodes);
         self.frames.resize(nodes);
         self.inertia.begin(nodes);
+        self.free_edges.clear();
+        self.free_edges.resize(nodes - 1, 0);
         let mut active: LaneMask = 0;
         for (lane, (strand, workspace)) in strands.iter_mut().zip(&mut self.lanes).enumerate() {
             let LockstepStrand { rod, loads, contacts } = strand;
@@ -573,6 +612,9 @@ impl LockstepWorkspace {
             rod.begin_integration(params, contacts, workspace);
             self.elastic.gather_rest(lane, rod);
             self.inertia.gather_step(lane, &rod.inertia_source(workspace, loads));
+            for (edge, free) in self.free_edges.iter_mut().enumerate() {
+                *free |= LaneMask::from(rod.constraints.is_edge_free(edge)) << lane;
+            }
             active |= 1 << lane;
         }
         let size = dof_count(nodes);
@@ -583,21 +625,37 @@ impl LockstepWorkspace {
                 break;
             }
             self.solve(active, size);
+            // Each lane's contacts on its update, then the updates in lanes, written back to the rods.
+            let mut contacts_changed = [false; LANES];
+            for lane in lanes_in(active) {
+                contacts_changed[lane] = strands[lane].rod.update_contacts_with(params, &mut self.lanes[lane]);
+            }
+            let (fractions, finite) = batch_newton_update(
+                &mut self.inertia.positions,
+                &mut self.elastic.edge_twists,
+                &self.solution,
+                &self.elastic.rest_lengths,
+                &self.free_edges,
+                params,
+                &mut self.projection.target_lengths,
+            );
             let mut last = [false; LANES];
             let mut projecting: LaneMask = 0;
             for lane in lanes_in(active) {
                 let (rod, workspace) = (&mut *strands[lane].rod, &mut self.lanes[lane]);
-                match rod.apply_newton_update(params, workspace) {
-                    Err(error) => {
-                        results[lane] = Some(rod.end_step(Err(error), workspace));
-                        active &= !(1 << lane);
-                    }
-                    Ok(update) => {
-                        last[lane] = rod.begin_projection(update, params, &mut progress[lane], workspace);
-                        self.projection.gather(lane, rod, workspace.projection());
-                        projecting |= 1 << lane;
-                    }
+                if finite & (1 << lane) == 0 {
+                    let error = StepError::NonFinite { node: first_non_finite_update(&self.solution, lane) };
+                    results[lane] = Some(rod.end_step(Err(error), workspace));
+                    active &= !(1 << lane);
+                    continue;
                 }
+                let updated =
+                    (&self.inertia.positions[..], &self.elastic.edge_twists[..], &self.projection.target_lengths[..]);
+                scatter_update(lane, updated, rod, workspace);
+                let update = (fractions.0[lane], contacts_changed[lane]);
+                last[lane] = rod.begin_projection(update, params, &mut progress[lane], workspace);
+                self.projection.gather(lane, rod, workspace.projection());
+                projecting |= 1 << lane;
             }
             let iterations = project_batch(&mut self.projection, params, projecting);
             // Each lane's frames are refreshed next, in lanes: after the projection, or, on its last

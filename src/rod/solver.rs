@@ -41,7 +41,7 @@ use super::energy::{EdgeGeometry, RodMatrix, add_elastic_derivatives, dof_count,
 use super::error::{RodError, StepError};
 use super::frames::perpendicular_unit;
 use super::inertia::{InertiaSource, NodeAnchor, add_inertia_terms};
-use super::lanes::Vector;
+use super::lanes::{LaneMask, Points, Real, Vector};
 use super::params::Integrator;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
@@ -321,6 +321,11 @@ impl RodWorkspace {
     /// What the projection of the last Newton iteration holds the strand to.
     pub(super) fn projection(&self) -> &ProjectionScratch {
         &self.projection
+    }
+
+    /// [`RodWorkspace::projection`], to write.
+    pub(super) fn projection_mut(&mut self) -> &mut ProjectionScratch {
+        &mut self.projection
     }
 
     /// The displacement [`Rod::damped_displacement`] wrote.
@@ -979,52 +984,101 @@ impl Rod {
         params: &StepParams,
         workspace: &mut RodWorkspace,
     ) -> Result<(f64, bool), StepError> {
-        let RodWorkspace { residual, saved, projection, contacts, stopwatch, scheme, .. } = workspace;
-        let inertia_scale = scheme.inertia_scale(params);
-        stopwatch.lap(Part::Solve);
-        let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
-        let contacts_changed =
-            self.update_contacts(contacts, &saved.state.positions, params, inertia_scale, node_update);
-        stopwatch.lap(Part::Collisions);
-        let largest_turn = (0..self.edge_count())
-            .filter(|&edge| {
-                self.constraints.node_targets[edge].is_none() || self.constraints.node_targets[edge + 1].is_none()
-            })
-            .map(|edge| {
-                let e = self.state.positions[edge + 1] - self.state.positions[edge];
-                let change = node_update(edge + 1) - node_update(edge);
-                let along = change.dot(e) / e.length_squared();
-                // Turning, and shrinking towards a fold, both count as turning.
-                (change - along * e).length() / e.length() + (-along - 0.5).max(0.0)
-            })
-            .fold(0.0, f64::max);
-        if !largest_turn.is_finite() {
-            let node = (0..self.node_count()).find(|&node| !node_update(node).is_finite()).unwrap_or(0);
-            return Err(StepError::NonFinite { node });
-        }
-        let fraction = if largest_turn > params.max_rotation { params.max_rotation / largest_turn } else { 1.0 };
-        // The length each edge has after the update to first order, `|e| + t·Δe` (what the implicit solve
-        // with its stiff stretching term meant), kept within the strain allowance; the projection
-        // removes only the second-order stretch a linearised rotation leaves.
-        let target_lengths = &mut projection.target_lengths;
-        target_lengths.clear();
-        target_lengths.extend((0..self.edge_count()).map(|edge| {
-            let e = self.state.positions[edge + 1] - self.state.positions[edge];
-            let change = fraction * (node_update(edge + 1) - node_update(edge));
-            let rest = self.rest.lengths[edge];
-            let allowance = params.strain_allowance * rest;
-            (e.length() + change.dot(e) / e.length()).clamp(rest - allowance, rest + allowance)
-        }));
-        for node in 0..self.node_count() {
-            self.state.positions[node] += fraction * node_update(node);
-        }
-        for edge in 0..self.edge_count() {
-            self.state.twist[edge] += fraction * residual[twist_dof(edge)];
+        let contacts_changed = self.update_contacts_with(params, workspace);
+        let RodWorkspace { residual, projection, stopwatch, .. } = workspace;
+        let Rod { state, constraints, rest, .. } = self;
+        let (fraction, finite) = newton_update(
+            &mut state.positions[..],
+            &mut state.twist,
+            residual,
+            &rest.lengths,
+            |edge| LaneMask::from(constraints.is_edge_free(edge)),
+            params,
+            &mut projection.target_lengths,
+        );
+        if finite == 0 {
+            return Err(StepError::NonFinite { node: first_non_finite_update(residual, 0) });
         }
         // The frames are refreshed once the projection has moved the nodes (see `integrate`).
         stopwatch.lap(Part::Solve);
         Ok((fraction, contacts_changed))
     }
+
+    /// The contacts' part of [`Rod::apply_newton_update`], on the update the workspace's residual
+    /// holds: whether it changes which nodes touch a collider (see [`Rod::update_contacts`]).
+    pub(super) fn update_contacts_with(&mut self, params: &StepParams, workspace: &mut RodWorkspace) -> bool {
+        let RodWorkspace { residual, saved, contacts, stopwatch, scheme, .. } = workspace;
+        let inertia_scale = scheme.inertia_scale(params);
+        stopwatch.lap(Part::Solve);
+        let node_update = |node: usize| DVec3::from_slice(&residual[node_dof(node)..node_dof(node) + 3]);
+        let changed = self.update_contacts(contacts, &saved.state.positions, params, inertia_scale, node_update);
+        stopwatch.lap(Part::Collisions);
+        changed
+    }
+}
+
+/// The first node whose update in `update` (lane `lane`) is not finite (0 if none is).
+pub(super) fn first_non_finite_update<T: Real>(update: &[T], lane: usize) -> usize {
+    let nodes = update.len().div_ceil(4);
+    (0..nodes).find(|&node| (0..3).any(|axis| !update[node_dof(node) + axis].lane(lane).is_finite())).unwrap_or(0)
+}
+
+/// Applies a Newton `update` (the system's solution) to `positions` and `twist` within the trust
+/// region, for one strand or a lockstep batch's lanes: an update that turns a free edge
+/// (`free_edges(edge)`, the lanes where not both its nodes are prescribed) by more than
+/// [`StepParams::max_rotation`] is scaled down. Writes each edge's length after the update to first
+/// order, `|e| + t·Δe`, kept within the strain allowance (what the implicit solve with its stiff
+/// stretching term meant; the projection removes only the second-order stretch a linearised rotation
+/// leaves), into `target_lengths`. Returns the fraction of the update applied and the lanes whose
+/// largest turn is finite (the others are left unchanged, but for their target lengths).
+#[inline(always)]
+pub(super) fn newton_update<T: Real>(
+    positions: &mut (impl Points<T> + ?Sized),
+    twist: &mut [T],
+    update: &[T],
+    rest_lengths: &[T],
+    free_edges: impl Fn(usize) -> LaneMask,
+    params: &StepParams,
+    target_lengths: &mut Vec<T>,
+) -> (T, LaneMask) {
+    let (zero, one, half) = (T::splat(0.0), T::splat(1.0), T::splat(0.5));
+    let edge_count = twist.len();
+    let node_update = |node: usize| Vector {
+        x: update[node_dof(node)],
+        y: update[node_dof(node) + 1],
+        z: update[node_dof(node) + 2],
+    };
+    let mut largest_turn = zero;
+    for edge in 0..edge_count {
+        let e = positions.point(edge + 1) - positions.point(edge);
+        let change = node_update(edge + 1) - node_update(edge);
+        let along = change.dot(e) / e.dot(e);
+        // Turning, and shrinking towards a fold, both count as turning.
+        let turn = (change - e.scale(along)).length() / e.length() + (-along - half).max(zero);
+        largest_turn = largest_turn.max(T::select(free_edges(edge), turn, zero));
+    }
+    let finite = largest_turn.lt(T::splat(f64::INFINITY));
+    let max_rotation = T::splat(params.max_rotation);
+    let fraction = T::select(largest_turn.gt(max_rotation), max_rotation / largest_turn, one);
+    target_lengths.clear();
+    target_lengths.extend((0..edge_count).map(|edge| {
+        let e = positions.point(edge + 1) - positions.point(edge);
+        let change = (node_update(edge + 1) - node_update(edge)).scale(fraction);
+        let rest = rest_lengths[edge];
+        let allowance = T::splat(params.strain_allowance) * rest;
+        let length = e.length() + change.dot(e) / e.length();
+        let (low, high) = (rest - allowance, rest + allowance);
+        let length = T::select(length.lt(low), low, length);
+        T::select(length.gt(high), high, length)
+    }));
+    for node in 0..=edge_count {
+        let moved = positions.point(node) + node_update(node).scale(fraction);
+        positions.set_point(node, Vector::select(finite, moved, positions.point(node)));
+    }
+    for (edge, twist) in twist.iter_mut().enumerate() {
+        *twist = T::select(finite, *twist + fraction * update[twist_dof(edge)], *twist);
+    }
+    (fraction, finite)
 }
 
 #[cfg(test)]

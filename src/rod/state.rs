@@ -117,6 +117,14 @@ pub struct RodConstraints {
     pub twist_targets: Vec<Option<DVec3>>,
 }
 
+impl RodConstraints {
+    /// Whether edge `edge` moves in a Newton update: not both its nodes held.
+    #[inline(always)]
+    pub(crate) fn is_edge_free(&self, edge: usize) -> bool {
+        self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none()
+    }
+}
+
 /// Everything a step starts from that it changes: the state and the frames. Restoring a snapshot taken
 /// after step `k` makes the following steps repeat steps `k + 1, …` bit for bit (with the same inputs).
 #[derive(Debug, Clone, Default, PartialEq, Reflect)]
