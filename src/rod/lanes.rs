@@ -9,8 +9,6 @@
 
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
-use wide::f64x4;
-
 /// Strands stepped in lockstep: one `f64` lane each, four to an AVX2 register.
 pub const LANES: usize = 4;
 
@@ -57,11 +55,9 @@ pub(crate) trait Real:
     fn eq(self, other: Self) -> LaneMask;
     /// `if_set` in the lanes of `mask`, `otherwise` in the others.
     fn select(mask: LaneMask, if_set: Self, otherwise: Self) -> Self;
-    /// `atan2(self, x)`, lane by lane: `wide`'s vector `atan2` (within a few units in the last place of
-    /// std's), the same bits for `f64` and in every lane.
+    /// `atan2(self, x)`, lane by lane (std's).
     fn atan2(self, x: Self) -> Self;
-    /// `(sin, cos)` of `self`, lane by lane: `wide`'s vector `sin_cos`, the same bits for `f64` and in
-    /// every lane.
+    /// `(sin, cos)` of `self`, lane by lane (std's).
     fn sin_cos(self) -> (Self, Self);
     /// The largest integer not above, lane by lane.
     fn floor(self) -> Self;
@@ -126,13 +122,12 @@ impl Real for f64 {
 
     #[inline(always)]
     fn atan2(self, x: Self) -> Self {
-        f64x4::splat(self).atan2(f64x4::splat(x)).to_array()[0]
+        f64::atan2(self, x)
     }
 
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let (sin, cos) = f64x4::splat(self).sin_cos();
-        (sin.to_array()[0], cos.to_array()[0])
+        f64::sin_cos(self)
     }
 
     #[inline(always)]
@@ -226,13 +221,13 @@ impl Real for Lanes {
 
     #[inline(always)]
     fn atan2(self, x: Self) -> Self {
-        Self(f64x4::new(self.0).atan2(f64x4::new(x.0)).to_array())
+        self.zip(x, f64::atan2)
     }
 
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        let (sin, cos) = f64x4::new(self.0).sin_cos();
-        (Self(sin.to_array()), Self(cos.to_array()))
+        let both = self.0.map(f64::sin_cos);
+        (Self(both.map(|(sin, _)| sin)), Self(both.map(|(_, cos)| cos)))
     }
 
     #[inline(always)]
