@@ -292,10 +292,12 @@ fn band_product<const HALF_BANDWIDTH: usize, T: Real>(
 ) {
     let (width, band) = (HALF_BANDWIDTH + 1, HALF_BANDWIDTH);
     let columns = columns.start..columns.end.min(size);
-    // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around.
-    padded.fill(T::default());
+    // Vectors shifted by `band`: index `band + i` is entry `i`, with zeros around. Only the window the
+    // columns reach is cleared and read: padded indices `columns.start ..< columns.end + 2 band`.
+    let window = columns.start..(columns.end + 2 * band).min(size + 2 * band);
+    padded[window.clone()].fill(T::default());
     padded[band + columns.start..band + columns.end].copy_from_slice(&x[columns.clone()]);
-    product.fill(T::default());
+    product[window].fill(T::default());
     // Row `r`'s band covers the columns `r − band ..= r`, that is padded indices `r ..= r + band`.
     // The rows that meet the columns: `columns.start ..< columns.end + band`.
     for row in columns.start..(columns.end + band).min(size) {
@@ -311,7 +313,10 @@ fn band_product<const HALF_BANDWIDTH: usize, T: Real>(
         // The diagonal was counted twice.
         product[row + band] += sum - entry(row * width + band) * x_row;
     }
-    out[..size].copy_from_slice(&product[band..band + size]);
+    // The rows the product can reach: `columns.start − band ..< columns.end + band`; zero elsewhere.
+    let reached = columns.start.saturating_sub(band)..(columns.end + band).min(size);
+    out[..size].fill(T::default());
+    out[reached.clone()].copy_from_slice(&product[reached.start + band..reached.end + band]);
 }
 
 /// A strand's Newton matrix as the terms after the elastic ones write it ([`super::solver`]): the
