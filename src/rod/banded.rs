@@ -121,17 +121,17 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
 
     /// [`BandedMatrix::set_identity_row`] in lane `lane` of the entries (0 for `f64`).
     pub(crate) fn set_identity_row_in_lane(&mut self, lane: usize, dof: usize) {
+        // Row `dof`'s band is one run ending at the diagonal; column `dof` below it steps by `band`
+        // (entry `(dof + s, dof)` sits `s · band` after the diagonal).
         let band = HALF_BANDWIDTH;
-        for column in dof.saturating_sub(band)..dof {
-            let index = self.index(dof, column);
-            *self.values[index].lane_mut(lane) = 0.0;
+        let diagonal = self.index(dof, dof);
+        for entry in &mut self.values[diagonal - dof.min(band)..diagonal] {
+            *entry.lane_mut(lane) = 0.0;
         }
-        for row in dof + 1..=(dof + band).min(self.size - 1) {
-            let index = self.index(row, dof);
-            *self.values[index].lane_mut(lane) = 0.0;
+        *self.values[diagonal].lane_mut(lane) = 1.0;
+        for below in 1..=(dof + band).min(self.size - 1) - dof {
+            *self.values[diagonal + below * band].lane_mut(lane) = 0.0;
         }
-        let index = self.index(dof, dof);
-        *self.values[index].lane_mut(lane) = 1.0;
     }
 
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the

@@ -768,7 +768,9 @@ impl Rod {
                 *position = *target;
             }
         }
-        for edge in 0..self.edge_count() {
+        // Most edges are free: only the clamped ones need `twist_target_offset`.
+        let clamped = self.constraints.twist_targets.iter().enumerate().filter(|(_, target)| target.is_some());
+        for (edge, _) in clamped {
             if let Some(offset) = self.twist_target_offset(edge) {
                 self.state.twist[edge] += offset;
             }
@@ -950,7 +952,9 @@ impl Rod {
                 prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
             }
         }
-        for edge in 0..self.edge_count() {
+        // Most edges are free: only the clamped ones need `twist_target_offset`.
+        let clamped = self.constraints.twist_targets.iter().enumerate().filter(|(_, target)| target.is_some());
+        for (edge, _) in clamped {
             if let Some(offset) = self.twist_target_offset(edge) {
                 prescribed[twist_dof(edge)] = offset;
             }
