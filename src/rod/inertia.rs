@@ -114,9 +114,9 @@ pub(crate) fn add_inertia_terms<T: Real>(
         for row in 0..3 {
             let dof = node_dof(node) + row;
             residual[dof] += residual_node[row];
-            for column in 0..=row {
+            for (column, &drag) in drag[row].iter().enumerate().take(row + 1) {
                 let diagonal = if row == column { diagonal } else { zero };
-                matrix.add_entry(dof, node_dof(node) + column, diagonal + drag[row][column] / h);
+                matrix.add_entry(dof, node_dof(node) + column, diagonal + drag / h);
             }
         }
     }

@@ -14,11 +14,13 @@
 //! one whose iterations end early is left out of its batch's later iterations.
 //!
 //! What runs in lanes: the elastic terms (assembled straight into the batch's matrix, from one source
-//! shared with the one-strand step), internal damping's product, the factorisation, the substitutions,
-//! the projection onto the edge lengths and the reference frames. Each strand's other terms (inertia,
-//! loads, contact, prescribed unknowns) are written into its own lane, and its trust region and
-//! contacts are handled strand by strand. The plugin steps its strands this way; `benchmark lockstep` compares the
-//! two paths (`docs/performance.md`, issue 32).
+//! shared with the one-strand step), the inertia, drag, anchor and applied-force terms, internal
+//! damping's product and residual, the edges' geometry, the factorisation, the substitutions, the
+//! Newton update with its trust region, the projection onto the edge lengths and the reference frames
+//! (their `atan2` and the material directors' `sin_cos` lane by lane: std's functions, so that the bits
+//! match). Each strand's contact, Levenberg–Marquardt shift and prescribed unknowns are written into its
+//! own lane, and its contacts are looked at strand by strand. The plugin steps its strands this way;
+//! `benchmark lockstep` compares the two paths (`docs/performance.md`, issue 32).
 
 use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
 use super::contact::Contacts;
@@ -220,14 +222,46 @@ struct BatchInertia {
     predicted_positions: Vec<Vector<Lanes>>,
     predicted_velocities: Vec<Vector<Lanes>>,
     start_tangents: Vec<Vector<Lanes>>,
-    forces: Option<Vec<Vector<Lanes>>>,
-    air_velocities: Option<Vec<Vector<Lanes>>>,
-    anchors: Option<Vec<NodeAnchor<Lanes>>>,
+    forces: BatchLoad<Vector<Lanes>>,
+    air_velocities: BatchLoad<Vector<Lanes>>,
+    anchors: BatchLoad<NodeAnchor<Lanes>>,
     twist_inertias: Vec<Lanes>,
     twist_changes: Vec<Lanes>,
     start_twist_rates: Vec<Lanes>,
-    /// Storage for the loads while no strand of the batch has them (kept so that none allocates).
-    spare: (Vec<Vector<Lanes>>, Vec<Vector<Lanes>>, Vec<NodeAnchor<Lanes>>),
+}
+
+/// A load of a batch's nodes (forces, wind, anchors), if any of its strands has it: zero in the lanes
+/// of the strands without it.
+#[derive(Debug, Clone, Default)]
+struct BatchLoad<V> {
+    values: Vec<V>,
+    present: bool,
+}
+
+impl<V: Copy + Default> BatchLoad<V> {
+    /// Puts a strand's load (`value` of each of the `nodes` nodes, if it has the load) into its lane
+    /// (`set`): the first strand with the load clears the batch's values to zero in every lane.
+    fn gather<W>(&mut self, nodes: usize, value: impl Fn(usize) -> Option<W>, mut set: impl FnMut(&mut V, W)) {
+        if value(0).is_none() {
+            return;
+        }
+        if !self.present {
+            self.values.clear();
+            self.values.resize(nodes, V::default());
+            self.present = true;
+        }
+        for (node, entry) in self.values.iter_mut().enumerate() {
+            if let Some(value) = value(node) {
+                set(entry, value);
+            }
+        }
+    }
+
+    /// The load of node `node`, if the batch has it.
+    #[inline(always)]
+    fn get(&self, node: usize) -> Option<V> {
+        self.present.then(|| self.values[node])
+    }
 }
 
 impl BatchInertia {
@@ -241,16 +275,9 @@ impl BatchInertia {
         self.twist_inertias.resize(nodes - 1, Lanes::default());
         self.twist_changes.resize(nodes - 1, Lanes::default());
         self.start_twist_rates.resize(nodes - 1, Lanes::default());
-        let (forces, air, anchors) = &mut self.spare;
-        if let Some(taken) = self.forces.take() {
-            *forces = taken;
-        }
-        if let Some(taken) = self.air_velocities.take() {
-            *air = taken;
-        }
-        if let Some(taken) = self.anchors.take() {
-            *anchors = taken;
-        }
+        self.forces.present = false;
+        self.air_velocities.present = false;
+        self.anchors.present = false;
     }
 
     /// Takes what the step of `strand` starts from into `lane`.
@@ -267,28 +294,10 @@ impl BatchInertia {
             *self.start_twist_rates[edge].lane_mut(lane) = strand.start_twist_rate(edge);
         }
         let nodes = self.masses.len();
-        let (forces, air, anchors) = &mut self.spare;
-        gather_load(
-            &mut self.forces,
-            forces,
-            nodes,
-            |node| strand.force(node),
-            |entry, value| {
-                entry.set_lane(lane, value.lane(0));
-            },
-        );
-        gather_load(
-            &mut self.air_velocities,
-            air,
-            nodes,
-            |node| strand.air_velocity(node),
-            |entry, value| {
-                entry.set_lane(lane, value.lane(0));
-            },
-        );
-        gather_load(
-            &mut self.anchors,
-            anchors,
+        self.forces.gather(nodes, |node| strand.force(node), |entry, value| entry.set_lane(lane, value.lane(0)));
+        let air = |node| strand.air_velocity(node);
+        self.air_velocities.gather(nodes, air, |entry, value| entry.set_lane(lane, value.lane(0)));
+        self.anchors.gather(
             nodes,
             |node| strand.anchor(node),
             |entry, value| {
@@ -307,32 +316,6 @@ impl BatchInertia {
         }
         for (edge, change) in self.twist_changes.iter_mut().enumerate() {
             *change.lane_mut(lane) = strand.twist_change(edge);
-        }
-    }
-}
-
-/// Puts a strand's load (`value` of each node, if it has the load) into its lane of the batch's (`set`): the
-/// first strand with the load brings the batch's storage out of `spare`, zero in every lane; a strand
-/// without it leaves its lane at zero.
-fn gather_load<V: Copy + Default, W>(
-    batch: &mut Option<Vec<V>>,
-    spare: &mut Vec<V>,
-    nodes: usize,
-    value: impl Fn(usize) -> Option<W>,
-    mut set: impl FnMut(&mut V, W),
-) {
-    if value(0).is_none() {
-        return;
-    }
-    let entries = batch.get_or_insert_with(|| {
-        let mut entries = std::mem::take(spare);
-        entries.clear();
-        entries.resize(nodes, V::default());
-        entries
-    });
-    for (node, entry) in entries.iter_mut().enumerate() {
-        if let Some(value) = value(node) {
-            set(entry, value);
         }
     }
 }
@@ -375,17 +358,17 @@ impl InertiaSource<Lanes> for BatchInertia {
 
     #[inline(always)]
     fn force(&self, node: usize) -> Option<Vector<Lanes>> {
-        self.forces.as_ref().map(|forces| forces[node])
+        self.forces.get(node)
     }
 
     #[inline(always)]
     fn air_velocity(&self, node: usize) -> Option<Vector<Lanes>> {
-        self.air_velocities.as_ref().map(|air| air[node])
+        self.air_velocities.get(node)
     }
 
     #[inline(always)]
     fn anchor(&self, node: usize) -> Option<NodeAnchor<Lanes>> {
-        self.anchors.as_ref().map(|anchors| anchors[node])
+        self.anchors.get(node)
     }
 
     #[inline(always)]
