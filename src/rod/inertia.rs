@@ -97,7 +97,7 @@ pub(crate) fn add_inertia_terms<T: Real>(
         let v = relative_velocity.to_array();
         let dragged = |row: usize| drag[row][0] * v[0] + drag[row][1] * v[1] + drag[row][2] * v[2];
         let inertia = mass / (h * h);
-        let inertial = (offset - predicted_step(source, node, h)).scale(inertia);
+        let inertial = (offset - source.predicted_velocity(node).scale(h)).scale(inertia);
         let mut residual_node = Vector {
             x: inertial.x + dragged(0) - force.x,
             y: inertial.y + dragged(1) - force.y,
@@ -131,10 +131,4 @@ pub(crate) fn add_inertia_terms<T: Real>(
             inertia / (dt * dt) * (change - dt * source.start_twist_rate(edge)) + gamma * inertia / dt * change;
         matrix.add_entry(dof, dof, inertia * twist_scale);
     }
-}
-
-/// `h v̂` of a node, m.
-#[inline(always)]
-fn predicted_step<T: Real>(source: &impl InertiaSource<T>, node: usize, h: T) -> Vector<T> {
-    source.predicted_velocity(node).scale(h)
 }
