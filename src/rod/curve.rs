@@ -101,16 +101,17 @@ fn squares_safely(direction: DVec3) -> bool {
     squared.is_finite() && squared >= f64::MIN_POSITIVE
 }
 
-/// The first pair of consecutive unit tangents that turn by more than `max_angle` (rad), by the index of
-/// the first edge.
-fn first_fold(tangents: impl Iterator<Item = DVec3>, max_angle: f64) -> Option<usize> {
+/// The first pair of consecutive edges (vectors of any non-zero length) that turn by more than
+/// `max_angle` (rad), by the index of the first edge: `a·b < cos(max_angle) |a| |b|`, with no division.
+fn first_fold(edges: impl Iterator<Item = DVec3>, max_angle: f64) -> Option<usize> {
     let limit = max_angle.cos();
-    let mut previous: Option<DVec3> = None;
-    for (edge, tangent) in tangents.enumerate() {
-        if previous.is_some_and(|previous| previous.dot(tangent) < limit) {
+    let mut previous: Option<(DVec3, f64)> = None;
+    for (edge, e) in edges.enumerate() {
+        let squared = e.length_squared();
+        if previous.is_some_and(|(a, a_squared)| a.dot(e) < limit * (a_squared * squared).sqrt()) {
             return Some(edge - 1);
         }
-        previous = Some(tangent);
+        previous = Some((e, squared));
     }
     None
 }
@@ -604,27 +605,17 @@ impl Rod {
         if let Some(node) = self.state.twist.iter().position(|t| !t.is_finite()) {
             return Some((node, "twist not finite"));
         }
-        // One pass over the edges with no division: an edge's squared length against its minimum, and
-        // consecutive edges `a`, `b` folded when `a·b < cos(π − gap) |a| |b|`.
         let positions = &self.state.positions;
-        let fold_cosine = (std::f64::consts::PI - FOLDED_STATE_GAP).cos();
-        let (mut previous, mut fold) = (None, None);
-        for edge in 0..self.edge_count() {
-            let e = positions[edge + 1] - positions[edge];
-            let squared = e.length_squared();
+        let coincident = |edge: usize| {
             let minimum = MIN_RELATIVE_EDGE_LENGTH * self.rest.lengths[edge];
-            if squared <= minimum * minimum {
-                return Some((edge, "on top of the next node"));
-            }
-            if fold.is_none()
-                && previous
-                    .is_some_and(|(a, a_squared): (DVec3, f64)| a.dot(e) < fold_cosine * (a_squared * squared).sqrt())
-            {
-                fold = Some(edge);
-            }
-            previous = Some((e, squared));
+            (positions[edge + 1] - positions[edge]).length_squared() <= minimum * minimum
+        };
+        if let Some(edge) = (0..self.edge_count()).find(|&edge| coincident(edge)) {
+            return Some((edge, "on top of the next node"));
         }
-        fold.map(|node| (node, "edges folded onto each other"))
+        let edges = positions.windows(2).map(|pair| pair[1] - pair[0]);
+        first_fold(edges, std::f64::consts::PI - FOLDED_STATE_GAP)
+            .map(|edge| (edge + 1, "edges folded onto each other"))
     }
 
     /// Time-parallel transport: carries each edge's reference director from the tangent it was adapted

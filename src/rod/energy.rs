@@ -8,6 +8,7 @@ use bevy::math::DVec3;
 
 use super::banded::BandedMatrix;
 use super::curve::Rod;
+use super::frames::directors_turned_by;
 use super::lanes::{Real, Vector, matrix3};
 
 /// Half-bandwidth of a rod's Hessian in the interleaved ordering.
@@ -81,8 +82,7 @@ pub(crate) fn edge_geometry(rod: &Rod, out: &mut Vec<EdgeGeometry>) {
 
 /// An edge's geometry from its end points, its unit tangent and reference director (fresh) and its
 /// twist `θ`, for one strand or a lockstep batch: `|e|`, `1/|e|` and the material directors
-/// `m1 = cos θ a1 + sin θ a2`, `m2 = −sin θ a1 + cos θ a2` with `a2 = t × a1`
-/// ([`super::frames::material_directors`], with [`Real::sin_cos`]).
+/// ([`super::frames::material_directors`]).
 #[inline(always)]
 pub(crate) fn edge_frame<T: Real>(
     start: Vector<T>,
@@ -92,15 +92,8 @@ pub(crate) fn edge_frame<T: Real>(
     twist: T,
 ) -> EdgeFrame<T> {
     let length = (end - start).length();
-    let reference_2 = tangent.cross(reference);
-    let (sin, cos) = twist.sin_cos();
-    EdgeFrame {
-        tangent,
-        length,
-        inverse_length: T::splat(1.0) / length,
-        m1: reference.scale(cos) + reference_2.scale(sin),
-        m2: reference_2.scale(cos) - reference.scale(sin),
-    }
+    let (m1, m2) = directors_turned_by(reference, tangent, twist);
+    EdgeFrame { tangent, length, inverse_length: T::splat(1.0) / length, m1, m2 }
 }
 
 impl From<&EdgeFrame<f64>> for EdgeGeometry {

@@ -32,9 +32,21 @@ pub fn curvature_binormal(previous_tangent: DVec3, next_tangent: DVec3) -> DVec3
 /// Material directors `(m1, m2)` from the reference director `a1`, the tangent `t` and the twist angle `θ`:
 /// `m1 = cos θ a1 + sin θ a2`, `m2 = −sin θ a1 + cos θ a2`, with `a2 = t × a1`.
 pub fn material_directors(reference: DVec3, tangent: DVec3, twist: f64) -> (DVec3, DVec3) {
+    let (m1, m2) = directors_turned_by(reference.into(), tangent.into(), twist);
+    (m1.lane(0), m2.lane(0))
+}
+
+/// [`material_directors`] for one strand (`f64`, the same operations as glam's) or a lockstep batch's
+/// lanes (`sin_cos` lane by lane).
+#[inline(always)]
+pub(crate) fn directors_turned_by<T: Real>(
+    reference: Vector<T>,
+    tangent: Vector<T>,
+    twist: T,
+) -> (Vector<T>, Vector<T>) {
     let reference_2 = tangent.cross(reference);
     let (sin, cos) = twist.sin_cos();
-    (cos * reference + sin * reference_2, cos * reference_2 - sin * reference)
+    (reference.scale(cos) + reference_2.scale(sin), reference_2.scale(cos) - reference.scale(sin))
 }
 
 /// `v` made perpendicular to the unit `tangent` and normalised; `None` when `v` is (nearly) parallel to it

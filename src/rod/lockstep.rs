@@ -712,8 +712,6 @@ impl LockstepWorkspace {
             self.elastic_product.resize(size, Lanes::default());
             if damped != 0 {
                 multiply_batch(&mut self.matrix, &self.displacement, &mut self.elastic_product);
-            }
-            if damped != 0 {
                 self.add_damping_forces(params, strands, damped);
             }
             add_batch_inertia_terms(&self.inertia, params, &mut self.solution, &mut self.matrix);
@@ -781,8 +779,8 @@ impl LockstepWorkspace {
         }
     }
 
-    /// Solves each `active` lane's factorised system for its Newton update, left in the lane's
-    /// workspace (where [`Rod::apply_newton_update`] reads it).
+    /// Solves each `active` lane's factorised system for its Newton update: in the batch's solution, and
+    /// in each lane's workspace (where its contacts look at it, `Rod::update_contacts_with`).
     fn solve(&mut self, active: LaneMask, size: usize) {
         self.solution.clear();
         self.solution.resize(size, Lanes::default());

@@ -768,9 +768,7 @@ impl Rod {
                 *position = *target;
             }
         }
-        // Most edges are free: only the clamped ones need `twist_target_offset`.
-        let clamped = self.constraints.twist_targets.iter().enumerate().filter(|(_, target)| target.is_some());
-        for (edge, _) in clamped {
+        for edge in self.constraints.clamped_edges() {
             if let Some(offset) = self.twist_target_offset(edge) {
                 self.state.twist[edge] += offset;
             }
@@ -952,9 +950,7 @@ impl Rod {
                 prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
             }
         }
-        // Most edges are free: only the clamped ones need `twist_target_offset`.
-        let clamped = self.constraints.twist_targets.iter().enumerate().filter(|(_, target)| target.is_some());
-        for (edge, _) in clamped {
+        for edge in self.constraints.clamped_edges() {
             if let Some(offset) = self.twist_target_offset(edge) {
                 prescribed[twist_dof(edge)] = offset;
             }
@@ -971,9 +967,7 @@ impl Rod {
         let prescribed_dofs = (0..self.node_count())
             .filter(|&node| self.constraints.node_targets[node].is_some())
             .flat_map(|node| node_dof(node)..node_dof(node) + 3)
-            .chain(
-                (0..self.edge_count()).filter(|&edge| self.constraints.twist_targets[edge].is_some()).map(twist_dof),
-            );
+            .chain(self.constraints.clamped_edges().map(twist_dof));
         for dof in prescribed_dofs {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];

@@ -123,6 +123,11 @@ impl RodConstraints {
     pub(crate) fn is_edge_free(&self, edge: usize) -> bool {
         self.node_targets[edge].is_none() || self.node_targets[edge + 1].is_none()
     }
+
+    /// The edges whose twist is held (clamped).
+    pub(crate) fn clamped_edges(&self) -> impl Iterator<Item = usize> + '_ {
+        self.twist_targets.iter().enumerate().filter(|(_, target)| target.is_some()).map(|(edge, _)| edge)
+    }
 }
 
 /// Everything a step starts from that it changes: the state and the frames. Restoring a snapshot taken
