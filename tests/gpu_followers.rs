@@ -103,6 +103,7 @@ fn head_pose(step: usize) -> Transform {
 
 #[test]
 fn followers_placed_on_the_gpu_match_the_cpu_placement() {
+    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     assert_eq!(*app.world().resource::<FollowerPlacement>(), FollowerPlacement::Gpu);
@@ -315,6 +316,7 @@ fn read_back_next_frame(app: &mut App, buffers: [Handle<ShaderBuffer>; 2]) -> [V
 
 #[test]
 fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() {
+    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     let groom = HairGroom { strand_count: 150, followers_per_guide: 6, segments: 16, ..default() };
@@ -373,6 +375,7 @@ fn the_motion_vectors_draw_each_hair_from_where_it_was_drawn_the_frame_before() 
 
 #[test]
 fn hair_placed_on_the_gpu_starts_still_under_motion_vectors_and_then_moves() {
+    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     // The followers placed where they are drawn, on the GPU (the renderer's default).
@@ -448,6 +451,7 @@ fn read_back_image(app: &mut App, image: Handle<Image>) -> Vec<u8> {
 fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_the_view_and_kept_without() {
     use bevy::camera::RenderTarget;
     use bevy::render::camera::TemporalJitter;
+    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     // 200 guides seen from 0.6 m on a 320 × 240 image (pixels of 2 mm), drawn a fraction of a pixel thick:
@@ -527,6 +531,7 @@ fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_th
 fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
     use bevy::camera::RenderTarget;
     use bevy::light::CascadeShadowConfigBuilder;
+    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     let image = render_target(&mut app, 320, 240);

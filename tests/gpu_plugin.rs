@@ -4,6 +4,8 @@
 //! back into the components. Checked against the same app stepped on the CPU, and the drawn nodes
 //! against the read-back components.
 
+mod common;
+
 use std::sync::{Arc, Mutex};
 
 use bevy::app::PluginsState;
@@ -142,6 +144,7 @@ fn guide_nodes(app: &App, head: Entity) -> Vec<Vec<Vec3>> {
 
 #[test]
 fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
+    let _renderer = common::renderer::one_at_a_time();
     let mut gpu = app(true);
     assert!(gpu.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     let mut cpu = app(false);
@@ -347,6 +350,7 @@ fn the_gpu_holds_the_style_as_the_cpu_does() {
     // The example's hold (200/s over the whole length) on the groom preloaded as grown (its gravity
     // preload done on the CPU before the GPU takes it), shaken and turned for 1 s.
     let hold = HairStyleHold { rate: 200.0, reach: 1.0 };
+    let _renderer = common::renderer::one_at_a_time();
     let held = |gpu: bool| {
         let mut app = app(gpu);
         app.world_mut().resource_mut::<HairSettings>().style_hold = hold;

@@ -37,6 +37,7 @@ pub fn max_speed(rod: &Rod) -> f64 {
 
 pub mod headless;
 pub mod logs;
+pub mod renderer;
 
 /// The top 100° of a sphere of `radius` m about `centre` as a triangle list: `rings + 1` rings of
 /// `segments` vertices from the crown down (vertex `ring · segments + segment`), each quad between them two
