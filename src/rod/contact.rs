@@ -375,9 +375,19 @@ impl ContactScratch {
     fn find_nearby(&mut self, rod: &Rod, contacts: &Contacts, start_positions: &[DVec3], margin: f64) {
         let (positions, longest_edge) = (&rod.state.positions, rod.longest_rest_edge());
         self.nearby.clear();
+        // The box around every node, at the start and now: a collider whose bounds miss it has no node
+        // near (the margin keeps rounding from missing one the test below would find).
+        let (low, high) = positions
+            .iter()
+            .chain(start_positions)
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), &p| (low.min(p), high.max(p)));
         for collider in contacts.colliders {
             // A point of an edge within the bounds puts one of its ends within half an edge of them.
             let (centre, radius) = collider.swept_bounds(contacts.thickness + margin + 0.5 * longest_edge);
+            let reach = radius * (1.0 + 1e-9) + 1e-12;
+            if centre.clamp(low, high).distance_squared(centre) > reach * reach {
+                continue;
+            }
             let near = |node: &usize| {
                 let nearest =
                     start_positions[*node].distance_squared(centre).min(positions[*node].distance_squared(centre));
