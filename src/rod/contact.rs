@@ -723,8 +723,8 @@ mod tests {
             let Some(direction) = direction.try_normalize() else { continue };
             let gap = [0.0, CONTACT_GAP, 0.01 * random.f64()][sample % 3];
             let on_surface = direction / (direction / semi_axes).length();
-            // Half the points within a nanometre of where the bound equals the gap, half anywhere
-            // from deep inside to 2 cm out.
+            // Half the points within a nanometre of where the bound equals the gap, half anywhere from
+            // 8 cm inside to 2 cm out.
             let offset =
                 if sample % 2 == 0 { gap + 1e-9 * (2.0 * random.f64() - 1.0) } else { 0.1 * random.f64() - 0.08 };
             let point = on_surface * (1.0 + offset / semi_axes.min_element());
