@@ -736,4 +736,73 @@ mod tests {
         }
         assert!(within_a_nanometre > 100_000, "only {within_a_nanometre} points near the threshold");
     }
+
+    /// `find_nearby` keeps every collider a node is near, at the start or now, with the nodes from the
+    /// first near one to the last: checked node by node against colliders placed at random, half of them
+    /// within a micrometre of the reach of a node that moved.
+    #[test]
+    fn the_colliders_found_nearby_are_those_a_node_is_near() {
+        use crate::rod::RodMaterial;
+        let arc = |t: f64| DVec3::new(0.1 * t.sin(), -0.2 * t, 0.05 * (1.0 - t.cos()));
+        let positions: Vec<DVec3> = (0..=24).map(|i| arc(i as f64 / 24.0)).collect();
+        let mut rod = Rod::new(&positions, DVec3::X, RodMaterial::human_hair()).unwrap();
+        // The step moved the hair: its start lies 3 cm to the side and 1 cm up, twisted a little.
+        let start_positions: Vec<DVec3> =
+            positions.iter().enumerate().map(|(i, p)| *p + DVec3::new(0.03, 0.01, 0.001 * i as f64)).collect();
+        rod.state.positions[..].copy_from_slice(&positions);
+        let mut random = fastrand::Rng::with_seed(11);
+        let (thickness, margin) = (1e-3, 2e-3);
+        let mut unit = || DVec3::new(random.f64() - 0.5, random.f64() - 0.5, random.f64() - 0.5).normalize();
+        let mut colliders = Vec::new();
+        let mut placing = fastrand::Rng::with_seed(12);
+        for index in 0..400 {
+            let radius = 0.005 + 0.02 * placing.f64();
+            let travel = 0.01 * unit();
+            let probe = MovingCollider {
+                shape: ColliderShape::sphere(radius),
+                friction: 0.0,
+                start: RigidPose::default(),
+                end: RigidPose::new(Default::default(), travel),
+            };
+            let reach = probe.swept_bounds(thickness + margin + 0.5 * rod.longest_rest_edge()).1;
+            let node = placing.usize(0..positions.len());
+            let from = if placing.bool() { start_positions[node] } else { positions[node] };
+            let distance =
+                if index % 2 == 0 { reach + 1e-6 * (2.0 * placing.f64() - 1.0) } else { 0.5 * placing.f64() };
+            // A quarter straight out from the node farthest along an axis: there the box around the nodes
+            // is as near the collider as that node is.
+            let centre = if index % 4 == 0 {
+                let axis =
+                    [DVec3::X, DVec3::Y, DVec3::Z, DVec3::NEG_X, DVec3::NEG_Y, DVec3::NEG_Z][placing.usize(0..6)];
+                let all = positions.iter().chain(&start_positions);
+                let farthest = all.max_by(|a, b| a.dot(axis).total_cmp(&b.dot(axis))).unwrap();
+                *farthest + distance * axis
+            } else {
+                from + distance * unit()
+            };
+            let pose = |offset: DVec3| RigidPose::new(Default::default(), centre - 0.5 * travel + offset);
+            colliders.push(MovingCollider { start: pose(DVec3::ZERO), end: pose(travel), ..probe });
+        }
+        let contacts = Contacts { colliders: &colliders, thickness };
+        let mut scratch = ContactScratch::default();
+        scratch.find_nearby(&rod, &contacts, &start_positions, margin);
+        let mut found = scratch.nearby.iter();
+        let mut kept = 0;
+        for collider in &colliders {
+            let (centre, reach) = collider.swept_bounds(thickness + margin + 0.5 * rod.longest_rest_edge());
+            let near: Vec<usize> = (0..positions.len())
+                .filter(|&node| {
+                    start_positions[node].distance_squared(centre).min(positions[node].distance_squared(centre))
+                        <= reach * reach
+                })
+                .collect();
+            if let (Some(&first), Some(&last)) = (near.first(), near.last()) {
+                let nearby = found.next().expect("a collider a node is near is found");
+                assert_eq!(nearby.nodes, first..last + 1, "the collider at {centre} ({reach} m)");
+                kept += 1;
+            }
+        }
+        assert!(found.next().is_none(), "no collider is found that no node is near");
+        assert!((100..300).contains(&kept), "{kept} of 400 colliders near: the test sees both kinds");
+    }
 }
