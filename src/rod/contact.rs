@@ -315,7 +315,7 @@ impl NearbyCollider {
     /// more than `depth` m inside.
     fn closest_if_deeper(&self, world: DVec3, depth: f64) -> Option<(DVec3, DVec3)> {
         let local = self.local_at_end(world);
-        if self.certainly_beyond(local, 0.0) || !self.shape.contains(local) {
+        if !self.shape.contains(local) {
             return None;
         }
         let surface = self.shape.closest_surface_point(local);
@@ -765,8 +765,6 @@ mod tests {
                 end: RigidPose::new(Default::default(), travel),
             };
             let reach = probe.swept_bounds(thickness + margin + 0.5 * rod.longest_rest_edge()).1;
-            let node = placing.usize(0..positions.len());
-            let from = if placing.bool() { start_positions[node] } else { positions[node] };
             let distance =
                 if index % 2 == 0 { reach + 1e-6 * (2.0 * placing.f64() - 1.0) } else { 0.5 * placing.f64() };
             // A quarter straight out from the node farthest along an axis: there the box around the nodes
@@ -778,6 +776,8 @@ mod tests {
                 let farthest = all.max_by(|a, b| a.dot(axis).total_cmp(&b.dot(axis))).unwrap();
                 *farthest + distance * axis
             } else {
+                let node = placing.usize(0..positions.len());
+                let from = if placing.bool() { start_positions[node] } else { positions[node] };
                 from + distance * unit()
             };
             let pose = |offset: DVec3| RigidPose::new(Default::default(), centre - 0.5 * travel + offset);
