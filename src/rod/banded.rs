@@ -134,6 +134,17 @@ impl<const HALF_BANDWIDTH: usize, T: Real> BandedMatrix<HALF_BANDWIDTH, T> {
         }
     }
 
+    /// [`BandedMatrix::set_identity_row`] in every lane of the entries.
+    pub(crate) fn set_identity_row_in_every_lane(&mut self, dof: usize) {
+        let band = HALF_BANDWIDTH;
+        let diagonal = self.index(dof, dof);
+        self.values[diagonal - dof.min(band)..diagonal].fill(T::default());
+        self.values[diagonal] = T::splat(1.0);
+        for below in 1..=(dof + band).min(self.size - 1) - dof {
+            self.values[diagonal + below * band] = T::default();
+        }
+    }
+
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal); the
     /// band then holds `L` below the diagonal and `D` on it, and the reciprocals of `D` are kept so that
     /// [`BandedMatrix::solve_factorized`] does not divide. Returns the lanes (bit `k` for lane `k`)
@@ -261,7 +272,7 @@ impl<const HALF_BANDWIDTH: usize> BandedMatrix<HALF_BANDWIDTH> {
 
     /// Replaces row and column `dof` by those of the identity, decoupling that unknown.
     pub fn set_identity_row(&mut self, dof: usize) {
-        self.set_identity_row_in_lane(0, dof);
+        self.set_identity_row_in_every_lane(dof);
     }
 
     /// Factorises in place into `L D Lᵀ` (Cholesky without square roots, `L` with a unit diagonal; the

@@ -18,8 +18,9 @@
 //! damping's product and residual, the edges' geometry, the factorisation, the substitutions, the
 //! Newton update with its trust region, the projection onto the edge lengths and the reference frames
 //! (their `atan2` and the material directors' `sin_cos` lane by lane: std's functions, so that the bits
-//! match). Each strand's contact, Levenberg–Marquardt shift and prescribed unknowns are written into its
-//! own lane, and its contacts are looked at strand by strand. The plugin steps its strands this way;
+//! match), and the prescribed unknowns where the batch's strands share them (as the strands of a head,
+//! each clamped at its root, do). Each strand's contact and Levenberg–Marquardt shift are written into
+//! its own lane, and its contacts are looked at strand by strand. The plugin steps its strands this way;
 //! `benchmark lockstep` compares the two paths (`docs/performance.md`, issue 32).
 
 use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
@@ -35,8 +36,8 @@ use super::lanes::{LaneMask, Lanes, Real, Vector, lanes_in};
 use super::params::StepParams;
 use super::projection::{LengthConstraints, ProjectionScratch, TridiagonalScratch, project_points};
 use super::solver::{
-    NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, first_non_finite_update, newton_update,
-    next_regularisation,
+    MovingUnknowns, NewtonProgress, RodWorkspace, StepLoads, StepReport, damped_scale, first_non_finite_update,
+    newton_update, next_regularisation,
 };
 
 pub use super::lanes::LANES;
@@ -75,6 +76,9 @@ pub struct LockstepWorkspace {
     elastic_product: Vec<Lanes>,
     /// The damped lanes' internal damping forces.
     damping_force: Vec<Lanes>,
+    /// The displacements left to the lanes' prescribed unknowns, and the matrix times them.
+    prescribed: Vec<Lanes>,
+    prescribed_coupling: Vec<Lanes>,
     /// The lanes in which each edge is free (not both its nodes held) this step.
     free_edges: Vec<LaneMask>,
 }
@@ -726,13 +730,9 @@ impl LockstepWorkspace {
                     scratch: &mut self.product_scratch,
                     elastic_product: &self.elastic_product,
                 };
-                strands[lane].rod.add_contact_and_prescribed_terms(
-                    params,
-                    workspace,
-                    &mut matrix,
-                    regularisation[lane],
-                );
+                strands[lane].rod.add_contact_terms(params, workspace, &mut matrix, regularisation[lane]);
             }
+            self.add_prescribed_unknowns(strands, active, size);
             let mut rows = [0; LANES];
             let failed = factorize_best(&mut self.matrix, &mut rows) & active;
             if failed == 0 {
@@ -749,6 +749,58 @@ impl LockstepWorkspace {
             }
             if active == 0 {
                 return 0;
+            }
+        }
+    }
+
+    /// Each `active` lane's prescribed unknowns ([`Rod::add_prescribed_unknowns`]). Where the lanes
+    /// prescribe the same unknowns and the same span of them still moves (the strands of a head, each
+    /// clamped at its root, do), the product that takes the displacements to the right-hand side and the
+    /// identity rows are written for the whole batch, each lane with the operations it would do alone;
+    /// otherwise lane by lane.
+    fn add_prescribed_unknowns(&mut self, strands: &[LockstepStrand], active: LaneMask, size: usize) {
+        self.prescribed.clear();
+        self.prescribed.resize(size, Lanes::default());
+        let mut shared: Option<(u128, MovingUnknowns)> = None;
+        let mut alike = true;
+        for lane in lanes_in(active) {
+            let rod = &*strands[lane].rod;
+            let (prescribed, mut moving) = (&mut self.prescribed, MovingUnknowns::default());
+            rod.prescribed_displacements(|dof, offset| {
+                prescribed[dof].0[lane] = offset;
+                moving.include(dof, offset);
+            });
+            alike &= prescribed_set(rod).is_some_and(|set| *shared.get_or_insert((set, moving)) == (set, moving));
+        }
+        let Some((set, moving)) = shared.filter(|_| alike) else {
+            for lane in lanes_in(active) {
+                let mut matrix = MatrixLane {
+                    matrix: &mut self.matrix,
+                    lane,
+                    scratch: &mut self.product_scratch,
+                    elastic_product: &self.elastic_product,
+                };
+                strands[lane].rod.add_prescribed_unknowns(&mut self.lanes[lane], &mut matrix);
+            }
+            return;
+        };
+        if let Some(columns) = moving.columns() {
+            self.prescribed_coupling.resize(size, Lanes::default());
+            self.matrix.multiply_columns(columns, &self.prescribed, &mut self.prescribed_coupling);
+            for lane in lanes_in(active) {
+                let residual = self.lanes[lane].residual_mut().iter_mut();
+                for (r, coupling) in residual.zip(&self.prescribed_coupling) {
+                    *r += coupling.0[lane];
+                }
+            }
+        }
+        let mut rest = set;
+        while rest != 0 {
+            let dof = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+            self.matrix.set_identity_row_in_every_lane(dof);
+            for lane in lanes_in(active) {
+                self.lanes[lane].residual_mut()[dof] = -self.prescribed[dof].0[lane];
             }
         }
     }
@@ -798,6 +850,11 @@ impl LockstepWorkspace {
     }
 }
 
+/// `rod`'s prescribed unknowns as a set (bit `k` for unknown `k`), if all are among the first 128.
+fn prescribed_set(rod: &Rod) -> Option<u128> {
+    rod.prescribed_unknowns().try_fold(0_u128, |set, dof| (dof < 128).then(|| set | 1 << dof))
+}
+
 #[cfg(test)]
 mod tests {
     use bevy::math::{DQuat, DVec3};
@@ -831,7 +888,7 @@ mod tests {
     fn a_batch_steps_each_strand_exactly_as_alone() {
         // Five hairs in a batch of four and one: different shapes, one with another node count (stepped
         // alone), a ball under two of them, wind on one, anchors on one, forces on one (not finite at
-        // one step).
+        // one step), and for a while a pin on one (so that its batch's prescribed unknowns differ).
         let angles = [0.0, 0.4, -0.7, 1.2, -0.2];
         let edge_counts = [24, 24, 24, 16, 24];
         let make = || -> Vec<Rod> { angles.iter().zip(edge_counts).map(|(&a, e)| hair(e, a)).collect() };
@@ -872,6 +929,11 @@ mod tests {
             let t = step as f64 * params.dt;
             for (index, rod) in alone.iter_mut().chain(batched.iter_mut()).enumerate() {
                 shake(rod, roots[index % angles.len()], t);
+                if index % angles.len() == 1 && step == 30 {
+                    rod.pin_node(12, rod.positions()[12] + DVec3::new(0.0, 0.01, 0.0)).unwrap();
+                } else if index % angles.len() == 1 && step == 60 {
+                    rod.release_node(12).unwrap();
+                }
             }
             let expected: Vec<_> = alone
                 .iter_mut()

@@ -849,7 +849,20 @@ impl Rod {
     /// The Newton system's terms after the elastic ones, internal damping and inertia (in `matrix`, the
     /// residual in the workspace): contact, the diagonal scaled by `1 + regularisation`, prescribed
     /// unknowns.
-    pub(super) fn add_contact_and_prescribed_terms(
+    fn add_contact_and_prescribed_terms(
+        &self,
+        params: &StepParams,
+        workspace: &mut RodWorkspace,
+        matrix: &mut impl StrandMatrix,
+        regularisation: f64,
+    ) {
+        self.add_contact_terms(params, workspace, matrix, regularisation);
+        self.add_prescribed_unknowns(workspace, matrix);
+    }
+
+    /// [`Rod::add_contact_and_prescribed_terms`] up to the prescribed unknowns: contact, and the
+    /// diagonal scaled by `1 + regularisation`.
+    pub(super) fn add_contact_terms(
         &self,
         params: &StepParams,
         workspace: &mut RodWorkspace,
@@ -869,7 +882,6 @@ impl Rod {
         if regularisation > 0.0 {
             matrix.scale_diagonal(1.0 + regularisation);
         }
-        self.add_prescribed_unknowns(workspace, matrix);
     }
 
     /// Internal (Rayleigh) friction `β/dt H (q − q̃)` on the deformation since the first guess `q̃` (the
@@ -939,38 +951,52 @@ impl Rod {
 
     /// Prescribed unknowns (pins, clamps) move by their remaining displacement `d`: their rows become
     /// identity rows with right-hand side `d`, and the free rows see `−A d` on their right-hand side.
-    fn add_prescribed_unknowns(&self, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
+    pub(super) fn add_prescribed_unknowns(&self, workspace: &mut RodWorkspace, hessian: &mut impl StrandMatrix) {
         let size = dof_count(self.node_count());
         let RodWorkspace { residual, prescribed, damping_force: coupling, .. } = workspace;
         prescribed.clear();
         prescribed.resize(size, 0.0);
-        for node in 0..self.node_count() {
-            if let Some(target) = self.constraints.node_targets[node] {
-                let offset = target - self.state.positions[node];
-                prescribed[node_dof(node)..node_dof(node) + 3].copy_from_slice(&offset.to_array());
-            }
-        }
-        for edge in self.constraints.clamped_edges() {
-            if let Some(offset) = self.twist_target_offset(edge) {
-                prescribed[twist_dof(edge)] = offset;
-            }
-        }
+        let mut moving = MovingUnknowns::default();
+        self.prescribed_displacements(|dof, offset| {
+            prescribed[dof] = offset;
+            moving.include(dof, offset);
+        });
         // Usually only the root edge's unknowns move: multiply by the columns they span, not all.
-        if let (Some(first), Some(last)) =
-            (prescribed.iter().position(|d| *d != 0.0), prescribed.iter().rposition(|d| *d != 0.0))
-        {
-            hessian.multiply_columns(first..last + 1, prescribed, coupling);
+        if let Some(columns) = moving.columns() {
+            hessian.multiply_columns(columns, prescribed, coupling);
             for (r, coupling) in residual.iter_mut().zip(coupling.iter()) {
                 *r += coupling;
             }
         }
-        let prescribed_dofs = (0..self.node_count())
-            .filter(|&node| self.constraints.node_targets[node].is_some())
-            .flat_map(|node| node_dof(node)..node_dof(node) + 3)
-            .chain(self.constraints.clamped_edges().map(twist_dof));
-        for dof in prescribed_dofs {
+        for dof in self.prescribed_unknowns() {
             hessian.set_identity_row(dof);
             residual[dof] = -prescribed[dof];
+        }
+    }
+
+    /// The prescribed unknowns: the coordinates of each pinned or clamped node, then each clamped edge's
+    /// twist.
+    pub(super) fn prescribed_unknowns(&self) -> impl Iterator<Item = usize> + '_ {
+        (0..self.node_count())
+            .filter(|&node| self.constraints.node_targets[node].is_some())
+            .flat_map(|node| node_dof(node)..node_dof(node) + 3)
+            .chain(self.constraints.clamped_edges().map(twist_dof))
+    }
+
+    /// Calls `visit(unknown, d)` for each prescribed unknown, in the order of
+    /// [`Rod::prescribed_unknowns`], with the displacement `d` that remains to its target (0 for a
+    /// clamped edge whose twist has no target here).
+    pub(super) fn prescribed_displacements(&self, mut visit: impl FnMut(usize, f64)) {
+        for (node, target) in self.constraints.node_targets.iter().enumerate() {
+            if let Some(target) = target {
+                let offset = *target - self.state.positions[node];
+                for (axis, offset) in offset.to_array().into_iter().enumerate() {
+                    visit(node_dof(node) + axis, offset);
+                }
+            }
+        }
+        for edge in self.constraints.clamped_edges() {
+            visit(twist_dof(edge), self.twist_target_offset(edge).unwrap_or(0.0));
         }
     }
 
@@ -1077,6 +1103,26 @@ pub(super) fn newton_update<T: Real>(
         *twist = T::select(finite, *twist + fraction * update[twist_dof(edge)], *twist);
     }
     (fraction, finite)
+}
+
+/// The span of the prescribed unknowns that still move (a displacement not zero), whose columns the
+/// product in [`Rod::add_prescribed_unknowns`] takes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct MovingUnknowns(Option<(usize, usize)>);
+
+impl MovingUnknowns {
+    /// Takes in unknown `dof` if its displacement `offset` is not zero.
+    pub(super) fn include(&mut self, dof: usize, offset: f64) {
+        if offset != 0.0 {
+            let (first, last) = self.0.unwrap_or((dof, dof));
+            self.0 = Some((first.min(dof), last.max(dof)));
+        }
+    }
+
+    /// The columns from the first moving unknown to the last, if any moves.
+    pub(super) fn columns(self) -> Option<std::ops::Range<usize>> {
+        self.0.map(|(first, last)| first..last + 1)
+    }
 }
 
 #[cfg(test)]
