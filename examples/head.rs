@@ -138,6 +138,8 @@ struct Options {
     taa: bool,
     /// Whether the GPU steps the hair (`HairGpuPlugin`).
     gpu: bool,
+    /// `HairAppearance::highlight_filtering` over the colour's (`None`: the default).
+    highlight_filtering: Option<f32>,
 }
 
 /// How the example draws hair: rendered strands, gizmo lines, or both over each other.
@@ -167,7 +169,7 @@ impl Options {
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--hold 1/S] [--draw hair|lines|both]
             [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off] [--taa on|off]
-            [--color black|dark brown|brown|auburn|red|blonde|light blonde|white]";
+            [--color black|dark brown|brown|auburn|red|blonde|light blonde|white] [--highlight-filtering 0-4]";
 
     /// The procedural groom these options ask for, on the example's scalp.
     fn procedural_groom(&self) -> HairGroom {
@@ -215,6 +217,7 @@ impl Options {
             appearance: HairAppearance::default(),
             detail: None,
             gpu: false,
+            highlight_filtering: None,
             motion_blur: false,
             taa: false,
         };
@@ -289,6 +292,13 @@ impl Options {
                         .find(|(name, _)| *name == value)
                         .map(|(_, appearance)| appearance)
                         .ok_or_else(|| format!("unknown hair colour {value:?}"))?
+                }
+                "--highlight-filtering" => {
+                    options.highlight_filtering = Some(
+                        value
+                            .parse()
+                            .map_err(|_| format!("--highlight-filtering needs a number from 0 to 4, got {value:?}"))?,
+                    )
                 }
                 "--animate" => {
                     options.animation = Animation::ALL
@@ -425,7 +435,10 @@ fn spawn_scene(
     let head = commands
         .spawn((
             HairHead,
-            options.appearance.clone(),
+            HairAppearance {
+                highlight_filtering: options.highlight_filtering.unwrap_or(options.appearance.highlight_filtering),
+                ..options.appearance.clone()
+            },
             Transform::from_xyz(0.0, NECK_HEIGHT, 0.0),
             Visibility::default(),
             ChildOf(body),

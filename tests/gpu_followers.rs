@@ -527,21 +527,21 @@ fn without_multisampling_the_hair_s_coverage_is_drawn_anew_for_each_jitter_of_th
     }
 }
 
-#[test]
-fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
+/// A rendering app with a head of 600 guides grown and held still, lit only by one shadowed directional
+/// light from `light_from` (towards the origin), and a camera drawing into an image: the head, the image.
+fn lit_head(light_from: Vec3) -> (App, Entity, Handle<Image>) {
     use bevy::camera::RenderTarget;
     use bevy::light::CascadeShadowConfigBuilder;
-    let _renderer = common::renderer::one_at_a_time();
     let mut app = rendering_app();
     assert!(app.get_sub_app(RenderApp).is_some(), "Bevy's renderer started (a GPU adapter was found)");
     let image = render_target(&mut app, 320, 240);
     let groom = HairGroom { strand_count: 600, followers_per_guide: 4, segments: 12, ..default() };
     let head = app.world_mut().spawn((HairHead, groom, HairAppearance::default(), Transform::default())).id();
-    // The only light: from above, behind and to the left, its shadow map's texels a millimetre wide.
+    // Its shadow map's texels a millimetre wide.
     app.world_mut().insert_resource(GlobalAmbientLight::NONE);
     app.world_mut().spawn((
         DirectionalLight { illuminance: 10_000.0, shadow_maps_enabled: true, ..default() },
-        Transform::from_xyz(-1.0, 3.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y),
+        Transform::from_translation(light_from).looking_at(Vec3::ZERO, Vec3::Y),
         CascadeShadowConfigBuilder { num_cascades: 1, maximum_distance: 1.5, ..default() }.build(),
     ));
     app.world_mut().spawn((
@@ -557,33 +557,55 @@ fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
     for _ in 0..5 {
         app.update();
     }
-    let frame_with = |app: &mut App, penetration: f32| {
-        let mut appearance = app.world_mut().get_mut::<HairAppearance>(head).unwrap();
-        let changed = appearance.light_penetration != penetration;
-        if changed {
-            appearance.light_penetration = penetration;
-        }
-        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
-        // A few frames to take a new appearance, then one to draw with it.
-        for _ in 0..if changed { 3 } else { 0 } {
-            app.update();
-        }
-        read_back_image(app, image.clone())
-    };
-    // The first frames draw nothing while the pipelines compile.
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
+    (app, head, image)
+}
+
+/// The image [`lit_head`]'s camera draws once the head's appearance is changed by `change` (a few frames
+/// to take it), the first frames waited out while the pipelines compile.
+fn frame_of(app: &mut App, head: Entity, image: &Handle<Image>, change: impl Fn(&mut HairAppearance)) -> Vec<u8> {
+    let mut appearance = app.world_mut().get::<HairAppearance>(head).unwrap().clone();
+    change(&mut appearance);
+    let changed = *app.world().get::<HairAppearance>(head).unwrap() != appearance;
+    if changed {
+        *app.world_mut().get_mut::<HairAppearance>(head).unwrap() = appearance;
+    }
+    for _ in 0..if changed { 3 } else { 0 } {
+        app.update();
+    }
     for _ in 0..60 {
-        if frame_with(&mut app, 0.0).chunks_exact(4).any(|pixel| pixel[..3] != [0, 0, 0]) {
-            break;
+        let pixels = read_back_image(app, image.clone());
+        if pixels.chunks_exact(4).any(|pixel| pixel[..3] != [0, 0, 0]) {
+            return pixels;
         }
     }
-    let hard = frame_with(&mut app, 0.0);
-    let hair: Vec<usize> = (0..hard.len() / 4).filter(|&pixel| hard[4 * pixel..4 * pixel + 3] != [0, 0, 0]).collect();
-    let brightness = |pixels: &[u8]| {
-        hair.iter()
-            .map(|&pixel| pixels[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>())
-            .sum::<f64>()
-            / (3.0 * hair.len() as f64)
+    panic!("nothing was drawn in 60 frames");
+}
+
+/// The pixels of `frame` where hair was drawn (not the black background), by index.
+fn hair_pixels(frame: &[u8]) -> Vec<usize> {
+    (0..frame.len() / 4).filter(|&pixel| frame[4 * pixel..4 * pixel + 3] != [0, 0, 0]).collect()
+}
+
+/// Each of `pixels`' brightness in `frame`, the mean of its three channels (0–255).
+fn brightness_of(frame: &[u8], pixels: &[usize]) -> Vec<f64> {
+    pixels
+        .iter()
+        .map(|&pixel| frame[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0)
+        .collect()
+}
+
+#[test]
+fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
+    let _renderer = common::renderer::one_at_a_time();
+    // The only light: from above, behind and to the left.
+    let (mut app, head, image) = lit_head(Vec3::new(-1.0, 3.0, -2.0));
+    let frame_with = |app: &mut App, penetration: f32| {
+        frame_of(app, head, &image, |appearance| appearance.light_penetration = penetration)
     };
+    let hard = frame_with(&mut app, 0.0);
+    let hair = hair_pixels(&hard);
+    let brightness = |pixels: &[u8]| brightness_of(pixels, &hair).iter().sum::<f64>() / hair.len() as f64;
     let hard = brightness(&hard);
     let rows: Vec<(f32, f64)> = [0.002, 0.008, 0.05]
         .into_iter()
@@ -604,4 +626,59 @@ fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
     // The shadow map's hard shadow, offset 2 cm towards the light (Bevy's default depth bias), leaves lit the
     // hair behind less than 2 cm of hair; light that penetrates 2 mm darkens it.
     assert!(hard > 1.2 * rows[0].1, "hard shadows light the hair {hard:.2}, 2 mm of penetration {:.2}", rows[0].1);
+}
+
+#[test]
+fn filtered_highlights_keep_their_light_and_lose_their_glints() {
+    let _renderer = common::renderer::one_at_a_time();
+    // The only light: from above and beside the camera, so that the hair facing it shows its highlights.
+    let (mut app, head, image) = lit_head(Vec3::new(1.0, 2.0, 1.5));
+    let frames = [0.0, 1.0]
+        .map(|filtering| frame_of(&mut app, head, &image, |appearance| appearance.highlight_filtering = filtering));
+    // Hair pixels: drawn in either frame (the two draw the same hair, only lit differently).
+    let mut hair = hair_pixels(&frames[0]);
+    hair.extend(hair_pixels(&frames[1]));
+    hair.sort_unstable();
+    hair.dedup();
+    let (width, height) = (320, 240);
+    let [unfiltered, filtered] = frames.map(|frame| {
+        let brightness =
+            |pixel: usize| frame[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
+        let mean = hair.iter().map(|&pixel| brightness(pixel)).sum::<f64>() / hair.len() as f64;
+        // Glints: hair pixels brighter by 30 levels (of 255) than the mean of the 8 around them.
+        let glint = |&&pixel: &&usize| {
+            let (x, y) = (pixel % width, pixel / width);
+            if x == 0 || y == 0 || x + 1 == width || y + 1 == height {
+                return false;
+            }
+            let around = [(0, 0), (1, 0), (2, 0), (0, 1), (2, 1), (0, 2), (1, 2), (2, 2)]
+                .map(|(dx, dy)| brightness((y + dy - 1) * width + x + dx - 1));
+            brightness(pixel) > around.iter().sum::<f64>() / 8.0 + 30.0
+        };
+        (mean, hair.iter().filter(glint).count())
+    });
+    println!(
+        "{} hair pixels; unfiltered: mean brightness {:.2}, {} glints; filtered: mean {:.2}, {} glints",
+        hair.len(),
+        unfiltered.0,
+        unfiltered.1,
+        filtered.0,
+        filtered.1
+    );
+    assert!(hair.len() > 3000, "{} hair pixels: the test does not see the hair", hair.len());
+    assert!(unfiltered.1 > 50, "{} glints unfiltered: the test does not see the highlights", unfiltered.1);
+    // The highlights' light is spread, not lost: the hair as a whole is as bright within a tenth.
+    assert!(
+        (filtered.0 / unfiltered.0 - 1.0).abs() < 0.1,
+        "filtering changed the hair's mean brightness from {:.2} to {:.2}",
+        unfiltered.0,
+        filtered.0
+    );
+    // A third of the glints or more are gone.
+    assert!(
+        3 * filtered.1 <= 2 * unfiltered.1,
+        "{} glints filtered against {} unfiltered: the glints stay",
+        filtered.1,
+        unfiltered.1
+    );
 }

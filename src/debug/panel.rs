@@ -478,6 +478,7 @@ fn appearance_grid(ui: &mut egui::Ui, appearance: &mut HairAppearance) {
     egui::Grid::new("hair appearance").num_columns(2).show(ui, |ui| {
         grid_row(ui, "brightness variation", egui::Slider::new(&mut appearance.color_variation, 0.0..=1.0));
         grid_row(ui, "highlight strength", egui::Slider::new(&mut appearance.specular, 0.0..=1.0));
+        grid_row(ui, "highlight filtering", egui::Slider::new(&mut appearance.highlight_filtering, 0.0..=4.0));
         grid_row(ui, "cuticle tilt (°)", egui::Slider::new(&mut tilt_degrees, 0.0..=10.0));
         grid_row(ui, "highlight width (°)", egui::Slider::new(&mut width_degrees, 1.0..=30.0));
         grid_row(ui, "thickness (× real)", egui::Slider::new(&mut appearance.thickness_scale, 0.25..=8.0));

@@ -108,30 +108,32 @@ pub struct HairShading {
     pub root_color: Vec4,
     /// Linear colour at the tip.
     pub tip_color: Vec4,
-    /// Primary highlight shift, secondary highlight shift (rad), primary and secondary exponents.
+    /// Primary highlight shift, secondary highlight shift (rad), primary and secondary lobes' squared
+    /// angular widths (rad²).
     pub highlights: Vec4,
     /// Specular strength, colour variation, minimum width in pixels, root occlusion.
     pub parameters: Vec4,
-    /// Light penetration, m (0: the shadow maps' hard shadows), and three unused.
+    /// Light penetration, m (0: the shadow maps' hard shadows), the highlights' filtering, and two unused.
     pub deep_shadows: Vec4,
 }
 
 impl From<&HairAppearance> for HairShading {
     fn from(appearance: &HairAppearance) -> Self {
         let tilt = appearance.cuticle_tilt;
-        // A lobe of angular width β is sin(t, h)^p with p = 1/β² (cos^p Δ ≈ exp(−p Δ²/2)).
+        // A lobe of angular width β is sin(t, h)^p with p = 1/β² (cos^p Δ ≈ exp(−p Δ²/2)); the shader
+        // widens it by the pixel's spread of directions first (`HairAppearance::highlight_filtering`).
         let width = appearance.highlight_width.max(1e-3);
         Self {
             root_color: appearance.root_color.to_linear().to_vec4(),
             tip_color: appearance.tip_color.to_linear().to_vec4(),
-            highlights: Vec4::new(-2.0 * tilt, 3.0 * tilt, 1.0 / (width * width), 1.0 / (4.0 * width * width)),
+            highlights: Vec4::new(-2.0 * tilt, 3.0 * tilt, width * width, 4.0 * width * width),
             parameters: Vec4::new(
                 appearance.specular,
                 appearance.color_variation,
                 appearance.min_pixel_width,
                 appearance.root_occlusion,
             ),
-            deep_shadows: Vec4::new(appearance.light_penetration, 0.0, 0.0, 0.0),
+            deep_shadows: Vec4::new(appearance.light_penetration, appearance.highlight_filtering, 0.0, 0.0),
         }
     }
 }

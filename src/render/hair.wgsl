@@ -26,11 +26,11 @@
 struct HairShading {
     root_color: vec4<f32>,
     tip_color: vec4<f32>,
-    // primary shift, secondary shift (rad), primary exponent, secondary exponent
+    // primary shift, secondary shift (rad), primary and secondary lobes' squared widths (rad²)
     highlights: vec4<f32>,
     // specular strength, colour variation, minimum width (pixels), root occlusion
     parameters: vec4<f32>,
-    // light penetration (m; 0: the shadow maps' hard shadows), unused × 3
+    // light penetration (m; 0: the shadow maps' hard shadows), highlight filtering, unused × 2
     deep_shadows: vec4<f32>,
 }
 
@@ -294,6 +294,24 @@ struct HairSurface {
     primary_tangent: vec3<f32>,
     secondary_tangent: vec3<f32>,
     sparkle: f32,
+    // The primary and secondary lobes' exponents and peaks, filtered over the pixel (`highlight_lobes`).
+    lobes: vec4<f32>,
+}
+
+// The two highlights' exponents and peak scales once widened by the turn of their shifted tangents over
+// the pixel (`HairAppearance::highlight_filtering`): a lobe exp(−Δ²/2β²) averaged over a spread σ² of
+// directions is about exp(−Δ²/2(β² + σ²)) with its peak lowered by β/√(β² + σ²), the same integral.
+// Derivatives need uniform control flow: called once, before any light is shaded.
+fn highlight_lobes(primary_tangent: vec3<f32>, secondary_tangent: vec3<f32>) -> vec4<f32> {
+    let filtering = shading.deep_shadows.y;
+    // The turn per pixel, rad² (unit vectors: the derivatives' lengths are angles), at most a right angle's.
+    let turn = vec2(
+        dot(dpdx(primary_tangent), dpdx(primary_tangent)) + dot(dpdy(primary_tangent), dpdy(primary_tangent)),
+        dot(dpdx(secondary_tangent), dpdx(secondary_tangent)) + dot(dpdy(secondary_tangent), dpdy(secondary_tangent)),
+    );
+    let widths = shading.highlights.zw;
+    let filtered = widths + min(filtering * turn, vec2(2.5));
+    return vec4(1.0 / filtered, sqrt(widths / filtered));
 }
 
 // Light reflected towards the eye from light arriving along `light` (unit, towards the light) with
@@ -305,8 +323,10 @@ fn shade(surface: HairSurface, light: vec3<f32>, radiance: vec3<f32>) -> vec3<f3
     let wrap = saturate((dot(surface.normal, light) + 0.5) / 1.5);
     let diffuse = surface.color * sin_tl * wrap / 3.14159265;
     let half_vector = normalize(light + surface.eye);
-    let primary = pow(sqrt(max(1.0 - pow(dot(surface.primary_tangent, half_vector), 2.0), 0.0)), shading.highlights.z);
-    let secondary = pow(sqrt(max(1.0 - pow(dot(surface.secondary_tangent, half_vector), 2.0), 0.0)), shading.highlights.w);
+    let primary = surface.lobes.z
+        * pow(sqrt(max(1.0 - pow(dot(surface.primary_tangent, half_vector), 2.0), 0.0)), surface.lobes.x);
+    let secondary = surface.lobes.w
+        * pow(sqrt(max(1.0 - pow(dot(surface.secondary_tangent, half_vector), 2.0), 0.0)), surface.lobes.y);
     // A directional fade after Scheuermann's: highlights weaken where the tangent points away from the light.
     let facing = smoothstep(-1.0, 0.0, dot(surface.tangent, light)) * 0.5 + 0.5;
     let specular = shading.parameters.x * wrap * facing
@@ -386,6 +406,7 @@ fn fragment(in: HairVertexOutput) -> HairFragmentOutput {
     surface.primary_tangent = normalize(tangent * cos(shading.highlights.x) + normal * sin(shading.highlights.x));
     surface.secondary_tangent = normalize(tangent * cos(shading.highlights.y) + normal * sin(shading.highlights.y));
     surface.sparkle = 0.5 + hash01(in.hair ^ 0x9e3779b9u);
+    surface.lobes = highlight_lobes(surface.primary_tangent, surface.secondary_tangent);
 
     let world_position = vec4(in.world_position, 1.0);
     let view_z = dot(vec4(view.view_from_world[0].z, view.view_from_world[1].z, view.view_from_world[2].z,

@@ -46,7 +46,9 @@
 //! `R` shifts by `−2α`, the `TRT` lobe by `+3α`, and `TRT` is twice as wide as `R`. Colours can come from
 //! melanin ([`HairAppearance::from_melanin`]). Directional lights reach into the hair as through real
 //! hair, dimmed `exp(−d / penetration)` by the depth `d` of hair in front in the light's shadow map
-//! (TressFX's deep shadows; [`HairAppearance::light_penetration`]).
+//! (TressFX's deep shadows; [`HairAppearance::light_penetration`]). Each highlight is widened by the
+//! turn of the hair's direction within the pixel, keeping the light it reflects, so that a hair thinner
+//! than a pixel does not glint as a white speck ([`HairAppearance::highlight_filtering`]).
 //!
 //! The CPU side ([`HairStrips`], [`ribbon_width`], [`HairAppearance`]) needs no renderer; the plugin that
 //! draws ([`HairRenderPlugin`]) needs the crate's `render` feature.
@@ -95,6 +97,14 @@ pub struct HairAppearance {
     /// Angular width `β` of the primary highlight, rad (Marschner et al.: 5–10°); the secondary is twice
     /// as wide.
     pub highlight_width: f32,
+    /// How much each highlight widens by how much the hair's shifted tangent turns within a pixel, 0 to 4:
+    /// the lobe's angular width `β` becomes `β' = √(β² + f σ²)` (`σ`, rad, the turn over one pixel from
+    /// the screen-space derivatives: across a hair thinner than a pixel the tangent the highlight sees
+    /// turns with the fibre's side) and its peak falls by `β/β'`, so the light it reflects stays the same
+    /// (Toksvig's filtering, "Mipmapping normal maps", 2005, applied to the fibre's lobe). Without it
+    /// (0) a hair drawn a pixel wide reflects the whole narrow peak where it happens to face the light:
+    /// white speckles that move with the hair. Default 1.
+    pub highlight_filtering: f32,
     /// Drawn thickness of each hair as a multiple of the thickness that covers what the real hair covers:
     /// the strand material's diameter `2 √(a₁ a₂)` (0.08 mm for real hair) times the hairs each drawn hair
     /// stands for (a guide's [`crate::volume::RepresentedHairs`] shared by it and its followers: a groom of
@@ -163,6 +173,7 @@ impl HairAppearance {
         specular: 0.05,
         cuticle_tilt: 3.0 * std::f32::consts::PI / 180.0,
         highlight_width: 7.0 * std::f32::consts::PI / 180.0,
+        highlight_filtering: 1.0,
         thickness_scale: 1.0,
         tip_taper: 0.5,
         length_variation: 0.15,
@@ -193,6 +204,7 @@ impl HairAppearance {
             ("specular", self.specular, 0.0, 1.0),
             ("cuticle_tilt", self.cuticle_tilt, -0.5, 0.5),
             ("highlight_width", self.highlight_width, 1e-3, 1.5),
+            ("highlight_filtering", self.highlight_filtering, 0.0, 4.0),
             ("thickness_scale", self.thickness_scale, 1e-3, 1e3),
             ("tip_taper", self.tip_taper, 0.0, 1.0),
             ("length_variation", self.length_variation, 0.0, 1.0),
