@@ -611,4 +611,21 @@ mod tests {
         assert_eq!(take_front(&mut rest, 2), [1, 2]);
         assert_eq!(rest, [3, 4, 5]);
     }
+
+    #[test]
+    fn an_appearance_out_of_range_is_refused_by_name_and_the_shader_gets_the_lobes_widths() {
+        for (name, appearance) in HairAppearance::presets() {
+            assert_eq!(appearance.validate(), Ok(()), "the preset {name}");
+        }
+        for filtering in [-0.1, 4.5, f32::NAN] {
+            let appearance = HairAppearance { highlight_filtering: filtering, ..default() };
+            let refused = appearance.validate().expect_err("out of 0 … 4");
+            assert!(refused.starts_with("highlight_filtering = "), "{refused}");
+        }
+        // The lobes' squared widths, β² and (2β)², and the filtering as the shader reads them.
+        let appearance = HairAppearance { highlight_width: 0.1, highlight_filtering: 2.5, ..default() };
+        let shading = HairShading::from(&appearance);
+        assert!((shading.highlights.z - 0.01).abs() < 1e-7 && (shading.highlights.w - 0.04).abs() < 1e-7);
+        assert_eq!(shading.deep_shadows.y, 2.5);
+    }
 }
