@@ -587,12 +587,14 @@ fn hair_pixels(frame: &[u8]) -> Vec<usize> {
     (0..frame.len() / 4).filter(|&pixel| frame[4 * pixel..4 * pixel + 3] != [0, 0, 0]).collect()
 }
 
-/// Each of `pixels`' brightness in `frame`, the mean of its three channels (0–255).
-fn brightness_of(frame: &[u8], pixels: &[usize]) -> Vec<f64> {
-    pixels
-        .iter()
-        .map(|&pixel| frame[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0)
-        .collect()
+/// `pixel`'s brightness in `frame`, the mean of its three channels (0–255).
+fn brightness(frame: &[u8], pixel: usize) -> f64 {
+    frame[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0
+}
+
+/// The mean brightness of `pixels` in `frame` (0–255).
+fn mean_brightness(frame: &[u8], pixels: &[usize]) -> f64 {
+    pixels.iter().map(|&pixel| brightness(frame, pixel)).sum::<f64>() / pixels.len() as f64
 }
 
 #[test]
@@ -605,11 +607,10 @@ fn light_reaches_into_the_hair_the_deeper_the_further_it_penetrates() {
     };
     let hard = frame_with(&mut app, 0.0);
     let hair = hair_pixels(&hard);
-    let brightness = |pixels: &[u8]| brightness_of(pixels, &hair).iter().sum::<f64>() / hair.len() as f64;
-    let hard = brightness(&hard);
+    let hard = mean_brightness(&hard, &hair);
     let rows: Vec<(f32, f64)> = [0.002, 0.008, 0.05]
         .into_iter()
-        .map(|penetration| (penetration, brightness(&frame_with(&mut app, penetration))))
+        .map(|penetration| (penetration, mean_brightness(&frame_with(&mut app, penetration), &hair)))
         .collect();
     println!(
         "{} hair pixels; mean brightness (0–255): hard shadows {hard:.2}; by light penetration (m) {rows:?}",
@@ -642,9 +643,8 @@ fn filtered_highlights_keep_their_light_and_lose_their_glints() {
     hair.dedup();
     let (width, height) = (320, 240);
     let [unfiltered, filtered] = frames.map(|frame| {
-        let brightness =
-            |pixel: usize| frame[4 * pixel..4 * pixel + 3].iter().map(|&c| f64::from(c)).sum::<f64>() / 3.0;
-        let mean = hair.iter().map(|&pixel| brightness(pixel)).sum::<f64>() / hair.len() as f64;
+        let brightness = |pixel: usize| brightness(&frame, pixel);
+        let mean = mean_brightness(&frame, &hair);
         // Glints: hair pixels brighter by 30 levels (of 255) than the mean of the 8 around them.
         let glint = |&&pixel: &&usize| {
             let (x, y) = (pixel % width, pixel / width);
