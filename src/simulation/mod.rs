@@ -221,7 +221,6 @@ impl Plugin for HairSimulationPlugin {
                 (step::check_settings, step::open_step).chain().in_set(HairPrepareSystems::Budget),
                 head::track_heads.in_set(HairPinSystems::Track),
                 step::pin_roots.in_set(HairPinSystems::Pin),
-                style_hold::hold_style.in_set(HairSystems::ExternalForces),
                 (step::preload_rest_shapes, step::step_strands).chain().in_set(HairStepSystems::Integrate),
             ),
         );

@@ -12,13 +12,14 @@ use bevy::tasks::ComputeTaskPool;
 
 use crate::parallel::run_in_parallel;
 use crate::rod::{
-    Contacts, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, Rod, StepError, StepParams, StepReport,
-    held_reach,
+    Anchor, Contacts, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, Rod, StepError, StepLoads, StepParams,
+    StepReport, held_reach,
 };
+use crate::simulation::style_hold::style_anchors;
 use crate::simulation::{
-    HairPause, HairSettings, HairStatistics, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose, SimulatedStrand,
-    StepOutcome, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
-    StrandRestShape, longer_step_params,
+    HairPause, HairSettings, HairStatistics, HairStyleHold, HeadMotion, PRELOAD_SUPPORT_DISTANCE, PackedStrandPose,
+    SimulatedStrand, StepOutcome, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames,
+    StrandNodes, StrandOf, StrandRestShape, longer_step_params,
 };
 
 /// How many steps the current rendered frame has simulated, to bound the catch-up after a hitch.
@@ -41,11 +42,14 @@ pub(crate) struct CheckedSettings {
     pub(crate) params: Option<StepParams>,
     /// The collision margin of the last valid settings, m (the current one while they are valid).
     pub(crate) collision_margin: f64,
+    /// The style hold of the last valid settings.
+    pub(crate) style_hold: HairStyleHold,
 }
 
 impl Default for CheckedSettings {
     fn default() -> Self {
-        Self { params: None, collision_margin: f64::from(HairSettings::default().collision_margin) }
+        let settings = HairSettings::default();
+        Self { params: None, collision_margin: f64::from(settings.collision_margin), style_hold: settings.style_hold }
     }
 }
 
@@ -63,6 +67,7 @@ pub(crate) fn check_settings(
         Ok((params, margin)) => {
             checked.params = Some(params);
             checked.collision_margin = margin;
+            checked.style_hold = settings.style_hold;
             statistics.settings_error = None;
         }
         Err(error) => {
@@ -194,11 +199,14 @@ pub(crate) fn pin_roots(
 }
 
 /// What one thread keeps from step to step: the solver's scratch memory, which stays in that core's
-/// cache for every strand it steps, and the tally of those strands.
+/// cache for every strand it steps, the style hold's springs of the strands it is stepping, and the
+/// tally of those strands.
 #[derive(Default)]
 pub(crate) struct StepThread {
     workspace: LockstepWorkspace,
     tally: StepTally,
+    /// The style hold's springs of each strand of the batch being stepped ([`style_anchors`]).
+    anchors: [Vec<Anchor>; LANES],
 }
 
 /// What the strands stepped by one thread measured.
@@ -331,6 +339,7 @@ type StepItem = (
 struct StepContext<'a> {
     params: Option<StepParams>,
     collision_margin: f64,
+    style_hold: HairStyleHold,
     now: f64,
     colliders: &'a StrandColliders<'a, 'a>,
 }
@@ -368,7 +377,13 @@ pub(crate) fn step_strands(
     // and others not), and big tasks leave one thread waiting on another.
     let thread_count = ComputeTaskPool::try_get().map_or(1, |pool| pool.thread_num()).max(1);
     let per_task = order.len().div_ceil(thread_count * STEP_TASKS_PER_THREAD).next_multiple_of(LANES).max(LANES);
-    let context = StepContext { params: valid, collision_margin: checked.collision_margin, now, colliders: &colliders };
+    let context = StepContext {
+        params: valid,
+        collision_margin: checked.collision_margin,
+        style_hold: checked.style_hold,
+        now,
+        colliders: &colliders,
+    };
     let (strands, threads_ref) = (&strands, &*threads);
     run_in_parallel(thread_count, order.chunks(per_task), |task| {
         threads_ref.scope(|thread| {
@@ -428,7 +443,7 @@ type BatchItem<'w, 's> = QueryItem<'w, 's, StepItem>;
 /// Steps up to [`LANES`] strands: those due to take one step together in lockstep, those that take
 /// several (a coarser level of detail) one at a time, and records each in the thread's tally.
 fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepThread) {
-    let StepThread { workspace, tally } = thread;
+    let StepThread { workspace, tally, anchors } = thread;
     let contacts_of = |strand: &SimulatedStrand, strand_of: Option<&StrandOf>| Contacts {
         colliders: context.colliders.of(strand_of),
         thickness: strand.contact_thickness(context.collision_margin),
@@ -470,6 +485,15 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
     let Some(params) = context.params else {
         return;
     };
+    // The style hold's springs, written here while each strand's memory is near (a quarantined strand
+    // retried is not held).
+    let mut held = [false; LANES];
+    for (index, (_, strand, ..)) in items.iter().enumerate() {
+        if starts[index].is_some() && !strand.is_quarantined() {
+            let dt = params.dt * f64::from(steps[index]);
+            held[index] = style_anchors(&context.style_hold, strand, dt, &mut anchors[index]);
+        }
+    }
     // The rods: those of one step in lockstep, the others alone with their longer step.
     let mut results: [Option<Result<StepReport, StepError>>; LANES] = Default::default();
     {
@@ -480,7 +504,8 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
                 continue;
             }
             let contacts = contacts_of(strand, *strand_of);
-            let strand = LockstepStrand { rod: strand.rod_to_step(), loads: forces.loads(), contacts };
+            let loads = StepLoads { anchors: held[index].then_some(&anchors[index][..]), ..forces.loads() };
+            let strand = LockstepStrand { rod: strand.rod_to_step(), loads, contacts };
             if steps[index] == 1 {
                 together.push(strand);
                 lanes.push(index);

@@ -5,7 +5,7 @@ use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use thiserror::Error;
 
-use crate::rod::{Anchor, PreloadReport, Rod, RodError, RodMaterial, StepError, StepLoads, StepReport};
+use crate::rod::{PreloadReport, Rod, RodError, RodMaterial, StepError, StepLoads, StepReport};
 use crate::simulation::{
     HairDetailLevel, HairSettings, HeadMotion, ScaledPose, StrandDetail, StrandFrames, StrandNodes, StrandOf,
     StrandRestShape, data::RestShapeScratch,
@@ -457,11 +457,6 @@ impl SimulatedStrand {
         })
     }
 
-    /// How many fixed steps this strand's coming step spans (more than one at a coarser level of detail).
-    pub(crate) fn fixed_steps_in_step(&self) -> u32 {
-        self.detail.elapsed.max(1)
-    }
-
     /// Puts the strand back in its rest pose on its head, at rest.
     pub fn reset_to_rest(&mut self) {
         self.rod.reset();
@@ -702,9 +697,6 @@ pub struct StrandForces {
     forces: NodeVectors,
     air_velocities: NodeVectors,
     velocity_changes: NodeVectors,
-    /// The style hold's springs ([`HairSettings::style_hold`]), when it holds this strand in this step.
-    #[reflect(ignore)]
-    anchors: NodeAnchors,
 }
 
 impl StrandForces {
@@ -756,17 +748,8 @@ impl StrandForces {
             forces: self.forces.active(),
             air_velocities: self.air_velocities.active(),
             velocity_changes: self.velocity_changes.active(),
-            anchors: self.anchors.active.then_some(self.anchors.values.as_slice()),
+            anchors: None,
         }
-    }
-
-    /// Ties each node to a place by a spring inside the step's solve, `anchor_at(node)` (see
-    /// [`Anchor`]), for the style hold. Replaces any earlier anchors of this step.
-    pub(crate) fn set_anchors(&mut self, mut anchor_at: impl FnMut(usize) -> Anchor) {
-        for (node, slot) in self.anchors.values.iter_mut().enumerate() {
-            *slot = anchor_at(node);
-        }
-        self.anchors.active = !self.anchors.values.is_empty();
     }
 
     /// Adds `at(node)`'s velocity change (m/s) to every node's, and its force (N) when `with_forces`,
@@ -799,24 +782,13 @@ impl StrandForces {
         self.forces.clear();
         self.air_velocities.clear();
         self.velocity_changes.clear();
-        self.anchors.active = false;
     }
 
     fn resize(&mut self, nodes: usize) {
         self.forces.resize(nodes);
         self.air_velocities.resize(nodes);
         self.velocity_changes.resize(nodes);
-        self.anchors.values.clear();
-        self.anchors.values.resize(nodes, Anchor::default());
-        self.anchors.active = false;
     }
-}
-
-/// One [`Anchor`] per node, with whether they act in the coming step.
-#[derive(Debug, Clone, Default, PartialEq)]
-struct NodeAnchors {
-    values: Vec<Anchor>,
-    active: bool,
 }
 
 /// One vector per node, with whether any was set since the last clear (so that an untouched strand

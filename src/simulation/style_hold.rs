@@ -1,56 +1,39 @@
 //! Holding hair in its groomed style ([`HairStyleHold`]): springs inside the step that draw each rooted
-//! strand's nodes towards their groomed places carried with the head, strongest at the root.
+//! strand's nodes towards their groomed places carried with the head, strongest at the root. The step
+//! writes them per strand just before it steps the strand ([`style_anchors`]), into its thread's scratch,
+//! while the strand's memory is in that core's cache.
 
-use bevy::math::{DQuat, DVec3};
-use bevy::prelude::*;
+use bevy::math::DVec3;
 
 use crate::rod::Anchor;
 
-use super::{CheckedSettings, HairSettings, HairStyleHold, SimulatedStrand, SteppedElsewhere, StrandForces};
+use super::{HairStyleHold, SimulatedStrand};
 
-/// Ties each held node to its groomed place `x̄_i` with a critically damped spring (see
-/// [`HairStyleHold`]) in its strand's [`StrandForces`], in parallel. Strands stepped elsewhere,
-/// quarantined, without a head or not stepped at this fixed step are left alone.
-pub(crate) fn hold_style(
-    time: Res<Time>,
-    settings: Res<HairSettings>,
-    checked: Res<CheckedSettings>,
-    mut strands: Query<(&SimulatedStrand, &mut StrandForces), Without<SteppedElsewhere>>,
-) {
-    let hold = settings.style_hold;
-    // Invalid settings are reported once, by `check_settings`, and hold the hair until they are fixed.
-    if hold.angular_frequency(0.0) <= 0.0 || checked.params.is_none() {
-        return;
-    }
-    let dt = time.delta_secs_f64();
-    strands.par_iter_mut().for_each(|(strand, mut forces)| {
-        if strand.is_quarantined() || !strand.steps_now() {
-            return;
-        }
-        let (Some(start), Some(end)) = (strand.groomed_pose_motion_at_start(), strand.groomed_pose_motion()) else {
-            return;
-        };
-        let step = dt * f64::from(strand.fixed_steps_in_step());
-        hold_strand(&hold, strand, [start, end], step, &mut forces);
-    });
-}
-
-/// One strand's springs and dampers, its groomed pose carried by the `[start, end]` motions of a step of
-/// `dt` seconds.
-fn hold_strand(
+/// Ties each node of `strand` to its groomed place `x̄_i` with a critically damped spring (see
+/// [`HairStyleHold`]) for its coming step of `dt` seconds, its groomed pose carried by the head's motion
+/// over the step: one [`Anchor`] per node in `anchors`. False, with `anchors` left as they were, for a
+/// strand the hold does not reach (no head, or a hold that holds nothing).
+pub(crate) fn style_anchors(
     hold: &HairStyleHold,
     strand: &SimulatedStrand,
-    [(start_rotation, start_translation), (rotation, translation)]: [(DQuat, DVec3); 2],
     dt: f64,
-    forces: &mut StrandForces,
-) {
+    anchors: &mut Vec<Anchor>,
+) -> bool {
+    if hold.angular_frequency(0.0) <= 0.0 {
+        return false;
+    }
+    let (Some((start_rotation, start_translation)), Some((rotation, translation))) =
+        (strand.groomed_pose_motion_at_start(), strand.groomed_pose_motion())
+    else {
+        return false;
+    };
     let rod = strand.rod();
     let length = rod.rest_length();
-    let groomed = rod.initial_positions();
+    let (groomed, lengths) = (rod.initial_positions(), rod.rest_lengths());
     // Arc length from the root to each node, as a fraction of the strand's length.
     let mut along = 0.0;
-    let lengths = rod.rest_lengths();
-    forces.set_anchors(|node| {
+    anchors.clear();
+    anchors.extend(groomed.iter().enumerate().map(|(node, &place): (usize, &DVec3)| {
         if node > 0 {
             along += lengths[node - 1] / length;
         }
@@ -58,13 +41,14 @@ fn hold_strand(
         if frequency <= 0.0 || rod.is_node_prescribed(node) || dt <= 0.0 {
             return Anchor::default();
         }
-        let target = rotation * groomed[node] + translation;
-        let start = start_rotation * groomed[node] + start_translation;
+        let target = rotation * place + translation;
+        let start = start_rotation * place + start_translation;
         Anchor {
             target,
             target_velocity: (target - start) / dt,
             stiffness: frequency * frequency,
             damping: 2.0 * frequency,
         }
-    });
+    }));
+    true
 }

@@ -154,7 +154,17 @@ impl VolumeGrid {
     /// Rebuilds the grid around `particles` and computes its fields with `params`. Particles with a
     /// non-finite position or velocity are left out (the mechanics never produce them).
     pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
-        self.place(particles, params.cell_size);
+        let (mut low, mut high) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for particle in particles.iter().filter(|particle| usable(particle.position, particle.velocity)) {
+            (low, high) = (low.min(particle.position), high.max(particle.position));
+        }
+        self.build_within(particles, (low, high), params);
+    }
+
+    /// [`VolumeGrid::build`], with the box around the usable particles (finite position and velocity)
+    /// known: its lowest and highest corner (an empty box, lowest above highest, when there are none).
+    pub(crate) fn build_within(&mut self, particles: &[GridParticle], bounds: (DVec3, DVec3), params: &VolumeParams) {
+        self.place(bounds, params.cell_size);
         self.splat(particles);
         self.compute_fields(params);
     }
@@ -221,14 +231,9 @@ impl VolumeGrid {
         (smoothed - smoothing * velocity, -volume * push)
     }
 
-    /// Places the grid around the finite particles, coarsening the cells if its box would be too large,
-    /// and cuts it into one slab per thread.
-    fn place(&mut self, particles: &[GridParticle], cell_size: f64) {
-        let (mut low, mut high) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for particle in particles.iter().filter(|particle| usable(particle)) {
-            low = low.min(particle.position);
-            high = high.max(particle.position);
-        }
+    /// Places the grid around the box `(low, high)` of the usable particles, coarsening the cells if it
+    /// would be too large, and cuts it into one slab per thread.
+    fn place(&mut self, (mut low, mut high): (DVec3, DVec3), cell_size: f64) {
         if low.x > high.x {
             (low, high) = (DVec3::ZERO, DVec3::ZERO);
         }
@@ -268,7 +273,7 @@ impl VolumeGrid {
         let splat_slab = |(index, (slab, table)): (usize, (&mut Slab, &mut [u32]))| {
             let layers = index * placement.slab_layers..(index + 1) * placement.slab_layers;
             let first_entry = layers.start * layer;
-            for particle in particles.iter().filter(|particle| usable(particle)) {
+            for particle in particles.iter().filter(|particle| usable(particle.position, particle.velocity)) {
                 let Some(stencil) = placement.stencil_in(particle.position, &layers) else { continue };
                 let momentum = particle.mass * particle.velocity;
                 for k in 0..8 {
@@ -491,7 +496,7 @@ fn local_index(point: [usize; 3]) -> usize {
     point[0] % BRICK + BRICK * (point[1] % BRICK + BRICK * (point[2] % BRICK))
 }
 
-/// Whether the grid takes `particle`: finite position and velocity.
-fn usable(particle: &GridParticle) -> bool {
-    particle.position.is_finite() && particle.velocity.is_finite()
+/// Whether the grid takes a particle at `position` moving at `velocity`: both finite.
+pub(crate) fn usable(position: DVec3, velocity: DVec3) -> bool {
+    position.is_finite() && velocity.is_finite()
 }

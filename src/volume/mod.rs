@@ -125,6 +125,8 @@ struct HeadGrid {
     strands: Vec<(Entity, usize)>,
     /// Nodes of the head's strands this step.
     nodes: usize,
+    /// The box around the usable particles of each piece the collect cut them into, m.
+    piece_bounds: Vec<(DVec3, DVec3)>,
     /// The volume fraction where each node of each strand lay in its groom, measured once per strand
     /// ([`HairVolume::keep_groomed_volume`]).
     groomed: HashMap<Entity, Vec<f64>>,
@@ -261,14 +263,17 @@ pub(crate) fn interact_through_grid(
         let total = group.particles.len();
         let mut rest = group.particles.as_mut_slice();
         let groomed = keep_groomed.then_some(&group.groomed);
-        for (index, strands_of_piece) in group.strands.chunks(chunk).enumerate() {
+        group.piece_bounds.resize(group.strands.len().div_ceil(chunk), (DVec3::ZERO, DVec3::ZERO));
+        let pieces_of_strands = group.strands.chunks(chunk).zip(&mut group.piece_bounds).enumerate();
+        for (index, (strands_of_piece, bounds)) in pieces_of_strands {
             let end = group.strands.get((index + 1) * chunk).map_or(total, |next| next.1);
             let (piece, after) = rest.split_at_mut(end - strands_of_piece[0].1);
             rest = after;
-            pieces.push((strands_of_piece, piece));
+            pieces.push((strands_of_piece, piece, bounds));
         }
-        run_in_parallel(threads, pieces.into_iter(), |(strands_of_piece, piece)| {
+        run_in_parallel(threads, pieces.into_iter(), |(strands_of_piece, piece, bounds)| {
             let first = strands_of_piece[0].1;
+            *bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
             for &(entity, offset) in strands_of_piece {
                 let Ok((strand, _, _, represented, followers, _)) = readonly.get(entity) else { continue };
                 let hairs = represented_hairs(represented, followers);
@@ -279,6 +284,9 @@ pub(crate) fn interact_through_grid(
                 let slots = &mut piece[offset - first..offset - first + rod.node_count()];
                 let groomed = groomed.and_then(|groomed| groomed.get(&entity)).map_or(&[][..], Vec::as_slice);
                 for (slot, (node, ((&position, &velocity), &mass))) in slots.iter_mut().zip(nodes) {
+                    if grid::usable(position, velocity) {
+                        *bounds = (bounds.0.min(position), bounds.1.max(position));
+                    }
                     *slot = GridParticle {
                         position,
                         velocity,
@@ -293,7 +301,11 @@ pub(crate) fn interact_through_grid(
     grids.drop_unused();
     let mut max_fraction = 0.0_f64;
     for group in &mut grids.groups {
-        group.grid.build(&group.particles, &params);
+        let bounds = group
+            .piece_bounds
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), piece| (low.min(piece.0), high.max(piece.1)));
+        group.grid.build_within(&group.particles, bounds, &params);
         max_fraction = max_fraction.max(group.grid.max_volume_fraction());
     }
 
