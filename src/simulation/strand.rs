@@ -742,7 +742,8 @@ impl StrandForces {
         self.velocity_changes.iter()
     }
 
-    /// The loads for the mechanics core: only what was added since the last step.
+    /// The loads for the mechanics core: only what was added since the last step. The style hold's
+    /// springs are not among them: the step writes those itself (`style_hold::style_anchors`).
     pub(crate) fn loads(&self) -> StepLoads<'_> {
         StepLoads {
             forces: self.forces.active(),

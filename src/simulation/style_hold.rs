@@ -3,8 +3,6 @@
 //! writes them per strand just before it steps the strand ([`style_anchors`]), into its thread's scratch,
 //! while the strand's memory is in that core's cache.
 
-use bevy::math::DVec3;
-
 use crate::rod::Anchor;
 
 use super::{HairStyleHold, SimulatedStrand};
@@ -33,7 +31,7 @@ pub(crate) fn style_anchors(
     // Arc length from the root to each node, as a fraction of the strand's length.
     let mut along = 0.0;
     anchors.clear();
-    anchors.extend(groomed.iter().enumerate().map(|(node, &place): (usize, &DVec3)| {
+    anchors.extend(groomed.iter().enumerate().map(|(node, &place)| {
         if node > 0 {
             along += lengths[node - 1] / length;
         }
