@@ -154,11 +154,10 @@ impl VolumeGrid {
     /// Rebuilds the grid around `particles` and computes its fields with `params`. Particles with a
     /// non-finite position or velocity are left out (the mechanics never produce them).
     pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
-        let (mut low, mut high) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for particle in particles.iter().filter(|particle| usable(particle.position, particle.velocity)) {
-            (low, high) = (low.min(particle.position), high.max(particle.position));
-        }
-        self.build_within(particles, (low, high), params);
+        let usable = particles.iter().filter(|particle| usable(particle.position, particle.velocity));
+        let bounds =
+            usable.fold(EMPTY_BOX, |bounds, particle| enclosing(bounds, (particle.position, particle.position)));
+        self.build_within(particles, bounds, params);
     }
 
     /// [`VolumeGrid::build`], with the box around the usable particles (finite position and velocity)
@@ -494,6 +493,14 @@ fn local_coordinates(local: usize) -> [usize; 3] {
 /// Index of grid point `point` within its brick.
 fn local_index(point: [usize; 3]) -> usize {
     point[0] % BRICK + BRICK * (point[1] % BRICK + BRICK * (point[2] % BRICK))
+}
+
+/// A box around nothing (its lowest corner above its highest), to grow with [`enclosing`].
+pub(crate) const EMPTY_BOX: (DVec3, DVec3) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+
+/// The smallest box around the boxes `a` and `b` (each its lowest and highest corner).
+pub(crate) fn enclosing(a: (DVec3, DVec3), b: (DVec3, DVec3)) -> (DVec3, DVec3) {
+    (a.0.min(b.0), a.1.max(b.1))
 }
 
 /// Whether the grid takes a particle at `position` moving at `velocity`: both finite.

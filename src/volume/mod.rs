@@ -273,7 +273,7 @@ pub(crate) fn interact_through_grid(
         }
         run_in_parallel(threads, pieces.into_iter(), |(strands_of_piece, piece, bounds)| {
             let first = strands_of_piece[0].1;
-            *bounds = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+            *bounds = grid::EMPTY_BOX;
             for &(entity, offset) in strands_of_piece {
                 let Ok((strand, _, _, represented, followers, _)) = readonly.get(entity) else { continue };
                 let hairs = represented_hairs(represented, followers);
@@ -285,7 +285,7 @@ pub(crate) fn interact_through_grid(
                 let groomed = groomed.and_then(|groomed| groomed.get(&entity)).map_or(&[][..], Vec::as_slice);
                 for (slot, (node, ((&position, &velocity), &mass))) in slots.iter_mut().zip(nodes) {
                     if grid::usable(position, velocity) {
-                        *bounds = (bounds.0.min(position), bounds.1.max(position));
+                        *bounds = grid::enclosing(*bounds, (position, position));
                     }
                     *slot = GridParticle {
                         position,
@@ -301,10 +301,7 @@ pub(crate) fn interact_through_grid(
     grids.drop_unused();
     let mut max_fraction = 0.0_f64;
     for group in &mut grids.groups {
-        let bounds = group
-            .piece_bounds
-            .iter()
-            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), piece| (low.min(piece.0), high.max(piece.1)));
+        let bounds = group.piece_bounds.iter().fold(grid::EMPTY_BOX, |bounds, &piece| grid::enclosing(bounds, piece));
         group.grid.build_within(&group.particles, bounds, &params);
         max_fraction = max_fraction.max(group.grid.max_volume_fraction());
     }
