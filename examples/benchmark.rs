@@ -570,7 +570,9 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
 /// velocity smoothing on), held still, shaken, turned and flicked as the example animates its head, for
 /// `seconds` each from a fresh start after one still second: the scalp's exposure
 /// ([`coverage::scalp_exposure`]: 2 000 points over the haired scalp, each hidden when the guides and
-/// followers within 3 mm of it, drawn as wide as the renderer draws them, cover the 3 mm disc about it)
+/// followers within 3 mm of it, drawn as wide as the renderer draws them, cover the 3 mm disc about it;
+/// over the whole haired scalp, and over its points further inside the hairline than the groom's
+/// [`HairGroom::hairline_fade`], where a bare point is a bald patch rather than the hairline's edge),
 /// the scalp a camera behind the body and a little above sees through the hair ([`coverage::scalp_seen`]:
 /// of the same points facing it, those the hair in front covers less than a 2 mm pixel of),
 /// and the strays ([`coverage::StrayCheck`]: guides whose tip has moved more than 5 cm from where it was
@@ -581,6 +583,8 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
+    // Where the example's groom draws its hair thinning out towards the hairline.
+    let fade = bevy_hair_sim::prelude::HairGroom::default().hairline_fade;
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
         ("rest", |_| Quat::IDENTITY),
@@ -596,12 +600,13 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     const BEHIND: Vec3 = Vec3::new(0.0, 0.3, 1.0);
     let air = air_damping.unwrap_or(HairSettings::default().air_damping);
     println!(
-        "The example's scene moving, {seconds} s each, air drag {air}/s after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc) and strays (tips 5 cm off their 6 neighbours'):"
+        "The example's scene moving, {seconds} s each, air drag {air}/s after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
+        1e3 * fade
     );
     println!(
-        "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | strays, largest | at the end |"
+        "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | past the fade, largest | at the end | strays, largest | at the end |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     // Unheld; held at the example's 200/s (see `HairStyleHold`); held, with the grid's pressure against
     // the groom's packing.
     let settings = [(0.0, 0.0), (200.0, 0.0), (200.0, 50.0)];
@@ -636,14 +641,17 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
                 .iter()
                 .map(|&strand| *world.get::<StrandNodes>(strand).expect("a strand").positions.last().expect("nodes"))
                 .collect();
-            let exposure =
-                coverage::scalp_exposure(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
-                    .expect("the scalp");
+            let bare = coverage::bare_scalp(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
+                .expect("the scalp");
+            let past_the_fade =
+                bare.points.iter().filter(|root| scalp.depth_inside_hairline(root.position) > fade).count();
+            let share = |count: usize| count as f32 / bare.judged as f32;
             let seen =
                 coverage::scalp_seen(&scalp, &head_pose(app), hairs, 2000, BEHIND, (0.002, width)).expect("the scalp");
-            (exposure, strays.stray_fraction(&head_pose(app), &tips, 0.05), seen)
+            let strays = strays.stray_fraction(&head_pose(app), &tips, 0.05);
+            [seen, share(bare.points.len()), share(past_the_fade), strays]
         };
-        let (mut largest, mut last) = ((0.0_f32, 0.0_f32, 0.0_f32), (0.0, 0.0, 0.0));
+        let (mut largest, mut last) = ([0.0_f32; 4], [0.0_f32; 4]);
         let steps = (seconds * 60.0).round() as usize;
         for step in 1..=steps {
             app.world_mut().get_mut::<Transform>(head).expect("the head exists").rotation =
@@ -651,17 +659,14 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
             app.update();
             if step % 6 == 0 || step == steps {
                 last = measure(&app);
-                largest = (largest.0.max(last.0), largest.1.max(last.1), largest.2.max(last.2));
+                largest = std::array::from_fn(|figure| largest[figure].max(last[figure]));
             }
         }
+        let [seen, exposure, past_the_fade, strays] =
+            std::array::from_fn(|figure| (100.0 * largest[figure], 100.0 * last[figure]));
         println!(
-            "| {name} | {hold} | {pressure} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
-            100.0 * largest.2,
-            100.0 * last.2,
-            100.0 * largest.0,
-            100.0 * last.0,
-            100.0 * largest.1,
-            100.0 * last.1
+            "| {name} | {hold} | {pressure} | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.1} % | {:.2} % | {:.2} % |",
+            seen.0, seen.1, exposure.0, exposure.1, past_the_fade.0, past_the_fade.1, strays.0, strays.1
         );
     }
 }

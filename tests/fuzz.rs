@@ -610,6 +610,7 @@ fn plugin_scenario(seed: u64, tally: &mut PluginTally) {
                 combing: rng.bool().then(|| Combing {
                     crown_sweep: if rng.bool() { 3.0 * rng.f32() } else { 0.6 },
                     parting_blend: if rng.bool() { 1e-4 + 0.2 * rng.f32() } else { 0.03 },
+                    parting_sweep: if rng.bool() { 10.0 * rng.f32() } else { 4.0 },
                     parting: 0.1 * (rng.f32() - 0.5),
                     ..default()
                 }),

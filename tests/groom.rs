@@ -204,7 +204,14 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
     let combed = bare(Combing::default());
     // Combed only sideways at the crown, turning fully sideways within 1.5 cm of the parting.
     let parted = bare(Combing { crown_sweep: 0.0, parting_blend: 0.015, ..default() });
+    // Without the sweep back along the parting's front, the hair there runs sideways off the line.
+    let unswept = bare(Combing { parting_sweep: 0.0, ..default() });
     let everywhere = combed.points.len() as f32 / combed.judged as f32;
+    // Bare points further inside the hairline than its fade (where the hair thins out on purpose).
+    let inside_the_fade = |bare: &coverage::BareScalp| {
+        let depths = bare.points.iter().map(|root| scalp.depth_inside_hairline(root.position));
+        depths.filter(|&depth| depth > groom.hairline_fade).count()
+    };
     println!(
         "bare: {:.1} % of the scalp, {:.1} % below its widest part, {:.1} % at the parting (combed only \
          sideways at the crown: {:.1} %)",
@@ -213,12 +220,21 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
         100.0 * share(&combed, &at_the_parting),
         100.0 * share(&parted, &at_the_parting),
     );
+    println!(
+        "bare points further inside the hairline than its fade: {} (the parting's front not swept back: {})",
+        inside_the_fade(&combed),
+        inside_the_fade(&unswept)
+    );
     // The hair lies on the skull down to its hairline, not only to its widest part.
     assert!(share(&combed, &below_the_widest) < 0.03, "below the widest part");
     // The parting is a line the hair turns at, not a stripe it leaves bare; combed only sideways it is.
     assert!(share(&combed, &at_the_parting) < 0.15, "at the parting");
     assert!(share(&parted, &at_the_parting) > 0.3, "a parting the hair leaves at once");
     assert!(everywhere < 0.02, "{everywhere} of the scalp bare");
+    // The parting's front: hair runs back over the line, so the scalp is bare only at the hairline's
+    // edge, where the combed hair leaves the hairline.
+    assert_eq!(inside_the_fade(&combed), 0, "bare beyond the hairline's fade");
+    assert!(inside_the_fade(&unswept) >= 3, "the parting's front not swept back");
 }
 
 #[test]
@@ -299,6 +315,7 @@ fn invalid_grooms_are_rejected_with_their_reason() {
         (HairGroom { combing: Some(Combing { lift: -0.001, ..default() }), ..default() }, "combing"),
         (HairGroom { combing: Some(Combing { crown_sweep: -0.5, ..default() }), ..default() }, "crown_sweep"),
         (HairGroom { combing: Some(Combing { parting_blend: 0.0, ..default() }), ..default() }, "parting_blend"),
+        (HairGroom { combing: Some(Combing { parting_sweep: -1.0, ..default() }), ..default() }, "parting_sweep"),
     ];
     for (groom, reason) in cases {
         let error: GroomError = groom.grow().unwrap_err();

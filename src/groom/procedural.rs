@@ -337,6 +337,13 @@ pub struct Combing {
     /// leaving it at once, and the parting shows as a line where the hair turns, not a bare stripe.
     /// Default 0.03.
     pub parting_blend: f32,
+    /// How strongly hair at the front of the parting is combed back along it, dimensionless: added to
+    /// the sweep back in full on the parting line, fading out over `parting_blend` to either side and
+    /// with the square of how squarely the scalp faces the front. On the forehead, "back" lies mostly
+    /// along the skull's normal, so the plain sweep back leaves the hair there running sideways off the
+    /// line and the parting's first centimetres bare; this runs the hair rooted at the front of the
+    /// parting back over the line behind it. Default 4.
+    pub parting_sweep: f32,
 }
 
 impl Default for Combing {
@@ -348,6 +355,7 @@ impl Default for Combing {
             layer_spread: 0.0004,
             crown_sweep: 0.6,
             parting_blend: 0.03,
+            parting_sweep: 4.0,
         }
     }
 }
@@ -598,8 +606,15 @@ impl GroomObstacles {
 
 impl Combing {
     fn validate(&self) -> Result<(), GroomError> {
-        let values =
-            [self.parting, self.sweep_back, self.lift, self.layer_spread, self.crown_sweep, self.parting_blend];
+        let values = [
+            self.parting,
+            self.sweep_back,
+            self.lift,
+            self.layer_spread,
+            self.crown_sweep,
+            self.parting_blend,
+            self.parting_sweep,
+        ];
         if !values.iter().all(|v| v.is_finite()) || values[1..].iter().any(|&v| v < 0.0) || self.parting_blend <= 0.0 {
             return Err(GroomError::Combing(*self));
         }
@@ -613,7 +628,8 @@ impl Combing {
         let sideways = ((position.x - scalp.centre.x - self.parting) / self.parting_blend).clamp(-1.0, 1.0);
         let facing_front = (-normal.z).clamp(0.0, 1.0);
         let crown = normal.y.max(0.0).powi(2);
-        let back = self.sweep_back * facing_front + self.crown_sweep * crown;
+        let along_parting = self.parting_sweep * (1.0 - sideways.abs()) * facing_front * facing_front;
+        let back = self.sweep_back * facing_front + self.crown_sweep * crown + along_parting;
         let wanted = Vec3::new(sideways, -(1.0 - 0.7 * facing_front), back);
         // Turning straight down the skull from its upper sides to a little under its widest part (the
         // normal's up component from 0.5 to −0.25): a strand the hanging hair pulls on rests on the skull
@@ -925,7 +941,7 @@ pub enum GroomError {
     HairlineFade(f32),
     /// A combing parameter is negative or not finite, or the parting's blend is not positive.
     #[error(
-        "the groom's combing needs finite values, with sweep_back, lift, layer_spread and crown_sweep not \
+        "the groom's combing needs finite values, with sweep_back, lift, layer_spread, crown_sweep and parting_sweep not \
          negative and parting_blend positive: {0:?}"
     )]
     Combing(Combing),
