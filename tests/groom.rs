@@ -208,7 +208,7 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
     let unswept = bare(Combing { parting_sweep: 0.0, ..default() });
     let everywhere = combed.points.len() as f32 / combed.judged as f32;
     // Bare points further inside the hairline than its fade (where the hair thins out on purpose).
-    let inside_the_fade = |bare: &coverage::BareScalp| {
+    let past_the_fade = |bare: &coverage::BareScalp| {
         let depths = bare.points.iter().map(|root| scalp.depth_inside_hairline(root.position));
         depths.filter(|&depth| depth > groom.hairline_fade).count()
     };
@@ -222,8 +222,8 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
     );
     println!(
         "bare points further inside the hairline than its fade: {} (the parting's front not swept back: {})",
-        inside_the_fade(&combed),
-        inside_the_fade(&unswept)
+        past_the_fade(&combed),
+        past_the_fade(&unswept)
     );
     // The hair lies on the skull down to its hairline, not only to its widest part.
     assert!(share(&combed, &below_the_widest) < 0.03, "below the widest part");
@@ -233,8 +233,8 @@ fn combed_hair_covers_its_scalp_down_to_the_hairline_and_across_the_parting() {
     assert!(everywhere < 0.02, "{everywhere} of the scalp bare");
     // The parting's front: hair runs back over the line, so the scalp is bare only at the hairline's
     // edge, where the combed hair leaves the hairline.
-    assert_eq!(inside_the_fade(&combed), 0, "bare beyond the hairline's fade");
-    assert!(inside_the_fade(&unswept) >= 3, "the parting's front not swept back");
+    assert_eq!(past_the_fade(&combed), 0, "bare beyond the hairline's fade");
+    assert!(past_the_fade(&unswept) >= 3, "the parting's front not swept back");
 }
 
 #[test]
