@@ -565,6 +565,12 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
         * (represented as f32 / (1 + EXAMPLE_FOLLOWERS) as f32).max(1.0)
 }
 
+/// Whether `point` (head-local, on the example's scalp) lies in the hairline's fade
+/// ([`HairGroom::hairline_fade`]), where the example's groom draws its hair thinning out on purpose.
+fn in_the_hairline_fade(point: Vec3) -> bool {
+    example_scene::SCALP.depth_inside_hairline(point) < HairGroom::default().hairline_fade
+}
+
 /// The example's default scene (`examples/head.rs`: 2 000 combed straight guides × 24 edges with 10
 /// followers each on its skull; skull, face, neck, shoulders and torso as colliders; the hair–hair grid's
 /// velocity smoothing on), held still, shaken, turned and flicked as the example animates its head, for
@@ -583,8 +589,6 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::groom::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
-    // Where the example's groom draws its hair thinning out towards the hairline.
-    let fade = bevy_hair_sim::prelude::HairGroom::default().hairline_fade;
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
         ("rest", |_| Quat::IDENTITY),
@@ -601,7 +605,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     let air = air_damping.unwrap_or(HairSettings::default().air_damping);
     println!(
         "The example's scene moving, {seconds} s each, air drag {air}/s after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
-        1e3 * fade
+        1e3 * HairGroom::default().hairline_fade
     );
     println!(
         "| motion | style hold, 1/s | pressure, Pa | seen from behind, largest | at the end | exposure, largest | at the end | past the fade, largest | at the end | strays, largest | at the end |"
@@ -643,8 +647,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
                 .collect();
             let bare = coverage::bare_scalp(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
                 .expect("the scalp");
-            let past_the_fade =
-                bare.points.iter().filter(|root| scalp.depth_inside_hairline(root.position) > fade).count();
+            let past_the_fade = bare.points.iter().filter(|root| !in_the_hairline_fade(root.position)).count();
             let share = |count: usize| count as f32 / bare.judged as f32;
             let seen =
                 coverage::scalp_seen(&scalp, &head_pose(app), hairs, 2000, BEHIND, (0.002, width)).expect("the scalp");
@@ -690,9 +693,6 @@ fn bare_regions(threads: usize, seconds: f32) {
     let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
     let hairs = drawn_hairs(app.world(), &strands);
     let bare = coverage::bare_scalp(&scalp, &pose, hairs, 2000, (0.003, width)).expect("the scalp");
-    // Where the example's groom draws its hair thinning out towards the hairline.
-    let fade = bevy_hair_sim::prelude::HairGroom::default().hairline_fade;
-    let in_the_fade = |point: Vec3| scalp.depth_inside_hairline(point) < fade;
     let part = |&ScalpRoot { position, normal }: &ScalpRoot| {
         let height = match normal.y {
             y if y > 0.7 => "top",
@@ -717,11 +717,14 @@ fn bare_regions(threads: usize, seconds: f32) {
     for root in &bare.points {
         let count = counts.entry(part(root)).or_default();
         count[1] += 1;
-        count[2] += usize::from(in_the_fade(root.position));
+        count[2] += usize::from(in_the_hairline_fade(root.position));
     }
     println!();
     println!("The example's scalp after {seconds} s still (held at 200/s, 50 Pa): where it is bare");
-    println!("| part | side | at the parting | points | bare | of them in the hairline's fade ({} mm) |", 1e3 * fade);
+    println!(
+        "| part | side | at the parting | points | bare | of them in the hairline's fade ({} mm) |",
+        1e3 * HairGroom::default().hairline_fade
+    );
     println!("|---|---|---|---:|---:|---:|");
     for ((height, side, parting), [all, bare, near]) in counts {
         println!("| {height} | {side} | {} | {all} | {bare} | {near} |", if parting { "yes" } else { "" });
