@@ -164,7 +164,9 @@ fn main() {
     }
     #[cfg(feature = "gpu")]
     if wanted("gpu") {
-        gpu::steps_on_the_gpu(threads, if quick { 10 } else { 40 });
+        let largest = if quick { 10_000 } else { 50_000 };
+        gpu::steps_on_the_gpu(threads, if quick { 10 } else { 40 }, largest);
+        gpu::plugin_cpu_cost(if quick { 30 } else { 120 });
     }
 }
 
@@ -175,8 +177,8 @@ mod gpu {
 
     use bevy::prelude::Entity;
     use bevy_hair_sim::gpu::{
-        GpuHeadStep, GpuStrandInput, GpuStrandSolver, bind_whole_buffers, compute_layout, compute_pipeline,
-        headless_device,
+        GpuHeadStep, GpuStrandInput, GpuStrandSolver, GpuStrandWork, bind_whole_buffers, compute_layout,
+        compute_pipeline, headless_device,
     };
     use bevy_hair_sim::prelude::*;
     use bevy_hair_sim::render::feed::{GpuCollider, GuideUpload};
@@ -193,9 +195,12 @@ mod gpu {
     /// the strand step for a groom of 2 000 guides × 32 edges with 10 followers each (20 000), and of the
     /// followers' part (the guides gathered from the step's buffers, the followers placed in their frames
     /// and pushed out of the skull, every drawn node written for the frame), and of 10 000 guides × 32 edges
-    /// without followers. The guides come from the plugin's groom, moved as the other tables move their
-    /// head; `steps` steps per row after two untimed ones.
-    pub fn steps_on_the_gpu(threads: usize, steps: usize) {
+    /// and 50 000 (up to `largest` guides) without followers. The guides come from the plugin's groom, moved
+    /// as the other tables move their head; `steps` steps per row after two untimed ones. Each row also
+    /// prints the work the shader counted per strand-step (Newton iterations, projection iterations,
+    /// contact rounds; the busiest strand's projection iterations, which its warp waits for) and the bytes
+    /// a step moves: uploaded (parameters, the head's pose and colliders) and, where read back, read back.
+    pub fn steps_on_the_gpu(threads: usize, steps: usize, largest: usize) {
         let (device, queue, info) = match headless_device() {
             Ok(found) => found,
             Err(error) => {
@@ -213,20 +218,122 @@ mod gpu {
             if timestamps { "from timestamp queries" } else { "from submit to done (no timestamp queries)" }
         );
         println!(
-            "{:>8} {:>6} {:>10} {:>14} {:>16} {:>12}",
-            "guides", "edges", "followers", "step ms", "followers ms", "total ms"
+            "{:>8} {:>6} {:>10} {:>10} {:>13} {:>9} {:>7} {:>9} {:>8} {:>9} {:>8} {:>12}",
+            "guides",
+            "edges",
+            "followers",
+            "step ms",
+            "followers ms",
+            "total ms",
+            "Newton",
+            "project",
+            "contact",
+            "busiest",
+            "up B",
+            "read-back B"
         );
-        for (guides, followers) in [(2_000, 10), (10_000, 0)] {
+        for (guides, followers) in [(2_000, 10), (10_000, 0), (50_000, 0)] {
+            if guides > largest {
+                continue;
+            }
             let row = Row::new(&device, threads, guides, followers);
-            let [step, placed] = row.measure(&device, &queue, timestamps, steps);
+            let read_back_bytes = row.solver.read_back_bytes(true);
+            let (measured, work) = row.measure(&device, &queue, timestamps, steps);
+            let [step, placed] = measured;
+            let total = GpuStrandWork::total(&work);
+            let [newton, projection, _, _, _, rounds, _] = total.per_step();
+            let busiest = work.iter().map(|w| f64::from(w.projection_iterations) / f64::from(w.steps.max(1)));
+            let busiest = busiest.fold(0.0, f64::max);
+            // Per step the CPU writes the parameters (80 B), the head's five rows and its collider's five.
+            let uploaded = 80 + 2 * 5 * 16;
             println!(
-                "{guides:>8} {:>6} {:>10} {:>14.3} {:>16.3} {:>12.3}",
+                "{guides:>8} {:>6} {:>10} {:>10.3} {:>13.3} {:>9.3} {newton:>7.2} {projection:>9.2} {rounds:>8.2} \
+                 {busiest:>9.2} {uploaded:>8} {read_back_bytes:>12}",
                 32,
                 guides * followers,
                 1e3 * step,
                 1e3 * placed,
                 1e3 * (step + placed)
             );
+        }
+        println!(
+            "(Newton, project, contact: per strand-step, averaged over every strand; busiest: the projection \
+             iterations per step of the strand that took most. read-back B: bytes of one read-back, when asked)"
+        );
+    }
+
+    /// The plugin's CPU time per fixed step with the GPU stepping 2 000 guides × 32 edges with 10 followers
+    /// each on the skull, in a headless app with Bevy's renderer: the main world's systems and the render
+    /// world's (`HairGpuStatus::main_thread_seconds`, `render_thread_seconds`), with the components read
+    /// back after every step and never, interleaved step by step over two apps.
+    pub fn plugin_cpu_cost(steps: usize) {
+        use bevy::app::PluginsState;
+        use bevy::prelude::*;
+        use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+        use bevy::time::TimeUpdateStrategy;
+        use bevy::window::ExitCondition;
+        let app = |read_back: GpuReadBackRate| {
+            let mut app = App::new();
+            app.add_plugins((
+                DefaultPlugins
+                    .set(WindowPlugin {
+                        primary_window: None,
+                        exit_condition: ExitCondition::DontExit,
+                        close_when_requested: false,
+                        ..default()
+                    })
+                    .disable::<PipelinedRenderingPlugin>(),
+                HairPlugin::default(),
+                HairGpuPlugin::default(),
+            ));
+            app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+                .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
+                .insert_resource(HairGpuSettings { read_back, ..default() });
+            while app.plugins_state() == PluginsState::Adding {
+                bevy::tasks::tick_global_task_pools_on_main_thread();
+            }
+            app.finish();
+            app.cleanup();
+            let groom = HairGroom { strand_count: 2_000, followers_per_guide: 10, segments: 32, ..default() };
+            let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+            app.world_mut().spawn((
+                HairCollider::sphere(0.1),
+                HairColliderOf(head),
+                ChildOf(head),
+                Transform::default(),
+            ));
+            (app, head)
+        };
+        let mut apps = [app(GpuReadBackRate::EveryStep), app(GpuReadBackRate::OnDemand)];
+        // Until the groom is built, preloaded and on the GPU.
+        for _ in 0..600 {
+            for (app, _) in &mut apps {
+                app.update();
+            }
+            if apps.iter().all(|(app, _)| app.world().resource::<HairGpuStatus>().strands == 2_000) {
+                break;
+            }
+        }
+        let mut seconds = [[0.0; 2]; 2];
+        for step in 0..steps {
+            for (index, (app, head)) in apps.iter_mut().enumerate() {
+                let t = step as f32 / 60.0;
+                app.world_mut().get_mut::<Transform>(*head).unwrap().rotation =
+                    Quat::from_rotation_y(0.7 * (6.0 * t).sin());
+                app.update();
+                let status = app.world().resource::<HairGpuStatus>();
+                seconds[index][0] += status.main_thread_seconds;
+                seconds[index][1] += status.render_thread_seconds;
+            }
+        }
+        let strands = apps[0].0.world().resource::<HairGpuStatus>().strands;
+        println!(
+            "\nThe plugin's CPU time per step, {strands} guides × 32 edges on the GPU, 20 000 followers, {steps} steps"
+        );
+        println!("{:>22} {:>12} {:>14} {:>10}", "read-back", "main ms", "render ms", "total ms");
+        for (index, name) in ["every step", "off (on demand)"].into_iter().enumerate() {
+            let [main, render] = seconds[index].map(|s| 1e3 * s / steps as f64);
+            println!("{name:>22} {main:>12.3} {render:>14.3} {:>10.3}", main + render);
         }
     }
 
@@ -299,8 +406,14 @@ mod gpu {
             Self { solver, followers, skull }
         }
 
-        /// Seconds per step: the strand step, and the followers' part.
-        fn measure(mut self, device: &wgpu::Device, queue: &wgpu::Queue, timestamps: bool, steps: usize) -> [f64; 2] {
+        /// Seconds per step (the strand step, and the followers' part), and each strand's work.
+        fn measure(
+            mut self,
+            device: &wgpu::Device,
+            queue: &wgpu::Queue,
+            timestamps: bool,
+            steps: usize,
+        ) -> ([f64; 2], Vec<GpuStrandWork>) {
             let params = bevy_hair_sim::rod::StepParams::default();
             let queries = timestamps.then(|| {
                 device.create_query_set(&wgpu::QuerySetDescriptor {
@@ -369,8 +482,9 @@ mod gpu {
                 let first = states.status.iter().position(|s| s.faults > 0).unwrap();
                 println!("{faults} faults; first strand {first}: {:?}", states.status[first]);
             }
+            let work = self.solver.read_work(device, queue);
             let Some(queries) = queries else {
-                return wall.map(|seconds| seconds / steps as f64);
+                return (wall.map(|seconds| seconds / steps as f64), work);
             };
             let count = 3 * steps as u64;
             let resolved = device.create_buffer(&wgpu::BufferDescriptor {
@@ -401,7 +515,7 @@ mod gpu {
             if self.followers.is_none() {
                 gpu[1] = 0.0;
             }
-            gpu.map(|seconds| seconds / steps as f64)
+            (gpu.map(|seconds| seconds / steps as f64), work)
         }
     }
 

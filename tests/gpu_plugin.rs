@@ -65,7 +65,9 @@ fn app(gpu: bool) -> App {
     }
     app.insert_resource(Time::<Fixed>::from_seconds(DT))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
-        .insert_resource(HairWind { velocity: Vec3::new(1.5, 0.0, 0.5), ..default() });
+        .insert_resource(HairWind { velocity: Vec3::new(1.5, 0.0, 0.5), ..default() })
+        // The comparisons read the components: read back after every step (off by default).
+        .insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..default() });
     while app.plugins_state() == PluginsState::Adding {
         bevy::tasks::tick_global_task_pools_on_main_thread();
     }
@@ -250,6 +252,19 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     }
     assert!(gpu.world().get::<SteppedElsewhere>(folded).is_none(), "the folded guide went to the GPU");
     assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 63, "the other guides are on the GPU");
+
+    // Settings changed in play, after three uploads (64 guides, none, 63): the step's pipelines were built
+    // once, at the first, and never again (a shader compiled in play is a hitch).
+    gpu.world_mut().resource_mut::<HairSettings>().air_damping *= 2.0;
+    for number in SHAKING_STEPS + 23..SHAKING_STEPS + 26 {
+        step(&mut gpu, gpu_head, number);
+    }
+    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    println!("{status:?}");
+    assert!(status.uploads >= 2, "{} uploads", status.uploads);
+    assert_eq!(status.pipeline_builds, 1, "the step's pipelines were built {} times", status.pipeline_builds);
+    // The plugin's CPU time is reported, from both worlds.
+    assert!(status.main_thread_seconds > 0.0 && status.render_thread_seconds > 0.0, "{status:?}");
 }
 
 /// What the GPU should draw for the head's hair from its components now: each guide's nodes, then each

@@ -1,7 +1,7 @@
 //! The strand step on the GPU: the same discrete elastic rods as [`crate::rod`], stepped in a WGSL compute
 //! shader (`step.wgsl`) in single precision, one invocation per strand (`gpu` feature). In an app,
 //! [`HairGpuPlugin`](crate::render::HairGpuPlugin) runs it on Bevy's device; [`GpuStrandSolver`] runs it on
-//! any wgpu device.
+//! any wgpu device, with the pipelines of [`GpuStepPipelines`] built once per device.
 //!
 //! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
 //! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
@@ -23,9 +23,19 @@
 //!   linearised lengths.
 //! - *Positions relative to the head*, so that `f32` resolves tenths of a micrometre wherever the head is.
 //! - *A fixed number of Newton iterations* ([`GPU_NEWTON_ITERATIONS`]) for every strand, where the CPU
-//!   stops each strand when it converges; and contact after the solve (push-out, friction on the slip,
-//!   lengths again) where the CPU also has contact springs inside it. Edges dipping into a collider between
+//!   stops each strand when it converges.
+//! - *Exits that single precision can reach.* The projection stops once every edge's strain is within what `f32`
+//!   resolves where the edge lies (four times the rounding of its length from positions relative to the
+//!   head: 1e-6 to 3e-5), or when an iteration no longer lowers an error that close to it; contact rounds
+//!   stop when no node moved by more than its position's rounding. A dispatch runs until its slowest
+//!   strand is done, so an exit below what `f32` can reach cost every strand beside it.
+//! - *Contact*: springs inside the solve, as on the CPU, then a push-out after it (friction on the slip,
+//!   lengths again), where the CPU re-solves friction inside Newton. Edges dipping into a collider between
 //!   their nodes are the CPU's alone.
+//!
+//! **Work counters.** The shader counts each strand's Newton iterations, projection iterations and
+//! sweeps, contact rounds and factorisation retries ([`GpuStrandWork`], [`GpuStrandSolver::read_work`]),
+//! so the work a step does is a number the tests bound on any adapter, a software one included.
 //!
 //! **Faults** are found on the GPU: a strand with a non-finite value, an edge strained past
 //! [`crate::rod::StepParams::strain_bound`] (plus the strain `f32` can resolve,
@@ -42,6 +52,7 @@ mod solver;
 pub use compute::{bind_whole_buffers, compute_layout, compute_pipeline};
 pub use solver::{
     GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep,
-    GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets, headless_device,
+    GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
+    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets,
+    headless_device,
 };

@@ -2,8 +2,8 @@
 //! dispatches and read-back. Bevy's renderer hands its own device to it
 //! ([`HairGpuPlugin`](crate::render::HairGpuPlugin)); tests and benchmarks make one with [`headless_device`].
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 
 use bevy::math::{DQuat, DVec2, DVec3};
 use wgpu::util::DeviceExt;
@@ -28,8 +28,13 @@ const COLLIDER_ROWS: usize = 5;
 const STRAND_FLOATS: usize = 4;
 /// The arc-length fraction written for the nodes of a strand that is not held: past any reach (at most 1).
 const HELD_NOWHERE: f64 = 2.0;
-/// `Params` of the shader: sixteen words.
-const PARAMS_BYTES: u64 = 64;
+/// `Params` of the shader: twenty words.
+const PARAMS_BYTES: u64 = 80;
+/// Rows of `vec4<u32>` per strand in the work counters (`work` in the shader).
+const WORK_ROWS: usize = 2;
+/// The state's rows a read-back copies: position and θ, velocity and θ̇, reference director and twist (the
+/// history, rows 2 and 3, stays on the GPU).
+const READ_BACK_ROWS: [usize; 3] = [0, 1, 4];
 
 /// Stiffness of an edge's first-order change of length in the GPU's solve, relative to the inertia of its
 /// nodes `m (1/h² + γ/h)`, dimensionless. Large enough that the linear step keeps lengths to first order
@@ -50,11 +55,13 @@ pub const GPU_FOLD_GAP: f64 = 0.25;
 pub const SINGLE_PRECISION_STRAIN: f64 = 1.2e-4;
 
 /// Newton iterations of each GPU step: the CPU's adaptive count usually stops at one on calm steps and
-/// takes two to four on violent ones; the GPU takes a fixed number, so that every strand of a dispatch
-/// runs the same instructions.
+/// takes two to four on violent ones; the GPU takes a fixed number. (The CPU's test per strand, tried,
+/// stopped 7 % of the shaken head's strands after one iteration and left a released hair's swing 2.4 mm
+/// from the converged one where two iterations leave 1.6: `docs/performance.md`.)
 pub const GPU_NEWTON_ITERATIONS: u32 = 2;
 
-/// Rounds of "push out of the colliders, project the lengths" after the solve (friction in the first).
+/// The most rounds of "push out of the colliders, project the lengths" after the solve (friction in the
+/// first); they end once no node moves by more than four times its position's rounding.
 pub const GPU_CONTACT_ROUNDS: u32 = 4;
 
 /// Why a strand cannot be stepped on the GPU, or no GPU step can be made.
@@ -173,6 +180,61 @@ pub struct GpuStrandStatus {
     pub contact_given_up: bool,
 }
 
+/// The work a strand's GPU steps took since the upload ([`GpuStrandSolver::read_work`]): what sets the
+/// step's cost on a GPU, where a dispatch runs until its slowest strand is done. Counted by the shader,
+/// in wrapping `u32`s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GpuStrandWork {
+    /// Steps taken.
+    pub steps: u32,
+    /// Newton iterations (each one assembly, factorisation and solve).
+    pub newton_iterations: u32,
+    /// Projection iterations onto the rest lengths (each one tridiagonal solve).
+    pub projection_iterations: u32,
+    /// Gauss–Seidel sweeps of the projection, where its iteration did not reduce the error.
+    pub projection_sweeps: u32,
+    /// Projection iterations that did not reduce the error, sweep included: spent where single
+    /// precision's rounding, not the lengths, set it.
+    pub projection_stalls: u32,
+    /// Calls of the projection (after each Newton iteration and each contact round).
+    pub projections: u32,
+    /// Contact rounds (push-out, then the lengths again).
+    pub contact_rounds: u32,
+    /// Factorisations redone with a regularised diagonal after a non-positive pivot.
+    pub factorisation_retries: u32,
+}
+
+impl GpuStrandWork {
+    /// The work of every strand summed.
+    pub fn total(work: &[GpuStrandWork]) -> GpuStrandWork {
+        work.iter().fold(GpuStrandWork::default(), |sum, w| GpuStrandWork {
+            steps: sum.steps.wrapping_add(w.steps),
+            newton_iterations: sum.newton_iterations.wrapping_add(w.newton_iterations),
+            projection_iterations: sum.projection_iterations.wrapping_add(w.projection_iterations),
+            projection_sweeps: sum.projection_sweeps.wrapping_add(w.projection_sweeps),
+            projection_stalls: sum.projection_stalls.wrapping_add(w.projection_stalls),
+            projections: sum.projections.wrapping_add(w.projections),
+            contact_rounds: sum.contact_rounds.wrapping_add(w.contact_rounds),
+            factorisation_retries: sum.factorisation_retries.wrapping_add(w.factorisation_retries),
+        })
+    }
+
+    /// Each count per step taken (0 with no step).
+    pub fn per_step(&self) -> [f64; 7] {
+        let steps = f64::from(self.steps.max(1));
+        [
+            self.newton_iterations,
+            self.projection_iterations,
+            self.projection_sweeps,
+            self.projection_stalls,
+            self.projections,
+            self.contact_rounds,
+            self.factorisation_retries,
+        ]
+        .map(|count| f64::from(count) / steps)
+    }
+}
+
 /// Why a GPU step failed for a strand.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GpuFault {
@@ -268,14 +330,14 @@ pub const STEP_SHADER: &str = include_str!("step.wgsl");
 /// Strands stepped on the GPU: their buffers (vertex-major, positions relative to their heads), the step's
 /// pipeline, and the heads' poses the strands were last stepped to.
 pub struct GpuStrandSolver {
-    pipeline: wgpu::ComputePipeline,
+    pipelines: Arc<GpuStepPipelines>,
     bind_group: wgpu::BindGroup,
     params: wgpu::Buffer,
     state: wgpu::Buffer,
     status: wgpu::Buffer,
     heads: wgpu::Buffer,
     colliders: wgpu::Buffer,
-    layout: wgpu::BindGroupLayout,
+    work: wgpu::Buffer,
     strand_words: wgpu::Buffer,
     strand_floats: wgpu::Buffer,
     rest: wgpu::Buffer,
@@ -290,8 +352,40 @@ pub struct GpuStrandSolver {
     head_rows: Vec<[f32; 4]>,
     collider_rows: Vec<[f32; 4]>,
     collider_capacity: usize,
-    /// The pipeline that hands the strands to the renderer's follower placement.
+    /// Read-back buffers the CPU has finished with, for the next read-backs.
+    staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
+}
+
+/// How many times [`GpuStepPipelines::new`] has built the step's pipelines in this process.
+static PIPELINES_BUILT: AtomicU64 = AtomicU64::new(0);
+
+/// The step's and the gather's pipelines on one device, built once ([`GpuStepPipelines::new`] compiles the
+/// step's shader, a few hundred milliseconds on a driver: a hitch if it happened in play) and shared by every
+/// [`GpuStrandSolver`] made on that device ([`GpuStrandSolver::from_upload`]); the plugin builds them at
+/// its first upload and never again.
+pub struct GpuStepPipelines {
+    layout: wgpu::BindGroupLayout,
+    step: wgpu::ComputePipeline,
     gather: Gather,
+}
+
+impl GpuStepPipelines {
+    /// Compiles the step's and the gather's shaders on `device`.
+    pub fn new(device: &wgpu::Device) -> Arc<Self> {
+        PIPELINES_BUILT.fetch_add(1, Ordering::Relaxed);
+        // Bindings: parameters; strand words, floats, rest shape (read); state (written); heads, colliders
+        // (read); status, work counters (written).
+        let read_only = [true, true, true, false, true, true, false, false];
+        let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
+        let step = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
+        Arc::new(Self { layout, step, gather: Gather::new(device) })
+    }
+
+    /// How many times the pipelines were built in this process (each a shader compilation): the plugin's
+    /// tests check that settings changes and uploads build none.
+    pub fn built() -> u64 {
+        PIPELINES_BUILT.load(Ordering::Relaxed)
+    }
 }
 
 /// The strands as packed for [`GpuStrandSolver::from_upload`]: made from the rods on the CPU (in the main
@@ -454,11 +548,11 @@ impl GpuStrandSolver {
         strands: &[GpuStrandInput],
         head_poses: &[(DQuat, DVec3)],
     ) -> Result<Self, GpuStepError> {
-        Ok(Self::from_upload(device, GpuStrandUpload::new(strands, head_poses)?))
+        Ok(Self::from_upload(device, &GpuStepPipelines::new(device), GpuStrandUpload::new(strands, head_poses)?))
     }
 
-    /// Builds the buffers of `upload` and the step's pipeline on `device`.
-    pub fn from_upload(device: &wgpu::Device, upload: GpuStrandUpload) -> Self {
+    /// Builds the buffers of `upload` on `device`, stepped with `pipelines` (built on the same device).
+    pub fn from_upload(device: &wgpu::Device, pipelines: &Arc<GpuStepPipelines>, upload: GpuStrandUpload) -> Self {
         let GpuStrandUpload { words, floats, rest, state, layout: strands, head_poses } = upload;
         let strand_count = strands.node_counts.len();
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
@@ -474,6 +568,7 @@ impl GpuStrandSolver {
         let rest = storage("hair rest shape", bytemuck::cast_slice(&rest), wgpu::BufferUsages::empty());
         let state = storage("hair strand state", bytemuck::cast_slice(&state), copy);
         let status = storage("hair strand status", &vec![0_u8; 16 * strand_count.max(1)], copy);
+        let work = storage("hair step work", &vec![0_u8; 16 * WORK_ROWS * strand_count.max(1)], copy);
         let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
         let collider_capacity = 4;
         let colliders = storage(
@@ -487,27 +582,21 @@ impl GpuStrandSolver {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        // Bindings: parameters; strand words, floats, rest shape (read); state (written); heads, colliders
-        // (read); status (written).
-        let read_only = [true, true, true, false, true, true, false];
-        let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
-        let pipeline = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
         let bind_group = bind_whole_buffers(
             device,
             "hair strand step",
-            &layout,
-            &[&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status],
+            &pipelines.layout,
+            &[&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
         );
-        let gather = Gather::new(device);
         Self {
-            pipeline,
+            pipelines: pipelines.clone(),
             bind_group,
             params,
             state,
             status,
             heads,
             colliders,
-            layout,
+            work,
             strand_words,
             strand_floats,
             rest,
@@ -518,7 +607,7 @@ impl GpuStrandSolver {
             head_rows: Vec::new(),
             collider_rows: Vec::new(),
             collider_capacity,
-            gather,
+            staging: Arc::default(),
         }
     }
 
@@ -612,7 +701,7 @@ impl GpuStrandSolver {
             self.bind_group = bind_whole_buffers(
                 device,
                 "hair strand step",
-                &self.layout,
+                &self.pipelines.layout,
                 &[
                     &self.params,
                     &self.strand_words,
@@ -622,6 +711,7 @@ impl GpuStrandSolver {
                     &self.heads,
                     &self.colliders,
                     &self.status,
+                    &self.work,
                 ],
             );
         }
@@ -632,7 +722,7 @@ impl GpuStrandSolver {
         let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;
         self.last_dt = params.dt;
         let gravity = params.gravity.as_vec3();
-        let words: [u32; 16] = [
+        let words: [u32; 20] = [
             (params.dt as f32).to_bits(),
             gravity.x.to_bits(),
             gravity.y.to_bits(),
@@ -649,6 +739,10 @@ impl GpuStrandSolver {
             GPU_CONTACT_ROUNDS,
             u32::from(params.integrator == crate::rod::Integrator::Bdf2),
             u32::from(restart),
+            (params.strain_tolerance as f32).to_bits(),
+            0,
+            0,
+            0,
         ];
         queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
         let (x, y) = workgroups(self.strand_count as u32);
@@ -656,7 +750,7 @@ impl GpuStrandSolver {
             label: Some("hair strand step"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(&self.pipelines.step);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
         Ok(())
@@ -682,7 +776,7 @@ impl GpuStrandSolver {
     /// Reads every strand's state back, waiting for the GPU (for tests, benchmarks and on-demand
     /// read-back; the plugin reads back asynchronously with [`GpuStrandSolver::request_read_back`]).
     pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuStrandStates {
-        let mut pending = self.request_read_back(device, queue);
+        let mut pending = self.request_read_back(device, queue, true);
         loop {
             let _ = device.poll(wgpu::PollType::wait_indefinitely());
             if let Some(states) = pending.try_take() {
@@ -691,21 +785,40 @@ impl GpuStrandSolver {
         }
     }
 
-    /// Copies every strand's state as the submitted steps leave it into a buffer the CPU can map, and
-    /// asks for it to be mapped: [`GpuReadBack::try_take`] has it once the GPU is done and the device
-    /// was polled (Bevy's renderer polls it every frame).
-    pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuReadBack {
-        let state_bytes = self.state.size();
+    /// Copies every strand's state as the submitted steps leave it (positions, velocities, twists and
+    /// frames: not the history, which stays on the GPU) into a buffer the CPU can map, and asks for it to
+    /// be mapped: [`GpuReadBack::try_take`] has it once the GPU is done and the device was polled (Bevy's
+    /// renderer polls it every frame). The buffer is reused by later read-backs once its states were taken.
+    /// Without `state`, only each strand's status ([`GpuStrandStates::status`]; 16 bytes a strand, for
+    /// the faults) is read back, and the other fields come back empty.
+    pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
+        let padded = self.strand_count.max(1) as u64;
+        let row_bytes = 16 * padded;
+        let max_nodes = if state { self.state.size() / (row_bytes * STATE_ROWS as u64) } else { 0 };
+        let state_bytes = max_nodes * READ_BACK_ROWS.len() as u64 * row_bytes;
         let status_bytes = self.status.size();
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hair read-back"),
-            size: state_bytes + status_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        let size = state_bytes + status_bytes;
+        let reused = self.staging.lock().ok().and_then(|mut pool| {
+            let found = pool.iter().position(|buffer| buffer.size() == size)?;
+            Some(pool.swap_remove(found))
+        });
+        let staging = reused.unwrap_or_else(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair read-back"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
         });
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
-        encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, state_bytes);
+        // Node by node: rows 0 and 1 (contiguous in the state), then row 4.
+        for node in 0..max_nodes {
+            let from = |row: u64| (node * STATE_ROWS as u64 + row) * row_bytes;
+            let to = node * READ_BACK_ROWS.len() as u64 * row_bytes;
+            encoder.copy_buffer_to_buffer(&self.state, from(0), &staging, to, 2 * row_bytes);
+            encoder.copy_buffer_to_buffer(&self.state, from(4), &staging, to + 2 * row_bytes, row_bytes);
+        }
         encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
         queue.submit([encoder.finish()]);
         let mapped = Arc::new(AtomicU8::new(MAP_PENDING));
@@ -714,12 +827,57 @@ impl GpuStrandSolver {
             signal.store(if result.is_ok() { MAP_DONE } else { MAP_FAILED }, Ordering::Release);
         });
         GpuReadBack {
-            staging,
+            staging: Some(staging),
+            pool: self.staging.clone(),
             state_bytes,
             mapped,
             strands: self.strands.clone(),
             translations: self.strands.strand_heads.iter().map(|&head| self.head_poses[head].1).collect(),
         }
+    }
+
+    /// Bytes a read-back moves from the GPU ([`GpuStrandSolver::request_read_back`]), with the state or
+    /// without.
+    pub fn read_back_bytes(&self, state: bool) -> u64 {
+        let padded = self.strand_count.max(1) as u64;
+        let max_nodes = if state { self.state.size() / (16 * padded * STATE_ROWS as u64) } else { 0 };
+        16 * padded * max_nodes * READ_BACK_ROWS.len() as u64 + self.status.size()
+    }
+
+    /// Each strand's work since the upload ([`GpuStrandWork`]), waiting for the GPU: for tests and
+    /// benchmarks, which bound and print what the step costs on any adapter.
+    pub fn read_work(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Vec<GpuStrandWork> {
+        let bytes = self.work.size();
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hair step work read-back"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair step work") });
+        encoder.copy_buffer_to_buffer(&self.work, 0, &staging, 0, bytes);
+        queue.submit([encoder.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        let _ = device.poll(wgpu::PollType::wait_indefinitely());
+        let data = staging.slice(..).get_mapped_range();
+        let rows: &[[u32; 4]] = bytemuck::cast_slice(&data);
+        (0..self.strand_count)
+            .map(|s| {
+                let [steps, newton_iterations, projection_iterations, projection_sweeps] = rows[WORK_ROWS * s];
+                let [contact_rounds, factorisation_retries, projection_stalls, projections] = rows[WORK_ROWS * s + 1];
+                GpuStrandWork {
+                    steps,
+                    newton_iterations,
+                    projection_iterations,
+                    projection_sweeps,
+                    projection_stalls,
+                    projections,
+                    contact_rounds,
+                    factorisation_retries,
+                }
+            })
+            .collect()
     }
 
     /// The buffers [`GpuStrandSolver::gather_target`] binds, for a caller that wants them itself: each
@@ -740,7 +898,7 @@ impl GpuStrandSolver {
         guide_data: &wgpu::Buffer,
         guide_frames: &wgpu::Buffer,
     ) -> GpuGatherTarget {
-        self.gather.target(device, self, guides, guide_data, guide_frames)
+        self.pipelines.gather.target(device, self, guides, guide_data, guide_frames)
     }
 
     /// Records the gather of one head's guides (`target`, on head `head` of the upload) after the steps
@@ -772,7 +930,7 @@ impl GpuStrandSolver {
             label: Some("hair guides gathered"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.gather.pipeline);
+        pass.set_pipeline(&self.pipelines.gather.pipeline);
         pass.set_bind_group(0, &target.bind_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
     }
@@ -791,7 +949,10 @@ const MAP_FAILED: u8 = 2;
 
 /// A read-back on its way from the GPU ([`GpuStrandSolver::request_read_back`]).
 pub struct GpuReadBack {
-    staging: wgpu::Buffer,
+    /// The buffer mapped for the CPU: `None` once handed back to the pool.
+    staging: Option<wgpu::Buffer>,
+    /// Where the buffer goes when its states were taken, for the next read-back.
+    pool: Arc<Mutex<Vec<wgpu::Buffer>>>,
     state_bytes: u64,
     /// Set by the mapping's callback.
     mapped: Arc<AtomicU8>,
@@ -808,12 +969,16 @@ impl GpuReadBack {
             return None;
         }
         self.mapped.store(MAP_FAILED, Ordering::Release);
-        let data = self.staging.slice(..).get_mapped_range();
+        let staging = self.staging.take()?;
+        let data = staging.slice(..).get_mapped_range();
         let state_bytes = self.state_bytes as usize;
-        let states =
-            self.unpack(bytemuck::cast_slice(&data[..state_bytes]), bytemuck::cast_slice(&data[state_bytes..]));
+        let state = (state_bytes > 0).then(|| bytemuck::cast_slice(&data[..state_bytes]));
+        let states = self.unpack(state, bytemuck::cast_slice(&data[state_bytes..]));
         drop(data);
-        self.staging.unmap();
+        staging.unmap();
+        if let Ok(mut pool) = self.pool.lock() {
+            pool.push(staging);
+        }
         Some(states)
     }
 
@@ -822,21 +987,60 @@ impl GpuReadBack {
         self.mapped.load(Ordering::Acquire) == MAP_FAILED
     }
 
-    /// The strands' state from the state and status buffers' contents.
-    fn unpack(&self, state: &[[f32; 4]], status: &[[u32; 4]]) -> GpuStrandStates {
+    /// The strands' state from the read-back's rows and the status buffer's contents, unpacked on Bevy's
+    /// compute pool in blocks of strands where it has threads.
+    fn unpack(&self, state: Option<&[[f32; 4]]>, status: &[[u32; 4]]) -> GpuStrandStates {
+        const BLOCK: usize = 256;
+        let strands = self.strands.node_counts.len();
+        let blocks = strands.div_ceil(BLOCK);
+        let unpack_block =
+            |block: usize| self.unpack_range(state, status, block * BLOCK..((block + 1) * BLOCK).min(strands));
+        let parts: Vec<GpuStrandStates> = match bevy::tasks::ComputeTaskPool::try_get() {
+            Some(pool) if pool.thread_num() > 1 && blocks > 1 => pool.scope(|scope| {
+                for block in 0..blocks {
+                    let unpack_block = &unpack_block;
+                    scope.spawn(async move { unpack_block(block) });
+                }
+            }),
+            _ => (0..blocks).map(unpack_block).collect(),
+        };
+        let mut states = GpuStrandStates::default();
+        for part in parts {
+            states.positions.extend(part.positions);
+            states.velocities.extend(part.velocities);
+            states.twists.extend(part.twists);
+            states.twist_rates.extend(part.twist_rates);
+            states.reference_directors.extend(part.reference_directors);
+            states.reference_twists.extend(part.reference_twists);
+            states.status.extend(part.status);
+        }
+        states
+    }
+
+    /// The strands in `range`, as [`GpuReadBack::unpack`].
+    fn unpack_range(
+        &self,
+        state: Option<&[[f32; 4]]>,
+        status: &[[u32; 4]],
+        range: std::ops::Range<usize>,
+    ) -> GpuStrandStates {
         let counts = &self.strands.node_counts;
         let padded = counts.len().max(1);
         let mut states = GpuStrandStates::default();
-        for (s, (&nodes, &translation)) in counts.iter().zip(&self.translations).enumerate() {
-            let row = |node: usize, row: usize| state[(node * STATE_ROWS + row) * padded + s];
-            let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
-            let edges = nodes - 1;
-            states.positions.push((0..nodes).map(|i| translation + local(row(i, 0))).collect());
-            states.velocities.push((0..nodes).map(|i| local(row(i, 1))).collect());
-            states.twists.push((0..edges).map(|i| row(i, 0)[3] as f64).collect());
-            states.twist_rates.push((0..edges).map(|i| row(i, 1)[3] as f64).collect());
-            states.reference_directors.push((0..edges).map(|i| local(row(i, 4))).collect());
-            states.reference_twists.push((0..nodes).map(|i| row(i, 4)[3] as f64).collect());
+        for s in range {
+            if let Some(state) = state {
+                let (nodes, translation) = (counts[s], self.translations[s]);
+                // Rows 0, 1 and 4 of the state, in that order per node (`READ_BACK_ROWS`).
+                let row = |node: usize, row: usize| state[(node * READ_BACK_ROWS.len() + row) * padded + s];
+                let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+                let edges = nodes - 1;
+                states.positions.push((0..nodes).map(|i| translation + local(row(i, 0))).collect());
+                states.velocities.push((0..nodes).map(|i| local(row(i, 1))).collect());
+                states.twists.push((0..edges).map(|i| row(i, 0)[3] as f64).collect());
+                states.twist_rates.push((0..edges).map(|i| row(i, 1)[3] as f64).collect());
+                states.reference_directors.push((0..edges).map(|i| local(row(i, 2))).collect());
+                states.reference_twists.push((0..nodes).map(|i| row(i, 2)[3] as f64).collect());
+            }
             let [flags, at, strain, faults] = status[s];
             let reason = |bits: u32| {
                 if bits & 2 != 0 {

@@ -16,15 +16,16 @@ use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 
 use super::gpu::GpuStepCount;
+use crate::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use crate::gpu::{
-    GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStrandInput, GpuStrandSolver, GpuStrandStates,
-    GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, gpu_meets,
+    GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver,
+    GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, gpu_meets,
 };
 use crate::rod::{MovingCollider, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
-    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, SimulatedStrand, SteppedElsewhere,
-    StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
+    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
+    SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
 };
 use crate::wind::{HairWind, HairWindSource};
 
@@ -57,11 +58,20 @@ use crate::wind::{HairWind, HairWindSource};
 /// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
 /// strand's groomed pose carried with its head.
 ///
-/// **The components are read back** asynchronously at [`HairGpuSettings::read_back`]: the GPU copies the
-/// state into a buffer the CPU maps once the GPU is done, and the first frame that finds it mapped writes
-/// [`StrandNodes`], [`StrandFrames`] and the strand's rod. With pipelined rendering that is two frames
-/// after the step (the render world runs a frame behind the main world, and the copy is mapped by the next
-/// frame); [`HairGpuStatus::read_back_age`] says how many steps old the components are.
+/// **The GPU's state is the truth.** The hair is drawn from it where it is, so by default nothing is read
+/// back but each strand's status (16 bytes a strand a step, for the faults):
+/// [`HairGpuSettings::read_back`] is [`GpuReadBackRate::OnDemand`], and [`StrandNodes`], [`StrandFrames`]
+/// and the strands' rods keep their last read-back state. A game that reads them asks for them every n-th
+/// step ([`GpuReadBackRate::EveryNthStep`]) or once ([`HairGpuSettings::read_back_now`]). They are read
+/// back after every step whatever the setting where something on the CPU reads them every step: a head
+/// drawn from its components (one with some strands on the CPU), followers placed on the CPU
+/// ([`FollowerPlacement::Cpu`], [`PlaceFollowersOnCpu`]). Before the strands on the GPU change (added,
+/// removed, handed back, the GPU turned off), their state is read back, and the new set is uploaded from
+/// it. A read-back is asynchronous: the GPU copies the state into a reused buffer the CPU maps once the
+/// GPU is done, and the first frame that finds it mapped writes the components. With pipelined rendering
+/// that is two frames after the step (the render world runs a frame behind the main world, and the copy
+/// is mapped by the next frame); [`HairGpuStatus::read_back_age`] says how many steps old the components
+/// are.
 ///
 /// **Faults** found on the GPU (a non-finite value, an edge strained past the bound, a system that does not
 /// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
@@ -75,6 +85,8 @@ use crate::wind::{HairWind, HairWindSource};
 /// [`HairGpuStatus::error`] says why.
 ///
 /// [`StrandForces`]: crate::simulation::StrandForces
+/// [`FollowerPlacement::Cpu`]: crate::followers::FollowerPlacement::Cpu
+/// [`PlaceFollowersOnCpu`]: crate::followers::PlaceFollowersOnCpu
 #[derive(Debug, Clone)]
 pub struct HairGpuPlugin {
     /// The fixed-timestep schedule the simulation runs in.
@@ -88,7 +100,8 @@ pub struct HairGpuSettings {
     /// Whether the GPU steps the strands it can. Off, every strand goes back to the CPU, from its last
     /// read-back state.
     pub enabled: bool,
-    /// How often [`StrandNodes`], [`StrandFrames`] and the strands' rods are read back from the GPU.
+    /// How often [`StrandNodes`], [`StrandFrames`] and the strands' rods are read back from the GPU (by
+    /// default only on demand: see [`HairGpuPlugin`] for when they are read back anyway).
     pub read_back: GpuReadBackRate,
     /// Read back once after the next step whatever the rate (cleared when it is sent).
     pub read_back_now: bool,
@@ -96,19 +109,20 @@ pub struct HairGpuSettings {
 
 impl Default for HairGpuSettings {
     fn default() -> Self {
-        Self { enabled: true, read_back: GpuReadBackRate::EveryStep, read_back_now: false }
+        Self { enabled: true, read_back: GpuReadBackRate::OnDemand, read_back_now: false }
     }
 }
 
 /// How often the GPU's strands are read back into the ECS ([`HairGpuSettings::read_back`]).
 #[derive(Reflect, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GpuReadBackRate {
-    /// After every step: the components are as current as the latency allows (a few hundred kB per
-    /// step for 2 000 × 32 strands).
+    /// After every step: the components are as current as the latency allows (3.2 MB per step for
+    /// 2 000 strands × 32 edges, and their unpacking on the CPU).
     EveryStep,
     /// After every `n`-th step (`n` ≥ 1).
     EveryNthStep(u32),
-    /// Only when [`HairGpuSettings::read_back_now`] asks: the components keep their last read-back state.
+    /// Only when [`HairGpuSettings::read_back_now`] asks (the default): the components keep their last
+    /// read-back state.
     OnDemand,
 }
 
@@ -131,12 +145,24 @@ pub struct HairGpuStatus {
     pub contact_given_up: usize,
     /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
     pub error: Option<String>,
+    /// Sets of strands uploaded to the GPU (at the start, and each time the strands it steps change).
+    pub uploads: u32,
+    /// How many times the step's pipelines were built (their shaders compiled, a hitch): once, at the
+    /// first upload; never again for later uploads or changed settings.
+    pub pipeline_builds: u32,
+    /// The main world's time in the plugin's systems during the last update (read-backs written into the
+    /// components, strands chosen, steps ordered), s.
+    pub main_thread_seconds: f64,
+    /// The render world's time in the plugin's system during the last frame it reported (uploads, steps
+    /// recorded and submitted, read-backs unpacked), s.
+    pub render_thread_seconds: f64,
 }
 
 /// One fixed step for the render world.
 struct GpuStepOrder {
     params: StepParams,
     heads: Vec<GpuHeadStep>,
+    /// Whether to read the state back after it (otherwise the last step of a frame reads back the status).
     read_back: bool,
     /// Its number among the steps sent.
     step: u64,
@@ -170,15 +196,35 @@ struct GpuStepQueue {
     read_back_step: Option<u64>,
     /// Whether the set of strands must be looked over at the next step.
     dirty: bool,
+    /// A new set of strands waits for the read-back of this step, so that the strands staying on the GPU
+    /// are uploaded from their state there.
+    upload_waits_for: Option<u64>,
+    /// Whether something on the CPU reads the GPU strands' components every step (a head with strands on
+    /// the CPU too is drawn from its components).
+    components_read: bool,
     /// Colliders already warned about, by head.
     warned_colliders: Vec<Entity>,
 }
 
 /// What the render world sends back.
 enum GpuMessage {
-    ReadBack { step: u64, strands: Arc<Vec<Entity>>, states: GpuStrandStates },
+    /// The strands' status after `step`, and their state if `full`.
+    ReadBack {
+        step: u64,
+        strands: Arc<Vec<Entity>>,
+        states: GpuStrandStates,
+        full: bool,
+    },
     Error(String),
+    /// The step's pipelines were built.
+    PipelinesBuilt,
+    /// The render world's time in `step_on_gpu` this frame, s.
+    RenderTime(f64),
 }
+
+/// When the plugin's systems in the fixed schedule started this step.
+#[derive(Resource, Default)]
+struct GpuSystemsClock(Option<std::time::Instant>);
 
 /// The main world's end of the read-backs.
 #[derive(Resource)]
@@ -193,11 +239,14 @@ impl Plugin for HairGpuPlugin {
             .init_resource::<HairGpuStatus>()
             .init_resource::<GpuStepQueue>()
             .init_resource::<GpuStepCount>()
+            .init_resource::<GpuSystemsClock>()
             .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
             .add_systems(PreUpdate, apply_read_backs)
             .add_systems(
                 self.schedule,
-                (choose_gpu_strands, order_gpu_step).chain().in_set(HairStepSystems::Integrate),
+                (start_clock, choose_gpu_strands, order_gpu_step, stop_clock)
+                    .chain()
+                    .in_set(HairStepSystems::Integrate),
             );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             warn!("HairGpuPlugin: there is no renderer (add DefaultPlugins first), so the CPU steps the hair");
@@ -212,6 +261,18 @@ impl Plugin for HairGpuPlugin {
                 Render,
                 step_on_gpu.in_set(RenderSystems::PrepareResources).before(super::compute::prepare_gpu_followers),
             );
+    }
+}
+
+/// Starts the clock of the plugin's systems in the fixed schedule ([`HairGpuStatus::main_thread_seconds`]).
+fn start_clock(mut clock: ResMut<GpuSystemsClock>) {
+    clock.0 = Some(std::time::Instant::now());
+}
+
+/// Adds the fixed-schedule systems' time to [`HairGpuStatus::main_thread_seconds`].
+fn stop_clock(mut clock: ResMut<GpuSystemsClock>, mut status: ResMut<HairGpuStatus>) {
+    if let Some(started) = clock.0.take() {
+        status.main_thread_seconds += started.elapsed().as_secs_f64();
     }
 }
 
@@ -230,6 +291,7 @@ fn choose_gpu_strands(
     mut removed: RemovedComponents<SimulatedStrand>,
     strands: Query<(Entity, &SimulatedStrand, &StrandOf, Has<SteppedElsewhere>)>,
     heads: Query<&HeadMotion, With<HairHead>>,
+    head_strands: Query<&HeadStrands>,
 ) {
     let queue = &mut *queue;
     queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
@@ -261,8 +323,20 @@ fn choose_gpu_strands(
     chosen.sort_by_key(|&(head, entity, _)| (head, entity));
     let same = chosen.len() == queue.strands.len() && chosen.iter().zip(queue.strands.iter()).all(|(c, s)| c.1 == *s);
     if same {
+        queue.upload_waits_for = None;
         return;
     }
+    // The strands on the GPU now are uploaded again (or handed to the CPU) from their state there: read
+    // back first, unless the GPU stopped answering.
+    if !queue.strands.is_empty() {
+        let asked = *queue.upload_waits_for.get_or_insert(queue.steps_sent + 1);
+        let arrived = queue.read_back_step.is_some_and(|step| step >= asked);
+        if !arrived && queue.steps_sent < asked + UPLOAD_WAIT_STEPS {
+            queue.dirty = true;
+            return;
+        }
+    }
+    queue.upload_waits_for = None;
     let mut head_list: Vec<Entity> = chosen.iter().map(|c| c.0).collect();
     head_list.dedup();
     let poses: Vec<(DQuat, DVec3)> = head_list
@@ -284,11 +358,17 @@ fn choose_gpu_strands(
         })
         .collect();
     let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
+    // A head with strands left on the CPU is drawn from its components.
+    queue.components_read = head_list.iter().any(|&head| {
+        let on_gpu = chosen.iter().filter(|c| c.0 == head).count();
+        head_strands.get(head).is_ok_and(|strands| strands.strands().len() > on_gpu)
+    });
     let on_gpu: Vec<Entity> = match upload {
         Some(Ok(upload)) => {
             let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
             info!("HairGpuPlugin: {} strands of {} heads stepped on the GPU", entities.len(), head_list.len());
             queue.upload = Some(GpuUploadOrder { upload, strands: entities.clone() });
+            status.uploads += 1;
             queue.strands = entities;
             status.error = None;
             queue.strands.to_vec()
@@ -342,6 +422,8 @@ fn order_gpu_step(
     colliders: StrandColliders,
     wind: Option<Res<HairWind>>,
     sources: Query<(&HairWindSource, &GlobalTransform)>,
+    placement: Option<Res<FollowerPlacement>>,
+    followers_on_cpu: Query<(), With<PlaceFollowersOnCpu>>,
 ) {
     let Some(params) = checked.params else { return };
     if queue.strands.is_empty() {
@@ -385,7 +467,14 @@ fn order_gpu_step(
         });
     }
     queue.since_read_back += 1;
+    // Read every step by the CPU: followers placed there, or a head drawn from its components.
+    let components_read = queue.components_read
+        || placement.is_none_or(|placement| *placement == FollowerPlacement::Cpu)
+        || !followers_on_cpu.is_empty();
+    let upload_waits = queue.upload_waits_for.is_some_and(|step| step == queue.steps_sent + 1);
     let read_back = std::mem::take(&mut settings.bypass_change_detection().read_back_now)
+        || components_read
+        || upload_waits
         || match settings.read_back {
             GpuReadBackRate::EveryStep => true,
             GpuReadBackRate::EveryNthStep(n) => queue.since_read_back >= n.max(1),
@@ -415,12 +504,21 @@ fn apply_read_backs(
     time: Res<Time>,
     mut fault_log: Local<FaultLog>,
 ) {
+    let started = std::time::Instant::now();
     let Ok(receiver) = receiver.0.lock() else { return };
     let now = time.elapsed_secs_f64();
     let queue = &mut *queue;
     for message in receiver.try_iter() {
-        let (step, entities, states) = match message {
-            GpuMessage::ReadBack { step, strands, states } => (step, strands, states),
+        let (step, entities, states, full) = match message {
+            GpuMessage::ReadBack { step, strands, states, full } => (step, strands, states, full),
+            GpuMessage::PipelinesBuilt => {
+                status.pipeline_builds += 1;
+                continue;
+            }
+            GpuMessage::RenderTime(seconds) => {
+                status.render_thread_seconds = seconds;
+                continue;
+            }
             GpuMessage::Error(error) => {
                 if status.error.as_ref() != Some(&error) {
                     error!("HairGpuPlugin: {error}");
@@ -468,12 +566,20 @@ fn apply_read_backs(
             faults.write(StrandFault { strand: entity, error });
         }
         fault_log.summarise(now);
-        status.read_backs += 1;
         status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
-        queue.read_back_step = Some(step);
-        status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
+        if full {
+            status.read_backs += 1;
+            queue.read_back_step = Some(step);
+            status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
+        }
     }
+    // The first of the plugin's systems in an update: the clock starts again here.
+    status.main_thread_seconds = started.elapsed().as_secs_f64();
 }
+
+/// Steps a new set of strands waits for the read-back of the old one before it is uploaded anyway (from
+/// the components as they are): a GPU that stopped answering does not hold the hair's changes forever.
+const UPLOAD_WAIT_STEPS: u64 = 30;
 
 /// Read-backs running in which a strand failed on the GPU after which it is handed back to the CPU for
 /// good: the pose it is reset to on the GPU fails again, and the CPU's fault handling (held, retried,
@@ -499,6 +605,8 @@ fn step_error(report: &GpuStrandStatus, strain_bound: f64) -> StepError {
 #[derive(Resource, Default)]
 pub(super) struct GpuHairRender {
     pub(super) solver: Option<GpuStrandSolver>,
+    /// The step's pipelines on Bevy's device, built at the first upload and kept for every later one.
+    pipelines: Option<Arc<GpuStepPipelines>>,
     /// The strands in the solver's order, and each one's index by entity.
     strands: Arc<Vec<Entity>>,
     pub(super) index: EntityHashMap<u32>,
@@ -508,7 +616,8 @@ pub(super) struct GpuHairRender {
     pub(super) generation: u32,
     upload: Option<GpuUploadOrder>,
     orders: Vec<GpuStepOrder>,
-    read_backs: Vec<(u64, Arc<Vec<Entity>>, GpuReadBack)>,
+    /// Read-backs on their way: the step, the strands, the read-back and whether it has their state.
+    read_backs: Vec<(u64, Arc<Vec<Entity>>, GpuReadBack, bool)>,
     sender: Option<Sender<GpuMessage>>,
 }
 
@@ -526,47 +635,62 @@ fn extract_gpu_steps(mut main_world: ResMut<MainWorld>, mut render: ResMut<GpuHa
 /// Uploads a new set of strands, steps them by every fixed step the main world sent, asks for a
 /// read-back after the last step that wants one, and sends the read-backs that arrived.
 fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let started = std::time::Instant::now();
     let render = &mut *render;
     let (device, queue): (&wgpu::Device, &wgpu::Queue) = (device.wgpu_device(), &queue);
+    let send = |sender: &Option<Sender<GpuMessage>>, message| {
+        if let Some(sender) = sender {
+            let _ = sender.send(message);
+        }
+    };
     if let Some(GpuUploadOrder { upload, strands }) = render.upload.take() {
-        render.solver = Some(GpuStrandSolver::from_upload(device, upload));
+        if render.pipelines.is_none() {
+            render.pipelines = Some(GpuStepPipelines::new(device));
+            send(&render.sender, GpuMessage::PipelinesBuilt);
+        }
+        let pipelines = render.pipelines.as_ref().expect("built above");
+        render.solver = Some(GpuStrandSolver::from_upload(device, pipelines, upload));
         render.index = strands.iter().enumerate().map(|(index, &entity)| (entity, index as u32)).collect();
         render.strand_heads = render.solver.as_ref().map(|s| s.strand_heads().to_vec()).unwrap_or_default();
         render.strands = strands;
         render.generation = render.generation.wrapping_add(1);
         render.read_backs.clear();
     }
-    let send = |sender: &Option<Sender<GpuMessage>>, message| {
-        if let Some(sender) = sender {
-            let _ = sender.send(message);
-        }
-    };
+    let stepped = !render.orders.is_empty();
     if let Some(solver) = render.solver.as_mut() {
-        let mut read_back = None;
+        // The state after the last step that asks for it; else the status after the frame's last step.
+        let (mut read_back, mut last) = (None, None);
         for order in render.orders.drain(..) {
             match solver.step(device, queue, &order.params, &order.heads) {
                 Ok(_) if order.read_back => read_back = Some(order.step),
-                Ok(_) => {}
+                Ok(_) => last = Some(order.step),
                 Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
             }
         }
         if let Some(step) = read_back {
-            render.read_backs.push((step, render.strands.clone(), solver.request_read_back(device, queue)));
+            let pending = solver.request_read_back(device, queue, true);
+            render.read_backs.push((step, render.strands.clone(), pending, true));
+        } else if let Some(step) = last {
+            let pending = solver.request_read_back(device, queue, false);
+            render.read_backs.push((step, render.strands.clone(), pending, false));
         }
     } else {
         render.orders.clear();
     }
-    if render.read_backs.is_empty() {
-        return;
+    if !render.read_backs.is_empty() {
+        let _ = device.poll(wgpu::PollType::Poll);
+        let sender = &render.sender;
+        render.read_backs.retain_mut(|(step, strands, read_back, full)| {
+            if let Some(states) = read_back.try_take() {
+                let message = GpuMessage::ReadBack { step: *step, strands: strands.clone(), states, full: *full };
+                send(sender, message);
+            }
+            !read_back.is_finished()
+        });
     }
-    let _ = device.poll(wgpu::PollType::Poll);
-    let sender = &render.sender;
-    render.read_backs.retain_mut(|(step, strands, read_back)| {
-        if let Some(states) = read_back.try_take() {
-            send(sender, GpuMessage::ReadBack { step: *step, strands: strands.clone(), states });
-        }
-        !read_back.is_finished()
-    });
+    if stepped {
+        send(&render.sender, GpuMessage::RenderTime(started.elapsed().as_secs_f64()));
+    }
 }
 
 /// The message for a step the GPU could not take.
@@ -638,7 +762,7 @@ mod tests {
             let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
             // No positions: nothing to restore, only the report.
             let states = GpuStrandStates { status: vec![report], ..default() };
-            sender.send(GpuMessage::ReadBack { step, strands: strands.clone(), states }).unwrap();
+            sender.send(GpuMessage::ReadBack { step, strands: strands.clone(), states, full: false }).unwrap();
             app.world_mut().run_system_once(apply_read_backs).unwrap();
             let messages = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().count();
             (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))
