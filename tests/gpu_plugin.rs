@@ -265,6 +265,33 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     assert_eq!(status.pipeline_builds, 1, "the step's pipelines were built {} times", status.pipeline_builds);
     // The plugin's CPU time is reported, from both worlds.
     assert!(status.main_thread_seconds > 0.0 && status.render_thread_seconds > 0.0, "{status:?}");
+
+    // Read-back off, as by default: the GPU steps on and draws the hair, the components keep their last
+    // read-back state, and a read-back asked for once arrives.
+    assert_eq!(HairGpuSettings::default().read_back, GpuReadBackRate::OnDemand);
+    gpu.world_mut().resource_mut::<HairGpuSettings>().read_back = GpuReadBackRate::OnDemand;
+    for number in SHAKING_STEPS + 26..SHAKING_STEPS + 29 {
+        step(&mut gpu, gpu_head, number);
+    }
+    let (read_backs, steps) = {
+        let status = gpu.world().resource::<HairGpuStatus>();
+        (status.read_backs, status.steps)
+    };
+    let before = guide_nodes(&gpu, gpu_head.0);
+    for number in SHAKING_STEPS + 29..SHAKING_STEPS + 35 {
+        step(&mut gpu, gpu_head, number);
+    }
+    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    assert_eq!((status.read_backs, status.steps), (read_backs, steps + 6), "{status:?}");
+    assert_eq!(guide_nodes(&gpu, gpu_head.0), before, "the components were not read back");
+    gpu.world_mut().resource_mut::<HairGpuSettings>().read_back_now = true;
+    step(&mut gpu, gpu_head, SHAKING_STEPS + 35);
+    gpu.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(&mut gpu);
+    assert_eq!(gpu.world().resource::<HairGpuStatus>().read_backs, read_backs + 1);
+    let after = guide_nodes(&gpu, gpu_head.0);
+    let moved = before.iter().zip(&after).map(|(a, b)| a[16].distance(b[16])).fold(0.0, f32::max);
+    assert!(moved > 1e-3, "read back after 7 steps, the tips moved {moved} m");
 }
 
 /// What the GPU should draw for the head's hair from its components now: each guide's nodes, then each
