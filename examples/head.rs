@@ -690,8 +690,9 @@ fn scene_panel(
             gpu.enabled = enabled;
         }
         if gpu.enabled {
-            let age = gpu_status.read_back_age.map_or("—".to_string(), |age| format!("{age} steps old"));
-            ui.label(format!("{} strands on the GPU, read back {age}", gpu_status.strands));
+            let age = gpu_status.read_back_age.map_or("not read back".to_string(), |age| format!("read back {age} steps old"));
+            let cpu = 1e3 * (gpu_status.main_thread_seconds + gpu_status.render_thread_seconds);
+            ui.label(format!("{} strands on the GPU, {age}; CPU {cpu:.2} ms", gpu_status.strands));
             if let Some(error) = &gpu_status.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, error);
             }

@@ -14,8 +14,12 @@ use crate::rod::{
     ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
 };
 
-/// Invocations per workgroup (`WORKGROUP` in the shader).
-const WORKGROUP: u32 = 64;
+/// Invocations per workgroup of the step (`WORKGROUP` in `step.wgsl`): one warp, so that 2 000 strands
+/// spread over 63 workgroups (on as many of a large GPU's multiprocessors) rather than 32, each with half
+/// the private memory to keep near it.
+const STEP_WORKGROUP: u32 = 32;
+/// Invocations per workgroup of the gather (`WORKGROUP` in `gather.wgsl`).
+const GATHER_WORKGROUP: u32 = 64;
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
 /// The most nodes a strand stepped on the GPU may have (`MAX_NODES` in the shader: its private arrays).
@@ -274,17 +278,29 @@ pub struct GpuStrandStates {
 impl GpuStrandStates {
     /// Strand `strand` as a rod's snapshot ([`Rod::restore`] takes it): positions, velocities, twists
     /// and frames from the GPU, no two-step history (the CPU's next step, if any, starts with backward
-    /// Euler) and no contact forces. `None` past the last strand.
+    /// Euler) and no contact forces. `None` past the last strand, or where only the status was read back.
     pub fn snapshot(&self, strand: usize) -> Option<RodSnapshot> {
-        let positions = self.positions.get(strand)?;
+        self.clone_strand(strand)?.take_snapshot(0)
+    }
+
+    /// [`GpuStrandStates::snapshot`], moving the strand's vectors out instead of copying them (they are
+    /// left empty, and a second call returns `None`).
+    pub fn take_snapshot(&mut self, strand: usize) -> Option<RodSnapshot> {
+        let positions = std::mem::take(self.positions.get_mut(strand)?);
+        if positions.is_empty() {
+            return None;
+        }
         let tangents = positions.windows(2).map(|ends| (ends[1] - ends[0]).normalize_or_zero()).collect();
         let nodes = positions.len();
+        let take = |values: &mut Vec<Vec<f64>>| std::mem::take(&mut values[strand]);
+        let (twist, twist_rates, reference_twist) =
+            (take(&mut self.twists), take(&mut self.twist_rates), take(&mut self.reference_twists));
         Some(RodSnapshot {
             state: RodState {
-                positions: positions.clone(),
-                velocities: self.velocities[strand].clone(),
-                twist: self.twists[strand].clone(),
-                twist_rates: self.twist_rates[strand].clone(),
+                positions,
+                velocities: std::mem::take(&mut self.velocities[strand]),
+                twist,
+                twist_rates,
                 contact_normal_forces: vec![0.0; nodes],
                 history: StepHistory {
                     dt: 0.0,
@@ -294,9 +310,22 @@ impl GpuStrandStates {
             },
             frames: RodFrames {
                 tangents,
-                reference_directors: self.reference_directors[strand].clone(),
-                reference_twist: self.reference_twists[strand].clone(),
+                reference_directors: std::mem::take(&mut self.reference_directors[strand]),
+                reference_twist,
             },
+        })
+    }
+
+    /// Strand `strand` alone, its state copied (`None` past the last strand or without its state).
+    fn clone_strand(&self, strand: usize) -> Option<GpuStrandStates> {
+        Some(GpuStrandStates {
+            positions: vec![self.positions.get(strand)?.clone()],
+            velocities: vec![self.velocities[strand].clone()],
+            twists: vec![self.twists[strand].clone()],
+            twist_rates: vec![self.twist_rates[strand].clone()],
+            reference_directors: vec![self.reference_directors[strand].clone()],
+            reference_twists: vec![self.reference_twists[strand].clone()],
+            status: self.status.get(strand).copied().into_iter().collect(),
         })
     }
 }
@@ -354,6 +383,8 @@ pub struct GpuStrandSolver {
     collider_capacity: usize,
     /// Read-back buffers the CPU has finished with, for the next read-backs.
     staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
+    /// Time spent in wgpu's submissions and polls since [`GpuStrandSolver::take_driver_seconds`], s.
+    driver_seconds: f64,
 }
 
 /// How many times [`GpuStepPipelines::new`] has built the step's pipelines in this process.
@@ -608,7 +639,15 @@ impl GpuStrandSolver {
             collider_rows: Vec::new(),
             collider_capacity,
             staging: Arc::default(),
+            driver_seconds: 0.0,
         }
+    }
+
+    /// The time [`GpuStrandSolver::step`] spent in wgpu's `submit` and `poll` since the last call, s: the
+    /// driver's share of the CPU's time (on a software adapter such as lavapipe, the GPU's work itself,
+    /// which runs there).
+    pub fn take_driver_seconds(&mut self) -> f64 {
+        std::mem::take(&mut self.driver_seconds)
     }
 
     /// How many strands are stepped.
@@ -745,7 +784,7 @@ impl GpuStrandSolver {
             0,
         ];
         queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
-        let (x, y) = workgroups(self.strand_count as u32);
+        let (x, y) = workgroups(self.strand_count as u32, STEP_WORKGROUP);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
             timestamp_writes: None,
@@ -767,9 +806,12 @@ impl GpuStrandSolver {
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair strand step") });
         self.record_step(device, queue, &mut encoder, params, heads)?;
-        let submission = queue.submit([encoder.finish()]);
+        let commands = encoder.finish();
+        let started = std::time::Instant::now();
+        let submission = queue.submit([commands]);
         // Let wgpu retire finished work (without it, submissions' bookkeeping piles up).
         let _ = device.poll(wgpu::PollType::Poll);
+        self.driver_seconds += started.elapsed().as_secs_f64();
         Ok(submission)
     }
 
@@ -925,7 +967,7 @@ impl GpuStrandSolver {
             0,
         ];
         queue.write_buffer(&target.params, 0, bytemuck::cast_slice(&words));
-        let (x, y) = workgroups(target.guides);
+        let (x, y) = workgroups(target.guides, GATHER_WORKGROUP);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair guides gathered"),
             timestamp_writes: None,
@@ -936,9 +978,10 @@ impl GpuStrandSolver {
     }
 }
 
-/// The workgroups of a dispatch over `invocations`: along X up to the limit, then rows along Y.
-fn workgroups(invocations: u32) -> (u32, u32) {
-    let groups = invocations.div_ceil(WORKGROUP).max(1);
+/// The workgroups of `size` invocations of a dispatch over `invocations`: along X up to the limit, then rows
+/// along Y.
+fn workgroups(invocations: u32, size: u32) -> (u32, u32) {
+    let groups = invocations.div_ceil(size).max(1);
     if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) }
 }
 

@@ -79,7 +79,8 @@ const MAX_NODES: u32 = 40u;
 const MAX_DOFS: u32 = 159u;
 const BAND: u32 = 10u;
 const WIDTH: u32 = 11u;
-const WORKGROUP: u32 = 64u;
+// Invocations per workgroup (`STEP_WORKGROUP` in `solver.rs`).
+const WORKGROUP: u32 = 32u;
 
 // Status bits (per strand, `status[s].x`): has a step of history; the last step was faulted (non-finite,
 // over-strained, not definite) or its contact given up, with the node or edge of the last fault in
@@ -949,7 +950,7 @@ fn finite3(v: vec3<f32>) -> bool {
     return finite(v.x) && finite(v.y) && finite(v.z);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(32)
 fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     strand = id.x + id.y * groups.x * WORKGROUP;
     if strand >= params.strands {

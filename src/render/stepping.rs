@@ -156,6 +156,9 @@ pub struct HairGpuStatus {
     /// The render world's time in the plugin's system during the last frame it reported (uploads, steps
     /// recorded and submitted, read-backs unpacked), s.
     pub render_thread_seconds: f64,
+    /// The part of [`HairGpuStatus::render_thread_seconds`] spent in wgpu's submissions and polls, s: the
+    /// driver's (on a software adapter such as lavapipe, the GPU's work itself, which runs there).
+    pub render_driver_seconds: f64,
 }
 
 /// One fixed step for the render world.
@@ -218,8 +221,9 @@ enum GpuMessage {
     Error(String),
     /// The step's pipelines were built.
     PipelinesBuilt,
-    /// The render world's time in `step_on_gpu` this frame, s.
-    RenderTime(f64),
+    /// The render world's time in `step_on_gpu` this frame, and the part of it in wgpu's submissions and
+    /// polls, s.
+    RenderTime(f64, f64),
 }
 
 /// When the plugin's systems in the fixed schedule started this step.
@@ -515,8 +519,9 @@ fn apply_read_backs(
                 status.pipeline_builds += 1;
                 continue;
             }
-            GpuMessage::RenderTime(seconds) => {
+            GpuMessage::RenderTime(seconds, driver) => {
                 status.render_thread_seconds = seconds;
+                status.render_driver_seconds = driver;
                 continue;
             }
             GpuMessage::Error(error) => {
@@ -531,16 +536,23 @@ fn apply_read_backs(
         if !Arc::ptr_eq(&entities, &queue.strands) {
             continue;
         }
+        let mut states = states;
         for (index, &entity) in entities.iter().enumerate() {
-            let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
-            if let Some(snapshot) = states.snapshot(index)
-                && strand.rod_mut().restore(&snapshot).is_ok()
-            {
-                strand.write_components(Some(1), &mut nodes, &mut frames);
+            // The state, where it was read back (the status alone, 16 bytes a strand, touches no component).
+            if full {
+                let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
+                if let Some(snapshot) = states.take_snapshot(index)
+                    && strand.rod_mut().restore(&snapshot).is_ok()
+                {
+                    strand.write_components(Some(1), &mut nodes, &mut frames);
+                }
             }
             let report = states.status[index];
             if report.faults <= queue.faults[index] {
                 queue.fault_streaks[index] = 0;
+                continue;
+            }
+            if !strands.contains(entity) {
                 continue;
             }
             queue.faults[index] = report.faults;
@@ -657,6 +669,7 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         render.read_backs.clear();
     }
     let stepped = !render.orders.is_empty();
+    let mut driver = 0.0;
     if let Some(solver) = render.solver.as_mut() {
         // The state after the last step that asks for it; else the status after the frame's last step.
         let (mut read_back, mut last) = (None, None);
@@ -667,6 +680,8 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
                 Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
             }
         }
+        // The read-back's copies are recorded in microseconds; the rest of the call is its submission.
+        let requested = std::time::Instant::now();
         if let Some(step) = read_back {
             let pending = solver.request_read_back(device, queue, true);
             render.read_backs.push((step, render.strands.clone(), pending, true));
@@ -674,11 +689,14 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
             let pending = solver.request_read_back(device, queue, false);
             render.read_backs.push((step, render.strands.clone(), pending, false));
         }
+        driver += requested.elapsed().as_secs_f64() + solver.take_driver_seconds();
     } else {
         render.orders.clear();
     }
     if !render.read_backs.is_empty() {
+        let polled = std::time::Instant::now();
         let _ = device.poll(wgpu::PollType::Poll);
+        driver += polled.elapsed().as_secs_f64();
         let sender = &render.sender;
         render.read_backs.retain_mut(|(step, strands, read_back, full)| {
             if let Some(states) = read_back.try_take() {
@@ -689,7 +707,7 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         });
     }
     if stepped {
-        send(&render.sender, GpuMessage::RenderTime(started.elapsed().as_secs_f64()));
+        send(&render.sender, GpuMessage::RenderTime(started.elapsed().as_secs_f64(), driver));
     }
 }
 
