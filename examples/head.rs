@@ -691,7 +691,11 @@ fn scene_panel(
         }
         if gpu.enabled {
             let age = gpu_status.read_back_age.map_or("not read back".to_string(), |age| format!("read back {age} steps old"));
-            let cpu = 1e3 * (gpu_status.main_thread_seconds + gpu_status.render_thread_seconds);
+            // The plugin's own CPU time, wgpu's submissions and polls left out (on a software adapter, the
+            // GPU's work itself).
+            let cpu = 1e3
+                * (gpu_status.main_thread_seconds + gpu_status.render_thread_seconds
+                    - gpu_status.render_driver_seconds);
             ui.label(format!("{} strands on the GPU, {age}; CPU {cpu:.2} ms", gpu_status.strands));
             if let Some(error) = &gpu_status.error {
                 ui.colored_label(egui::Color32::LIGHT_RED, error);

@@ -59,7 +59,7 @@ use crate::wind::{HairWind, HairWindSource};
 /// strand's groomed pose carried with its head.
 ///
 /// **The GPU's state is the truth.** The hair is drawn from it where it is, so by default nothing is read
-/// back but each strand's status (16 bytes a strand a step, for the faults):
+/// back but each strand's status every fourth step (16 bytes a strand, for the faults):
 /// [`HairGpuSettings::read_back`] is [`GpuReadBackRate::OnDemand`], and [`StrandNodes`], [`StrandFrames`]
 /// and the strands' rods keep their last read-back state. A game that reads them asks for them every n-th
 /// step ([`GpuReadBackRate::EveryNthStep`]) or once ([`HairGpuSettings::read_back_now`]). They are read
@@ -165,7 +165,7 @@ pub struct HairGpuStatus {
 struct GpuStepOrder {
     params: StepParams,
     heads: Vec<GpuHeadStep>,
-    /// Whether to read the state back after it (otherwise the last step of a frame reads back the status).
+    /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
     read_back: bool,
     /// Its number among the steps sent.
     step: u64,
@@ -589,6 +589,10 @@ fn apply_read_backs(
     status.main_thread_seconds = started.elapsed().as_secs_f64();
 }
 
+/// Steps between two read-backs of the strands' status when their state is not read back: their faults
+/// arrive at most this many steps late (and a few frames, as every read-back).
+const STATUS_STEPS: u64 = 4;
+
 /// Steps a new set of strands waits for the read-back of the old one before it is uploaded anyway (from
 /// the components as they are): a GPU that stopped answering does not hold the hair's changes forever.
 const UPLOAD_WAIT_STEPS: u64 = 30;
@@ -671,12 +675,14 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
     let stepped = !render.orders.is_empty();
     let mut driver = 0.0;
     if let Some(solver) = render.solver.as_mut() {
-        // The state after the last step that asks for it; else the status after the frame's last step.
+        // The state after the last step that asks for it; else the status after the frame's last step
+        // that is a multiple of `STATUS_STEPS`.
         let (mut read_back, mut last) = (None, None);
         for order in render.orders.drain(..) {
             match solver.step(device, queue, &order.params, &order.heads) {
                 Ok(_) if order.read_back => read_back = Some(order.step),
-                Ok(_) => last = Some(order.step),
+                Ok(_) if order.step % STATUS_STEPS == 0 => last = Some(order.step),
+                Ok(_) => {}
                 Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
             }
         }
