@@ -362,11 +362,10 @@ fn choose_gpu_strands(
         })
         .collect();
     let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
-    // A head with strands left on the CPU is drawn from its components.
-    queue.components_read = head_list.iter().any(|&head| {
-        let on_gpu = chosen.iter().filter(|c| c.0 == head).count();
-        head_strands.get(head).is_ok_and(|strands| strands.strands().len() > on_gpu)
-    });
+    // A head with strands left on the CPU is drawn from its components (`chosen` runs head by head).
+    queue.components_read = chosen
+        .chunk_by(|a, b| a.0 == b.0)
+        .any(|run| head_strands.get(run[0].0).is_ok_and(|strands| strands.strands().len() > run.len()));
     let on_gpu: Vec<Entity> = match upload {
         Some(Ok(upload)) => {
             let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
@@ -677,11 +676,11 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
     if let Some(solver) = render.solver.as_mut() {
         // The state after the last step that asks for it; else the status after the frame's last step
         // that is a multiple of `STATUS_STEPS`.
-        let (mut read_back, mut last) = (None, None);
+        let (mut read_back, mut status_only) = (None, None);
         for order in render.orders.drain(..) {
             match solver.step(device, queue, &order.params, &order.heads) {
                 Ok(_) if order.read_back => read_back = Some(order.step),
-                Ok(_) if order.step % STATUS_STEPS == 0 => last = Some(order.step),
+                Ok(_) if order.step % STATUS_STEPS == 0 => status_only = Some(order.step),
                 Ok(_) => {}
                 Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
             }
@@ -691,7 +690,7 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         if let Some(step) = read_back {
             let pending = solver.request_read_back(device, queue, true);
             render.read_backs.push((step, render.strands.clone(), pending, true));
-        } else if let Some(step) = last {
+        } else if let Some(step) = status_only {
             let pending = solver.request_read_back(device, queue, false);
             render.read_backs.push((step, render.strands.clone(), pending, false));
         }
