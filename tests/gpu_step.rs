@@ -226,6 +226,23 @@ const PROJECTION_BEFORE: f64 = 6.73;
 /// The same for the strand that took most, per step: what its warp waited for.
 const BUSIEST_BEFORE: f64 = 11.5;
 
+/// 64 human hairs of `length` m in `edges` edges, rooted just outside the 10 cm skull of the head at `pose`
+/// (rotation, translation) and growing straight out along its normal, their roots clamped.
+fn strands_out_of_the_skull(length: f64, edges: usize, (rotation, translation): (DQuat, DVec3)) -> Vec<Rod> {
+    (0..64)
+        .map(|index| {
+            let (root, normal) = common::headless::scalp_root(index, 64);
+            let (root, normal) = (root.as_dvec3() * (1.0 + 1e-3), normal.as_dvec3());
+            let along = |i: usize| root + normal * (length * i as f64 / edges as f64);
+            let nodes: Vec<DVec3> = (0..=edges).map(|i| translation + rotation * along(i)).collect();
+            let mut rod =
+                Rod::new(&nodes, rotation * normal.any_orthonormal_vector(), RodMaterial::human_hair()).unwrap();
+            rod.clamp_root_in_place();
+            rod
+        })
+        .collect()
+}
+
 /// The pose of the shaking, turning head at `time` s.
 fn shaking_head(time: f64) -> (DQuat, DVec3) {
     let translation =
@@ -242,18 +259,7 @@ fn strands_on_a_shaking_head_follow_the_cpu() {
     let thickness = 1e-4;
     let (rotation, translation) = shaking_head(0.0);
     // 64 strands, 20 cm in 16 edges, rooted over the top of the skull and growing out along its normal.
-    let mut rods: Vec<Rod> = (0..64)
-        .map(|index| {
-            let (root, normal) = common::headless::scalp_root(index, 64);
-            let (root, normal) = (root.as_dvec3() * (1.0 + 1e-3), normal.as_dvec3());
-            let nodes: Vec<DVec3> =
-                (0..=16).map(|i| translation + rotation * (root + normal * (0.2 * i as f64 / 16.0))).collect();
-            let mut rod =
-                Rod::new(&nodes, rotation * normal.any_orthonormal_vector(), RodMaterial::human_hair()).unwrap();
-            rod.clamp_root_in_place();
-            rod
-        })
-        .collect();
+    let mut rods = strands_out_of_the_skull(0.2, 16, (rotation, translation));
     let locals: Vec<[DVec3; 3]> = rods
         .iter()
         .map(|rod| {
@@ -436,18 +442,7 @@ fn a_shaken_groom_of_32_edges_projects_to_single_precision_and_no_further() {
     let (rotation, translation) = shaking_head(0.0);
     // 64 strands of 25 cm in 32 edges (a game's guides: 8 mm edges, up to 35 cm from the head's origin),
     // rooted over the skull and growing out along its normal, for 1 s on the shaking head.
-    let rods: Vec<Rod> = (0..64)
-        .map(|index| {
-            let (root, normal) = common::headless::scalp_root(index, 64);
-            let (root, normal) = (root.as_dvec3() * (1.0 + 1e-3), normal.as_dvec3());
-            let nodes: Vec<DVec3> =
-                (0..=32).map(|i| translation + rotation * (root + normal * (0.25 * i as f64 / 32.0))).collect();
-            let mut rod =
-                Rod::new(&nodes, rotation * normal.any_orthonormal_vector(), RodMaterial::human_hair()).unwrap();
-            rod.clamp_root_in_place();
-            rod
-        })
-        .collect();
+    let rods = strands_out_of_the_skull(0.25, 32, (rotation, translation));
     let inputs: Vec<GpuStrandInput> =
         rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[(rotation, translation)]).unwrap();

@@ -2,7 +2,7 @@
 //! dispatches and read-back. Bevy's renderer hands its own device to it
 //! ([`HairGpuPlugin`](crate::render::HairGpuPlugin)); tests and benchmarks make one with [`headless_device`].
 
-use std::sync::atomic::{AtomicU8, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::{Arc, Mutex};
 
 use bevy::math::{DQuat, DVec2, DVec3};
@@ -387,9 +387,6 @@ pub struct GpuStrandSolver {
     driver_seconds: f64,
 }
 
-/// How many times [`GpuStepPipelines::new`] has built the step's pipelines in this process.
-static PIPELINES_BUILT: AtomicU64 = AtomicU64::new(0);
-
 /// The step's and the gather's pipelines on one device, built once ([`GpuStepPipelines::new`] compiles the
 /// step's shader, a few hundred milliseconds on a driver: a hitch if it happened in play) and shared by every
 /// [`GpuStrandSolver`] made on that device ([`GpuStrandSolver::from_upload`]); the plugin builds them at
@@ -403,19 +400,12 @@ pub struct GpuStepPipelines {
 impl GpuStepPipelines {
     /// Compiles the step's and the gather's shaders on `device`.
     pub fn new(device: &wgpu::Device) -> Arc<Self> {
-        PIPELINES_BUILT.fetch_add(1, Ordering::Relaxed);
         // Bindings: parameters; strand words, floats, rest shape (read); state (written); heads, colliders
         // (read); status, work counters (written).
         let read_only = [true, true, true, false, true, true, false, false];
         let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
         let step = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
         Arc::new(Self { layout, step, gather: Gather::new(device) })
-    }
-
-    /// How many times the pipelines were built in this process (each a shader compilation): the plugin's
-    /// tests check that settings changes and uploads build none.
-    pub fn built() -> u64 {
-        PIPELINES_BUILT.load(Ordering::Relaxed)
     }
 }
 
@@ -834,9 +824,7 @@ impl GpuStrandSolver {
     /// Without `state`, only each strand's status ([`GpuStrandStates::status`]; 16 bytes a strand, for
     /// the faults) is read back, and the other fields come back empty.
     pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
-        let padded = self.strand_count.max(1) as u64;
-        let row_bytes = 16 * padded;
-        let max_nodes = if state { self.state.size() / (row_bytes * STATE_ROWS as u64) } else { 0 };
+        let (max_nodes, row_bytes) = self.read_back_rows(state);
         let state_bytes = max_nodes * READ_BACK_ROWS.len() as u64 * row_bytes;
         let status_bytes = self.status.size();
         let size = state_bytes + status_bytes;
@@ -881,9 +869,16 @@ impl GpuStrandSolver {
     /// Bytes a read-back moves from the GPU ([`GpuStrandSolver::request_read_back`]), with the state or
     /// without.
     pub fn read_back_bytes(&self, state: bool) -> u64 {
-        let padded = self.strand_count.max(1) as u64;
-        let max_nodes = if state { self.state.size() / (16 * padded * STATE_ROWS as u64) } else { 0 };
-        16 * padded * max_nodes * READ_BACK_ROWS.len() as u64 + self.status.size()
+        let (max_nodes, row_bytes) = self.read_back_rows(state);
+        max_nodes * READ_BACK_ROWS.len() as u64 * row_bytes + self.status.size()
+    }
+
+    /// The nodes a read-back copies rows of (the longest strand's count with the state, none without), and
+    /// the bytes of one row (a `vec4` per strand).
+    fn read_back_rows(&self, state: bool) -> (u64, u64) {
+        let row_bytes = 16 * self.strand_count.max(1) as u64;
+        let max_nodes = if state { self.state.size() / (row_bytes * STATE_ROWS as u64) } else { 0 };
+        (max_nodes, row_bytes)
     }
 
     /// Each strand's work since the upload ([`GpuStrandWork`]), waiting for the GPU: for tests and
