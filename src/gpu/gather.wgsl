@@ -5,9 +5,9 @@
 // walked from them (the root edge's at the root).
 
 struct Params {
-    // Strands in the step's buffers (their stride), guides of this head, where the guide words start in
-    // `guide_data` (words), unused.
-    strands: u32,
+    // Nodes of every strand in the step's buffers (the length of a row plane), guides of this head, where
+    // the guide words start in `guide_data` (words), unused.
+    total_nodes: u32,
     guides: u32,
     guides_offset: u32,
     unused: u32,
@@ -17,23 +17,25 @@ struct Params {
 
 // As in `step.wgsl`.
 const STRAND_FLOATS: u32 = 4u;
-const STATE_ROWS: u32 = 5u;
 const FAULTS: u32 = 14u;
 // As in `followers.wgsl`.
 const GUIDE_SNAP: u32 = 1u;
 const WORKGROUP: u32 = 64u;
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> strand_floats: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> state: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> status: array<vec4<u32>>;
+// Per strand: node count, head, its first node in the state's row planes, 0.
+@group(0) @binding(1) var<storage, read> strand_words: array<vec4<u32>>;
+@group(0) @binding(2) var<storage, read> strand_floats: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> state: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> status: array<vec4<u32>>;
 // Per guide: its strand and its first guide node; then one past the last guide node.
-@group(0) @binding(4) var<storage, read> guide_strands: array<vec2<u32>>;
-@group(0) @binding(5) var<storage, read_write> guide_data: array<u32>;
-@group(0) @binding(6) var<storage, read_write> guide_frames: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> guide_strands: array<vec2<u32>>;
+@group(0) @binding(6) var<storage, read_write> guide_data: array<u32>;
+@group(0) @binding(7) var<storage, read_write> guide_frames: array<vec4<f32>>;
 
+// Row `row` of node `node` of strand `strand` (`step.wgsl`'s layout).
 fn state_at(node: u32, row: u32, strand: u32) -> vec4<f32> {
-    return state[(node * STATE_ROWS + row) * params.strands + strand];
+    return state[row * params.total_nodes + strand_words[strand].z + node];
 }
 
 @compute @workgroup_size(64)

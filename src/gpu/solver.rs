@@ -14,16 +14,14 @@ use crate::rod::{
     ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
 };
 
-/// Invocations per workgroup of the step (`WORKGROUP` in `step.wgsl`): one warp, so that 2 000 strands
-/// spread over 63 workgroups (on as many of a large GPU's multiprocessors) rather than 32, each with half
-/// the private memory to keep near it.
-const STEP_WORKGROUP: u32 = 32;
 /// Invocations per workgroup of the gather (`WORKGROUP` in `gather.wgsl`).
 const GATHER_WORKGROUP: u32 = 64;
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
-/// The most nodes a strand stepped on the GPU may have (`MAX_NODES` in the shader: its private arrays).
-pub const MAX_GPU_NODES: usize = 40;
+/// The most nodes a strand stepped on the GPU may have: one workgroup of 64 lanes steps a strand, lane `i`
+/// owning node `i` (`LANES` in `step.wgsl`), its band of up to 255 unknowns in 15.4 kB of workgroup memory
+/// (WebGPU guarantees 16 kB).
+pub const MAX_GPU_NODES: usize = 64;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 5;
@@ -356,7 +354,8 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
 /// The shader's source.
 pub const STEP_SHADER: &str = include_str!("step.wgsl");
 
-/// Strands stepped on the GPU: their buffers (vertex-major, positions relative to their heads), the step's
+/// Strands stepped on the GPU: their buffers (row planes of node-contiguous strands, positions relative to
+/// their heads), the step's
 /// pipeline, and the heads' poses the strands were last stepped to.
 pub struct GpuStrandSolver {
     pipelines: Arc<GpuStepPipelines>,
@@ -421,10 +420,13 @@ pub struct GpuStrandUpload {
     head_poses: Vec<(DQuat, DVec3)>,
 }
 
-/// Nodes of each strand, and the head of each.
+/// Nodes of each strand, where each starts in the row planes, their sum (a plane's length, at least 1),
+/// and the head of each.
 #[derive(Debug)]
 struct StrandLayout {
     node_counts: Vec<usize>,
+    first_nodes: Vec<usize>,
+    total_nodes: usize,
     strand_heads: Vec<usize>,
 }
 
@@ -455,7 +457,6 @@ impl GpuStrandUpload {
     /// the GPU's layout. Rejects strands the GPU cannot step ([`GpuStepError`]).
     pub fn new(strands: &[GpuStrandInput], head_poses: &[(DQuat, DVec3)]) -> Result<Self, GpuStepError> {
         let strand_count = strands.len();
-        let max_nodes = strands.iter().map(|s| s.rod.node_count()).max().unwrap_or(3);
         for (index, strand) in strands.iter().enumerate() {
             let nodes = strand.rod.node_count();
             if !(3..=MAX_GPU_NODES).contains(&nodes) {
@@ -475,18 +476,30 @@ impl GpuStrandUpload {
                 return Err(GpuStepError::Groomed { strand: index });
             }
         }
+        // Row planes of node-contiguous strands, none padded: row `k` of node `i` of strand `s` at
+        // `k * total + first[s] + i`.
+        let first_nodes: Vec<usize> = strands
+            .iter()
+            .scan(0, |next, strand| {
+                let first = *next;
+                *next += strand.rod.node_count();
+                Some(first)
+            })
+            .collect();
+        let total = strands.iter().map(|s| s.rod.node_count()).sum::<usize>().max(1);
         let padded = strand_count.max(1);
         let mut words = vec![[0_u32; 4]; padded];
         let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
-        let mut rest = vec![[0.0_f32; 4]; max_nodes * REST_ROWS * padded];
-        let mut state = vec![[0.0_f32; 4]; max_nodes * STATE_ROWS * padded];
+        let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
+        let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
         for (s, strand) in strands.iter().enumerate() {
             let rod = strand.rod;
             let (rotation, translation) = head_poses[strand.head];
             let inverse = rotation.inverse();
             let local = |world: DVec3| inverse * (world - translation);
             let nodes = rod.node_count();
-            words[s] = [nodes as u32, strand.head as u32, 0, 0];
+            let first = first_nodes[s];
+            words[s] = [nodes as u32, strand.head as u32, first as u32, 0];
             let stiffness = rod.stiffness();
             let constraints = rod.constraints();
             floats[s * STRAND_FLOATS] = [
@@ -508,7 +521,7 @@ impl GpuStrandUpload {
             let length = rod.rest_length();
             for node in 0..nodes {
                 let edge = node < nodes - 1;
-                let at = |row: usize| (node * REST_ROWS + row) * padded + s;
+                let at = |row: usize| row * total + first + node;
                 let curvature = shape.curvatures.get(node).copied().unwrap_or(DVec2::ZERO);
                 let voronoi = shape.voronoi_lengths.get(node).copied().filter(|l| *l > 0.0).unwrap_or(1.0);
                 rest[at(0)] = [
@@ -533,7 +546,7 @@ impl GpuStrandUpload {
                 if edge {
                     along += shape.lengths[node] / length;
                 }
-                let row = |row: usize| (node * STATE_ROWS + row) * padded + s;
+                let row = |row: usize| row * total + first + node;
                 let rate = if edge { rod_state.twist_rates[node] } else { 0.0 };
                 state[row(0)] = vec4(rotation * local(rod_state.positions[node]), twist);
                 state[row(1)] = vec4(rod_state.velocities[node], rate);
@@ -547,6 +560,8 @@ impl GpuStrandUpload {
             state,
             layout: Arc::new(StrandLayout {
                 node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
+                first_nodes,
+                total_nodes: total,
                 strand_heads: strands.iter().map(|s| s.head).collect(),
             }),
             head_poses: head_poses.to_vec(),
@@ -769,12 +784,13 @@ impl GpuStrandSolver {
             u32::from(params.integrator == crate::rod::Integrator::Bdf2),
             u32::from(restart),
             (params.strain_tolerance as f32).to_bits(),
-            0,
+            self.strands.total_nodes as u32,
             0,
             0,
         ];
         queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
-        let (x, y) = workgroups(self.strand_count as u32, STEP_WORKGROUP);
+        // One workgroup per strand.
+        let (x, y) = workgroups(self.strand_count as u32, 1);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
             timestamp_writes: None,
@@ -824,8 +840,7 @@ impl GpuStrandSolver {
     /// Without `state`, only each strand's status ([`GpuStrandStates::status`]; 16 bytes a strand, for
     /// the faults) is read back, and the other fields come back empty.
     pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
-        let (max_nodes, row_bytes) = self.read_back_rows(state);
-        let state_bytes = max_nodes * READ_BACK_ROWS.len() as u64 * row_bytes;
+        let state_bytes = self.read_back_state_bytes(state);
         let status_bytes = self.status.size();
         let size = state_bytes + status_bytes;
         let reused = self.staging.lock().ok().and_then(|mut pool| {
@@ -842,12 +857,11 @@ impl GpuStrandSolver {
         });
         let mut encoder =
             device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
-        // Node by node: rows 0 and 1 (contiguous in the state), then row 4.
-        for node in 0..max_nodes {
-            let from = |row: u64| (node * STATE_ROWS as u64 + row) * row_bytes;
-            let to = node * READ_BACK_ROWS.len() as u64 * row_bytes;
-            encoder.copy_buffer_to_buffer(&self.state, from(0), &staging, to, 2 * row_bytes);
-            encoder.copy_buffer_to_buffer(&self.state, from(4), &staging, to + 2 * row_bytes, row_bytes);
+        // Row planes 0 and 1 (contiguous in the state), then plane 4.
+        if state {
+            let plane = self.plane_bytes();
+            encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, 2 * plane);
+            encoder.copy_buffer_to_buffer(&self.state, 4 * plane, &staging, 2 * plane, plane);
         }
         encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
         queue.submit([encoder.finish()]);
@@ -869,16 +883,17 @@ impl GpuStrandSolver {
     /// Bytes a read-back moves from the GPU ([`GpuStrandSolver::request_read_back`]), with the state or
     /// without.
     pub fn read_back_bytes(&self, state: bool) -> u64 {
-        let (max_nodes, row_bytes) = self.read_back_rows(state);
-        max_nodes * READ_BACK_ROWS.len() as u64 * row_bytes + self.status.size()
+        self.read_back_state_bytes(state) + self.status.size()
     }
 
-    /// The nodes a read-back copies rows of (the longest strand's count with the state, none without), and
-    /// the bytes of one row (a `vec4` per strand).
-    fn read_back_rows(&self, state: bool) -> (u64, u64) {
-        let row_bytes = 16 * self.strand_count.max(1) as u64;
-        let max_nodes = if state { self.state.size() / (row_bytes * STATE_ROWS as u64) } else { 0 };
-        (max_nodes, row_bytes)
+    /// The state's bytes a read-back copies: rows 0, 1 and 4 of every node with the state, none without.
+    fn read_back_state_bytes(&self, state: bool) -> u64 {
+        if state { READ_BACK_ROWS.len() as u64 * self.plane_bytes() } else { 0 }
+    }
+
+    /// The bytes of one row plane of the state (a `vec4` per node of every strand).
+    fn plane_bytes(&self) -> u64 {
+        16 * self.strands.total_nodes as u64
     }
 
     /// Each strand's work since the upload ([`GpuStrandWork`]), waiting for the GPU: for tests and
@@ -918,7 +933,7 @@ impl GpuStrandSolver {
     }
 
     /// The buffers [`GpuStrandSolver::gather_target`] binds, for a caller that wants them itself: each
-    /// strand's state (vertex-major rows of `vec4<f32>`, see `step.wgsl`) and its status.
+    /// strand's state (row planes of `vec4<f32>` over every strand's nodes, see `step.wgsl`) and its status.
     pub fn state_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
         (&self.state, &self.status)
     }
@@ -952,7 +967,7 @@ impl GpuStrandSolver {
     ) {
         let translation = self.head_poses.get(head).map_or(DVec3::ZERO, |pose| pose.1).as_vec3();
         let words: [u32; 8] = [
-            self.strand_count.max(1) as u32,
+            self.strands.total_nodes as u32,
             target.guides,
             guides_offset,
             0,
@@ -1062,14 +1077,13 @@ impl GpuReadBack {
         status: &[[u32; 4]],
         range: std::ops::Range<usize>,
     ) -> GpuStrandStates {
-        let counts = &self.strands.node_counts;
-        let padded = counts.len().max(1);
+        let (counts, firsts, total) = (&self.strands.node_counts, &self.strands.first_nodes, self.strands.total_nodes);
         let mut states = GpuStrandStates::default();
         for s in range {
             if let Some(state) = state {
-                let (nodes, translation) = (counts[s], self.translations[s]);
-                // Rows 0, 1 and 4 of the state, in that order per node (`READ_BACK_ROWS`).
-                let row = |node: usize, row: usize| state[(node * READ_BACK_ROWS.len() + row) * padded + s];
+                let (nodes, first, translation) = (counts[s], firsts[s], self.translations[s]);
+                // Row planes 0, 1 and 4 of the state, in that order (`READ_BACK_ROWS`).
+                let row = |node: usize, row: usize| state[row * total + first + node];
                 let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
                 let edges = nodes - 1;
                 states.positions.push((0..nodes).map(|i| translation + local(row(i, 0))).collect());
@@ -1124,8 +1138,9 @@ pub const GATHER_SHADER: &str = include_str!("gather.wgsl");
 
 impl Gather {
     fn new(device: &wgpu::Device) -> Self {
-        // Bindings: parameters; strand floats, state, status, guide list (read); guide data, frames (written).
-        let read_only = [true, true, true, true, false, false];
+        // Bindings: parameters; strand words, floats, state, status, guide list (read); guide data, frames
+        // (written).
+        let read_only = [true, true, true, true, true, false, false];
         let layout = compute_layout(device, "hair guides gathered", Some(GATHER_PARAMS_BYTES), &read_only);
         let pipeline = compute_pipeline(device, "hair guides gathered", GATHER_SHADER, "gather", &layout);
         Self { layout, pipeline }
@@ -1151,7 +1166,16 @@ impl Gather {
             contents,
             usage: wgpu::BufferUsages::STORAGE,
         });
-        let buffers = [&params, &solver.strand_floats, &solver.state, &solver.status, &map, guide_data, guide_frames];
+        let buffers = [
+            &params,
+            &solver.strand_words,
+            &solver.strand_floats,
+            &solver.state,
+            &solver.status,
+            &map,
+            guide_data,
+            guide_frames,
+        ];
         let bind_group = bind_whole_buffers(device, "hair guides gathered", &self.layout, &buffers);
         GpuGatherTarget { params, bind_group, guides: guides.len().saturating_sub(1) as u32 }
     }

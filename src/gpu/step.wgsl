@@ -2,18 +2,22 @@
 // CPU's step (`src/rod/solver.rs`) with inextensibility by projection instead of a stiff stretching term
 // in the solve (see `src/gpu/mod.rs` for why, and for what differs).
 //
-// One invocation per strand. Buffers are vertex-major: entry `k` of node `i` of strand `s` is at
-// `(i * K + k) * strands + s`, so that neighbouring invocations read neighbouring memory. Positions are
-// relative to the strand's head (its translation at the end of the last step), so that single precision
-// resolves micrometres wherever the head is. Each step:
+// One workgroup per strand, lane `i` owning node `i` and edge `i` (the strand's nodes in the lanes'
+// registers, what lanes share in workgroup memory). Buffers are row planes of node-contiguous strands:
+// row `k` of node `i` of strand `s` is at `k * total_nodes + first(s) + i`, so that a workgroup's lanes
+// read neighbouring memory and no strand is padded to the longest. Positions are relative to the
+// strand's head (its translation at the end of the last step), so that single precision resolves
+// micrometres wherever the head is. Each step:
 //   1. shift to the head's new translation; carry the strand rigidly with its root's motion (first guess);
 //   2. BDF2's prediction (`x̂ = (4xₙ − xₙ₋₁)/3`, `v̂` alike, `h = ⅔ dt`), backward Euler on the first step;
 //   3. Newton iterations on `(M/h² + D/h + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u)
-//      + ∇E + β/dt H (q − q̃) − M g]` over `(x₀, θ⁰, x₁, …)`, the root edge prescribed, solved by a banded
-//      `L D Lᵀ` (half-bandwidth 10) in private memory, each update within a trust region and the frames
-//      carried (time-parallel transport), each followed by a projection onto the edges' rest lengths
-//      (Goldenthal et al. 2007): one iteration between Newton iterations, after the last until single
-//      precision resolves no better;
+//      + ∇E + β/dt H (q − q̃) − M g]` over `(x₀, θ⁰, x₁, …)`, the root edge prescribed: assembled one
+//      vertex per lane, the band (half-bandwidth 10) in workgroup memory, factorised `L D Lᵀ` column by
+//      column with the trailing 10 × 10 update spread over the lanes, each update within a trust region
+//      and the frames carried (time-parallel transport), each followed by a projection onto the edges'
+//      rest lengths (Goldenthal et al. 2007) whose tridiagonal system is solved by parallel cyclic
+//      reduction: one iteration between Newton iterations, after the last until single precision
+//      resolves no better;
 //   4. contact: nodes inside a collider (at its end pose, grown by the strand's thickness) put on its
 //      surface, with Coulomb friction against their slip over the step relative to the collider, then the
 //      lengths again, touching nodes moving only along their surfaces, until no node moves by more than
@@ -21,6 +25,10 @@
 //   5. checks: a strand with a non-finite value or an edge strained past the bound is put back in its rest
 //      pose on its root, at rest, and its status says why;
 //   6. velocities `v = (x − x̂)/h`, twist rates by backward Euler, and the history for the next step.
+//
+// Every decision that ends a loop (a pivot, the projection's error, a contact round) is taken from a
+// value all lanes read after a barrier (`workgroupUniformLoad`), so the lanes of a strand never diverge
+// around a barrier.
 
 struct Params {
     dt: f32,
@@ -48,24 +56,23 @@ struct Params {
     // The strain the projection may leave on an edge (`StepParams::strain_tolerance`; single precision's
     // resolution where that is coarser).
     strain_tolerance: f32,
+    // Nodes of every strand together: the length of a row plane of `rest` and `state`.
+    total_nodes: u32,
     unused_0: u32,
     unused_1: u32,
-    unused_2: u32,
 }
 
-// Per strand words: node count, head, 0, 0.
+// Per strand words: node count, head, its first node in the row planes, 0.
 const STRAND_WORDS: u32 = 1u;
 // Per strand floats: (EA, EI₁, EI₂, GJ); (root node 0 head-local, thickness); (root node 1, 0);
 // (root material direction, 0).
 const STRAND_FLOATS: u32 = 4u;
-// Rest data per node: (rest length of edge i, Voronoi length of vertex i, κ̄₁, κ̄₂), (τ̄, mass, twist
+// Rest rows per node: (rest length of edge i, Voronoi length of vertex i, κ̄₁, κ̄₂), (τ̄, mass, twist
 // inertia of edge i, 0), (rest pose node, θ), (rest pose reference director, reference twist), (the node's
 // groomed place for the style hold, head-local; its arc length from the root over the strand's, past 1
 // where the strand is not held).
-const REST_ROWS: u32 = 5u;
-// State per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
+// State rows per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
 // back, 0), (reference director of edge i, reference twist at vertex i).
-const STATE_ROWS: u32 = 5u;
 // Per head: (rotation at the step's end), (shift of the origin: translation before − after, 0), (the air's
 // velocity, 0), (first collider, colliders as bits, the style hold's rate in 1/s and its reach), (rotation
 // at the step's start).
@@ -75,17 +82,22 @@ const HEAD_ROWS: u32 = 5u;
 // (r, 0, 0, 0), capsule (r, half length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3)).
 const COLLIDER_ROWS: u32 = 5u;
 
-const MAX_NODES: u32 = 40u;
-const MAX_DOFS: u32 = 159u;
+// Lanes per workgroup, one strand each (`STEP_LANES` in `solver.rs`), and so the most nodes a strand may
+// have (`MAX_GPU_NODES`); the band of 255 unknowns, 11 wide, with what the lanes share, fills 15.4 kB of
+// WebGPU's 16 kB of workgroup memory.
+const LANES: u32 = 64u;
+const MAX_NODES: u32 = 64u;
 const BAND: u32 = 10u;
 const WIDTH: u32 = 11u;
-// Invocations per workgroup (`STEP_WORKGROUP` in `solver.rs`).
-const WORKGROUP: u32 = 32u;
+const BAND_FLOATS: u32 = 2805u;
+const MAX_DOFS: u32 = 255u;
+// Entries of the trailing update of one column of the factorisation: rows and columns 1 to `BAND` below it.
+const UPDATE_ENTRIES: u32 = 55u;
 
 // Status bits (per strand, `status[s].x`): has a step of history; the last step was faulted (non-finite,
 // over-strained, not definite) or its contact given up, with the node or edge of the last fault in
-// `status[s].y`, `status[s].z`
-// the largest strain as bits, `status[s].w` the failed steps and the last one's reason.
+// `status[s].y`, `status[s].z` the largest strain as bits, `status[s].w` the failed steps and the last
+// one's reason.
 const HAS_HISTORY: u32 = 1u;
 const FAULT_NON_FINITE: u32 = 2u;
 const FAULT_OVER_STRAINED: u32 = 4u;
@@ -114,6 +126,8 @@ const RESOLUTION_MARGIN: f32 = 4.0;
 const STALL_EXCESS: f32 = 100.0;
 // A node moved by less than this many times its position's rounding has not moved (contact rounds).
 const MOVE_MARGIN: f32 = 4.0;
+// The bits of +∞: what a reduction takes for a value that is not finite.
+const INFINITE_BITS: u32 = 0x7f800000u;
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> strand_words: array<vec4<u32>>;
@@ -129,47 +143,69 @@ const MOVE_MARGIN: f32 = 4.0;
 // projection calls). Read by tests and benchmarks (`GpuStrandSolver::read_work`), never by the step.
 @group(0) @binding(8) var<storage, read_write> work: array<vec4<u32>>;
 
-// The strand's working copy.
-var<private> x: array<vec3<f32>, MAX_NODES>;
-var<private> theta: array<f32, MAX_NODES>;
-var<private> x_start: array<vec3<f32>, MAX_NODES>;
-var<private> theta_start: array<f32, MAX_NODES>;
-var<private> theta_rate: array<f32, MAX_NODES>;
-var<private> x_hat: array<vec3<f32>, MAX_NODES>;
-var<private> v_hat: array<vec3<f32>, MAX_NODES>;
-var<private> x_carried: array<vec3<f32>, MAX_NODES>;
-var<private> theta_carried: array<f32, MAX_NODES>;
-var<private> director: array<vec3<f32>, MAX_NODES>;
-var<private> tangent: array<vec3<f32>, MAX_NODES>;
-var<private> reference_twist: array<f32, MAX_NODES>;
-var<private> m1: array<vec3<f32>, MAX_NODES>;
-var<private> m2: array<vec3<f32>, MAX_NODES>;
-var<private> inverse_length: array<f32, MAX_NODES>;
-var<private> normal: array<vec3<f32>, MAX_NODES>;
-var<private> band: array<f32, 1749>;
-var<private> rhs: array<f32, MAX_DOFS>;
-var<private> product: array<f32, MAX_DOFS>;
-var<private> grad_k1: array<f32, 11>;
-var<private> grad_k2: array<f32, 11>;
-var<private> grad_tw: array<f32, 11>;
-var<private> tri_diagonal: array<f32, MAX_NODES>;
-var<private> tri_upper: array<f32, MAX_NODES>;
-var<private> tri_rhs: array<f32, MAX_NODES>;
-var<private> springs: array<f32, MAX_NODES>;
+// What the lanes share. The band and right-hand side of the Newton system (the band is the projection's
+// scratch between solves: its tridiagonal system and impulses).
+var<workgroup> band: array<f32, BAND_FLOATS>;
+var<workgroup> rhs: array<f32, MAX_DOFS>;
+// Per node: (position, θ of its edge).
+var<workgroup> shared_x: array<vec4<f32>, MAX_NODES>;
+// Per edge: (unit tangent, 1/length) in the assembly and the frames' refresh.
+var<workgroup> shared_t: array<vec4<f32>, MAX_NODES>;
+// Per edge: the material director m₁ in the assembly; the reference director in the frames' refresh. Per
+// node: (contact normal, inverse mass) in the projection.
+var<workgroup> shared_m: array<vec4<f32>, MAX_NODES>;
+// Reductions over the lanes, and a value one lane says to all.
+var<workgroup> reduced: atomic<u32>;
+var<workgroup> spoken: u32;
 
+// The strand and this lane's node and edge.
 var<private> strand: u32;
 var<private> nodes: u32;
 var<private> head: u32;
-// This step's work, added to `work` at the end.
+var<private> first: u32;
+var<private> lane: u32;
+var<private> own_node: bool;
+var<private> own_edge: bool;
+// Node `lane`: position now, at the step's start, the scheme's prediction, the first guess; the tangent
+// of the strand there at the step's start; its contact normal and whether it has a contact spring; the
+// arc length of rest lengths from the root to it.
+var<private> x: vec3<f32>;
+var<private> x_start: vec3<f32>;
+var<private> x_hat: vec3<f32>;
+var<private> v_hat: vec3<f32>;
+var<private> v_start: vec3<f32>;
+var<private> x_carried: vec3<f32>;
+var<private> start_tangent: vec3<f32>;
+var<private> normal: vec3<f32>;
+var<private> spring: f32;
+var<private> arc: f32;
+// Edge `lane`: θ now, at the step's start, its rate, the first guess; reference director, tangent; the
+// reference twist at vertex `lane`.
+var<private> theta: f32;
+var<private> theta_start: f32;
+var<private> theta_rate: f32;
+var<private> theta_carried: f32;
+var<private> director: vec3<f32>;
+var<private> tangent: vec3<f32>;
+var<private> reference_twist: f32;
+// Vertex `lane`'s bending and twisting gradients over its stencil.
+var<private> grad_k1: array<f32, 11>;
+var<private> grad_k2: array<f32, 11>;
+var<private> grad_tw: array<f32, 11>;
+// The entry of the factorisation's trailing update this lane makes: rows and columns below the pivot
+// (0 for none).
+var<private> update_row: u32;
+var<private> update_column: u32;
+// This step's work, added to `work` at the end (every lane counts alike; lane 0 writes).
 var<private> work_steps: vec4<u32>;
 var<private> work_more: vec4<u32>;
 
 fn rest_at(node: u32, row: u32) -> vec4<f32> {
-    return rest[(node * REST_ROWS + row) * params.strands + strand];
+    return rest[row * params.total_nodes + first + node];
 }
 
 fn state_index(node: u32, row: u32) -> u32 {
-    return (node * STATE_ROWS + row) * params.strands + strand;
+    return row * params.total_nodes + first + node;
 }
 
 fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
@@ -253,97 +289,185 @@ fn band_index(row: u32, column: u32) -> u32 {
     return row * WIDTH + BAND - (row - column);
 }
 
-// Tangents and material directors of every edge from the positions, reference directors and twists.
+// Whether a value is finite, from its bits: WGSL lets an implementation assume no NaN or infinity in
+// arithmetic and comparisons, so only the exponent's bits tell reliably.
+fn finite(v: f32) -> bool {
+    return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;
+}
+
+fn finite3(v: vec3<f32>) -> bool {
+    return finite(v.x) && finite(v.y) && finite(v.z);
+}
+
+// The largest of every lane's `value` (not negative; a value that is not finite counts as +∞), the same
+// in every lane.
+fn largest_over_lanes(value: f32) -> f32 {
+    workgroupBarrier();
+    if lane == 0u {
+        atomicStore(&reduced, 0u);
+    }
+    workgroupBarrier();
+    atomicMax(&reduced, select(INFINITE_BITS, bitcast<u32>(max(value, 0.0)), finite(value)));
+    workgroupBarrier();
+    if lane == 0u {
+        spoken = atomicLoad(&reduced);
+    }
+    return bitcast<f32>(workgroupUniformLoad(&spoken));
+}
+
+// The smallest of every lane's `value`, the same in every lane.
+fn smallest_over_lanes(value: u32) -> u32 {
+    workgroupBarrier();
+    if lane == 0u {
+        atomicStore(&reduced, 0xffffffffu);
+    }
+    workgroupBarrier();
+    atomicMin(&reduced, value);
+    workgroupBarrier();
+    if lane == 0u {
+        spoken = atomicLoad(&reduced);
+    }
+    return workgroupUniformLoad(&spoken);
+}
+
+// Lane 0's `value`, in every lane.
+fn from_lane_zero(value: f32) -> f32 {
+    workgroupBarrier();
+    if lane == 0u {
+        spoken = bitcast<u32>(value);
+    }
+    return bitcast<f32>(workgroupUniformLoad(&spoken));
+}
+
+// Every lane's node (position, θ) into `shared_x`, for its neighbours.
+fn publish_nodes() {
+    workgroupBarrier();
+    if own_node {
+        shared_x[lane] = vec4<f32>(x, theta);
+    }
+    workgroupBarrier();
+}
+
+// Every lane's node back from `shared_x` (after lane 0 moved them all).
+fn take_nodes() {
+    workgroupBarrier();
+    if own_node {
+        x = shared_x[lane].xyz;
+    }
+    workgroupBarrier();
+}
+
+// The tangent and material director of each lane's edge from the positions, reference director and twist,
+// into `shared_t` and `shared_m` for the vertices beside it.
 fn edge_frames() {
-    for (var e = 0u; e < edge_count(); e++) {
-        let edge = x[e + 1u] - x[e];
+    if own_edge {
+        let edge = shared_x[lane + 1u].xyz - x;
         let size = length(edge);
         let t = edge / size;
-        tangent[e] = t;
-        inverse_length[e] = 1.0 / size;
-        let a2 = cross(t, director[e]);
-        let c = cos(theta[e]);
-        let s = sin(theta[e]);
-        m1[e] = c * director[e] + s * a2;
-        m2[e] = c * a2 - s * director[e];
+        tangent = t;
+        let a2 = cross(t, director);
+        let m1 = cos(theta) * director + sin(theta) * a2;
+        shared_t[lane] = vec4<f32>(t, 1.0 / size);
+        shared_m[lane] = vec4<f32>(m1, 0.0);
     }
+    workgroupBarrier();
 }
 
 // Time-parallel transport of each reference director onto its edge's new tangent, then the reference
 // twists, each continued from its last value (`Rod::refresh_frames`).
 fn refresh_frames() {
-    for (var e = 0u; e < edge_count(); e++) {
-        let t = normalize(x[e + 1u] - x[e]);
-        let carried = transport(director[e], tangent[e], t);
-        director[e] = perpendicular_unit(carried, t, any_perpendicular(t));
-        tangent[e] = t;
+    workgroupBarrier();
+    if own_edge {
+        let t = normalize(shared_x[lane + 1u].xyz - x);
+        let carried = transport(director, tangent, t);
+        director = perpendicular_unit(carried, t, any_perpendicular(t));
+        tangent = t;
+        shared_t[lane] = vec4<f32>(t, 0.0);
+        shared_m[lane] = vec4<f32>(director, 0.0);
     }
-    for (var i = 1u; i < edge_count(); i++) {
-        let carried = transport(director[i - 1u], tangent[i - 1u], tangent[i]);
-        let angle = signed_angle(carried, director[i], tangent[i]);
-        let previous = reference_twist[i];
-        reference_twist[i] = previous + wrap_angle(angle - previous);
+    workgroupBarrier();
+    if lane >= 1u && lane < edge_count() {
+        let carried = transport(shared_m[lane - 1u].xyz, shared_t[lane - 1u].xyz, tangent);
+        let angle = signed_angle(carried, director, tangent);
+        reference_twist = reference_twist + wrap_angle(angle - reference_twist);
     }
+    workgroupBarrier();
 }
 
-// The change of θ⁰ that turns the root edge's m1 onto the root's material direction.
+// The change of θ⁰ that turns the root edge's m1 onto the root's material direction (lane 0's edge).
 fn root_twist_offset(target_tangent: vec3<f32>, direction: vec3<f32>) -> f32 {
-    let reference = transport(director[0], tangent[0], target_tangent);
+    let reference = transport(director, tangent, target_tangent);
     let aim = perpendicular_unit(direction, target_tangent, reference);
-    return wrap_angle(signed_angle(reference, aim, target_tangent) - theta[0]);
+    return wrap_angle(signed_angle(reference, aim, target_tangent) - theta);
 }
 
-// The strand carried rigidly with its root edge's motion onto the root's targets (`carry_with_first_clamp`).
+// The strand carried rigidly with its root edge's motion onto the root's targets (`carry_with_first_clamp`):
+// the root edge's frame (lane 0's) is said to every lane, each carrying its node and edge.
 fn carry_with_root() {
+    workgroupBarrier();
+    if lane == 0u {
+        shared_t[0] = vec4<f32>(tangent, 0.0);
+        shared_m[0] = vec4<f32>(cos(theta) * director + sin(theta) * cross(tangent, director), 0.0);
+    }
+    workgroupBarrier();
+    let old_t = shared_t[0].xyz;
+    let old_m1 = shared_m[0].xyz;
+    let pivot = shared_x[0].xyz;
+    workgroupBarrier();
     let p0 = root_target(0u);
     let p1 = root_target(1u);
     let t = normalize(p1 - p0);
-    let old_t = tangent[0];
-    let a2 = cross(old_t, director[0]);
-    let old_m1 = cos(theta[0]) * director[0] + sin(theta[0]) * a2;
     let old_m2 = cross(old_t, old_m1);
     let new_m1 = perpendicular_unit(root_target(2u), t, transport(old_m1, old_t, t));
     let new_m2 = cross(t, new_m1);
-    let pivot = x[0];
-    for (var i = 0u; i < nodes; i++) {
-        let d = x[i] - pivot;
+    if own_node {
+        let d = x - pivot;
         let local = vec3<f32>(dot(d, old_t), dot(d, old_m1), dot(d, old_m2));
-        x[i] = p0 + local.x * t + local.y * new_m1 + local.z * new_m2;
+        x = p0 + local.x * t + local.y * new_m1 + local.z * new_m2;
+        if lane == 0u {
+            x = p0;
+        } else if lane == 1u {
+            x = p1;
+        }
     }
-    x[0] = p0;
-    x[1] = p1;
-    for (var e = 0u; e < edge_count(); e++) {
-        let d = director[e];
+    if own_edge {
+        let d = director;
         let local = vec3<f32>(dot(d, old_t), dot(d, old_m1), dot(d, old_m2));
-        director[e] = local.x * t + local.y * new_m1 + local.z * new_m2;
-        let g = tangent[e];
+        director = local.x * t + local.y * new_m1 + local.z * new_m2;
+        let g = tangent;
         let lg = vec3<f32>(dot(g, old_t), dot(g, old_m1), dot(g, old_m2));
-        tangent[e] = lg.x * t + lg.y * new_m1 + lg.z * new_m2;
+        tangent = lg.x * t + lg.y * new_m1 + lg.z * new_m2;
     }
+    publish_nodes();
 }
 
-// Bending and twisting at vertex `i`: the curvatures' and twist's gradients over the stencil
-// `[x_{i−1}, θ^{i−1}, x_i, θ^i, x_{i+1}]` (Bergou et al. 2008 §7; `vertex_strain` in `energy.rs`).
-// Returns (κ₁, κ₂, τ).
-fn vertex_strain(i: u32) -> vec3<f32> {
+// Bending and twisting at vertex `lane`: the curvatures' and twist's gradients over the stencil
+// `[x_{i−1}, θ^{i−1}, x_i, θ^i, x_{i+1}]` (Bergou et al. 2008 §7; `vertex_strain` in `energy.rs`) into
+// `grad_*`, from the edge frames in `shared_t` and `shared_m` (`m₂ = t × m₁`). Returns (κ₁, κ₂, τ).
+fn vertex_strain() -> vec3<f32> {
+    let i = lane;
     let p = i - 1u;
-    let t0 = tangent[p];
-    let t1 = tangent[i];
+    let t0 = shared_t[p].xyz;
+    let t1 = shared_t[i].xyz;
+    let m1p = shared_m[p].xyz;
+    let m1i = shared_m[i].xyz;
+    let m2p = cross(t0, m1p);
+    let m2i = cross(t1, m1i);
     let inverse_chi = 1.0 / (1.0 + dot(t0, t1));
     let binormal = 2.0 * inverse_chi * cross(t0, t1);
     let tilde_t = inverse_chi * (t0 + t1);
-    let tilde_m1 = inverse_chi * (m1[p] + m1[i]);
-    let tilde_m2 = inverse_chi * (m2[p] + m2[i]);
-    let k1 = 0.5 * dot(binormal, m2[p] + m2[i]);
-    let k2 = -0.5 * dot(binormal, m1[p] + m1[i]);
-    let il0 = inverse_length[p];
-    let il1 = inverse_length[i];
+    let tilde_m1 = inverse_chi * (m1p + m1i);
+    let tilde_m2 = inverse_chi * (m2p + m2i);
+    let k1 = 0.5 * dot(binormal, m2p + m2i);
+    let k2 = -0.5 * dot(binormal, m1p + m1i);
+    let il0 = shared_t[p].w;
+    let il1 = shared_t[i].w;
     scatter(0u, (-k1 * tilde_t + cross(t1, tilde_m2)) * il0, (-k1 * tilde_t - cross(t0, tilde_m2)) * il1,
-        vec2<f32>(-0.5 * dot(binormal, m1[p]), -0.5 * dot(binormal, m1[i])));
+        vec2<f32>(-0.5 * dot(binormal, m1p), -0.5 * dot(binormal, m1i)));
     scatter(1u, (-k2 * tilde_t - cross(t1, tilde_m1)) * il0, (-k2 * tilde_t + cross(t0, tilde_m1)) * il1,
-        vec2<f32>(-0.5 * dot(binormal, m2[p]), -0.5 * dot(binormal, m2[i])));
+        vec2<f32>(-0.5 * dot(binormal, m2p), -0.5 * dot(binormal, m2i)));
     scatter(2u, 0.5 * binormal * il0, 0.5 * binormal * il1, vec2<f32>(-1.0, 1.0));
-    let twist = theta[i] - theta[p] + reference_twist[i];
+    let twist = theta - shared_x[p].w + reference_twist;
     return vec3<f32>(k1, k2, twist);
 }
 
@@ -364,121 +488,6 @@ fn scatter(which: u32, d_previous: vec3<f32>, d_next: vec3<f32>, d_theta: vec2<f
     }
 }
 
-// Adds the bending and twisting forces (into `rhs`) and their Gauss–Newton Hessian times `scale`.
-fn add_bending_and_twisting(scale: f32) {
-    let stiffness = strand_floats[strand * STRAND_FLOATS];
-    for (var i = 1u; i < edge_count(); i++) {
-        let strain = vertex_strain(i);
-        let rest_bend = rest_at(i, 0u);
-        let rest_twist = rest_at(i, 1u).x;
-        let inverse_voronoi = 1.0 / rest_bend.y;
-        let s1 = stiffness.y * inverse_voronoi;
-        let s2 = stiffness.z * inverse_voronoi;
-        let s3 = stiffness.w * inverse_voronoi;
-        let f1 = s1 * (strain.x - rest_bend.z);
-        let f2 = s2 * (strain.y - rest_bend.w);
-        let f3 = s3 * (strain.z - rest_twist);
-        let offset = 4u * (i - 1u);
-        for (var a = 0u; a < 11u; a++) {
-            rhs[offset + a] += f1 * grad_k1[a] + f2 * grad_k2[a] + f3 * grad_tw[a];
-            let w1 = scale * s1 * grad_k1[a];
-            let w2 = scale * s2 * grad_k2[a];
-            let w3 = scale * s3 * grad_tw[a];
-            let row = offset + a;
-            for (var b = 0u; b <= a; b++) {
-                band[band_index(row, offset + b)] += w1 * grad_k1[b] + w2 * grad_k2[b] + w3 * grad_tw[b];
-            }
-        }
-    }
-}
-
-// `product = A d` for the symmetric band, `d` in `product`'s place given as `rhs_source`.
-fn band_product(d: ptr<function, array<f32, MAX_DOFS>>) {
-    let n = dofs();
-    for (var r = 0u; r < n; r++) {
-        product[r] = 0.0;
-    }
-    for (var r = 0u; r < n; r++) {
-        let first = select(0u, r - BAND, r >= BAND);
-        for (var c = first; c < r; c++) {
-            let a = band[band_index(r, c)];
-            product[r] += a * (*d)[c];
-            product[c] += a * (*d)[r];
-        }
-        product[r] += band[band_index(r, r)] * (*d)[r];
-    }
-}
-
-// The capped stretching stiffness of every edge's first-order change of length: `k t tᵀ` on both nodes'
-// diagonal blocks and `−k t tᵀ` between them. No stretching force: lengths are the projection's.
-fn add_stretch_hessian(inertia: f32) {
-    let stiffness = strand_floats[strand * STRAND_FLOATS].x;
-    for (var e = 0u; e < edge_count(); e++) {
-        let rest_length = rest_at(e, 0u).x;
-        let mass = 0.5 * (rest_at(e, 1u).y + rest_at(e + 1u, 1u).y);
-        let k = min(stiffness / rest_length, params.stretch_ratio * mass * inertia);
-        let t = tangent[e];
-        let start = 4u * e;
-        for (var a = 0u; a < 3u; a++) {
-            for (var b = 0u; b < 3u; b++) {
-                let value = k * t[a] * t[b];
-                band[band_index(start + 4u + a, start + b)] -= value;
-                if b <= a {
-                    band[band_index(start + a, start + b)] += value;
-                    band[band_index(start + 4u + a, start + 4u + b)] += value;
-                }
-            }
-        }
-    }
-}
-
-// In-place `L D Lᵀ` of the band; false at a non-positive pivot.
-fn factorize() -> bool {
-    let n = dofs();
-    for (var i = 0u; i < n; i++) {
-        let first = select(0u, i - BAND, i >= BAND);
-        for (var j = first; j < i; j++) {
-            var sum = band[band_index(i, j)];
-            let inner = select(0u, j - BAND, j >= BAND);
-            for (var k = max(first, inner); k < j; k++) {
-                sum -= band[band_index(i, k)] * band[band_index(k, k)] * band[band_index(j, k)];
-            }
-            band[band_index(i, j)] = sum / band[band_index(j, j)];
-        }
-        var diagonal = band[band_index(i, i)];
-        for (var k = first; k < i; k++) {
-            let l = band[band_index(i, k)];
-            diagonal -= l * l * band[band_index(k, k)];
-        }
-        if !(diagonal > 0.0) || !finite(diagonal) {
-            return false;
-        }
-        band[band_index(i, i)] = diagonal;
-    }
-    return true;
-}
-
-// Solves `L D Lᵀ y = rhs` in place.
-fn solve() {
-    let n = dofs();
-    for (var i = 0u; i < n; i++) {
-        let first = select(0u, i - BAND, i >= BAND);
-        for (var k = first; k < i; k++) {
-            rhs[i] -= band[band_index(i, k)] * rhs[k];
-        }
-    }
-    for (var i = 0u; i < n; i++) {
-        rhs[i] /= band[band_index(i, i)];
-    }
-    for (var step = 0u; step < n; step++) {
-        let i = n - 1u - step;
-        let last = min(i + BAND, n - 1u);
-        for (var k = i + 1u; k <= last; k++) {
-            rhs[i] -= band[band_index(k, i)] * rhs[k];
-        }
-    }
-}
-
 fn node_inverse_mass(i: u32) -> f32 {
     if i < 2u {
         return 0.0;
@@ -486,55 +495,128 @@ fn node_inverse_mass(i: u32) -> f32 {
     return 1.0 / rest_at(i, 1u).y;
 }
 
-fn largest_strain() -> vec2<f32> {
-    var worst = 0.0;
-    var edge = 0u;
-    for (var e = 0u; e < edge_count(); e++) {
-        let strain = abs(length(x[e + 1u] - x[e]) / rest_at(e, 0u).x - 1.0);
-        if strain > worst || !finite(strain) {
-            worst = strain;
-            edge = e;
-        }
-    }
-    return vec2<f32>(worst, f32(edge));
-}
-
-// The strain single precision resolves on edge `e` where it lies (positions are head-relative, so the
+// The strain single precision resolves on edge `e` at `start`–`end` (positions are head-relative, so the
 // further a node is from its head's origin, the coarser it is): `RESOLUTION_MARGIN u ((|xₑ| + |xₑ₊₁|)/l + 2)`,
 // 2.4e-5 for a 6 mm edge 0.3 m from the origin, 1e-6 for a 5 cm edge at 0.1 m. Never below the step's
 // `strain_tolerance`.
-fn strain_resolution(e: u32, rest_length: f32) -> f32 {
-    let reach = length(x[e]) + length(x[e + 1u]);
+fn strain_resolution(start: vec3<f32>, end: vec3<f32>, rest_length: f32) -> f32 {
+    let reach = length(start) + length(end);
     return max(params.strain_tolerance, RESOLUTION_MARGIN * UNIT_ROUNDOFF * (reach / rest_length + 2.0));
 }
 
-// The largest edge strain over its resolution (`strain_resolution`): at most 1 where every edge's length
-// is as exact as single precision can make it.
+// The largest edge strain over its resolution (`strain_resolution`), from `shared_x`: at most 1 where
+// every edge's length is as exact as single precision can make it.
 fn largest_excess() -> f32 {
-    var worst = 0.0;
-    for (var e = 0u; e < edge_count(); e++) {
-        let rest_length = rest_at(e, 0u).x;
-        let excess = abs(length(x[e + 1u] - x[e]) / rest_length - 1.0) / strain_resolution(e, rest_length);
-        if excess > worst || !finite(excess) {
-            worst = excess;
-        }
+    var excess = 0.0;
+    if own_edge {
+        let start = shared_x[lane].xyz;
+        let end = shared_x[lane + 1u].xyz;
+        let rest_length = rest_at(lane, 0u).x;
+        excess = abs(length(end - start) / rest_length - 1.0) / strain_resolution(start, end, rest_length);
     }
-    return worst;
+    return largest_over_lanes(excess);
 }
 
+// This lane's edge strain (0 for a lane without an edge), from `shared_x`.
+fn edge_strain() -> f32 {
+    if !own_edge {
+        return 0.0;
+    }
+    return abs(length(shared_x[lane + 1u].xyz - shared_x[lane].xyz) / rest_at(lane, 0u).x - 1.0);
+}
+
+// The largest edge strain and the first edge that has it (a strain that is not finite the largest).
+fn largest_strain() -> vec2<f32> {
+    let strain = edge_strain();
+    let worst = largest_over_lanes(strain);
+    let bits = select(INFINITE_BITS, bitcast<u32>(strain), finite(strain));
+    let mine = own_edge && bits == bitcast<u32>(worst);
+    let edge = smallest_over_lanes(select(0xffffffffu, lane, mine));
+    return vec2<f32>(worst, f32(min(edge, edge_count() - 1u)));
+}
+
+// Node `i`'s move for a push `v`: `M⁻¹ v`, along its contact surface where it touches one (from
+// `shared_m`, filled by `share_mobility`).
 fn mobility(i: u32, v: vec3<f32>) -> vec3<f32> {
-    let n = normal[i];
-    return node_inverse_mass(i) * (v - dot(n, v) * n);
+    let n = shared_m[i].xyz;
+    return shared_m[i].w * (v - dot(n, v) * n);
+}
+
+// Every node's contact normal and inverse mass into `shared_m`, for `mobility`.
+fn share_mobility() {
+    workgroupBarrier();
+    if own_node {
+        shared_m[lane] = vec4<f32>(normal, node_inverse_mass(lane));
+    }
+    workgroupBarrier();
+}
+
+// The projection's tridiagonal system in the band's place: lower, diagonal, upper and right-hand side of
+// equation `e` at `band[e]`, `band[MAX_NODES + e]`, … (the band is not needed between solves).
+const TRI_LOWER: u32 = 0u;
+const TRI_DIAGONAL: u32 = 64u;
+const TRI_UPPER: u32 = 128u;
+const TRI_RHS: u32 = 192u;
+// Each edge's impulse in the projection, `band[IMPULSE + 4e ..]`.
+const IMPULSE: u32 = 256u;
+
+// Solves the tridiagonal system held in the band's place (one equation per edge's lane, in its
+// registers: `a`, `b`, `c`, `d`) by parallel cyclic reduction (Hockney 1965): each round eliminates the
+// equations `s` away on either side, doubling `s`, until every equation stands alone. Returns this lane's
+// unknown.
+fn cyclic_reduction(a_in: f32, b_in: f32, c_in: f32, d_in: f32) -> f32 {
+    let edges = edge_count();
+    var a = a_in;
+    var b = b_in;
+    var c = c_in;
+    var d = d_in;
+    for (var s = 1u; s < edges; s = s * 2u) {
+        workgroupBarrier();
+        if own_edge {
+            band[TRI_LOWER + lane] = a;
+            band[TRI_DIAGONAL + lane] = b;
+            band[TRI_UPPER + lane] = c;
+            band[TRI_RHS + lane] = d;
+        }
+        workgroupBarrier();
+        if own_edge {
+            var next_a = 0.0;
+            var next_c = 0.0;
+            var next_b = b;
+            var next_d = d;
+            if lane >= s {
+                let below = lane - s;
+                let alpha = -a / band[TRI_DIAGONAL + below];
+                next_a = alpha * band[TRI_LOWER + below];
+                next_b += alpha * band[TRI_UPPER + below];
+                next_d += alpha * band[TRI_RHS + below];
+            }
+            if lane + s < edges {
+                let above = lane + s;
+                let gamma = -c / band[TRI_DIAGONAL + above];
+                next_c = gamma * band[TRI_UPPER + above];
+                next_b += gamma * band[TRI_LOWER + above];
+                next_d += gamma * band[TRI_RHS + above];
+            }
+            a = next_a;
+            b = next_b;
+            c = next_c;
+            d = next_d;
+        }
+    }
+    return d / b;
 }
 
 // Fast projection onto the rest lengths (Goldenthal et al. 2007): `x ← x − M⁻¹ ∇Cᵀ λ` with the tridiagonal
-// `(∇C M⁻¹ ∇Cᵀ) λ = C`, `C_j = e_j·e_j / L_j − L_j`; a Gauss–Seidel sweep of exact per-edge projections
-// where a Newton step would not reduce the error. Touching nodes move only along their surfaces. Stops
-// once every edge is within the strain single precision resolves where it lies (`strain_resolution`), or
-// when an iteration, sweep included, no longer reduces an error within `STALL_EXCESS` of it (rounding, not
-// the lengths, sets it then).
+// `(∇C M⁻¹ ∇Cᵀ) λ = C`, `C_j = e_j·e_j / L_j − L_j` (one equation per edge's lane, by cyclic reduction); a
+// Gauss–Seidel sweep of exact per-edge projections where a Newton step would not reduce the error.
+// Touching nodes move only along their surfaces. Stops once every edge is within the strain single
+// precision resolves where it lies (`strain_resolution`), or when an iteration, sweep included, no
+// longer reduces an error within `STALL_EXCESS` of it (rounding, not the lengths, sets it then). Reads and
+// leaves the nodes in `shared_x` and the lanes' `x`.
 fn project_lengths(iterations: u32) {
     let edges = edge_count();
+    share_mobility();
     var error = largest_excess();
     work_more.w += 1u;
     for (var iteration = 0u; iteration < iterations; iteration++) {
@@ -542,55 +624,74 @@ fn project_lengths(iterations: u32) {
             return;
         }
         work_steps.z += 1u;
-        for (var e = 0u; e < edges; e++) {
-            let d = x[e + 1u] - x[e];
-            let goal = rest_at(e, 0u).x;
-            let k = 4.0 * dot(d, mobility(e, d) + mobility(e + 1u, d)) / (goal * goal);
-            let free_k = 4.0 * dot(d, d) / (goal * goal) * (node_inverse_mass(e) + node_inverse_mass(e + 1u));
-            if k > 1e-6 * free_k && k > 0.0 {
-                tri_diagonal[e] = k * (1.0 + 1e-5);
-                tri_rhs[e] = dot(d, d) / goal - goal;
-            } else {
-                tri_diagonal[e] = 0.0;
-                tri_rhs[e] = 0.0;
+        // Equation `lane`: its diagonal, its coupling to the next edge, and whether the edge can move.
+        var a = 0.0;
+        var b = 1.0;
+        var c = 0.0;
+        var d = 0.0;
+        var edge = vec3<f32>(0.0);
+        var goal = 1.0;
+        var movable = false;
+        if own_edge {
+            edge = shared_x[lane + 1u].xyz - shared_x[lane].xyz;
+            goal = rest_at(lane, 0u).x;
+            let k = 4.0 * dot(edge, mobility(lane, edge) + mobility(lane + 1u, edge)) / (goal * goal);
+            let free_k = 4.0 * dot(edge, edge) / (goal * goal)
+                * (node_inverse_mass(lane) + node_inverse_mass(lane + 1u));
+            movable = k > 1e-6 * free_k && k > 0.0;
+            if movable {
+                b = k * (1.0 + 1e-5);
+                d = dot(edge, edge) / goal - goal;
             }
-            tri_upper[e] = 0.0;
-            if e + 1u < edges {
-                let next = x[e + 2u] - x[e + 1u];
-                tri_upper[e] = -4.0 * dot(d, mobility(e + 1u, next)) / (goal * rest_at(e + 1u, 0u).x);
+            if lane + 1u < edges {
+                let next = shared_x[lane + 2u].xyz - shared_x[lane + 1u].xyz;
+                c = -4.0 * dot(edge, mobility(lane + 1u, next)) / (goal * rest_at(lane + 1u, 0u).x);
             }
         }
-        for (var e = 0u; e < edges; e++) {
-            if tri_diagonal[e] == 0.0 {
-                tri_diagonal[e] = 1.0;
-                if e > 0u {
-                    tri_upper[e - 1u] = 0.0;
+        // An edge that cannot move is an equation of its own (λ = 0), and its neighbours' coupling to it 0.
+        workgroupBarrier();
+        if own_edge {
+            band[TRI_UPPER + lane] = c;
+            band[TRI_DIAGONAL + lane] = select(0.0, 1.0, movable);
+        }
+        workgroupBarrier();
+        if own_edge {
+            if lane > 0u {
+                a = band[TRI_UPPER + lane - 1u];
+                if band[TRI_DIAGONAL + lane - 1u] == 0.0 {
+                    a = 0.0;
                 }
-                tri_upper[e] = 0.0;
+            }
+            if lane + 1u < edges && band[TRI_DIAGONAL + lane + 1u] == 0.0 {
+                c = 0.0;
+            }
+            if !movable {
+                a = 0.0;
+                c = 0.0;
             }
         }
-        // Thomas algorithm.
-        tri_diagonal[0] = 1.0 / tri_diagonal[0];
-        for (var r = 1u; r < edges; r++) {
-            let factor = tri_upper[r - 1u] * tri_diagonal[r - 1u];
-            tri_diagonal[r] = 1.0 / (tri_diagonal[r] - factor * tri_upper[r - 1u]);
-            tri_rhs[r] -= factor * tri_rhs[r - 1u];
+        let lambda = cyclic_reduction(a, b, c, d);
+        // The impulses from the edges as they were.
+        workgroupBarrier();
+        if own_edge {
+            let impulse = 2.0 * lambda / goal * edge;
+            band[IMPULSE + 4u * lane] = impulse.x;
+            band[IMPULSE + 4u * lane + 1u] = impulse.y;
+            band[IMPULSE + 4u * lane + 2u] = impulse.z;
         }
-        tri_rhs[edges - 1u] *= tri_diagonal[edges - 1u];
-        for (var step = 1u; step < edges; step++) {
-            let r = edges - 1u - step;
-            tri_rhs[r] = (tri_rhs[r] - tri_upper[r] * tri_rhs[r + 1u]) * tri_diagonal[r];
+        workgroupBarrier();
+        if own_node {
+            var push = vec3<f32>(0.0);
+            if own_edge {
+                push += vec3<f32>(band[IMPULSE + 4u * lane], band[IMPULSE + 4u * lane + 1u], band[IMPULSE + 4u * lane + 2u]);
+            }
+            if lane > 0u {
+                let e = lane - 1u;
+                push -= vec3<f32>(band[IMPULSE + 4u * e], band[IMPULSE + 4u * e + 1u], band[IMPULSE + 4u * e + 2u]);
+            }
+            x += mobility(lane, push);
         }
-        // The impulses from the edges as they were (saved in `x_carried`'s place is not free: use m1 as
-        // scratch for the edge vectors).
-        for (var e = 0u; e < edges; e++) {
-            m1[e] = x[e + 1u] - x[e];
-        }
-        for (var e = 0u; e < edges; e++) {
-            let impulse = 2.0 * tri_rhs[e] / rest_at(e, 0u).x * m1[e];
-            x[e] += mobility(e, impulse);
-            x[e + 1u] -= mobility(e + 1u, impulse);
-        }
+        publish_nodes();
         var projected = largest_excess();
         if !(projected < error) {
             gauss_seidel_sweep();
@@ -609,132 +710,184 @@ fn project_lengths(iterations: u32) {
     }
 }
 
+// Exact per-edge projections, root to tip and back, by lane 0 on `shared_x` (the fallback of a
+// projection iteration that did not reduce the error; each edge depends on the last).
 fn gauss_seidel_sweep() {
-    let edges = edge_count();
-    for (var sweep = 0u; sweep < 2u * edges; sweep++) {
-        let e = select(2u * edges - 1u - sweep, sweep, sweep < edges);
-        let d = x[e + 1u] - x[e];
-        let size = length(d);
-        if size == 0.0 {
-            continue;
-        }
-        let direction = d / size;
-        let start_move = mobility(e, direction);
-        let end_move = mobility(e + 1u, direction);
-        let total = dot(direction, start_move + end_move);
-        if total <= 1e-9 * (node_inverse_mass(e) + node_inverse_mass(e + 1u)) {
-            continue;
-        }
-        let excess = (size - rest_at(e, 0u).x) / total;
-        x[e] += excess * start_move;
-        x[e + 1u] -= excess * end_move;
-    }
-}
-
-// Assembles the Newton system at the current iterate; returns false where it does not factorise even
-// with the diagonal scaled by `1 + λ`, λ up to 1.
-// The first node collider `c` meets (from the third: the root edge is prescribed). A collider holding the
-// root inside it leaves the nodes within `HELD_REACH` times the root's depth (along the strand) free of it,
-// as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not torn trying to be
-// outside.
-fn first_met_node(c: u32, thickness: f32) -> u32 {
-    let reach = HELD_REACH * max(-touch(c, x[0], thickness).distance, 0.0);
-    var arc = rest_at(0u, 0u).x + rest_at(1u, 0u).x;
-    var i = 2u;
-    while i < nodes && arc <= reach {
-        arc += rest_at(i, 0u).x;
-        i++;
-    }
-    return i;
-}
-
-// Contact inside the solve, as on the CPU (`rod/contact.rs`): each node within `CONTACT_GAP` of a collider
-// (at its end pose, grown by the thickness) gets a stiff one-sided spring along the surface normal,
-// `½ k min(d, 0)²` with `k = CONTACT_RATIO m (1/h² + γ/h)`, so that the solve knows what supports the
-// strand (a node pressed by its weight sinks `g h² / CONTACT_RATIO`). Nodes held inside a collider with
-// the root (`HELD_REACH`) are free of it. `springs[i]` says whether node `i` has one, for the friction.
-fn add_contact_springs(inertia: f32) {
-    let first = bitcast<u32>(head_row(3u).x);
-    let count = bitcast<u32>(head_row(3u).y);
-    let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
-    for (var i = 0u; i < nodes; i++) {
-        springs[i] = 0.0;
-    }
-    for (var k = 0u; k < count; k++) {
-        let c = first + k;
-        for (var i = first_met_node(c, thickness); i < nodes; i++) {
-            let contact = touch(c, x[i], thickness);
-            if contact.distance >= CONTACT_GAP {
+    workgroupBarrier();
+    if lane == 0u {
+        let edges = edge_count();
+        for (var sweep = 0u; sweep < 2u * edges; sweep++) {
+            let e = select(2u * edges - 1u - sweep, sweep, sweep < edges);
+            let d = shared_x[e + 1u].xyz - shared_x[e].xyz;
+            let size = length(d);
+            if size == 0.0 {
                 continue;
             }
-            let stiffness = CONTACT_RATIO * rest_at(i, 1u).y * inertia;
-            let n = contact.normal;
-            let pressed = stiffness * min(contact.distance, 0.0);
-            for (var a = 0u; a < 3u; a++) {
-                rhs[4u * i + a] += pressed * n[a];
-                for (var b = 0u; b <= a; b++) {
-                    band[band_index(4u * i + a, 4u * i + b)] += stiffness * n[a] * n[b];
-                }
+            let direction = d / size;
+            let start_move = mobility(e, direction);
+            let end_move = mobility(e + 1u, direction);
+            let total = dot(direction, start_move + end_move);
+            if total <= 1e-9 * (node_inverse_mass(e) + node_inverse_mass(e + 1u)) {
+                continue;
             }
-            springs[i] = 1.0;
+            let excess = (size - rest_at(e, 0u).x) / total;
+            shared_x[e] = vec4<f32>(shared_x[e].xyz + excess * start_move, shared_x[e].w);
+            shared_x[e + 1u] = vec4<f32>(shared_x[e + 1u].xyz - excess * end_move, shared_x[e + 1u].w);
         }
+    }
+    take_nodes();
+}
+
+// Whether collider `c` meets this lane's node (from the third: the root edge is prescribed). A collider
+// holding the root inside it leaves the nodes within `HELD_REACH` times the root's depth (along the
+// strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not
+// torn trying to be outside.
+fn meets(c: u32, thickness: f32) -> bool {
+    let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness).distance, 0.0);
+    return own_node && lane >= 2u && arc > reach;
+}
+
+// Contact inside the solve, as on the CPU (`rod/contact.rs`): this lane's node, within `CONTACT_GAP` of a
+// collider (at its end pose, grown by the thickness), gets a stiff one-sided spring along the surface
+// normal, `½ k min(d, 0)²` with `k = CONTACT_RATIO m (1/h² + γ/h)`, so that the solve knows what supports
+// the strand (a node pressed by its weight sinks `g h² / CONTACT_RATIO`). `spring` says whether it has
+// one, for the friction.
+fn add_contact_springs(inertia: f32) {
+    let first_collider = bitcast<u32>(head_row(3u).x);
+    let count = bitcast<u32>(head_row(3u).y);
+    let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
+    spring = 0.0;
+    for (var k = 0u; k < count; k++) {
+        let c = first_collider + k;
+        if !meets(c, thickness) {
+            continue;
+        }
+        let contact = touch(c, x, thickness);
+        if contact.distance >= CONTACT_GAP {
+            continue;
+        }
+        let i = lane;
+        let stiffness = CONTACT_RATIO * rest_at(i, 1u).y * inertia;
+        let n = contact.normal;
+        let pressed = stiffness * min(contact.distance, 0.0);
+        for (var a = 0u; a < 3u; a++) {
+            rhs[4u * i + a] += pressed * n[a];
+            for (var b = 0u; b <= a; b++) {
+                band[band_index(4u * i + a, 4u * i + b)] += stiffness * n[a] * n[b];
+            }
+        }
+        spring = 1.0;
     }
 }
 
+// Assembles the Newton system at the current iterate and factorises it; returns false where it does not
+// factorise even with the diagonal scaled by `1 + λ`, λ up to 1.
 fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
     let n = dofs();
+    let edges = edge_count();
+    let vertex = lane >= 1u && lane < edges;
     var regularisation = 0.0;
     loop {
-        for (var k = 0u; k < n * WIDTH; k++) {
+        workgroupBarrier();
+        for (var k = lane; k < n * WIDTH; k += LANES) {
             band[k] = 0.0;
         }
-        for (var k = 0u; k < n; k++) {
-            rhs[k] = 0.0;
-        }
         edge_frames();
-        let damped_scale = 1.0 + params.internal_damping / params.dt;
-        add_bending_and_twisting(damped_scale);
-        // Internal damping β/dt H (q − q̃) on the deformation since the first guess.
+        // Vertex `lane`'s bending and twisting: its forces `f`, stiffnesses `s` (over its Voronoi length),
+        // and internal damping `β/dt H (q − q̃)` on the deformation since the first guess, `g (g · Δq)`.
+        let stiffness = strand_floats[strand * STRAND_FLOATS];
+        var force = vec3<f32>(0.0);
+        var scaled = vec3<f32>(0.0);
+        if vertex {
+            let strain = vertex_strain();
+            let rest_bend = rest_at(lane, 0u);
+            let rest_twist = rest_at(lane, 1u).x;
+            scaled = stiffness.yzw / rest_bend.y;
+            force = scaled * (strain - vec3<f32>(rest_bend.zw, rest_twist));
+        }
         if iteration > 0u && params.internal_damping > 0.0 {
-            var d: array<f32, MAX_DOFS>;
-            for (var i = 0u; i < nodes; i++) {
-                let offset = x[i] - x_carried[i];
-                d[4u * i] = offset.x;
-                d[4u * i + 1u] = offset.y;
-                d[4u * i + 2u] = offset.z;
-                if i < edge_count() {
-                    d[4u * i + 3u] = theta[i] - theta_carried[i];
+            if own_node {
+                let offset = x - x_carried;
+                rhs[4u * lane] = offset.x;
+                rhs[4u * lane + 1u] = offset.y;
+                rhs[4u * lane + 2u] = offset.z;
+                if own_edge {
+                    rhs[4u * lane + 3u] = theta - theta_carried;
                 }
             }
-            band_product(&d);
-            let factor = params.internal_damping / params.dt / damped_scale;
-            for (var k = 0u; k < n; k++) {
-                rhs[k] += factor * product[k];
+            workgroupBarrier();
+            if vertex {
+                let offset = 4u * (lane - 1u);
+                var along = vec3<f32>(0.0);
+                for (var a = 0u; a < 11u; a++) {
+                    let d = rhs[offset + a];
+                    along += vec3<f32>(grad_k1[a], grad_k2[a], grad_tw[a]) * d;
+                }
+                force += params.internal_damping / params.dt * scaled * along;
             }
+            workgroupBarrier();
         }
-        let inertia = 1.0 / (h * h) + params.air_damping / h;
-        add_stretch_hessian(inertia);
-        // Inertia, drag relative to the air, gravity.
-        let gravity = vec3<f32>(params.gravity_x, params.gravity_y, params.gravity_z);
-        let air = head_row(2u).xyz;
-        for (var i = 0u; i < nodes; i++) {
-            let mass = rest_at(i, 1u).y;
-            let offset = x[i] - x_hat[i];
-            let relative = offset / h - air;
-            // The node's tangent at the step's start: the mean of its edges'.
-            var t: vec3<f32>;
-            if i == 0u {
-                t = normalize(x_start[1] - x_start[0]);
-            } else if i == edge_count() {
-                t = normalize(x_start[i] - x_start[i - 1u]);
-            } else {
-                let sum = normalize(x_start[i] - x_start[i - 1u]) + normalize(x_start[i + 1u] - x_start[i]);
-                t = select(normalize(x_start[i + 1u] - x_start[i]), normalize(sum), dot(sum, sum) > 1e-12);
+        for (var k = lane; k < n; k += LANES) {
+            rhs[k] = 0.0;
+        }
+        workgroupBarrier();
+        // Vertices three apart share no unknowns: three passes, each adding a third of them.
+        let damped_scale = 1.0 + params.internal_damping / params.dt;
+        for (var colour = 0u; colour < 3u; colour++) {
+            if vertex && lane % 3u == colour {
+                let offset = 4u * (lane - 1u);
+                let w = damped_scale * scaled;
+                for (var a = 0u; a < 11u; a++) {
+                    rhs[offset + a] += force.x * grad_k1[a] + force.y * grad_k2[a] + force.z * grad_tw[a];
+                    let row = offset + a;
+                    for (var b = 0u; b <= a; b++) {
+                        band[band_index(row, offset + b)] +=
+                            w.x * grad_k1[a] * grad_k1[b] + w.y * grad_k2[a] * grad_k2[b] + w.z * grad_tw[a] * grad_tw[b];
+                    }
+                }
             }
+            workgroupBarrier();
+        }
+        // Node `lane`'s own rows: the capped stretching stiffness of its edges' first-order change of
+        // length (`k t tᵀ` on both nodes' diagonal blocks, `−k t tᵀ` between them; no stretching force:
+        // lengths are the projection's), inertia, drag relative to the air, gravity, the style hold,
+        // contact springs, and its edge's twist inertia.
+        let inertia = 1.0 / (h * h) + params.air_damping / h;
+        if own_node {
+            let i = lane;
+            let stretching = strand_floats[strand * STRAND_FLOATS].x;
+            for (var side = 0u; side < 2u; side++) {
+                // Edge i − 1 (side 0) and edge i (side 1).
+                if (side == 0u && i == 0u) || (side == 1u && i >= edges) {
+                    continue;
+                }
+                let e = i + side - 1u;
+                let rest_length = rest_at(e, 0u).x;
+                let mass = 0.5 * (rest_at(e, 1u).y + rest_at(e + 1u, 1u).y);
+                let k = min(stretching / rest_length, params.stretch_ratio * mass * inertia);
+                let t = shared_t[e].xyz;
+                for (var a = 0u; a < 3u; a++) {
+                    for (var b = 0u; b < 3u; b++) {
+                        let value = k * t[a] * t[b];
+                        if side == 0u {
+                            band[band_index(4u * i + a, 4u * e + b)] -= value;
+                        }
+                        if b <= a {
+                            band[band_index(4u * i + a, 4u * i + b)] += value;
+                        }
+                    }
+                }
+            }
+            let gravity = vec3<f32>(params.gravity_x, params.gravity_y, params.gravity_z);
+            let air = head_row(2u).xyz;
+            let mass = rest_at(i, 1u).y;
+            let offset = x - x_hat;
+            let relative = offset / h - air;
+            let t = start_tangent;
             let gamma = mass * params.air_damping;
             let along = 1.0 - params.axial_drag_ratio;
             let drag_force = gamma * (relative - along * dot(t, relative) * t);
-            var residual = mass / (h * h) * (offset - h * v_hat[i]) + drag_force - mass * gravity;
+            var residual = mass / (h * h) * (offset - h * v_hat) + drag_force - mass * gravity;
             var diagonal = mass / (h * h) + gamma / h;
             // The style hold: `m k (x − x̄) + m c (v − v̄)` towards the groomed place carried with the head
             // (`Anchor` on the CPU); the root edge is prescribed.
@@ -745,7 +898,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                 let c = 2.0 * frequency;
                 let place = rotate(head_row(0u), held.xyz);
                 let place_velocity = (place - rotate(head_row(4u), held.xyz) - head_row(1u).xyz) / params.dt;
-                residual += mass * k * (x[i] - place) + mass * c * (offset / h - place_velocity);
+                residual += mass * k * (x - place) + mass * c * (offset / h - place_velocity);
                 diagonal += mass * (k + c / h);
             }
             for (var a = 0u; a < 3u; a++) {
@@ -758,53 +911,52 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                     band[band_index(4u * i + a, 4u * i + b)] += value;
                 }
             }
-        }
-        add_contact_springs(inertia);
-        // Twists by backward Euler.
-        let dt = params.dt;
-        for (var e = 0u; e < edge_count(); e++) {
-            let j = rest_at(e, 1u).z;
-            let offset = theta[e] - theta_start[e];
-            let dof = 4u * e + 3u;
-            rhs[dof] += j / (dt * dt) * (offset - dt * theta_rate[e]) + params.air_damping * j / dt * offset;
-            band[band_index(dof, dof)] += j * (1.0 / (dt * dt) + params.air_damping / dt);
-        }
-        if regularisation > 0.0 {
-            for (var k = 0u; k < n; k++) {
-                band[band_index(k, k)] *= 1.0 + regularisation;
+            add_contact_springs(inertia);
+            // Its edge's twist by backward Euler.
+            if own_edge {
+                let dt = params.dt;
+                let j = rest_at(i, 1u).z;
+                let twist_offset = theta - theta_start;
+                let dof = 4u * i + 3u;
+                rhs[dof] += j / (dt * dt) * (twist_offset - dt * theta_rate) + params.air_damping * j / dt * twist_offset;
+                band[band_index(dof, dof)] += j * (1.0 / (dt * dt) + params.air_damping / dt);
             }
         }
-        // The root edge prescribed: its unknowns move by their remaining displacement.
-        var prescribed: array<f32, 7>;
-        let p0 = root_target(0u) - x[0];
-        let p1 = root_target(1u) - x[1];
-        prescribed[0] = p0.x;
-        prescribed[1] = p0.y;
-        prescribed[2] = p0.z;
-        prescribed[3] = target_offset;
-        prescribed[4] = p1.x;
-        prescribed[5] = p1.y;
-        prescribed[6] = p1.z;
-        for (var r = 0u; r < min(n, 7u + BAND); r++) {
+        workgroupBarrier();
+        if regularisation > 0.0 {
+            for (var k = lane; k < n; k += LANES) {
+                band[band_index(k, k)] *= 1.0 + regularisation;
+            }
+            workgroupBarrier();
+        }
+        // The root edge prescribed: its unknowns move by their remaining displacement, and the rows below
+        // them feel it.
+        let p0 = root_target(0u) - shared_x[0].xyz;
+        let p1 = root_target(1u) - shared_x[1].xyz;
+        var prescribed = array<f32, 7>(p0.x, p0.y, p0.z, target_offset, p1.x, p1.y, p1.z);
+        let coupled = min(n, 7u + BAND);
+        if lane < coupled {
+            let r = lane;
             var coupling = 0.0;
             for (var c = 0u; c < 7u; c++) {
-                if (r >= c && r - c <= BAND) {
+                if r >= c && r - c <= BAND {
                     coupling += band[band_index(r, c)] * prescribed[c];
-                } else if (c > r && c - r <= BAND) {
+                } else if c > r && c - r <= BAND {
                     coupling += band[band_index(c, r)] * prescribed[c];
                 }
             }
             rhs[r] += coupling;
         }
-        for (var r = 0u; r < 7u; r++) {
-            for (var c = select(0u, r - BAND, r >= BAND); c < r; c++) {
+        workgroupBarrier();
+        if lane < coupled {
+            let r = lane;
+            for (var c = select(0u, r - BAND, r >= BAND); c < min(r, 7u); c++) {
                 band[band_index(r, c)] = 0.0;
             }
-            for (var below = r + 1u; below <= min(r + BAND, n - 1u); below++) {
-                band[band_index(below, r)] = 0.0;
+            if r < 7u {
+                band[band_index(r, r)] = 1.0;
+                rhs[r] = -prescribed[r];
             }
-            band[band_index(r, r)] = 1.0;
-            rhs[r] = -prescribed[r];
         }
         if factorize() {
             return true;
@@ -816,6 +968,51 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
         work_more.y += 1u;
     }
     return false;
+}
+
+// `L D Lᵀ` of the band in place, right-looking: for each column, its pivot `d` read by every lane, then
+// the 10 × 10 triangle below it updated by as many lanes, `A_im −= A_ij A_mj / d`. The column is left as
+// `L_ij d` (the solves divide), so one barrier a column. False at a non-positive pivot.
+fn factorize() -> bool {
+    let n = dofs();
+    for (var j = 0u; j < n; j++) {
+        let d = workgroupUniformLoad(&band[band_index(j, j)]);
+        if !(d > 0.0) || !finite(d) {
+            return false;
+        }
+        let i = j + update_row;
+        let m = j + update_column;
+        if update_row > 0u && i < n {
+            band[band_index(i, m)] -= band[band_index(i, j)] * band[band_index(m, j)] / d;
+        }
+    }
+    return true;
+}
+
+// Solves `L D Lᵀ y = rhs` in place (`L_ij = band(i, j) / band(j, j)`): forward, each solved unknown
+// pushed into the 10 below it by as many lanes; the diagonal; backward alike.
+fn solve() {
+    let n = dofs();
+    for (var j = 0u; j < n; j++) {
+        workgroupBarrier();
+        let i = j + lane;
+        if lane >= 1u && lane <= BAND && i < n {
+            rhs[i] -= band[band_index(i, j)] / band[band_index(j, j)] * rhs[j];
+        }
+    }
+    workgroupBarrier();
+    for (var k = lane; k < n; k += LANES) {
+        rhs[k] /= band[band_index(k, k)];
+    }
+    for (var step = 0u; step < n; step++) {
+        workgroupBarrier();
+        let i = n - 1u - step;
+        if lane >= 1u && lane <= BAND && i >= lane {
+            let r = i - lane;
+            rhs[r] -= band[band_index(i, r)] / band[band_index(r, r)] * rhs[i];
+        }
+    }
+    workgroupBarrier();
 }
 
 // The signed distance of `p` (head-relative) from collider `c` at its end pose grown by `thickness`, the
@@ -878,89 +1075,105 @@ fn touch(c: u32, p: vec3<f32>, thickness: f32) -> Touch {
     return result;
 }
 
-// Nodes inside a collider put on its surface; with `friction`, their slip over the step relative to the
-// collider (from where the node was at the start, in the collider's start frame) is cancelled up to μ times
-// the push (Macklin et al. 2014). Returns whether any node moved.
+// This lane's node, where inside a collider, put on its surface; with `friction`, its slip over the step
+// relative to the collider (from where the node was at the start, in the collider's start frame) is
+// cancelled up to μ times the push (Macklin et al. 2014). Returns whether any lane's node moved.
 fn push_out(friction: bool) -> bool {
-    let first = bitcast<u32>(head_row(3u).x);
+    let first_collider = bitcast<u32>(head_row(3u).x);
     let count = bitcast<u32>(head_row(3u).y);
     let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
     var moved = false;
     for (var k = 0u; k < count; k++) {
-        let c = first + k;
-        for (var i = first_met_node(c, thickness); i < nodes; i++) {
-            let contact = touch(c, x[i], thickness);
-            if contact.distance >= 0.0 {
-                continue;
-            }
-            var goal = contact.surface;
-            if friction {
-                let mu = colliders[c * COLLIDER_ROWS + 2u].w;
-                // Where the node started, carried with the collider to its end pose.
-                let start_local = inverse_rotate(colliders[c * COLLIDER_ROWS + 1u], x_start[i] - colliders[c * COLLIDER_ROWS].xyz);
-                let carried = colliders[c * COLLIDER_ROWS + 2u].xyz + rotate(colliders[c * COLLIDER_ROWS + 3u], start_local);
-                let slip = goal - carried;
-                let tangential = slip - dot(slip, contact.normal) * contact.normal;
-                // The normal push this step: the spring's force in the solve (as a displacement over the
-                // step, `k d h² / m = CONTACT_RATIO d`) and the push-out itself.
-                let limit = mu * -contact.distance * (1.0 + CONTACT_RATIO * springs[i]);
-                let size = length(tangential);
-                if size <= limit {
-                    goal -= tangential;
-                } else {
-                    goal -= tangential * (limit / size);
-                }
-                // Back onto the surface after the friction's tangential move.
-                let again = touch(c, goal, thickness);
-                if again.distance < 0.0 {
-                    goal = again.surface;
-                }
-            }
-            // Moved only by more than the position's rounding: a node left on the surface to within rounding
-            // ends the rounds.
-            let shift = length(goal - x[i]);
-            moved = moved || shift > MOVE_MARGIN * UNIT_ROUNDOFF * length(x[i]);
-            x[i] = goal;
-            normal[i] = contact.normal;
+        let c = first_collider + k;
+        if !meets(c, thickness) {
+            continue;
         }
+        let contact = touch(c, x, thickness);
+        if contact.distance >= 0.0 {
+            continue;
+        }
+        var goal = contact.surface;
+        if friction {
+            let mu = colliders[c * COLLIDER_ROWS + 2u].w;
+            // Where the node started, carried with the collider to its end pose.
+            let start_local = inverse_rotate(colliders[c * COLLIDER_ROWS + 1u], x_start - colliders[c * COLLIDER_ROWS].xyz);
+            let carried = colliders[c * COLLIDER_ROWS + 2u].xyz + rotate(colliders[c * COLLIDER_ROWS + 3u], start_local);
+            let slip = goal - carried;
+            let tangential = slip - dot(slip, contact.normal) * contact.normal;
+            // The normal push this step: the spring's force in the solve (as a displacement over the
+            // step, `k d h² / m = CONTACT_RATIO d`) and the push-out itself.
+            let limit = mu * -contact.distance * (1.0 + CONTACT_RATIO * spring);
+            let size = length(tangential);
+            if size <= limit {
+                goal -= tangential;
+            } else {
+                goal -= tangential * (limit / size);
+            }
+            // Back onto the surface after the friction's tangential move.
+            let again = touch(c, goal, thickness);
+            if again.distance < 0.0 {
+                goal = again.surface;
+            }
+        }
+        // Moved only by more than the position's rounding: a node left on the surface to within rounding
+        // ends the rounds.
+        let shift = length(goal - x);
+        moved = moved || shift > MOVE_MARGIN * UNIT_ROUNDOFF * length(x);
+        x = goal;
+        normal = contact.normal;
     }
-    return moved;
+    publish_nodes();
+    return largest_over_lanes(select(0.0, 1.0, moved)) > 0.0;
 }
 
+// This lane's node and edge back in the rest pose the strand was uploaded in, carried with its head.
 fn reset_to_rest() {
-    for (var i = 0u; i < nodes; i++) {
-        let pose = rest_at(i, 2u);
-        let frame = rest_at(i, 3u);
-        x[i] = rotate(head_row(0u), pose.xyz);
-        theta[i] = pose.w;
-        director[i] = rotate(head_row(0u), frame.xyz);
-        reference_twist[i] = frame.w;
-        x_hat[i] = x[i];
-        theta_start[i] = theta[i];
+    if own_node {
+        let pose = rest_at(lane, 2u);
+        let frame = rest_at(lane, 3u);
+        x = rotate(head_row(0u), pose.xyz);
+        theta = pose.w;
+        director = rotate(head_row(0u), frame.xyz);
+        reference_twist = frame.w;
+        x_hat = x;
+        theta_start = theta;
     }
+    publish_nodes();
 }
 
-// Whether a value is finite, from its bits: WGSL lets an implementation assume no NaN or infinity in
-// arithmetic and comparisons, so only the exponent's bits tell reliably.
-fn finite(v: f32) -> bool {
-    return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;
-}
-
-fn finite3(v: vec3<f32>) -> bool {
-    return finite(v.x) && finite(v.y) && finite(v.z);
-}
-
-@compute @workgroup_size(32)
-fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    strand = id.x + id.y * groups.x * WORKGROUP;
+@compute @workgroup_size(64)
+fn step(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+) {
+    strand = group.x + group.y * groups.x;
+    lane = local;
     if strand >= params.strands {
         return;
     }
     let words = strand_words[strand * STRAND_WORDS];
     nodes = words.x;
     head = words.y;
+    first = words.z;
     if nodes < 3u || nodes > MAX_NODES {
         return;
+    }
+    own_node = lane < nodes;
+    own_edge = lane + 1u < nodes;
+    // This lane's entry of the factorisation's trailing update: the `lane`th of the triangle below a pivot,
+    // row by row.
+    update_row = 0u;
+    update_column = 0u;
+    if lane < UPDATE_ENTRIES {
+        var row = 1u;
+        var before = 0u;
+        while before + row <= lane {
+            before += row;
+            row++;
+        }
+        update_row = row;
+        update_column = lane - before + 1u;
     }
     var flags = status[strand].x;
     if params.restart != 0u {
@@ -972,90 +1185,110 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let h = select(dt, 2.0 / 3.0 * dt, two_step);
 
     // 1. Load, shift to the head's new translation; the scheme's prediction.
-    for (var i = 0u; i < nodes; i++) {
-        let p = state[state_index(i, 0u)];
-        let v = state[state_index(i, 1u)];
-        x[i] = p.xyz + shift;
-        theta[i] = p.w;
-        theta_rate[i] = v.w;
-        x_start[i] = x[i];
-        theta_start[i] = p.w;
-        let frame = state[state_index(i, 4u)];
-        director[i] = frame.xyz;
-        reference_twist[i] = frame.w;
-        normal[i] = vec3<f32>(0.0);
+    if own_node {
+        let p = state[state_index(lane, 0u)];
+        let v = state[state_index(lane, 1u)];
+        x = p.xyz + shift;
+        theta = p.w;
+        theta_rate = v.w;
+        x_start = x;
+        theta_start = p.w;
+        let frame = state[state_index(lane, 4u)];
+        director = frame.xyz;
+        reference_twist = frame.w;
+        normal = vec3<f32>(0.0);
         if two_step {
-            let before = state[state_index(i, 2u)].xyz + shift;
-            let v_before = state[state_index(i, 3u)].xyz;
-            x_hat[i] = (4.0 * x[i] - before) / 3.0;
-            v_hat[i] = (4.0 * v.xyz - v_before) / 3.0;
+            let before = state[state_index(lane, 2u)].xyz + shift;
+            let v_before = state[state_index(lane, 3u)].xyz;
+            x_hat = (4.0 * x - before) / 3.0;
+            v_hat = (4.0 * v.xyz - v_before) / 3.0;
         } else {
-            x_hat[i] = x[i];
-            v_hat[i] = v.xyz;
+            x_hat = x;
+            v_hat = v.xyz;
         }
-        // The step's start velocity, kept for the history in `x_carried`'s place until the carry.
-        m2[i] = v.xyz;
+        v_start = v.xyz;
+        // The arc length of rest lengths from the root to this node.
+        arc = 0.0;
+        for (var e = 0u; e < lane; e++) {
+            arc += rest_at(e, 0u).x;
+        }
     }
-    for (var e = 0u; e < edge_count(); e++) {
-        tangent[e] = normalize(x[e + 1u] - x[e]);
+    publish_nodes();
+    if own_node {
+        // The node's tangent at the step's start (for the drag): the mean of its edges'.
+        let i = lane;
+        if i == 0u {
+            start_tangent = normalize(shared_x[1].xyz - x);
+        } else if i == edge_count() {
+            start_tangent = normalize(x - shared_x[i - 1u].xyz);
+        } else {
+            let before = normalize(x - shared_x[i - 1u].xyz);
+            let after = normalize(shared_x[i + 1u].xyz - x);
+            let sum = before + after;
+            start_tangent = select(after, normalize(sum), dot(sum, sum) > 1e-12);
+        }
+        // The history this step leaves: positions and velocities at its start.
+        state[state_index(i, 2u)] = vec4<f32>(x_start, 0.0);
+        state[state_index(i, 3u)] = vec4<f32>(v_start, 0.0);
     }
-    // The history this step leaves: positions and velocities at its start.
-    for (var i = 0u; i < nodes; i++) {
-        state[state_index(i, 2u)] = vec4<f32>(x_start[i], 0.0);
-        state[state_index(i, 3u)] = vec4<f32>(m2[i], 0.0);
+    if own_edge {
+        tangent = normalize(shared_x[lane + 1u].xyz - x);
     }
 
     // 2. The first guess: carried with the root.
     carry_with_root();
-    for (var i = 0u; i < nodes; i++) {
-        x_carried[i] = x[i];
-        theta_carried[i] = theta[i];
-    }
+    x_carried = x;
+    theta_carried = theta;
 
     // 3. Newton iterations.
     var fault = 0u;
     var fault_at = 0u;
     let target_tangent = normalize(root_target(1u) - root_target(0u));
     for (var iteration = 0u; iteration < params.newton_iterations; iteration++) {
-        let offset = root_twist_offset(target_tangent, root_target(2u));
+        let offset = from_lane_zero(root_twist_offset(target_tangent, root_target(2u)));
         if !assemble_and_factorize(iteration, h, offset) {
             fault = FAULT_NOT_DEFINITE;
             break;
         }
-        for (var k = 0u; k < dofs(); k++) {
+        workgroupBarrier();
+        for (var k = lane; k < dofs(); k += LANES) {
             rhs[k] = -rhs[k];
         }
         solve();
         // The trust region: no edge (but the root's) turns by more than `max_rotation`.
-        var largest = 0.0;
-        for (var e = 1u; e < edge_count(); e++) {
-            let d = x[e + 1u] - x[e];
+        var turn = 0.0;
+        if lane >= 1u && own_edge {
+            let e = lane;
+            let d = shared_x[e + 1u].xyz - shared_x[e].xyz;
             let change = vec3<f32>(rhs[4u * e + 4u], rhs[4u * e + 5u], rhs[4u * e + 6u])
                 - vec3<f32>(rhs[4u * e], rhs[4u * e + 1u], rhs[4u * e + 2u]);
             let along = dot(change, d) / dot(d, d);
-            let turn = length(change - along * d) / length(d) + max(-along - 0.5, 0.0);
-            largest = select(max(largest, turn), turn, !finite(turn));
+            turn = length(change - along * d) / length(d) + max(-along - 0.5, 0.0);
         }
+        let largest = largest_over_lanes(turn);
         if !finite(largest) {
             fault = FAULT_NON_FINITE;
             break;
         }
         let fraction = select(1.0, params.max_rotation / largest, largest > params.max_rotation);
-
-        for (var i = 0u; i < nodes; i++) {
-            x[i] += fraction * vec3<f32>(rhs[4u * i], rhs[4u * i + 1u], rhs[4u * i + 2u]);
-            if i < edge_count() {
-                theta[i] += fraction * rhs[4u * i + 3u];
+        if own_node {
+            x += fraction * vec3<f32>(rhs[4u * lane], rhs[4u * lane + 1u], rhs[4u * lane + 2u]);
+            if own_edge {
+                theta += fraction * rhs[4u * lane + 3u];
             }
         }
         work_steps.y += 1u;
         let last = iteration + 1u == params.newton_iterations;
         if last {
             // Exactly on the root's targets.
-            x[0] = root_target(0u);
-            x[1] = root_target(1u);
-            theta[0] += root_twist_offset(target_tangent, root_target(2u));
+            if lane == 0u {
+                x = root_target(0u);
+                theta += root_twist_offset(target_tangent, root_target(2u));
+            } else if lane == 1u {
+                x = root_target(1u);
+            }
         }
+        publish_nodes();
         // Before another iteration the lengths need only be near enough for its linearisation (its solve
         // has no stretching force): one projection iteration, which takes the update's second-order
         // stretch (½ turn², up to 5e-3) to ~1e-5. After the last, as exact as single precision resolves.
@@ -1071,9 +1304,7 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     // (status bit `CONTACT_GIVEN_UP`): it stays whole and comes out as far as it can in later steps.
     flags = flags & ~CONTACT_GIVEN_UP;
     if fault == 0u && bitcast<u32>(head_row(3u).y) > 0u {
-        for (var i = 0u; i < nodes; i++) {
-            x_carried[i] = x[i];
-        }
+        x_carried = x;
         for (var round = 0u; round < params.contact_rounds; round++) {
             work_more.x += 1u;
             if !push_out(round == 0u) {
@@ -1083,11 +1314,10 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
         }
         let pushed = largest_strain().x;
         if !(pushed <= params.strain_bound) {
-            for (var i = 0u; i < nodes; i++) {
-                x[i] = x_carried[i];
-                normal[i] = vec3<f32>(0.0);
-            }
+            x = x_carried;
+            normal = vec3<f32>(0.0);
             flags = flags | CONTACT_GIVEN_UP;
+            publish_nodes();
         }
         refresh_frames();
     }
@@ -1095,12 +1325,11 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     // 5. Checks.
     var strain = largest_strain();
     if fault == 0u {
-        for (var i = 0u; i < nodes; i++) {
-            if !finite3(x[i]) || !finite(theta[i]) {
-                fault = FAULT_NON_FINITE;
-                fault_at = i;
-                break;
-            }
+        let bad = own_node && (!finite3(x) || !finite(theta));
+        let at = smallest_over_lanes(select(0xffffffffu, lane, bad));
+        if at != 0xffffffffu {
+            fault = FAULT_NON_FINITE;
+            fault_at = at;
         }
     }
     if fault == 0u && (!finite(strain.x) || strain.x > params.strain_bound) {
@@ -1111,9 +1340,7 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     let failing_strain = strain.x;
     if fault != 0u {
         reset_to_rest();
-        for (var i = 0u; i < nodes; i++) {
-            x_start[i] = x[i];
-        }
+        x_start = x;
         flags = flags & ~HAS_HISTORY;
         strain = largest_strain();
     } else {
@@ -1121,29 +1348,29 @@ fn step(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) g
     }
 
     // 6. Velocities and the state written back.
-    let count = nodes;
     let stopped = fault != 0u;
-    for (var i = 0u; i < count; i++) {
-        let p = x[i];
-        let v = select((p - x_hat[i]) / h, vec3<f32>(0.0), stopped);
-        let rate = select((theta[i] - theta_start[i]) / dt, 0.0, stopped);
-        state[state_index(i, 0u)] = vec4<f32>(p, theta[i]);
-        state[state_index(i, 1u)] = vec4<f32>(v, rate);
-        state[state_index(i, 4u)] = vec4<f32>(director[i], reference_twist[i]);
+    if own_node {
+        let v = select((x - x_hat) / h, vec3<f32>(0.0), stopped);
+        let rate = select((theta - theta_start) / dt, 0.0, stopped);
+        state[state_index(lane, 0u)] = vec4<f32>(x, theta);
+        state[state_index(lane, 1u)] = vec4<f32>(v, rate);
+        state[state_index(lane, 4u)] = vec4<f32>(director, reference_twist);
     }
-    // The failed steps' count keeps the last one's reason in its top bits, and `y` where it was, so that a
-    // read-back every few steps still says why.
-    let before = status[strand];
-    var failures = before.w;
-    var at = before.y;
-    if stopped {
-        failures = (((failures & FAULT_COUNT) + 1u) & FAULT_COUNT) | (fault << 28u);
-        at = fault_at;
+    if lane == 0u {
+        // The failed steps' count keeps the last one's reason in its top bits, and `y` where it was, so
+        // that a read-back every few steps still says why.
+        let before = status[strand];
+        var failures = before.w;
+        var at = before.y;
+        if stopped {
+            failures = (((failures & FAULT_COUNT) + 1u) & FAULT_COUNT) | (fault << 28u);
+            at = fault_at;
+        }
+        let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
+        status[strand] = vec4<u32>((flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault, at, bitcast<u32>(reported), failures);
+        work_steps.x = 1u;
+        let row = strand * WORK_ROWS;
+        work[row] = work[row] + work_steps;
+        work[row + 1u] = work[row + 1u] + work_more;
     }
-    let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
-    status[strand] = vec4<u32>((flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault, at, bitcast<u32>(reported), failures);
-    work_steps.x = 1u;
-    let row = strand * WORK_ROWS;
-    work[row] = work[row] + work_steps;
-    work[row + 1u] = work[row + 1u] + work_more;
 }
