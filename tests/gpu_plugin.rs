@@ -15,6 +15,7 @@ use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::ExitCondition;
+use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
 use bevy_hair_sim::simulation::SteppedElsewhere;
@@ -210,16 +211,23 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     );
     assert!(largest <= DRAWN_TOLERANCE, "drawn node {node} is {largest} m from where the read-back hair puts it");
 
-    // A strand too long for the GPU's private arrays stays on the CPU, on its own head, and is stepped.
+    // A strand of 49 nodes (past the 40 a GPU strand had before its workgroup's lanes carried it) goes to
+    // the GPU; one longer than a workgroup's 64 lanes stays on the CPU, on its own head, and is stepped.
     gpu.world_mut().resource_mut::<HairPause>().paused = false;
     let other = gpu.world_mut().spawn((HairHead, Transform::from_xyz(1.0, 1.6, 0.0))).id();
-    let long = gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.3, 48), StrandOf(other))).id();
+    let longer = gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.3, 48), StrandOf(other))).id();
+    // (On a head of its own: a head with strands on both sides has its components read back every step.)
+    let third = gpu.world_mut().spawn((HairHead, Transform::from_xyz(-1.0, 1.6, 0.0))).id();
+    let too_long = MAX_GPU_NODES;
+    let long =
+        gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.3, too_long), StrandOf(third))).id();
     for number in SHAKING_STEPS + 2..SHAKING_STEPS + 12 {
         step(&mut gpu, gpu_head, number);
     }
-    assert!(gpu.world().get::<SteppedElsewhere>(long).is_none());
-    assert!(gpu.world().get::<StrandNodes>(long).unwrap().positions[48].y < 1.69, "the long strand sags");
-    assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 64);
+    assert!(gpu.world().get::<SteppedElsewhere>(longer).is_some(), "49 nodes are the GPU's");
+    assert!(gpu.world().get::<SteppedElsewhere>(long).is_none(), "{} nodes are the CPU's", too_long + 1);
+    assert!(gpu.world().get::<StrandNodes>(long).unwrap().positions[too_long].y < 1.69, "the long strand sags");
+    assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 65);
 
     // Turned off, every strand is the CPU's again, from its last read-back state, and steps on.
     gpu.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
@@ -251,9 +259,13 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
         step(&mut gpu, gpu_head, number);
     }
     assert!(gpu.world().get::<SteppedElsewhere>(folded).is_none(), "the folded guide went to the GPU");
-    assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 63, "the other guides are on the GPU");
+    assert_eq!(
+        gpu.world().resource::<HairGpuStatus>().strands,
+        64,
+        "the other guides and the strand of 49 nodes are on the GPU"
+    );
 
-    // Settings changed in play, after three uploads (64 guides, none, 63): the step's pipelines were built
+    // Settings changed in play, after four uploads (64 guides, 65 strands, none, 64): the step's pipelines were built
     // once, at the first, and never again (a shader compiled in play is a hitch).
     gpu.world_mut().resource_mut::<HairSettings>().air_damping *= 2.0;
     for number in SHAKING_STEPS + 23..SHAKING_STEPS + 26 {

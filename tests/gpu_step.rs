@@ -43,11 +43,22 @@ fn cantilever(root: DVec3, length: f64, edges: usize, material: RodMaterial) -> 
 
 #[test]
 fn heavy_cantilever_settles_where_the_cpu_does() {
+    settles_where_the_cpu_does(24);
+}
+
+/// A strand of 64 nodes, a workgroup's lanes full (`MAX_GPU_NODES`): the band of 255 unknowns, the
+/// factorisation's last columns and the cyclic reduction over 63 edges.
+#[test]
+fn a_cantilever_of_64_nodes_settles_where_the_cpu_does() {
+    settles_where_the_cpu_does(bevy_hair_sim::gpu::MAX_GPU_NODES - 1);
+}
+
+fn settles_where_the_cpu_does(edges: usize) {
     let (device, queue) = device();
     // An 80 cm rod (r = 1 mm, E = 10 GPa): its weight bends it far past small deflection
     // (q L³ / EI = 2.0), held 1.6 m up, away from the origin.
     let root = DVec3::new(0.3, 1.6, -0.2);
-    let (length, edges) = (0.8, 24);
+    let length = 0.8;
     let mut rod = cantilever(root, length, edges, common::stiff_rod_material());
     let params = StepParams { dt: 1.0 / 60.0, air_damping: 5.0, ..Default::default() };
     let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None };
