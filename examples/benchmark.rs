@@ -188,6 +188,9 @@ mod gpu {
 
     use super::{Scene, WARM_UP_STEPS, groomed_head, move_head};
 
+    /// How long a row of the table steps before it stops short of its steps, s.
+    const ROW_SECONDS: f64 = 20.0;
+
     /// The follower placement's shader, as the renderer loads it.
     const FOLLOWERS_SHADER: &str = include_str!("../src/render/followers.wgsl");
 
@@ -196,7 +199,8 @@ mod gpu {
     /// followers' part (the guides gathered from the step's buffers, the followers placed in their frames
     /// and pushed out of the skull, every drawn node written for the frame), and of 10 000 guides × 32 edges
     /// and 50 000 (up to `largest` guides) without followers. The guides come from the plugin's groom, moved
-    /// as the other tables move their head; `steps` steps per row after two untimed ones. Each row also
+    /// as the other tables move their head; `steps` steps per row after two untimed ones (fewer, three at
+    /// least, once the row has run `ROW_SECONDS`). Each row also
     /// prints the work the shader counted per strand-step (Newton iterations, projection iterations,
     /// contact rounds; the busiest strand's projection iterations, which its warp waits for) and the bytes
     /// a step moves: uploaded (parameters, the head's pose and colliders) and, where read back, read back.
@@ -435,7 +439,14 @@ mod gpu {
                 })
             });
             let mut wall = [0.0; 2];
+            // Steps timed: `steps`, or fewer (three at least) once a row has run `ROW_SECONDS` (a software
+            // adapter takes seconds a step).
+            let mut taken = 0;
+            let row_started = Instant::now();
             for step in 0..steps + 2 {
+                if taken >= 3 && row_started.elapsed().as_secs_f64() > ROW_SECONDS {
+                    break;
+                }
                 let (translation, rotation) = Scene::head_pose(WARM_UP_STEPS + 1 + step);
                 let mut head = GpuHeadStep {
                     rotation: rotation.as_dquat(),
@@ -482,6 +493,7 @@ mod gpu {
                     queue.submit([encoder.finish()]);
                 }
                 if timed {
+                    taken += 1;
                     wall[0] += (stepped - started).as_secs_f64();
                     if self.followers.is_some() {
                         wall[1] += stepped.elapsed().as_secs_f64();
@@ -496,9 +508,9 @@ mod gpu {
             }
             let work = self.solver.read_work(device, queue);
             let Some(queries) = queries else {
-                return (wall.map(|seconds| seconds / steps as f64), work);
+                return (wall.map(|seconds| seconds / taken as f64), work);
             };
-            let count = 3 * steps as u64;
+            let count = 3 * taken as u64;
             let resolved = device.create_buffer(&wgpu::BufferDescriptor {
                 label: None,
                 size: 8 * count,
@@ -527,7 +539,7 @@ mod gpu {
             if self.followers.is_none() {
                 gpu[1] = 0.0;
             }
-            (gpu.map(|seconds| seconds / steps as f64), work)
+            (gpu.map(|seconds| seconds / taken as f64), work)
         }
     }
 

@@ -1,5 +1,5 @@
 //! The strand step on the GPU: the same discrete elastic rods as [`crate::rod`], stepped in a WGSL compute
-//! shader (`step.wgsl`) in single precision, one invocation per strand (`gpu` feature). In an app,
+//! shader (`step.wgsl`) in single precision, one workgroup of 64 lanes per strand (`gpu` feature). In an app,
 //! [`HairGpuPlugin`](crate::render::HairGpuPlugin) runs it on Bevy's device; [`GpuStrandSolver`] runs it on
 //! any wgpu device, with the pipelines of [`GpuStepPipelines`] built once per device.
 //!
@@ -8,9 +8,18 @@
 //! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
 //! inextensibility, contact with the head's spheres, capsules, ellipsoids and planes with Coulomb
 //! friction, and the style hold (springs towards each strand's groomed places carried with its head,
-//! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU). The banded Newton system of each strand (half-bandwidth 10, ≤ 255 unknowns) is assembled and
-//! factorised (`L D Lᵀ`) in the invocation's private memory; buffers are vertex-major, so neighbouring
-//! invocations read neighbouring memory.
+//! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU).
+//!
+//! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns node `i` and edge `i`
+//! (up to [`MAX_GPU_NODES`], 64, nodes), their state in its registers. The banded Newton system
+//! (half-bandwidth 10, up to 255 unknowns) lives in workgroup memory (15.4 kB of the 16 kB WebGPU
+//! guarantees): each lane assembles its vertex's bending and twisting (three passes, so that vertices
+//! sharing unknowns never add at once) and its node's inertia, drag, stretching, hold and contact rows;
+//! the `L D Lᵀ` factorisation goes column by column, the 55 entries of each column's trailing update made by
+//! as many lanes, and the substitutions push each solved unknown into the ten below it. The projection's
+//! tridiagonal system (one equation per edge) is solved by parallel cyclic reduction in six rounds for 64
+//! nodes. Buffers are row planes of node-contiguous strands, so a workgroup's lanes read neighbouring
+//! memory and no strand is padded to the longest.
 //!
 //! **Single precision, and what differs from the CPU.** WebGPU has no `f64`. Three choices keep the step
 //! honest in `f32`:

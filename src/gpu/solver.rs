@@ -72,7 +72,7 @@ pub enum GpuStepError {
     /// No adapter or device (no GPU, no software Vulkan).
     #[error("no GPU adapter or device: {0}")]
     NoDevice(String),
-    /// A strand with more nodes than the shader's private arrays hold, or fewer than three.
+    /// A strand with more nodes than a workgroup has lanes ([`MAX_GPU_NODES`]), or fewer than three.
     #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
     NodeCount {
         /// The strand's index in the input.

@@ -13,7 +13,7 @@
 //   3. Newton iterations on `(M/h² + D/h + (1 + β/dt) H) Δq = −[M (q − x̂ − h v̂)/h² + D ((q − x̂)/h − u)
 //      + ∇E + β/dt H (q − q̃) − M g]` over `(x₀, θ⁰, x₁, …)`, the root edge prescribed: assembled one
 //      vertex per lane, the band (half-bandwidth 10) in workgroup memory, factorised `L D Lᵀ` column by
-//      column with the trailing 10 × 10 update spread over the lanes, each update within a trust region
+//      column with the trailing 10 × 10 update spread over the lanes (the substitutions by one lane), each update within a trust region
 //      and the frames carried (time-parallel transport), each followed by a projection onto the edges'
 //      rest lengths (Goldenthal et al. 2007) whose tridiagonal system is solved by parallel cyclic
 //      reduction: one iteration between Newton iterations, after the last until single precision
@@ -27,8 +27,8 @@
 //   6. velocities `v = (x − x̂)/h`, twist rates by backward Euler, and the history for the next step.
 //
 // Every decision that ends a loop (a pivot, the projection's error, a contact round) is taken from a
-// value all lanes read after a barrier (`workgroupUniformLoad`), so the lanes of a strand never diverge
-// around a barrier.
+// value all lanes read after a barrier (a reduction over the lanes, a pivot in workgroup memory), so the
+// lanes of a strand never diverge around a barrier.
 
 struct Params {
     dt: f32,
@@ -299,23 +299,25 @@ fn finite3(v: vec3<f32>) -> bool {
     return finite(v.x) && finite(v.y) && finite(v.z);
 }
 
-// The largest of every lane's `value` (not negative; a value that is not finite counts as +∞), the same
-// in every lane.
+// The reductions over the lanes: `reduced` holds 0 between them (for `largest_over_lanes`); each ends
+// with every lane's read done (a barrier) before lane 0 resets it. Every lane gets the same value, so the
+// decisions taken on it keep the lanes together (WGSL's uniformity analysis cannot see that, and Naga does
+// not ask for it).
+
+// The largest of every lane's `value` (not negative; a value that is not finite counts as +∞).
 fn largest_over_lanes(value: f32) -> f32 {
+    workgroupBarrier();
+    atomicMax(&reduced, select(INFINITE_BITS, bitcast<u32>(max(value, 0.0)), finite(value)));
+    workgroupBarrier();
+    let largest = atomicLoad(&reduced);
     workgroupBarrier();
     if lane == 0u {
         atomicStore(&reduced, 0u);
     }
-    workgroupBarrier();
-    atomicMax(&reduced, select(INFINITE_BITS, bitcast<u32>(max(value, 0.0)), finite(value)));
-    workgroupBarrier();
-    if lane == 0u {
-        spoken = atomicLoad(&reduced);
-    }
-    return bitcast<f32>(workgroupUniformLoad(&spoken));
+    return bitcast<f32>(largest);
 }
 
-// The smallest of every lane's `value`, the same in every lane.
+// The smallest of every lane's `value`.
 fn smallest_over_lanes(value: u32) -> u32 {
     workgroupBarrier();
     if lane == 0u {
@@ -324,10 +326,12 @@ fn smallest_over_lanes(value: u32) -> u32 {
     workgroupBarrier();
     atomicMin(&reduced, value);
     workgroupBarrier();
+    let smallest = atomicLoad(&reduced);
+    workgroupBarrier();
     if lane == 0u {
-        spoken = atomicLoad(&reduced);
+        atomicStore(&reduced, 0u);
     }
-    return workgroupUniformLoad(&spoken);
+    return smallest;
 }
 
 // Lane 0's `value`, in every lane.
@@ -336,7 +340,8 @@ fn from_lane_zero(value: f32) -> f32 {
     if lane == 0u {
         spoken = bitcast<u32>(value);
     }
-    return bitcast<f32>(workgroupUniformLoad(&spoken));
+    workgroupBarrier();
+    return bitcast<f32>(spoken);
 }
 
 // Every lane's node (position, θ) into `shared_x`, for its neighbours.
@@ -972,12 +977,15 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
 
 // `L D Lᵀ` of the band in place, right-looking: for each column, its pivot `d` read by every lane, then
 // the 10 × 10 triangle below it updated by as many lanes, `A_im −= A_ij A_mj / d`. The column is left as
-// `L_ij d` (the solves divide), so one barrier a column. False at a non-positive pivot.
+// `L_ij d` (the solves divide), so one barrier a column. False at a non-positive pivot (every lane reads
+// the same pivot, so all return together).
 fn factorize() -> bool {
     let n = dofs();
     for (var j = 0u; j < n; j++) {
-        let d = workgroupUniformLoad(&band[band_index(j, j)]);
+        workgroupBarrier();
+        let d = band[band_index(j, j)];
         if !(d > 0.0) || !finite(d) {
+            workgroupBarrier();
             return false;
         }
         let i = j + update_row;
@@ -989,27 +997,28 @@ fn factorize() -> bool {
     return true;
 }
 
-// Solves `L D Lᵀ y = rhs` in place (`L_ij = band(i, j) / band(j, j)`): forward, each solved unknown
-// pushed into the 10 below it by as many lanes; the diagonal; backward alike.
+// Solves `L D Lᵀ y = rhs` in place (`L_ij = band(i, j) / d_j`, `d_j = band(j, j)`), by lane 0 alone: the
+// substitutions are chains of dependent steps (ten multiply-adds a row), which lanes would only pass to
+// each other through a barrier a row. Forward and diagonal together, `y_i = (rhs_i − Σ_k band(i, k) y_k) / d_i`;
+// backward `x_i = y_i − Σ_k band(k, i) x_k / d_i`.
 fn solve() {
     let n = dofs();
-    for (var j = 0u; j < n; j++) {
-        workgroupBarrier();
-        let i = j + lane;
-        if lane >= 1u && lane <= BAND && i < n {
-            rhs[i] -= band[band_index(i, j)] / band[band_index(j, j)] * rhs[j];
-        }
-    }
     workgroupBarrier();
-    for (var k = lane; k < n; k += LANES) {
-        rhs[k] /= band[band_index(k, k)];
-    }
-    for (var step = 0u; step < n; step++) {
-        workgroupBarrier();
-        let i = n - 1u - step;
-        if lane >= 1u && lane <= BAND && i >= lane {
-            let r = i - lane;
-            rhs[r] -= band[band_index(i, r)] / band[band_index(r, r)] * rhs[i];
+    if lane == 0u {
+        for (var i = 0u; i < n; i++) {
+            var sum = rhs[i];
+            for (var k = select(0u, i - BAND, i >= BAND); k < i; k++) {
+                sum -= band[band_index(i, k)] * rhs[k];
+            }
+            rhs[i] = sum / band[band_index(i, i)];
+        }
+        for (var step = 0u; step < n; step++) {
+            let i = n - 1u - step;
+            var sum = 0.0;
+            for (var k = i + 1u; k <= min(i + BAND, n - 1u); k++) {
+                sum += band[band_index(k, i)] * rhs[k];
+            }
+            rhs[i] -= sum / band[band_index(i, i)];
         }
     }
     workgroupBarrier();

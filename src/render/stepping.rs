@@ -30,7 +30,7 @@ use crate::simulation::{
 use crate::wind::{HairWind, HairWindSource};
 
 /// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
-/// compute invocation per strand), on the device of Bevy's renderer. Add it after [`crate::HairPlugin`],
+/// workgroup per strand), on the device of Bevy's renderer. Add it after [`crate::HairPlugin`],
 /// with Bevy's renderer, in the same schedule (`FixedUpdate` by default):
 ///
 /// ```no_run
