@@ -40,6 +40,19 @@ pub fn compute_pipeline(
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
+    pipeline_of_module(device, label, &module, entry, layout, &wgpu::PipelineCompilationOptions::default())
+}
+
+/// The compute pipeline of `entry` in a compiled `module`, with the one bind group `layout` and `options`
+/// (the values of its `override` constants, say).
+pub fn pipeline_of_module(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    layout: &wgpu::BindGroupLayout,
+    options: &wgpu::PipelineCompilationOptions,
+) -> wgpu::ComputePipeline {
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
         bind_group_layouts: &[Some(layout)],
@@ -48,9 +61,9 @@ pub fn compute_pipeline(
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
         layout: Some(&pipeline_layout),
-        module: &module,
+        module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: options.clone(),
         cache: None,
     })
 }

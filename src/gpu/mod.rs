@@ -58,7 +58,7 @@
 mod compute;
 mod solver;
 
-pub use compute::{bind_whole_buffers, compute_layout, compute_pipeline};
+pub use compute::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
 pub use solver::{
     GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep,
     GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,

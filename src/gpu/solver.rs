@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use bevy::math::{DQuat, DVec2, DVec3};
 use wgpu::util::DeviceExt;
 
-use super::compute::{bind_whole_buffers, compute_layout, compute_pipeline};
+use super::compute::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
 
 use crate::rod::{
     ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
@@ -18,10 +18,13 @@ use crate::rod::{
 const GATHER_WORKGROUP: u32 = 64;
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
-/// The most nodes a strand stepped on the GPU may have: one workgroup of 64 lanes steps a strand, lane `i`
-/// owning node `i` (`LANES` in `step.wgsl`), its band of up to 255 unknowns in 15.4 kB of workgroup memory
-/// (WebGPU guarantees 16 kB).
-pub const MAX_GPU_NODES: usize = 64;
+/// Lanes of the step's two pipelines (`LANES` in `step.wgsl`): one workgroup steps a strand, lane `i` owning
+/// edge `i`; strands of up to 32 edges (a game's guides) go to workgroups of 32 lanes, one warp, the others
+/// to workgroups of 64.
+const STEP_LANES: [usize; 2] = [32, 64];
+/// The most nodes a strand stepped on the GPU may have: 64 edges, one per lane of the wider pipeline, the
+/// band of up to 259 unknowns in 15.5 kB of workgroup memory (WebGPU guarantees 16 kB).
+pub const MAX_GPU_NODES: usize = 65;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 5;
@@ -359,8 +362,9 @@ pub const STEP_SHADER: &str = include_str!("step.wgsl");
 /// pipeline, and the heads' poses the strands were last stepped to.
 pub struct GpuStrandSolver {
     pipelines: Arc<GpuStepPipelines>,
-    bind_group: wgpu::BindGroup,
-    params: wgpu::Buffer,
+    /// Per pipeline of [`STEP_LANES`]: its bind group, and its parameters (which list it steps).
+    bind_groups: [wgpu::BindGroup; 2],
+    params: [wgpu::Buffer; 2],
     state: wgpu::Buffer,
     status: wgpu::Buffer,
     heads: wgpu::Buffer,
@@ -392,7 +396,8 @@ pub struct GpuStrandSolver {
 /// its first upload and never again.
 pub struct GpuStepPipelines {
     layout: wgpu::BindGroupLayout,
-    step: wgpu::ComputePipeline,
+    /// The step with 32 lanes a workgroup and with 64 ([`STEP_LANES`]).
+    steps: [wgpu::ComputePipeline; 2],
     gather: Gather,
 }
 
@@ -403,8 +408,18 @@ impl GpuStepPipelines {
         // (read); status, work counters (written).
         let read_only = [true, true, true, false, true, true, false, false];
         let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
-        let step = compute_pipeline(device, "hair strand step", STEP_SHADER, "step", &layout);
-        Arc::new(Self { layout, step, gather: Gather::new(device) })
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("hair strand step"),
+            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
+        });
+        let steps = STEP_LANES.map(|lanes| {
+            let constants = [("LANES", lanes as f64)];
+            // The step writes every workgroup value before it reads it.
+            let options =
+                wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
+            pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
+        });
+        Arc::new(Self { layout, steps, gather: Gather::new(device) })
     }
 }
 
@@ -421,12 +436,14 @@ pub struct GpuStrandUpload {
 }
 
 /// Nodes of each strand, where each starts in the row planes, their sum (a plane's length, at least 1),
-/// and the head of each.
+/// how many each pipeline steps, and the head of each.
 #[derive(Debug)]
 struct StrandLayout {
     node_counts: Vec<usize>,
     first_nodes: Vec<usize>,
     total_nodes: usize,
+    /// Strands stepped by each pipeline of [`STEP_LANES`] (listed in that order).
+    list_lengths: [usize; 2],
     strand_heads: Vec<usize>,
 }
 
@@ -489,6 +506,13 @@ impl GpuStrandUpload {
         let total = strands.iter().map(|s| s.rod.node_count()).sum::<usize>().max(1);
         let padded = strand_count.max(1);
         let mut words = vec![[0_u32; 4]; padded];
+        // The dispatch lists (`w` of the words): the strands that fit the narrower workgroups, then the rest.
+        let narrow = |strand: &GpuStrandInput| strand.rod.node_count() <= STEP_LANES[0] + 1;
+        let lists: Vec<usize> = (0..strand_count)
+            .filter(|&s| narrow(&strands[s]))
+            .chain((0..strand_count).filter(|&s| !narrow(&strands[s])))
+            .collect();
+        let narrow_count = strands.iter().filter(|strand| narrow(strand)).count();
         let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
         let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
         let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
@@ -499,7 +523,7 @@ impl GpuStrandUpload {
             let local = |world: DVec3| inverse * (world - translation);
             let nodes = rod.node_count();
             let first = first_nodes[s];
-            words[s] = [nodes as u32, strand.head as u32, first as u32, 0];
+            words[s] = [nodes as u32, strand.head as u32, first as u32, lists[s] as u32];
             let stiffness = rod.stiffness();
             let constraints = rod.constraints();
             floats[s * STRAND_FLOATS] = [
@@ -562,6 +586,7 @@ impl GpuStrandUpload {
                 node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
                 first_nodes,
                 total_nodes: total,
+                list_lengths: [narrow_count, strand_count - narrow_count],
                 strand_heads: strands.iter().map(|s| s.head).collect(),
             }),
             head_poses: head_poses.to_vec(),
@@ -612,21 +637,25 @@ impl GpuStrandSolver {
             &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity],
             wgpu::BufferUsages::COPY_DST,
         );
-        let params = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hair step parameters"),
-            size: PARAMS_BYTES,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        let params = [(); 2].map(|_| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair step parameters"),
+                size: PARAMS_BYTES,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
         });
-        let bind_group = bind_whole_buffers(
-            device,
-            "hair strand step",
-            &pipelines.layout,
-            &[&params, &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
-        );
+        let bind_groups = [0, 1].map(|class| {
+            bind_whole_buffers(
+                device,
+                "hair strand step",
+                &pipelines.layout,
+                &[&params[class], &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
+            )
+        });
         Self {
             pipelines: pipelines.clone(),
-            bind_group,
+            bind_groups,
             params,
             state,
             status,
@@ -742,22 +771,24 @@ impl GpuStrandSolver {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_group = bind_whole_buffers(
-                device,
-                "hair strand step",
-                &self.pipelines.layout,
-                &[
-                    &self.params,
-                    &self.strand_words,
-                    &self.strand_floats,
-                    &self.rest,
-                    &self.state,
-                    &self.heads,
-                    &self.colliders,
-                    &self.status,
-                    &self.work,
-                ],
-            );
+            self.bind_groups = [0, 1].map(|class| {
+                bind_whole_buffers(
+                    device,
+                    "hair strand step",
+                    &self.pipelines.layout,
+                    &[
+                        &self.params[class],
+                        &self.strand_words,
+                        &self.strand_floats,
+                        &self.rest,
+                        &self.state,
+                        &self.heads,
+                        &self.colliders,
+                        &self.status,
+                        &self.work,
+                    ],
+                )
+            });
         }
         if !self.collider_rows.is_empty() {
             queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
@@ -766,7 +797,7 @@ impl GpuStrandSolver {
         let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;
         self.last_dt = params.dt;
         let gravity = params.gravity.as_vec3();
-        let words: [u32; 20] = [
+        let mut words: [u32; 20] = [
             (params.dt as f32).to_bits(),
             gravity.x.to_bits(),
             gravity.y.to_bits(),
@@ -788,16 +819,25 @@ impl GpuStrandSolver {
             0,
             0,
         ];
-        queue.write_buffer(&self.params, 0, bytemuck::cast_slice(&words));
-        // One workgroup per strand.
-        let (x, y) = workgroups(self.strand_count as u32, 1);
+        // One workgroup per strand, in one pass: the strands of each pipeline's list.
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
             timestamp_writes: None,
         });
-        pass.set_pipeline(&self.pipelines.step);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups(x, y, 1);
+        let mut start = 0;
+        for (class, &length) in self.strands.list_lengths.iter().enumerate() {
+            words[18] = start as u32;
+            words[19] = length as u32;
+            queue.write_buffer(&self.params[class], 0, bytemuck::cast_slice(&words));
+            start += length;
+            if length == 0 {
+                continue;
+            }
+            let (x, y) = workgroups(length as u32, 1);
+            pass.set_pipeline(&self.pipelines.steps[class]);
+            pass.set_bind_group(0, &self.bind_groups[class], &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
         Ok(())
     }
 

@@ -2,8 +2,9 @@
 // CPU's step (`src/rod/solver.rs`) with inextensibility by projection instead of a stiff stretching term
 // in the solve (see `src/gpu/mod.rs` for why, and for what differs).
 //
-// One workgroup per strand, lane `i` owning node `i` and edge `i` (the strand's nodes in the lanes'
-// registers, what lanes share in workgroup memory). Buffers are row planes of node-contiguous strands:
+// One workgroup per strand, lane `i` owning edge `i` and the node `i + 1` at its end, lane 0 the root
+// node too (the strand in the lanes' registers, what lanes share in workgroup memory): a guide of 32 edges
+// is one workgroup of 32 lanes, one warp. Buffers are row planes of node-contiguous strands:
 // row `k` of node `i` of strand `s` is at `k * total_nodes + first(s) + i`, so that a workgroup's lanes
 // read neighbouring memory and no strand is padded to the longest. Positions are relative to the
 // strand's head (its translation at the end of the last step), so that single precision resolves
@@ -58,11 +59,14 @@ struct Params {
     strain_tolerance: f32,
     // Nodes of every strand together: the length of a row plane of `rest` and `state`.
     total_nodes: u32,
-    unused_0: u32,
-    unused_1: u32,
+    // The strands this dispatch steps: `strand_list[list_start ..][.. list_length]` (the strands whose
+    // edges fit this pipeline's lanes).
+    list_start: u32,
+    list_length: u32,
 }
 
-// Per strand words: node count, head, its first node in the row planes, 0.
+// Per strand words: node count, head, its first node in the row planes; and, not the strand's, the `k`th
+// strand of the dispatch lists (`list_start`).
 const STRAND_WORDS: u32 = 1u;
 // Per strand floats: (EA, EI₁, EI₂, GJ); (root node 0 head-local, thickness); (root node 1, 0);
 // (root material direction, 0).
@@ -82,16 +86,17 @@ const HEAD_ROWS: u32 = 5u;
 // (r, 0, 0, 0), capsule (r, half length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3)).
 const COLLIDER_ROWS: u32 = 5u;
 
-// Lanes per workgroup, one strand each (`STEP_LANES` in `solver.rs`), and so the most nodes a strand may
-// have (`MAX_GPU_NODES`); the band of 255 unknowns, 11 wide, with what the lanes share, fills 15.4 kB of
-// WebGPU's 16 kB of workgroup memory.
-const LANES: u32 = 64u;
-const MAX_NODES: u32 = 64u;
+// Lanes per workgroup, one strand each, and so the most edges a strand may have: 32 or 64, set when the
+// pipeline is built (`STEP_LANES` in `solver.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
+// lanes share, fills 15.5 kB of WebGPU's 16 kB of workgroup memory; at 32, 8 kB.
+override LANES: u32 = 64u;
 const BAND: u32 = 10u;
 const WIDTH: u32 = 11u;
-const BAND_FLOATS: u32 = 2805u;
-const MAX_DOFS: u32 = 255u;
-// Entries of the trailing update of one column of the factorisation: rows and columns 1 to `BAND` below it.
+override MAX_NODES: u32 = LANES + 1u;
+override MAX_DOFS: u32 = 4u * LANES + 3u;
+override BAND_FLOATS: u32 = (4u * LANES + 3u) * WIDTH;
+// Entries of the trailing update of one column of the factorisation: rows and columns 1 to `BAND` below
+// it, at most two a lane.
 const UPDATE_ENTRIES: u32 = 55u;
 
 // Status bits (per strand, `status[s].x`): has a step of history; the last step was faulted (non-finite,
@@ -143,12 +148,15 @@ const INFINITE_BITS: u32 = 0x7f800000u;
 // projection calls). Read by tests and benchmarks (`GpuStrandSolver::read_work`), never by the step.
 @group(0) @binding(8) var<storage, read_write> work: array<vec4<u32>>;
 
+
 // What the lanes share. The band and right-hand side of the Newton system (the band is the projection's
 // scratch between solves: its tridiagonal system and impulses).
 var<workgroup> band: array<f32, BAND_FLOATS>;
 var<workgroup> rhs: array<f32, MAX_DOFS>;
-// Per node: (position, θ of its edge).
+// Per node: its position (`w` unused).
 var<workgroup> shared_x: array<vec4<f32>, MAX_NODES>;
+// Per edge: θ.
+var<workgroup> shared_theta: array<f32, MAX_NODES>;
 // Per edge: (unit tangent, 1/length) in the assembly and the frames' refresh.
 var<workgroup> shared_t: array<vec4<f32>, MAX_NODES>;
 // Per edge: the material director m₁ in the assembly; the reference director in the frames' refresh. Per
@@ -164,9 +172,10 @@ var<private> nodes: u32;
 var<private> head: u32;
 var<private> first: u32;
 var<private> lane: u32;
-var<private> own_node: bool;
+// Whether this lane has an edge (and a node: `node`, at the edge's end).
 var<private> own_edge: bool;
-// Node `lane`: position now, at the step's start, the scheme's prediction, the first guess; the tangent
+var<private> node: u32;
+// Node `node`: position now, at the step's start, the scheme's prediction, the first guess; the tangent
 // of the strand there at the step's start; its contact normal and whether it has a contact spring; the
 // arc length of rest lengths from the root to it.
 var<private> x: vec3<f32>;
@@ -179,6 +188,11 @@ var<private> start_tangent: vec3<f32>;
 var<private> normal: vec3<f32>;
 var<private> spring: f32;
 var<private> arc: f32;
+// The root node (lane 0's besides node 1): prescribed, only carried, loaded and stored.
+var<private> root_x: vec3<f32>;
+var<private> root_start: vec3<f32>;
+var<private> root_hat: vec3<f32>;
+var<private> root_carried: vec3<f32>;
 // Edge `lane`: θ now, at the step's start, its rate, the first guess; reference director, tangent; the
 // reference twist at vertex `lane`.
 var<private> theta: f32;
@@ -192,10 +206,10 @@ var<private> reference_twist: f32;
 var<private> grad_k1: array<f32, 11>;
 var<private> grad_k2: array<f32, 11>;
 var<private> grad_tw: array<f32, 11>;
-// The entry of the factorisation's trailing update this lane makes: rows and columns below the pivot
-// (0 for none).
-var<private> update_row: u32;
-var<private> update_column: u32;
+// The entries of the factorisation's trailing update this lane makes (`lane` and `lane + LANES` of the
+// 55): rows and columns below the pivot, 0 for none.
+var<private> update_rows: vec2<u32>;
+var<private> update_columns: vec2<u32>;
 // This step's work, added to `work` at the end (every lane counts alike; lane 0 writes).
 var<private> work_steps: vec4<u32>;
 var<private> work_more: vec4<u32>;
@@ -344,11 +358,15 @@ fn from_lane_zero(value: f32) -> f32 {
     return bitcast<f32>(spoken);
 }
 
-// Every lane's node (position, θ) into `shared_x`, for its neighbours.
+// Every lane's node and θ into `shared_x` and `shared_theta`, for its neighbours (lane 0's root node too).
 fn publish_nodes() {
     workgroupBarrier();
-    if own_node {
-        shared_x[lane] = vec4<f32>(x, theta);
+    if own_edge {
+        shared_x[node] = vec4<f32>(x, 0.0);
+        shared_theta[lane] = theta;
+    }
+    if lane == 0u {
+        shared_x[0] = vec4<f32>(root_x, 0.0);
     }
     workgroupBarrier();
 }
@@ -356,8 +374,8 @@ fn publish_nodes() {
 // Every lane's node back from `shared_x` (after lane 0 moved them all).
 fn take_nodes() {
     workgroupBarrier();
-    if own_node {
-        x = shared_x[lane].xyz;
+    if own_edge {
+        x = shared_x[node].xyz;
     }
     workgroupBarrier();
 }
@@ -366,7 +384,7 @@ fn take_nodes() {
 // into `shared_t` and `shared_m` for the vertices beside it.
 fn edge_frames() {
     if own_edge {
-        let edge = shared_x[lane + 1u].xyz - x;
+        let edge = x - shared_x[lane].xyz;
         let size = length(edge);
         let t = edge / size;
         tangent = t;
@@ -383,7 +401,7 @@ fn edge_frames() {
 fn refresh_frames() {
     workgroupBarrier();
     if own_edge {
-        let t = normalize(shared_x[lane + 1u].xyz - x);
+        let t = normalize(x - shared_x[lane].xyz);
         let carried = transport(director, tangent, t);
         director = perpendicular_unit(carried, t, any_perpendicular(t));
         tangent = t;
@@ -425,23 +443,22 @@ fn carry_with_root() {
     let old_m2 = cross(old_t, old_m1);
     let new_m1 = perpendicular_unit(root_target(2u), t, transport(old_m1, old_t, t));
     let new_m2 = cross(t, new_m1);
-    if own_node {
+    if own_edge {
         let d = x - pivot;
         let local = vec3<f32>(dot(d, old_t), dot(d, old_m1), dot(d, old_m2));
         x = p0 + local.x * t + local.y * new_m1 + local.z * new_m2;
-        if lane == 0u {
-            x = p0;
-        } else if lane == 1u {
+        if node == 1u {
             x = p1;
         }
-    }
-    if own_edge {
-        let d = director;
-        let local = vec3<f32>(dot(d, old_t), dot(d, old_m1), dot(d, old_m2));
-        director = local.x * t + local.y * new_m1 + local.z * new_m2;
+        let u = director;
+        let across = vec3<f32>(dot(u, old_t), dot(u, old_m1), dot(u, old_m2));
+        director = across.x * t + across.y * new_m1 + across.z * new_m2;
         let g = tangent;
         let lg = vec3<f32>(dot(g, old_t), dot(g, old_m1), dot(g, old_m2));
         tangent = lg.x * t + lg.y * new_m1 + lg.z * new_m2;
+    }
+    if lane == 0u {
+        root_x = p0;
     }
     publish_nodes();
 }
@@ -472,7 +489,7 @@ fn vertex_strain() -> vec3<f32> {
     scatter(1u, (-k2 * tilde_t - cross(t1, tilde_m1)) * il0, (-k2 * tilde_t + cross(t0, tilde_m1)) * il1,
         vec2<f32>(-0.5 * dot(binormal, m2p), -0.5 * dot(binormal, m2i)));
     scatter(2u, 0.5 * binormal * il0, 0.5 * binormal * il1, vec2<f32>(-1.0, 1.0));
-    let twist = theta - shared_x[p].w + reference_twist;
+    let twist = theta - shared_theta[p] + reference_twist;
     return vec3<f32>(k1, k2, twist);
 }
 
@@ -550,8 +567,11 @@ fn mobility(i: u32, v: vec3<f32>) -> vec3<f32> {
 // Every node's contact normal and inverse mass into `shared_m`, for `mobility`.
 fn share_mobility() {
     workgroupBarrier();
-    if own_node {
-        shared_m[lane] = vec4<f32>(normal, node_inverse_mass(lane));
+    if own_edge {
+        shared_m[node] = vec4<f32>(normal, node_inverse_mass(node));
+    }
+    if lane == 0u {
+        shared_m[0] = vec4<f32>(0.0);
     }
     workgroupBarrier();
 }
@@ -685,16 +705,13 @@ fn project_lengths(iterations: u32) {
             band[IMPULSE + 4u * lane + 2u] = impulse.z;
         }
         workgroupBarrier();
-        if own_node {
-            var push = vec3<f32>(0.0);
-            if own_edge {
-                push += vec3<f32>(band[IMPULSE + 4u * lane], band[IMPULSE + 4u * lane + 1u], band[IMPULSE + 4u * lane + 2u]);
+        // Node `node` at the end of edge `lane` and the start of edge `node` (the root does not move).
+        if own_edge {
+            var push = -vec3<f32>(band[IMPULSE + 4u * lane], band[IMPULSE + 4u * lane + 1u], band[IMPULSE + 4u * lane + 2u]);
+            if node < edges {
+                push += vec3<f32>(band[IMPULSE + 4u * node], band[IMPULSE + 4u * node + 1u], band[IMPULSE + 4u * node + 2u]);
             }
-            if lane > 0u {
-                let e = lane - 1u;
-                push -= vec3<f32>(band[IMPULSE + 4u * e], band[IMPULSE + 4u * e + 1u], band[IMPULSE + 4u * e + 2u]);
-            }
-            x += mobility(lane, push);
+            x += mobility(node, push);
         }
         publish_nodes();
         var projected = largest_excess();
@@ -736,8 +753,8 @@ fn gauss_seidel_sweep() {
                 continue;
             }
             let excess = (size - rest_at(e, 0u).x) / total;
-            shared_x[e] = vec4<f32>(shared_x[e].xyz + excess * start_move, shared_x[e].w);
-            shared_x[e + 1u] = vec4<f32>(shared_x[e + 1u].xyz - excess * end_move, shared_x[e + 1u].w);
+            shared_x[e] = vec4<f32>(shared_x[e].xyz + excess * start_move, 0.0);
+            shared_x[e + 1u] = vec4<f32>(shared_x[e + 1u].xyz - excess * end_move, 0.0);
         }
     }
     take_nodes();
@@ -749,7 +766,7 @@ fn gauss_seidel_sweep() {
 // torn trying to be outside.
 fn meets(c: u32, thickness: f32) -> bool {
     let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness).distance, 0.0);
-    return own_node && lane >= 2u && arc > reach;
+    return own_edge && node >= 2u && arc > reach;
 }
 
 // Contact inside the solve, as on the CPU (`rod/contact.rs`): this lane's node, within `CONTACT_GAP` of a
@@ -771,7 +788,7 @@ fn add_contact_springs(inertia: f32) {
         if contact.distance >= CONTACT_GAP {
             continue;
         }
-        let i = lane;
+        let i = node;
         let stiffness = CONTACT_RATIO * rest_at(i, 1u).y * inertia;
         let n = contact.normal;
         let pressed = stiffness * min(contact.distance, 0.0);
@@ -811,14 +828,18 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             force = scaled * (strain - vec3<f32>(rest_bend.zw, rest_twist));
         }
         if iteration > 0u && params.internal_damping > 0.0 {
-            if own_node {
+            if own_edge {
                 let offset = x - x_carried;
-                rhs[4u * lane] = offset.x;
-                rhs[4u * lane + 1u] = offset.y;
-                rhs[4u * lane + 2u] = offset.z;
-                if own_edge {
-                    rhs[4u * lane + 3u] = theta - theta_carried;
-                }
+                rhs[4u * node] = offset.x;
+                rhs[4u * node + 1u] = offset.y;
+                rhs[4u * node + 2u] = offset.z;
+                rhs[4u * lane + 3u] = theta - theta_carried;
+            }
+            if lane == 0u {
+                let offset = root_x - root_carried;
+                rhs[0] = offset.x;
+                rhs[1] = offset.y;
+                rhs[2] = offset.z;
             }
             workgroupBarrier();
             if vertex {
@@ -853,13 +874,13 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             }
             workgroupBarrier();
         }
-        // Node `lane`'s own rows: the capped stretching stiffness of its edges' first-order change of
+        // Node `node`'s own rows: the capped stretching stiffness of its edges' first-order change of
         // length (`k t tᵀ` on both nodes' diagonal blocks, `−k t tᵀ` between them; no stretching force:
         // lengths are the projection's), inertia, drag relative to the air, gravity, the style hold,
-        // contact springs, and its edge's twist inertia.
+        // contact springs; and edge `lane`'s twist inertia. (The root node's rows are prescribed: none.)
         let inertia = 1.0 / (h * h) + params.air_damping / h;
-        if own_node {
-            let i = lane;
+        if own_edge {
+            let i = node;
             let stretching = strand_floats[strand * STRAND_FLOATS].x;
             for (var side = 0u; side < 2u; side++) {
                 // Edge i − 1 (side 0) and edge i (side 1).
@@ -918,11 +939,11 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             }
             add_contact_springs(inertia);
             // Its edge's twist by backward Euler.
-            if own_edge {
+            {
                 let dt = params.dt;
-                let j = rest_at(i, 1u).z;
+                let j = rest_at(lane, 1u).z;
                 let twist_offset = theta - theta_start;
-                let dof = 4u * i + 3u;
+                let dof = 4u * lane + 3u;
                 rhs[dof] += j / (dt * dt) * (twist_offset - dt * theta_rate) + params.air_damping * j / dt * twist_offset;
                 band[band_index(dof, dof)] += j * (1.0 / (dt * dt) + params.air_damping / dt);
             }
@@ -988,10 +1009,12 @@ fn factorize() -> bool {
             workgroupBarrier();
             return false;
         }
-        let i = j + update_row;
-        let m = j + update_column;
-        if update_row > 0u && i < n {
-            band[band_index(i, m)] -= band[band_index(i, j)] * band[band_index(m, j)] / d;
+        for (var k = 0u; k < 2u; k++) {
+            let i = j + update_rows[k];
+            let m = j + update_columns[k];
+            if update_rows[k] > 0u && i < n {
+                band[band_index(i, m)] -= band[band_index(i, j)] * band[band_index(m, j)] / d;
+            }
         }
     }
     return true;
@@ -1137,30 +1160,37 @@ fn push_out(friction: bool) -> bool {
 
 // This lane's node and edge back in the rest pose the strand was uploaded in, carried with its head.
 fn reset_to_rest() {
-    if own_node {
+    if own_edge {
         let pose = rest_at(lane, 2u);
         let frame = rest_at(lane, 3u);
-        x = rotate(head_row(0u), pose.xyz);
+        x = rotate(head_row(0u), rest_at(node, 2u).xyz);
         theta = pose.w;
         director = rotate(head_row(0u), frame.xyz);
         reference_twist = frame.w;
         x_hat = x;
         theta_start = theta;
     }
+    if lane == 0u {
+        root_x = rotate(head_row(0u), rest_at(0u, 2u).xyz);
+        root_hat = root_x;
+    }
     publish_nodes();
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(LANES)
 fn step(
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) local: u32,
 ) {
-    strand = group.x + group.y * groups.x;
+    let listed = group.x + group.y * groups.x;
     lane = local;
-    if strand >= params.strands {
+    if listed >= params.list_length {
         return;
     }
+    // The strands by the lanes they need (in `strand_words[k].w`: those of up to 32 edges, then the longer
+    // ones, each list one dispatch).
+    strand = strand_words[params.list_start + listed].w;
     let words = strand_words[strand * STRAND_WORDS];
     nodes = words.x;
     head = words.y;
@@ -1168,21 +1198,27 @@ fn step(
     if nodes < 3u || nodes > MAX_NODES {
         return;
     }
-    own_node = lane < nodes;
     own_edge = lane + 1u < nodes;
-    // This lane's entry of the factorisation's trailing update: the `lane`th of the triangle below a pivot,
-    // row by row.
-    update_row = 0u;
-    update_column = 0u;
-    if lane < UPDATE_ENTRIES {
-        var row = 1u;
-        var before = 0u;
-        while before + row <= lane {
-            before += row;
-            row++;
+    node = lane + 1u;
+    // This lane's entries of the factorisation's trailing update: the `lane`th and `lane + LANES`th of the
+    // triangle below a pivot, row by row.
+    for (var k = 0u; k < 2u; k++) {
+        let entry = lane + k * LANES;
+        update_rows[k] = 0u;
+        update_columns[k] = 0u;
+        if entry < UPDATE_ENTRIES {
+            var row = 1u;
+            var before = 0u;
+            while before + row <= entry {
+                before += row;
+                row++;
+            }
+            update_rows[k] = row;
+            update_columns[k] = entry - before + 1u;
         }
-        update_row = row;
-        update_column = lane - before + 1u;
+    }
+    if lane == 0u {
+        atomicStore(&reduced, 0u);
     }
     var flags = status[strand].x;
     if params.restart != 0u {
@@ -1193,22 +1229,24 @@ fn step(
     let two_step = params.bdf2 != 0u && (flags & HAS_HISTORY) != 0u;
     let h = select(dt, 2.0 / 3.0 * dt, two_step);
 
-    // 1. Load, shift to the head's new translation; the scheme's prediction.
-    if own_node {
-        let p = state[state_index(lane, 0u)];
-        let v = state[state_index(lane, 1u)];
-        x = p.xyz + shift;
-        theta = p.w;
-        theta_rate = v.w;
-        x_start = x;
-        theta_start = p.w;
+    // 1. Load, shift to the head's new translation; the scheme's prediction. Row `k` of node `i` holds
+    // node `i`'s and edge `i`'s values: this lane's edge is at `lane`, its node at `node`.
+    if own_edge {
+        let edge_row = state[state_index(lane, 0u)];
+        theta = edge_row.w;
+        theta_start = edge_row.w;
+        theta_rate = state[state_index(lane, 1u)].w;
         let frame = state[state_index(lane, 4u)];
         director = frame.xyz;
         reference_twist = frame.w;
+        let p = state[state_index(node, 0u)];
+        let v = state[state_index(node, 1u)];
+        x = p.xyz + shift;
+        x_start = x;
         normal = vec3<f32>(0.0);
         if two_step {
-            let before = state[state_index(lane, 2u)].xyz + shift;
-            let v_before = state[state_index(lane, 3u)].xyz;
+            let before = state[state_index(node, 2u)].xyz + shift;
+            let v_before = state[state_index(node, 3u)].xyz;
             x_hat = (4.0 * x - before) / 3.0;
             v_hat = (4.0 * v.xyz - v_before) / 3.0;
         } else {
@@ -1218,20 +1256,29 @@ fn step(
         v_start = v.xyz;
         // The arc length of rest lengths from the root to this node.
         arc = 0.0;
-        for (var e = 0u; e < lane; e++) {
+        for (var e = 0u; e < node; e++) {
             arc += rest_at(e, 0u).x;
         }
     }
+    if lane == 0u {
+        root_x = state[state_index(0u, 0u)].xyz + shift;
+        root_start = root_x;
+        root_hat = root_x;
+        if two_step {
+            root_hat = (4.0 * root_x - (state[state_index(0u, 2u)].xyz + shift)) / 3.0;
+        }
+        // The history this step leaves: the root's position and velocity at its start.
+        state[state_index(0u, 2u)] = vec4<f32>(root_start, 0.0);
+        state[state_index(0u, 3u)] = vec4<f32>(state[state_index(0u, 1u)].xyz, 0.0);
+    }
     publish_nodes();
-    if own_node {
+    if own_edge {
         // The node's tangent at the step's start (for the drag): the mean of its edges'.
-        let i = lane;
-        if i == 0u {
-            start_tangent = normalize(shared_x[1].xyz - x);
-        } else if i == edge_count() {
-            start_tangent = normalize(x - shared_x[i - 1u].xyz);
+        let i = node;
+        let before = normalize(x - shared_x[i - 1u].xyz);
+        if i == edge_count() {
+            start_tangent = before;
         } else {
-            let before = normalize(x - shared_x[i - 1u].xyz);
             let after = normalize(shared_x[i + 1u].xyz - x);
             let sum = before + after;
             start_tangent = select(after, normalize(sum), dot(sum, sum) > 1e-12);
@@ -1239,15 +1286,14 @@ fn step(
         // The history this step leaves: positions and velocities at its start.
         state[state_index(i, 2u)] = vec4<f32>(x_start, 0.0);
         state[state_index(i, 3u)] = vec4<f32>(v_start, 0.0);
-    }
-    if own_edge {
-        tangent = normalize(shared_x[lane + 1u].xyz - x);
+        tangent = before;
     }
 
     // 2. The first guess: carried with the root.
     carry_with_root();
     x_carried = x;
     theta_carried = theta;
+    root_carried = root_x;
 
     // 3. Newton iterations.
     var fault = 0u;
@@ -1280,22 +1326,20 @@ fn step(
             break;
         }
         let fraction = select(1.0, params.max_rotation / largest, largest > params.max_rotation);
-        if own_node {
-            x += fraction * vec3<f32>(rhs[4u * lane], rhs[4u * lane + 1u], rhs[4u * lane + 2u]);
-            if own_edge {
-                theta += fraction * rhs[4u * lane + 3u];
-            }
+        if own_edge {
+            x += fraction * vec3<f32>(rhs[4u * node], rhs[4u * node + 1u], rhs[4u * node + 2u]);
+            theta += fraction * rhs[4u * lane + 3u];
+        }
+        if lane == 0u {
+            root_x += fraction * vec3<f32>(rhs[0], rhs[1], rhs[2]);
         }
         work_steps.y += 1u;
         let last = iteration + 1u == params.newton_iterations;
-        if last {
+        if last && lane == 0u {
             // Exactly on the root's targets.
-            if lane == 0u {
-                x = root_target(0u);
-                theta += root_twist_offset(target_tangent, root_target(2u));
-            } else if lane == 1u {
-                x = root_target(1u);
-            }
+            root_x = root_target(0u);
+            x = root_target(1u);
+            theta += root_twist_offset(target_tangent, root_target(2u));
         }
         publish_nodes();
         // Before another iteration the lengths need only be near enough for its linearisation (its solve
@@ -1334,8 +1378,18 @@ fn step(
     // 5. Checks.
     var strain = largest_strain();
     if fault == 0u {
-        let bad = own_node && (!finite3(x) || !finite(theta));
-        let at = smallest_over_lanes(select(0xffffffffu, lane, bad));
+        // The first node whose position, or whose edge's θ, is not finite.
+        var mine = 0xffffffffu;
+        if own_edge && !finite3(x) {
+            mine = node;
+        }
+        if own_edge && !finite(theta) {
+            mine = lane;
+        }
+        if lane == 0u && !finite3(root_x) {
+            mine = 0u;
+        }
+        let at = smallest_over_lanes(mine);
         if at != 0xffffffffu {
             fault = FAULT_NON_FINITE;
             fault_at = at;
@@ -1356,14 +1410,28 @@ fn step(
         flags = flags | HAS_HISTORY;
     }
 
-    // 6. Velocities and the state written back.
+    // 6. Velocities and the state written back: each node's velocity shared (in `shared_m`), then row `k`
+    // of node `lane` (its position and velocity beside edge `lane`'s θ and θ̇) by lane `lane`, the last
+    // node's by the last lane.
     let stopped = fault != 0u;
-    if own_node {
-        let v = select((x - x_hat) / h, vec3<f32>(0.0), stopped);
+    publish_nodes();
+    let v = select((x - x_hat) / h, vec3<f32>(0.0), stopped);
+    if own_edge {
+        shared_m[node] = vec4<f32>(v, 0.0);
+    }
+    if lane == 0u {
+        shared_m[0] = vec4<f32>(select((root_x - root_hat) / h, vec3<f32>(0.0), stopped), 0.0);
+    }
+    workgroupBarrier();
+    if own_edge {
         let rate = select((theta - theta_start) / dt, 0.0, stopped);
-        state[state_index(lane, 0u)] = vec4<f32>(x, theta);
-        state[state_index(lane, 1u)] = vec4<f32>(v, rate);
+        state[state_index(lane, 0u)] = vec4<f32>(shared_x[lane].xyz, theta);
+        state[state_index(lane, 1u)] = vec4<f32>(shared_m[lane].xyz, rate);
         state[state_index(lane, 4u)] = vec4<f32>(director, reference_twist);
+        if node == edge_count() {
+            state[state_index(node, 0u)] = vec4<f32>(x, 0.0);
+            state[state_index(node, 1u)] = vec4<f32>(v, 0.0);
+        }
     }
     if lane == 0u {
         // The failed steps' count keeps the last one's reason in its top bits, and `y` where it was, so
