@@ -1,5 +1,5 @@
 //! The strand step on the GPU: the same discrete elastic rods as [`crate::rod`], stepped in a WGSL compute
-//! shader (`step.wgsl`) in single precision, one workgroup of 64 lanes per strand (`gpu` feature). In an app,
+//! shader (`step.wgsl`) in single precision, one workgroup per strand (`gpu` feature). In an app,
 //! [`HairGpuPlugin`](crate::render::HairGpuPlugin) runs it on Bevy's device; [`GpuStrandSolver`] runs it on
 //! any wgpu device, with the pipelines of [`GpuStepPipelines`] built once per device.
 //!
@@ -10,15 +10,18 @@
 //! friction, and the style hold (springs towards each strand's groomed places carried with its head,
 //! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU).
 //!
-//! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns node `i` and edge `i`
-//! (up to [`MAX_GPU_NODES`], 64, nodes), their state in its registers. The banded Newton system
-//! (half-bandwidth 10, up to 255 unknowns) lives in workgroup memory (15.4 kB of the 16 kB WebGPU
+//! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns edge `i` and the node
+//! at its end (lane 0 the root node too), their state in its registers: strands of up to 32 edges (a
+//! game's guides) are stepped by workgroups of 32 lanes, one warp, longer ones (up to 64 edges,
+//! [`MAX_GPU_NODES`] nodes) by workgroups of 64; the two pipelines are built from one shader (its `LANES`
+//! constant) and dispatched in one pass. The banded Newton system (half-bandwidth 10, up to 259
+//! unknowns) lives in workgroup memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU
 //! guarantees): each lane assembles its vertex's bending and twisting (three passes, so that vertices
 //! sharing unknowns never add at once) and its node's inertia, drag, stretching, hold and contact rows;
 //! the `L D Lᵀ` factorisation goes column by column, the 55 entries of each column's trailing update made by
-//! as many lanes, and the substitutions push each solved unknown into the ten below it. The projection's
-//! tridiagonal system (one equation per edge) is solved by parallel cyclic reduction in six rounds for 64
-//! nodes. Buffers are row planes of node-contiguous strands, so a workgroup's lanes read neighbouring
+//! as many lanes, and the substitutions (chains of dependent steps) are one lane's. The projection's
+//! tridiagonal system (one equation per edge) is solved by parallel cyclic reduction in five rounds for 32
+//! edges. Buffers are row planes of node-contiguous strands, so a workgroup's lanes read neighbouring
 //! memory and no strand is padded to the longest.
 //!
 //! **Single precision, and what differs from the CPU.** WebGPU has no `f64`. Three choices keep the step

@@ -46,6 +46,7 @@ struct Params {
     strain_bound: f32,
     // Stiffness of an edge's first-order change of length in the solve, relative to its nodes' inertia.
     stretch_ratio: f32,
+    // Strands uploaded (all lists together).
     strands: u32,
     newton_iterations: u32,
     projection_iterations: u32,
@@ -148,7 +149,6 @@ const INFINITE_BITS: u32 = 0x7f800000u;
 // projection calls). Read by tests and benchmarks (`GpuStrandSolver::read_work`), never by the step.
 @group(0) @binding(8) var<storage, read_write> work: array<vec4<u32>>;
 
-
 // What the lanes share. The band and right-hand side of the Newton system (the band is the projection's
 // scratch between solves: its tridiagonal system and impulses).
 var<workgroup> band: array<f32, BAND_FLOATS>;
@@ -160,7 +160,7 @@ var<workgroup> shared_theta: array<f32, MAX_NODES>;
 // Per edge: (unit tangent, 1/length) in the assembly and the frames' refresh.
 var<workgroup> shared_t: array<vec4<f32>, MAX_NODES>;
 // Per edge: the material director m₁ in the assembly; the reference director in the frames' refresh. Per
-// node: (contact normal, inverse mass) in the projection.
+// node: (contact normal, inverse mass) in the projection; the velocity at the write-back.
 var<workgroup> shared_m: array<vec4<f32>, MAX_NODES>;
 // Reductions over the lanes, and a value one lane says to all.
 var<workgroup> reduced: atomic<u32>;
