@@ -358,8 +358,7 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
 pub const STEP_SHADER: &str = include_str!("step.wgsl");
 
 /// Strands stepped on the GPU: their buffers (row planes of node-contiguous strands, positions relative to
-/// their heads), the step's
-/// pipeline, and the heads' poses the strands were last stepped to.
+/// their heads), the step's pipelines, and the heads' poses the strands were last stepped to.
 pub struct GpuStrandSolver {
     pipelines: Arc<GpuStepPipelines>,
     /// Per pipeline of [`STEP_LANES`]: its bind group, and its parameters (which list it steps).
@@ -645,14 +644,12 @@ impl GpuStrandSolver {
                 mapped_at_creation: false,
             })
         });
-        let bind_groups = [0, 1].map(|class| {
-            bind_whole_buffers(
-                device,
-                "hair strand step",
-                &pipelines.layout,
-                &[&params[class], &strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
-            )
-        });
+        let bind_groups = step_bind_groups(
+            device,
+            pipelines,
+            &params,
+            [&strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
+        );
         Self {
             pipelines: pipelines.clone(),
             bind_groups,
@@ -771,24 +768,21 @@ impl GpuStrandSolver {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_groups = [0, 1].map(|class| {
-                bind_whole_buffers(
-                    device,
-                    "hair strand step",
-                    &self.pipelines.layout,
-                    &[
-                        &self.params[class],
-                        &self.strand_words,
-                        &self.strand_floats,
-                        &self.rest,
-                        &self.state,
-                        &self.heads,
-                        &self.colliders,
-                        &self.status,
-                        &self.work,
-                    ],
-                )
-            });
+            self.bind_groups = step_bind_groups(
+                device,
+                &self.pipelines,
+                &self.params,
+                [
+                    &self.strand_words,
+                    &self.strand_floats,
+                    &self.rest,
+                    &self.state,
+                    &self.heads,
+                    &self.colliders,
+                    &self.status,
+                    &self.work,
+                ],
+            );
         }
         if !self.collider_rows.is_empty() {
             queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
@@ -1026,6 +1020,20 @@ impl GpuStrandSolver {
         pass.set_bind_group(0, &target.bind_group, &[]);
         pass.dispatch_workgroups(x, y, 1);
     }
+}
+
+/// The step's bind groups, one per pipeline of [`STEP_LANES`]: its parameters, then `buffers` (strand words,
+/// floats, rest shape, state, heads, colliders, status, work counters).
+fn step_bind_groups(
+    device: &wgpu::Device,
+    pipelines: &GpuStepPipelines,
+    params: &[wgpu::Buffer; 2],
+    buffers: [&wgpu::Buffer; 8],
+) -> [wgpu::BindGroup; 2] {
+    params.each_ref().map(|params| {
+        let all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
+        bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all)
+    })
 }
 
 /// The workgroups of `size` invocations of a dispatch over `invocations`: along X up to the limit, then rows
