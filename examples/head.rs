@@ -13,7 +13,7 @@
 //! the strands on the GPU (`HairGpuPlugin`), with the followers placed and the hair drawn from there.
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
-//! `mesa-vulkan-drivers` on Debian and Ubuntu; see the README's FAQ): render a number of frames
+//! `mesa-vulkan-drivers` on Debian and Ubuntu, with `xvfb`): render a number of frames
 //! of exactly 1/60 s each (one simulation step per frame, however slow the renderer; the panel's frame
 //! rate then reads this clock's 60), save a PNG with Bevy's screenshot API and exit. The rendered hair
 //! takes seconds per frame in software, so it is drawn only in the first and last 8 frames

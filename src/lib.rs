@@ -238,8 +238,9 @@
 //! stretching `4l²/r²` = 250 000 times more than bending, and the implicit solve and the length projection
 //! need the digits `f32` does not have. The components a game reads are `f32`.
 //!
-//! **How fast is it?** Linear in strands and edges: about 17 ms per step for 2 000 strands × 32 edges on
-//! two cores at full detail, 4.5 ms for 1 000 × 16. Build in release, give the compute pool every core
+//! **How fast is it?** Linear in strands and edges: 9–12 ms per step for 2 000 strands × 32 edges on
+//! two cores at full detail, 4.5 ms for 1 000 × 16; stepped on the GPU (`HairGpuPlugin`)
+//! the CPU's share is a fraction of a millisecond. Build in release, give the compute pool every core
 //! ([`HairPlugin::task_pool_options`]), use followers for density and let levels of detail step far heads
 //! less often and carry hidden ones ([`detail`]). The figures and their history are in
 //! `docs/performance.md` in the repository.
