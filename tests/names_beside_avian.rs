@@ -5,9 +5,9 @@
 
 #![allow(dead_code)]
 
-/// Items named like avian's and bevy_rapier's preludes. Stand-ins: bevy_rapier3d has no release for this
-/// Bevy and toolchain, and avian3d, which builds (the `avian` feature, `tests/avian_colliders.rs`), would be
-/// built for every plain `cargo test` if this file imported it.
+/// Items named like avian's and bevy_rapier's preludes. Stand-ins: bevy_rapier3d is not among this crate's
+/// dependencies, and avian3d, which builds (the `avian` feature, `tests/avian_colliders.rs`), would be built
+/// for every plain `cargo test` if this file imported it.
 mod physics_prelude {
     macro_rules! stand_ins {
         ($($name:ident),* $(,)?) => { $(#[derive(Debug, Default)] pub struct $name;)* };
