@@ -190,7 +190,6 @@ var<private> spring: f32;
 var<private> arc: f32;
 // The root node (lane 0's besides node 1): prescribed, only carried, loaded and stored.
 var<private> root_x: vec3<f32>;
-var<private> root_start: vec3<f32>;
 var<private> root_hat: vec3<f32>;
 var<private> root_carried: vec3<f32>;
 // Edge `lane`: θ now, at the step's start, its rate, the first guess; reference director, tangent; the
@@ -1262,13 +1261,12 @@ fn step(
     }
     if lane == 0u {
         root_x = state[state_index(0u, 0u)].xyz + shift;
-        root_start = root_x;
         root_hat = root_x;
         if two_step {
             root_hat = (4.0 * root_x - (state[state_index(0u, 2u)].xyz + shift)) / 3.0;
         }
         // The history this step leaves: the root's position and velocity at its start.
-        state[state_index(0u, 2u)] = vec4<f32>(root_start, 0.0);
+        state[state_index(0u, 2u)] = vec4<f32>(root_x, 0.0);
         state[state_index(0u, 3u)] = vec4<f32>(state[state_index(0u, 1u)].xyz, 0.0);
     }
     publish_nodes();
@@ -1403,7 +1401,6 @@ fn step(
     let failing_strain = strain.x;
     if fault != 0u {
         reset_to_rest();
-        x_start = x;
         flags = flags & ~HAS_HISTORY;
         strain = largest_strain();
     } else {
