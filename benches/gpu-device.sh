@@ -7,7 +7,7 @@
 #
 # Build where the code is and carry the binaries (a GPU machine may have no network):
 #   cargo build --release --example benchmark
-#   cargo test --no-run --test gpu_step --test gpu_plugin
+#   cargo test --no-run --test gpu
 # then run `benches/gpu-device.sh` there. Arguments go to the benchmark (`--quick`: 10 000 guides at most).
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -23,13 +23,11 @@ fi
 echo "== benchmark gpu"
 timeout 200 "$benchmark" gpu "$@" || echo "(benchmark ended with status $?)"
 echo "== the GPU tests on this adapter"
-for test in gpu_step gpu_plugin; do
-    binary=$(ls -t target/debug/deps/"$test"-* 2>/dev/null | grep -v '\.d$' | head -1)
-    if [ -n "$binary" ]; then
-        timeout 60 "$binary" --test-threads 1 --nocapture 2>&1 | grep -E "adapter|per strand-step|RMS|test result|panicked|FAILED" ||
-            echo "($test ended with status $?)"
-    else
-        echo "($test not built: cargo test --no-run --test $test)"
-    fi
-done
+binary=$(ls -t target/debug/deps/gpu-* 2>/dev/null | grep -v '\.d$' | head -1)
+if [ -n "$binary" ]; then
+    timeout 90 "$binary" --test-threads 1 --nocapture step:: plugin:: 2>&1 |
+        grep -E "adapter|per strand-step|RMS|test result|panicked|FAILED" || echo "(the GPU tests ended with status $?)"
+else
+    echo "(the GPU tests not built: cargo test --no-run --test gpu)"
+fi
 echo "== done in $(( $(date +%s) - start )) s"

@@ -1,14 +1,11 @@
 //! One fixed step of the whole plugin: `cargo bench --bench hair_step`.
 //!
-//! The scene of `benches/support/scene.rs` (25 cm human hairs on a swaying, turning head, gravity on,
+//! The scene of `support/src/bench_scene.rs` (25 cm human hairs on a swaying, turning head, gravity on,
 //! dt = 1/60 s, one compute thread per core), after the hair has fallen and started to swing. The table
 //! of all sizes, the parallel efficiency and the memory per node: `cargo run --release --example benchmark`.
 
-#[path = "support/scene.rs"]
-mod scene;
-
 use divan::Bencher;
-use scene::Scene;
+use hair_sim_support::bench_scene::Scene;
 
 fn main() {
     divan::main();

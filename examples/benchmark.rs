@@ -1,6 +1,6 @@
 //! Prints how fast the hair simulation runs: `cargo run --release --example benchmark`.
 //!
-//! The real plugin in a headless app (see `benches/support/scene.rs`): 25 cm human hairs on a swaying,
+//! The real plugin in a headless app (see `support/src/bench_scene.rs`): 25 cm human hairs on a swaying,
 //! turning head, gravity on, dt = 1/60 s. A row's time is the median wall time of the measured steps
 //! (the whole fixed step: pinning roots, stepping strands, writing poses), after the hair has fallen and
 //! started to swing.
@@ -13,13 +13,6 @@
 //! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
 
-#[path = "../benches/support/counting_allocator.rs"]
-mod counting_allocator;
-#[path = "support/scene.rs"]
-mod example_scene;
-#[path = "../benches/support/scene.rs"]
-mod scene;
-
 use std::process::Command;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
@@ -30,10 +23,18 @@ use bevy_hair_sim::detail::HeadsByDetail;
 use bevy_hair_sim::groom::ScalpRoot;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{
-    Contacts, Integrator, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, RigidPose, StepLoads, StepTimings,
+    ColliderShape, Contacts, Integrator, LANES, LockstepStrand, LockstepWorkspace, MovingCollider, RigidPose, Rod,
+    RodWorkspace, StepLoads, StepParams, StepTimings,
 };
-use counting_allocator::BYTES_IN_USE;
-use scene::{Crowd, HAIR_LENGTH, Scene, WARM_UP_STEPS};
+use bevy_hair_sim::simulation::SimulatedStrand;
+use bevy_hair_sim::volume::RepresentedHairs;
+use hair_sim_support::bench_scene::{Crowd, HAIR_LENGTH, Scene, WARM_UP_STEPS};
+use hair_sim_support::counting_allocator::{BYTES_IN_USE, CountingAllocator};
+use hair_sim_support::example_scene;
+
+/// Counting the bytes in use, for the memory per node.
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// Median wall time of `steps` steps, s, after the warm-up, with `colliders` colliders.
 fn median_step_seconds(strands: usize, edges: usize, colliders: usize, threads: usize, steps: usize) -> f64 {
@@ -184,6 +185,7 @@ mod gpu {
     use bevy_hair_sim::render::feed::{GpuCollider, GuideUpload};
     use bevy_hair_sim::render::{DrawnStrand, GuideLayout, HairStrips};
     use bevy_hair_sim::rod::{MovingCollider, RigidPose};
+    use bevy_hair_sim::simulation::SimulatedStrand;
     use wgpu::util::DeviceExt;
 
     use super::{Scene, WARM_UP_STEPS, groomed_head, move_head};
@@ -291,7 +293,7 @@ mod gpu {
             // Built with the examples' window, the app still has none (and needs no display).
             #[cfg(feature = "examples")]
             let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
-            app.add_plugins((plugins, HairPlugin::default(), HairGpuPlugin::default()));
+            app.add_plugins((plugins, HairPlugins::default(), HairGpuPlugin::default()));
             app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
                 .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
                 .insert_resource(HairGpuSettings { read_back, ..default() });
@@ -366,7 +368,7 @@ mod gpu {
         skull: MovingCollider,
     }
 
-    /// The follower placement's buffers and pipelines (as `render/compute.rs` makes them in the renderer).
+    /// The follower placement's buffers and pipelines (as `render/followers.rs` makes them in the renderer).
     struct Followers {
         target: bevy_hair_sim::gpu::GpuGatherTarget,
         guides_offset: u32,
@@ -554,7 +556,7 @@ mod gpu {
             let guide_nodes = upload.guide_node_count() as u32;
             let starts = upload.guide_starts();
             let guides = starts.len() as u32 - 1;
-            // As `render/compute.rs` lays a step's data out: positions, frame codes (unused here: the
+            // As `render/followers.rs` lays a step's data out: positions, frame codes (unused here: the
             // gather writes the frames), the guide words.
             let guides_offset = 3 * guide_nodes + (3 * guide_nodes).div_ceil(4);
             let storage = |size: u64| {
@@ -590,7 +592,7 @@ mod gpu {
             let colliders = with_data(bytemuck::cast_slice(&[GpuCollider::new(skull).expect("a sphere")]));
             let placed = [storage(12 * u64::from(drawn_nodes)), storage(12 * u64::from(drawn_nodes))];
             let drawn = storage(12 * u64::from(drawn_nodes));
-            // The layouts of `render/compute.rs`: a uniform, then storage buffers (`true`: read only).
+            // The layouts of `render/followers.rs`: a uniform, then storage buffers (`true`: read only).
             let place_layout =
                 compute_layout(device, "hair followers", None, &[true, true, true, true, false, false, true, false]);
             let draw_layout = compute_layout(device, "hair followers", None, &[true, true, false]);
@@ -731,7 +733,7 @@ fn in_the_hairline_fade(point: Vec3) -> bool {
 /// ([`HairStyleHold`] at 200/s).
 fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Option<f32>) {
     use bevy::prelude::{Quat, Transform};
-    use bevy_hair_sim::groom::coverage::{self, StrayCheck};
+    use bevy_hair_sim::debug::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
     type Motion = fn(f32) -> Quat;
     let motions: [(&str, Motion); 4] = [
@@ -824,7 +826,8 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
 /// many of those lie in the hairline's fade ([`HairGroom::hairline_fade`], 8 mm), where the hair is drawn
 /// thinning out on purpose.
 fn bare_regions(threads: usize, seconds: f32) {
-    use bevy_hair_sim::groom::{ScalpRoot, coverage};
+    use bevy_hair_sim::debug::coverage;
+    use bevy_hair_sim::groom::ScalpRoot;
     let scalp = example_scene::SCALP;
     let (mut app, head) = example_app(threads, HairStyle::Straight, (200.0, 50.0), 60);
     for _ in 0..(seconds * 60.0) as usize {
@@ -908,7 +911,7 @@ fn hold_cost(threads: usize, steps: usize) {
 /// 10 followers each, its five colliders, the grid's velocity smoothing on, the style held at 200/s),
 /// still and shaken as the example shakes it, each for `steps` updates after a still second: median ms
 /// per whole update and, from [`HairStatistics`], the median of its parts: stepping the guides, placing
-/// the followers and the hair–hair grid (issue 32 asks for the whole in 10 ms). Twice: with the followers
+/// the followers and the hair–hair grid (the target is the whole in 10 ms). Twice: with the followers
 /// placed on the CPU (a headless game's default) and on the GPU, as the example's renderer places them
 /// ([`FollowerPlacement::Gpu`]; what the CPU still does for them, packing the guides' poses in the step
 /// and their upload, is not in this headless app: `render` measures it).
@@ -962,7 +965,7 @@ fn example_scene_cost(threads: usize, steps: usize) {
 /// it, and held with the grid's pressure (50 Pa).
 fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
     use bevy::prelude::Transform;
-    use bevy_hair_sim::groom::coverage::{self, StrayCheck};
+    use bevy_hair_sim::debug::coverage::{self, StrayCheck};
     println!();
     println!(
         "Every style at rest after {seconds} s (the example's head and colliders, grid on): distance of the guides' nodes from the groomed shape, strays against it (tips 3 cm off their 6 neighbours'), face below the hairline and eyes hidden by hair seen from the front (1 mm pixels):"
@@ -1046,7 +1049,7 @@ fn example_face_points() -> (Vec<Vec3>, Vec<Vec3>) {
 }
 
 /// A crowd of 10 heads × 200 strands × 32 edges around one camera that sees two of them up close (see
-/// `benches/support/scene.rs`), stepped in turn: every head at full detail; levels of detail chosen from
+/// `support/src/bench_scene.rs`), stepped in turn: every head at full detail; levels of detail chosen from
 /// the camera with the eight others out of its view; and with four of them in view 4 to 7 m away. Median
 /// ms per step, strands stepped per step, Newton iterations, the heads at each level.
 fn crowd(threads: usize, steps: usize) {
@@ -1207,7 +1210,7 @@ fn followers_on_the_gpu(threads: usize, steps: usize) {
         let nodes = app.world().get::<StrandNodes>(strand).map_or(0, |nodes| nodes.positions.len());
         app.world_mut().entity_mut(strand).insert(PackedStrandPose::with_capacity(nodes));
     }
-    // What the renderer reads of each strand, looked up as it does (`render::gpu::prepare_hair_meshes`).
+    // What the renderer reads of each strand, looked up as it does (`render::draw::prepare_hair_meshes`).
     let mut drawn = app.world_mut().query::<DrawnStrand>();
     let margin = HairSettings::default().collision_margin;
     let (mut strips, mut upload) = (HairStrips::default(), GuideUpload::default());
@@ -1484,7 +1487,7 @@ fn preload_cost() {
     for segments in [16, 24, 32] {
         let groom = HairGroom { strand_count: 1000, segments, ..HairGroom::default() };
         let skull = ColliderShape::Ellipsoid { semi_axes: groom.scalp.semi_axes.as_dvec3() };
-        let reach = 40e-6 + 1e-3 + f64::from(bevy_hair_sim::strand::PRELOAD_SUPPORT_DISTANCE);
+        let reach = 40e-6 + 1e-3 + f64::from(bevy_hair_sim::simulation::PRELOAD_SUPPORT_DISTANCE);
         let rods: Vec<Rod> = groom
             .grow()
             .unwrap()

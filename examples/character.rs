@@ -38,8 +38,8 @@ fn main() {
     app.add_plugins((
         DefaultPlugins
             .set(WindowPlugin { primary_window: Some(window), ..default() })
-            .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
-        HairPlugin::default(),
+            .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+        HairPlugins::default(),
     ))
     .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
     .add_systems(Startup, spawn_character)

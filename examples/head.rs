@@ -34,10 +34,7 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_dis
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
 
-#[path = "support/scene.rs"]
-mod scene;
-
-use scene::{BODY, EYE_RADIUS, EYES, FACE, NECK_HEIGHT, SCALP};
+use hair_sim_support::example_scene::{BODY, EYE_RADIUS, EYES, FACE, NECK_HEIGHT, SCALP};
 
 fn main() {
     let options = match Options::from_args(std::env::args().skip(1)) {
@@ -52,8 +49,8 @@ fn main() {
     app.add_plugins((
         DefaultPlugins
             .set(WindowPlugin { primary_window: Some(window), ..default() })
-            .set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
-        HairPlugin::default(),
+            .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+        HairPlugins::default(),
         HairGpuPlugin::default(),
     ));
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
@@ -458,7 +455,8 @@ fn spawn_scene(
     let ellipsoid = |semi_axes: Vec3, centre: Vec3| Transform::from_translation(centre).with_scale(semi_axes);
     let [neck, shoulders, torso] = BODY;
     commands.entity(body).with_children(|body| {
-        let capsule = |part: &scene::BodyCapsule| Capsule3d::new(part.radius, 2.0 * part.half_length);
+        let capsule =
+            |part: &hair_sim_support::example_scene::BodyCapsule| Capsule3d::new(part.radius, 2.0 * part.half_length);
         body.spawn((part(capsule(&torso).into(), &shirt, torso.transform()), collider(torso.collider())));
         body.spawn((part(capsule(&shoulders).into(), &shirt, shoulders.transform()), collider(shoulders.collider())));
         body.spawn((part(Cylinder::new(neck.radius, 0.14).into(), &skin, neck.transform()), collider(neck.collider())));

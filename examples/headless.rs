@@ -15,7 +15,7 @@ use bevy_hair_sim::prelude::*;
 
 fn main() {
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, bevy::log::LogPlugin::default(), HairPlugin::default()))
+    app.add_plugins((MinimalPlugins, bevy::log::LogPlugin::default(), HairPlugins::default()))
         .insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
     let groom = HairGroom { strand_count: 500, segments: 16, style: HairStyle::Long, ..default() };

@@ -12,8 +12,8 @@ fn main() {
     App::new()
         .add_plugins((
             // Strands are stepped in parallel on Bevy's compute pool; this gives it every core.
-            DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
-            HairPlugin::default(),
+            DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+            HairPlugins::default(),
         ))
         // The groomed style held near the roots, and hair pressing on hair (both off by default).
         .insert_resource(HairSettings {

@@ -11,7 +11,7 @@ use bevy_hair_sim::prelude::*;
 
 fn main() {
     App::new()
-        .add_plugins((DefaultPlugins, HairPlugin::default()))
+        .add_plugins((DefaultPlugins, HairPlugins::default()))
         .add_systems(Startup, setup)
         .add_systems(Update, turn)
         .run();

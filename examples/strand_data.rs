@@ -9,10 +9,11 @@
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::simulation::StrandSnapshotData;
 
 fn main() {
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, bevy::log::LogPlugin::default(), HairPlugin::default()))
+    app.add_plugins((MinimalPlugins, bevy::log::LogPlugin::default(), HairPlugins::default()))
         .insert_resource(Time::<Fixed>::from_hz(60.0))
         // Every update advances the clocks by one fixed step (after the first, which starts them).
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));

@@ -15,7 +15,7 @@
 //! - [FAQ](#faq)
 //!
 //! # Getting started
-//! Add [`HairPlugin`] after Bevy's plugins, spawn a [`HairHead`](simulation::HairHead) with a
+//! Add [`HairPlugins`] after Bevy's plugins, spawn a [`HairHead`](simulation::HairHead) with a
 //! [`HairGroom`](groom::HairGroom) and something for the hair to rest on:
 //!
 //! ```no_run
@@ -26,8 +26,8 @@
 //!     App::new()
 //!         .add_plugins((
 //!             // Strands are stepped in parallel on Bevy's compute pool; this gives it every core.
-//!             DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
-//!             HairPlugin::default(),
+//!             DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+//!             HairPlugins::default(),
 //!         ))
 //!         .add_systems(Startup, spawn_head)
 //!         .run();
@@ -69,7 +69,7 @@
 //! use bevy_hair_sim::prelude::*;
 //!
 //! let mut app = App::new();
-//! app.add_plugins((MinimalPlugins, HairPlugin::default())) // and bevy::log::LogPlugin::default() to see errors
+//! app.add_plugins((MinimalPlugins, HairPlugins::default())) // and bevy::log::LogPlugin::default() to see errors
 //!     .insert_resource(Time::<Fixed>::from_hz(60.0))
 //!     .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
 //! let strand = app.world_mut().spawn(HairStrand::straight(Vec3::ZERO, Vec3::X, 0.2, 16)).id();
@@ -106,8 +106,8 @@
 //! its own without an `App`, is [`rod`]: [`Rod`](rod::Rod) is one strand.
 //!
 //! # Plugins
-//! [`HairPlugin`] adds them all; leave one out with
-//! `HairPlugin::default().build().disable::<HairWindPlugin>()`.
+//! [`HairPlugins`] adds them all; leave one out with
+//! `HairPlugins::default().build().disable::<HairWindPlugin>()`.
 //!
 //! | plugin | what it does | without it |
 //! |---|---|---|
@@ -125,7 +125,7 @@
 //! | `HairPanelPlugin` (`egui` feature; not in the group) | a live panel of settings and statistics | – |
 //!
 //! # Scheduling
-//! The simulation runs in [`FixedUpdate`] (or the fixed-timestep schedule given to [`HairPlugin::new`]) at
+//! The simulation runs in [`FixedUpdate`] (or the fixed-timestep schedule given to [`HairPlugins::new`]) at
 //! Bevy's `Time<Fixed>` rate (64 Hz unless set; any rate is stable), in the chained sets of
 //! [`HairSystems`]; each concern puts its systems in them or in their sub-sets ([`schedule`]):
 //!
@@ -142,7 +142,7 @@
 //! drawn carried onto the head where it is in the frame ([`HeadMotion::drawn_to_now`](simulation::HeadMotion::drawn_to_now)),
 //! so heads may be moved and animated anywhere before transform propagation (`Update`, an animation in
 //! `PostUpdate`) without the scalp showing through hair that trails it. Bevy gives its compute pool only the cores its IO and async
-//! pools leave (one thread of two on a 2-core machine); [`HairPlugin::task_pool_options`] gives it every
+//! pools leave (one thread of two on a 2-core machine); [`HairPlugins::task_pool_options`] gives it every
 //! core.
 //!
 //! # Feature flags
@@ -179,7 +179,7 @@
 //! | [`scalp`] | roots bound to a scalp mesh, hair put on a character | the above |
 //! | [`render`] | the hair renderer | the above |
 //! | [`debug`](mod@debug) | gizmo lines, the panel | the above |
-//! | `lib.rs` | [`HairPlugin`], the [`prelude`] | everything |
+//! | `lib.rs` | [`HairPlugins`], the [`prelude`] | everything |
 //!
 //! Dependencies point down this table only: a concern never imports one below it, and the sets live at
 //! the bottom so that nobody reaches up for them. The core owns every slot the step reads (the forces,
@@ -241,16 +241,9 @@
 //! **How fast is it?** Linear in strands and edges: 9–12 ms per step for 2 000 strands × 32 edges on
 //! two cores at full detail, 4.5 ms for 1 000 × 16; stepped on the GPU (`HairGpuPlugin`)
 //! the CPU's share is a fraction of a millisecond. Build in release, give the compute pool every core
-//! ([`HairPlugin::task_pool_options`]), use followers for density and let levels of detail step far heads
+//! ([`HairPlugins::task_pool_options`]), use followers for density and let levels of detail step far heads
 //! less often and carry hidden ones ([`detail`]). The figures and their history are in
 //! `docs/performance.md` in the repository.
-//!
-//! **I used `bevy_hair_sim::head` (or `strand`, `settings`, `strand_data`, `groom_file`, `gizmos`, `panel`).**
-//! Those paths still build; their items now live in [`simulation`], [`groom`] and [`debug`](mod@debug), and the
-//! [`prelude`] is unchanged. `GroomFilePlugin` is now [`HairGroomPlugin`], which
-//! grows procedural grooms too; an app that adds [`HairSimulationPlugin`] without the group also adds
-//! [`HairFollowersPlugin`] and [`HairGroomPlugin`]
-//! for followers and grooms.
 #![warn(missing_docs)]
 
 pub mod collision;
@@ -295,19 +288,19 @@ use wind::HairWindPlugin;
 /// ```no_run
 /// # use bevy::prelude::*;
 /// # use bevy_hair_sim::prelude::*;
-/// App::new().add_plugins((MinimalPlugins, HairPlugin::default()));
+/// App::new().add_plugins((MinimalPlugins, HairPlugins::default()));
 /// ```
 ///
-/// Simulation runs in [`FixedUpdate`] unless [`HairPlugin::new`] names another fixed-timestep schedule;
+/// Simulation runs in [`FixedUpdate`] unless [`HairPlugins::new`] names another fixed-timestep schedule;
 /// its rate is Bevy's `Time<Fixed>` (64 Hz by default; `Time::<Fixed>::from_hz(60.0)` for 60). Leave a
 /// concern out with Bevy's `PluginGroupBuilder::disable`, e.g.
-/// `HairPlugin::default().build().disable::<HairWindPlugin>()`.
+/// `HairPlugins::default().build().disable::<HairWindPlugin>()`.
 #[derive(Debug, Clone)]
-pub struct HairPlugin {
+pub struct HairPlugins {
     schedule: InternedScheduleLabel,
 }
 
-impl HairPlugin {
+impl HairPlugins {
     /// Simulates hair in `schedule`, which must run inside Bevy's fixed main loop (`FixedUpdate`,
     /// `FixedPreUpdate`, `FixedPostUpdate` or one of your own run from it).
     pub fn new(schedule: impl ScheduleLabel) -> Self {
@@ -322,15 +315,15 @@ impl HairPlugin {
     /// # use bevy::prelude::*;
     /// # use bevy_hair_sim::prelude::*;
     /// App::new().add_plugins((
-    ///     DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugin::task_pool_options() }),
-    ///     HairPlugin::default(),
+    ///     DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+    ///     HairPlugins::default(),
     /// ));
     /// ```
     pub fn task_pool_options() -> TaskPoolOptions {
         Self::task_pool_options_with_threads(bevy::tasks::available_parallelism())
     }
 
-    /// [`HairPlugin::task_pool_options`] with `threads` compute threads.
+    /// [`HairPlugins::task_pool_options`] with `threads` compute threads.
     pub fn task_pool_options_with_threads(threads: usize) -> TaskPoolOptions {
         let mut options = TaskPoolOptions::default();
         options.compute.min_threads = threads.max(1);
@@ -339,13 +332,13 @@ impl HairPlugin {
     }
 }
 
-impl Default for HairPlugin {
+impl Default for HairPlugins {
     fn default() -> Self {
         Self::new(FixedUpdate)
     }
 }
 
-impl PluginGroup for HairPlugin {
+impl PluginGroup for HairPlugins {
     fn build(self) -> PluginGroupBuilder {
         let schedule = self.schedule;
         let group = PluginGroupBuilder::start::<Self>()
@@ -364,7 +357,7 @@ impl PluginGroup for HairPlugin {
     }
 }
 
-/// Each concern's plugin, by default in [`FixedUpdate`] (as [`HairPlugin::default`] adds them).
+/// Each concern's plugin, by default in [`FixedUpdate`] (as [`HairPlugins::default`] adds them).
 macro_rules! in_fixed_update_by_default {
     ($($plugin:ty),* $(,)?) => {
         $(impl Default for $plugin {
@@ -389,14 +382,16 @@ in_fixed_update_by_default!(
     HairGroomPlugin,
 );
 
-/// The types most users need.
+/// What a game spawns and configures: the plugins, the components put on heads, strands and colliders,
+/// the settings and statistics resources, the messages, and the system sets to order systems by. The
+/// mechanics core ([`rod`], [`gpu`]) and what the plugin builds for itself stay in their modules.
 pub mod prelude {
-    pub use crate::HairPlugin;
+    pub use crate::HairPlugins;
     #[cfg(feature = "avian")]
     pub use crate::collision::AvianHairCollider;
     pub use crate::collision::{
         HairCollider, HairColliderFromMesh, HairColliderOf, HairCollisionFilter, HairCollisionPlugin, HeadColliders,
-        MeshColliderError, MeshColliderSettings, SharedHairCollider,
+        MeshColliderSettings, SharedHairCollider,
     };
     #[cfg(feature = "egui")]
     pub use crate::debug::HairPanelPlugin;
@@ -405,29 +400,24 @@ pub mod prelude {
     pub use crate::followers::{
         FollowerNodes, FollowerPlacement, HairFollowers, HairFollowersPlugin, PlaceFollowersOnCpu,
     };
-    #[allow(deprecated)]
-    pub use crate::groom::GroomFilePlugin;
     pub use crate::groom::{
-        Combing, FileStrand, GroomFile, GroomFileError, GroomPlacement, GroomSurface, GroomedStrand, HairGroom,
-        HairGroomFile, HairGroomPlugin, HairStyle, PlacedGroomFile, Scalp, ScalpSurface, StrandColors, StrandWidths,
-        UpAxis,
+        Combing, GroomFile, GroomPlacement, GroomSurface, HairGroom, HairGroomFile, HairGroomPlugin, HairStyle, Scalp,
+        StrandColors, StrandWidths, UpAxis,
     };
     pub use crate::render::HairAppearance;
+    #[cfg(feature = "render")]
+    pub use crate::render::HairRenderPlugin;
     #[cfg(feature = "gpu")]
     pub use crate::render::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
-    #[cfg(feature = "render")]
-    pub use crate::render::{HairMesh, HairRenderPlugin};
-    pub use crate::rod::{ColliderShape, Rod, RodError, RodMaterial, RodWorkspace, StepError, StepParams};
-    pub use crate::scalp::{
-        CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin, ScalpRootBinding,
-    };
+    pub use crate::rod::RodMaterial;
+    pub use crate::scalp::{CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin};
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
     pub use crate::simulation::{
-        EdgeFrame, HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HairStyleHold,
-        HeadStrands, SimulatedStrand, StrandFault, StrandForces, StrandFrames, StrandHealth, StrandNodes, StrandOf,
-        StrandRejected, StrandRestShape, StrandSnapshot, StrandSnapshotData,
+        HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HairStyleHold,
+        HeadStrands, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRejected, StrandRestShape,
+        StrandSnapshot,
     };
-    pub use crate::volume::{HairVolume, HairVolumeGrids, HairVolumePlugin, RepresentedHairs};
+    pub use crate::volume::{HairVolume, HairVolumePlugin};
     pub use crate::wind::{HairWind, HairWindPlugin, HairWindSource};
 }
 
@@ -435,46 +425,3 @@ pub mod prelude {
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
-
-// The module paths of earlier versions, kept so that code naming them still builds.
-#[doc(hidden)]
-pub mod head {
-    pub use crate::simulation::{HairHead, HeadMotion, HeadStrands, StrandOf};
-}
-#[doc(hidden)]
-pub mod settings {
-    pub use crate::simulation::{HairPause, HairSettings, HairStatistics};
-}
-#[doc(hidden)]
-pub mod strand {
-    pub use crate::simulation::{
-        FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
-        StrandFault, StrandForces, StrandHealth, StrandRejected, StrandSpawnError,
-    };
-}
-#[doc(hidden)]
-pub mod strand_data {
-    pub use crate::simulation::{
-        EdgeFrame, StrandFrames, StrandNodes, StrandRestShape, StrandSnapshot, StrandSnapshotData,
-        StrandSnapshotDataItem,
-    };
-}
-#[doc(hidden)]
-pub mod groom_file {
-    #[allow(deprecated)]
-    pub use crate::groom::GroomFilePlugin;
-    pub use crate::groom::{
-        FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
-        MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, UpAxis,
-    };
-}
-#[doc(hidden)]
-pub mod gizmos {
-    pub use crate::debug::{HairGizmoPlugin, HairGizmos, draw_colliders, draw_strands};
-    pub use crate::schedule::HairDrawSystems;
-}
-#[doc(hidden)]
-#[cfg(feature = "egui")]
-pub mod panel {
-    pub use crate::debug::HairPanelPlugin;
-}

@@ -1,18 +1,18 @@
 //! No heap allocation per step once running: a counting global allocator watches the mechanics core's
 //! step (none at all), and a whole app's update (what Bevy itself allocates per frame, the same however
-//! many strands there are, so the hair adds none).
-
-mod common;
-#[path = "../benches/support/counting_allocator.rs"]
-mod counting_allocator;
+//! many strands there are, so the hair adds none). A binary of its own: the count is the whole process's.
 
 use std::sync::atomic::Ordering;
 
 use bevy::math::{DQuat, DVec3};
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
-use common::headless::hair_app;
-use counting_allocator::{ALLOCATIONS, thread_allocations};
+use bevy_hair_sim::rod::{Rod, RodWorkspace, StepParams};
+use hair_sim_support::counting_allocator::{ALLOCATIONS, CountingAllocator, thread_allocations};
+use hair_sim_support::headless::hair_app;
+
+#[global_allocator]
+static ALLOCATOR: CountingAllocator = CountingAllocator;
 
 /// Allocations made by all threads so far.
 fn all_threads() -> u64 {

@@ -3,15 +3,13 @@
 //! holds, they follow their entity, change with it and go with it, and hair dropped on them stays out.
 #![cfg(feature = "avian")]
 
-mod common;
-
 use avian3d::parry::math::Pose;
 use avian3d::prelude::{Collider, Friction};
 use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::collision::{AvianHairColliderPart, ColliderMotion};
 use bevy_hair_sim::prelude::*;
-use common::headless::{hair_app_with, strand};
+use hair_sim_support::headless::{hair_app_with, strand};
 
 /// The hair colliders made for `entity`.
 fn parts(app: &mut App, entity: Entity) -> Vec<Entity> {
@@ -202,7 +200,7 @@ fn hair_dropped_on_avian_colliders_lies_on_them() {
 }
 
 /// Every name of this crate's prelude, used beside avian's real prelude (both glob-imported): a name in
-/// both would be ambiguous here and fail to compile. (`tests/names_beside_avian.rs` checks stand-ins of
+/// both would be ambiguous here and fail to compile. (`tests/plugin/names_beside_avian.rs` checks stand-ins of
 /// avian's and bevy_rapier's names without the feature.)
 mod beside_avians_prelude {
     use avian3d::prelude::*;
@@ -212,7 +210,7 @@ mod beside_avians_prelude {
     #[test]
     fn every_name_of_ours_can_be_used_beside_avians_prelude() {
         let ours = [
-            type_name::<HairPlugin>(),
+            type_name::<HairPlugins>(),
             type_name::<AvianHairCollider>(),
             type_name::<HairCollider>(),
             type_name::<HairColliderOf>(),

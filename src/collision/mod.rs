@@ -192,7 +192,7 @@ impl ColliderMotion {
 
 /// Collisions of hair with [`HairCollider`]s: tracks colliders and gathers each head's set every fixed
 /// step, in [`crate::schedule::HairSystems::PinRoots`]; the strands' steps then keep their nodes outside. Part of
-/// [`crate::HairPlugin`]; without it, hair passes through everything.
+/// [`crate::HairPlugins`]; without it, hair passes through everything.
 #[derive(Debug, Clone)]
 pub struct HairCollisionPlugin {
     /// The fixed-timestep schedule the simulation runs in (that of [`crate::HairSimulationPlugin`]).

@@ -1,7 +1,9 @@
 //! Looking at the hair while tuning it: [`HairGizmoPlugin`] draws strands and colliders as gizmo lines (a
-//! debug view over the rendered hair, or the only view without the renderer), and, behind the `egui`
-//! feature, `HairPanelPlugin` is a live panel of settings and statistics.
+//! debug view over the rendered hair, or the only view without the renderer); behind the `egui` feature,
+//! `HairPanelPlugin` is a live panel of settings and statistics; [`coverage`] measures how a head of hair
+//! covers its scalp and holds together, headless.
 
+pub mod coverage;
 mod gizmos;
 #[cfg(feature = "egui")]
 mod panel;

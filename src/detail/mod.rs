@@ -208,7 +208,7 @@ impl HairDetailSettings {
     }
 }
 
-/// Levels of detail for crowds (see the [module documentation](self)); part of [`crate::HairPlugin`].
+/// Levels of detail for crowds (see the [module documentation](self)); part of [`crate::HairPlugins`].
 /// Without it every head is simulated at full detail.
 #[derive(Debug, Clone)]
 pub struct HairDetailPlugin {

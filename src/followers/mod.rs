@@ -356,7 +356,7 @@ impl GrownCollider {
 
 /// Moves lane `k` of `(x, y, z)` to `centre + offset · scale[k] + shift[k]` where `inside[k]`. Kept out of
 /// line: measured, the loop over the nodes is faster with the move as a call than inlined into it
-/// (`docs/performance.md`, issue 32's fourth pass).
+/// (`docs/performance.md`).
 #[inline(never)]
 fn move_lanes(
     [x, y, z]: [&mut PushLanes; 3],
@@ -540,7 +540,7 @@ const PLACE_BATCHES_PER_THREAD: usize = 16;
 
 /// Follower hairs (see the [module documentation](self)): binds each guide's [`HairFollowers`] in
 /// [`HairPrepareSystems::Bind`] and places them after every step in [`HairStepSystems::Follow`]. Part of
-/// [`crate::HairPlugin`]; without it, [`HairFollowers`] are ignored.
+/// [`crate::HairPlugins`]; without it, [`HairFollowers`] are ignored.
 #[derive(Debug, Clone)]
 pub struct HairFollowersPlugin {
     /// The fixed-timestep schedule the simulation runs in.

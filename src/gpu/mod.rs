@@ -58,13 +58,14 @@
 //! a collider holding a root inside it leaves the strand within twice the root's depth free of it, as on
 //! the CPU.
 
-mod compute;
-mod solver;
+mod gather;
+mod pipelines;
+mod step;
 
-pub use compute::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
-pub use solver::{
-    GATHER_SHADER, GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuGatherTarget, GpuHeadStep,
-    GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
-    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets,
-    headless_device,
+pub use gather::{GATHER_SHADER, GpuGatherTarget};
+pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
+pub use step::{
+    GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError,
+    GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
+    GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets, headless_device,
 };

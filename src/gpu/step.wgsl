@@ -88,7 +88,7 @@ const HEAD_ROWS: u32 = 5u;
 const COLLIDER_ROWS: u32 = 5u;
 
 // Lanes per workgroup, one strand each, and so the most edges a strand may have: 32 or 64, set when the
-// pipeline is built (`STEP_LANES` in `solver.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
+// pipeline is built (`STEP_LANES` in `step.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
 // lanes share, fills 15.5 kB of WebGPU's 16 kB of workgroup memory; at 32, 8 kB.
 override LANES: u32 = 64u;
 const BAND: u32 = 10u;
@@ -1344,7 +1344,7 @@ fn step(
         // has no stretching force): one projection iteration, which takes the update's second-order
         // stretch (½ turn², up to 5e-3) to ~1e-5. After the last, as exact as single precision resolves.
         // (No projection before another iteration saves 0.4 iterations a strand-step on the shaken head
-        // but leaves a held strand 7 % further from the CPU's: `tests/gpu_step.rs`.)
+        // but leaves a held strand 7 % further from the CPU's: `tests/gpu/step.rs`.)
         project_lengths(select(1u, params.projection_iterations, last));
 
         refresh_frames();

@@ -7,7 +7,7 @@
 //!   [`GroomFile`] asset and placed on the head ([`GroomPlacement`]: scale, up axis, offset). Its strands
 //!   carry [`FileStrand`].
 //!
-//! [`HairGroomPlugin`] (part of [`crate::HairPlugin`]) grows both in
+//! [`HairGroomPlugin`] (part of [`crate::HairPlugins`]) grows both in
 //! [`HairPrepareSystems::Grow`], before the strands are built.
 //!
 //! # Combed grooms that hold their style
@@ -25,9 +25,8 @@
 //! default) gives the strand, once built, rest curvatures and twists in which its groomed shape is its
 //! static equilibrium under gravity, lying on its head's colliders where it touches them
 //! ([`Rod::preload_for_gravity`](crate::rod::Rod::preload_for_gravity)). Gravity is baked into the rest
-//! shape, not applied as a counter-force: turn the head over and the hair moves. Measured: the default
-//! combed groom (500 strands) settles within 0.18 mm RMS of its groomed shape after 3 s, against 15.6 mm
-//! without preload.
+//! shape, not applied as a counter-force: turn the head over and the hair moves. How closely a groom
+//! keeps its shape is measured in `docs/testing.md`.
 //!
 //! # Grooms from files
 //! A [`HairGroomFile`] on a head puts the file's strands on it once the file is loaded; changing it, or the
@@ -50,11 +49,7 @@
 //! would ([`Rod::stiffening_to_hold`](crate::rod::Rod::stiffening_to_hold)); strands that hang keep
 //! their material. Hair held in a shape its preloaded rest curl turns against (combed round a head it
 //! does not lie on, held out by its bend at the root) turns over and falls as readily, and is stiffened
-//! too; see [`Rod::stiffening_to_hold`](crate::rod::Rod::stiffening_to_hold). Measured: the Ratboy mohawk
-//! placed as it comes (one unit a metre: 5 to 29 cm strands on a 68 cm head) stays within 0.001 mm RMS of
-//! its shape for 10 s on a still head, stiffened up to 38 times; preloaded only, it leaves its shape by
-//! 69 mm RMS. A groom of long, curly, wavy and upward hair of our own stays within 0.001 mm RMS without
-//! its skull and 0.42 mm on it.
+//! too; see [`Rod::stiffening_to_hold`](crate::rod::Rod::stiffening_to_hold).
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -77,13 +72,8 @@
 //! fitted to the scalp instead of placed by hand ([`GroomPlacement::fit_to_scalp`]: scaled and moved
 //! until its roots lie on it), and a file's colours are drawn ([`StrandColors`]).
 //!
-//! # Judging a groom in motion
-//! [`coverage`] measures a head of hair without a picture: how much of the scalp the hair leaves
-//! bare ([`coverage::scalp_exposure`]) and how many guides fly away from their neighbours
-//! ([`coverage::StrayCheck`]). `cargo run --release --example benchmark coverage` prints both for the
-//! example's scene at rest, shaking, turning and flicking.
+//! A groom's look in motion is measured, without a picture, by [`crate::debug::coverage`].
 
-pub mod coverage;
 mod file;
 mod procedural;
 mod surface;
@@ -106,16 +96,12 @@ use crate::schedule::HairPrepareSystems;
 /// Grows procedural grooms ([`HairGroom`]) and places groom files ([`HairGroomFile`]) on their heads;
 /// registers the [`GroomFile`] asset and its loaders when the app has Bevy's `AssetPlugin` (added before
 /// this plugin, as `DefaultPlugins` does; without it, groom files cannot be loaded). Part of
-/// [`crate::HairPlugin`].
+/// [`crate::HairPlugins`].
 #[derive(Debug, Clone)]
 pub struct HairGroomPlugin {
     /// The fixed-timestep schedule the simulation runs in.
     pub schedule: InternedScheduleLabel,
 }
-
-/// The plugin that placed groom files before [`HairGroomPlugin`] grew procedural grooms too.
-#[deprecated(note = "HairGroomPlugin grows procedural grooms and places groom files")]
-pub type GroomFilePlugin = HairGroomPlugin;
 
 impl Plugin for HairGroomPlugin {
     fn build(&self, app: &mut App) {

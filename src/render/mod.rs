@@ -38,7 +38,7 @@
 //! prepasses cover the same samples as its main pass, so a camera's depth prepass does not hide the hair
 //! behind a hair's uncovered samples.
 //!
-//! **Shading** (`hair.wgsl`): Kajiya and Kay's hair model (SIGGRAPH 1989), diffuse `∝ sin(t, l)` and
+//! **Shading** (`draw.wgsl`): Kajiya and Kay's hair model (SIGGRAPH 1989), diffuse `∝ sin(t, l)` and
 //! specular `∝ sin(t, h)^p`, with Scheuermann's two shifted highlights ("Hair Rendering and Shading",
 //! GDC 2004): the primary, white, reflected at the cuticle and shifted towards the root; the secondary,
 //! tinted by the hair's colour, through the fibre and back, shifted towards the tip and broader. Shifts and
@@ -64,16 +64,18 @@ use crate::simulation::{SimulatedStrand, StrandNodes};
 use crate::volume::RepresentedHairs;
 
 #[cfg(feature = "render")]
-mod compute;
+mod draw;
+// What the GPU is sent for followers and drawing: public for the crate's benchmark, not an API.
+#[doc(hidden)]
 pub mod feed;
 #[cfg(feature = "render")]
-mod gpu;
+mod followers;
+#[cfg(feature = "gpu")]
+mod gpu_step;
 #[cfg(feature = "render")]
-pub use gpu::{DrawnStrand, HairMaterial, HairMesh, HairRenderPlugin, HairShading};
+pub use draw::{DrawnStrand, HairMaterial, HairMesh, HairRenderPlugin, HairShading};
 #[cfg(feature = "gpu")]
-mod stepping;
-#[cfg(feature = "gpu")]
-pub use stepping::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
+pub use gpu_step::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
 
 /// How a head's hair looks when drawn by the [`HairRenderPlugin`]. Put it on the [`crate::simulation::HairHead`]
 /// entity; without one, hair is drawn with [`HairAppearance::default`]. Changes apply the next frame.
@@ -97,8 +99,9 @@ pub struct HairAppearance {
     /// Angular width `β` of the primary highlight, rad (Marschner et al.: 5–10°); the secondary is twice
     /// as wide.
     pub highlight_width: f32,
-    /// How much each highlight widens by how much the hair's shifted tangent turns within a pixel, 0 to 4:
-    /// the lobe's angular width `β` becomes `β' = √(β² + f σ²)` (`σ`, rad, the turn over one pixel from
+    /// How much each highlight widens where the hair's tangent turns within a pixel, 0 to 4.
+    ///
+    /// The lobe's angular width `β` becomes `β' = √(β² + f σ²)` (`σ`, rad, the turn over one pixel from
     /// the screen-space derivatives: across a hair thinner than a pixel the tangent the highlight sees
     /// turns with the fibre's side) and its peak falls by `β/β'`, so the light it reflects stays the same
     /// (Toksvig's filtering, "Mipmapping normal maps", 2005, applied to the fibre's lobe). Without it

@@ -21,7 +21,7 @@
 //! match), and the prescribed unknowns where the batch's strands share them (as the strands of a head,
 //! each clamped at its root, do). Each strand's contact and Levenberg–Marquardt shift are written into
 //! its own lane, and its contacts are looked at strand by strand. The plugin steps its strands this way;
-//! `benchmark lockstep` compares the two paths (`docs/performance.md`, issue 32).
+//! `benchmark lockstep` compares the two paths (`docs/performance.md`).
 
 use super::banded::{BandedMatrix, MatrixLane, factorize_best, solve_best};
 use super::contact::Contacts;

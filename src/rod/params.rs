@@ -26,8 +26,8 @@ pub const MAX_GRAVITY: f64 = 1e4;
 /// | 2 Hz | 72 % | 2.6 % |
 /// | 5 Hz | 99.9 % | 49 % |
 ///
-/// (`tests/integrator.rs` measures these rates on a pendulum.) The second-order scheme was chosen by
-/// the numbers of issue 19: a released 30 cm rod with no physical damping keeps 94 % of its energy
+/// (`tests/mechanics/integrator.rs` measures these rates on a pendulum.) The second-order scheme was chosen by
+/// these numbers: a released 30 cm rod with no physical damping keeps 94 % of its energy
 /// after 1 s at 60 Hz (backward Euler 27 %), and converges at second order. The trapezoidal rule and
 /// Newmark-type schemes with less damping still were tried: with the inextensibility projection they
 /// fall back to first order (corrections of positions enter their velocity and acceleration memory),

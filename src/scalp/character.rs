@@ -9,8 +9,10 @@ use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSetting
 use crate::groom::{HairGroom, HairGroomFile};
 use crate::simulation::HairHead;
 
-/// Puts hair on a character once its scene has spawned (a glTF's `SceneRoot`, or entities of your
-/// own): put it on the scene's root entity. Among the root's descendants, the entity named
+/// Puts hair on a character by the names of its head joint, scalp mesh and collider meshes.
+///
+/// Put it on the scene's root entity (a glTF's `WorldAssetRoot`, or entities of your own); the search
+/// starts once the scene has spawned. Among the root's descendants, the entity named
 /// [`head_joint`](Self::head_joint) becomes the [`HairHead`], bound to the scalp mesh named
 /// [`scalp_mesh`](Self::scalp_mesh) ([`HairScalpMesh`]) and given the [`hair`](Self::hair); each mesh
 /// named in [`collider_meshes`](Self::collider_meshes) is baked into a collider of that head
@@ -27,7 +29,7 @@ use crate::simulation::HairHead;
 /// # use bevy_hair_sim::prelude::*;
 /// # fn spawn(mut commands: Commands) {
 /// commands.spawn((
-///     Transform::default(), // beside SceneRoot(assets.load("character.glb#Scene0"))
+///     Transform::default(), // beside WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("character.glb")))
 ///     HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
 ///         .with_scalp_mesh("Scalp")
 ///         .with_collider_meshes(["Face"]),

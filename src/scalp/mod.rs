@@ -152,7 +152,7 @@ pub enum ScalpError {
     Surface(#[from] GroomError),
 }
 
-/// Roots bound to scalp meshes (see the [module documentation](self)); part of [`crate::HairPlugin`].
+/// Roots bound to scalp meshes (see the [module documentation](self)); part of [`crate::HairPlugins`].
 #[derive(Debug, Clone)]
 pub struct HairScalpPlugin {
     /// The fixed-timestep schedule the simulation runs in (that of [`crate::HairSimulationPlugin`]).

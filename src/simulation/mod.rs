@@ -52,7 +52,7 @@
 //! use bevy_hair_sim::prelude::*;
 //!
 //! let mut app = App::new();
-//! app.add_plugins((MinimalPlugins, HairPlugin::default()))
+//! app.add_plugins((MinimalPlugins, HairPlugins::default()))
 //!     .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
 //! let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
 //! let strand = app.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::Z, 0.2, 16), StrandOf(head))).id();
@@ -86,6 +86,8 @@ mod cadence;
 mod contacts;
 mod data;
 mod head;
+// The GPU's wire format of a strand's pose: public for the crate's GPU tests and benchmark, not an API.
+#[doc(hidden)]
 pub mod packed;
 mod pose;
 mod settings;
@@ -122,7 +124,7 @@ use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairS
 
 /// The hair simulation: strands as entities rooted on heads, stepped in a fixed-timestep schedule. It
 /// configures every set of [`crate::schedule`] and runs the core's systems in them; the other concerns'
-/// plugins ([`crate::HairPlugin`] adds them all) put theirs in the same sets.
+/// plugins ([`crate::HairPlugins`] adds them all) put theirs in the same sets.
 #[derive(Debug, Clone)]
 pub struct HairSimulationPlugin {
     /// The fixed-timestep schedule the simulation runs in.
@@ -137,7 +139,7 @@ impl Plugin for HairSimulationPlugin {
         {
             info!(
                 "hair is stepped on Bevy's compute pool: {} of {cores} cores; \
-                 HairPlugin::task_pool_options() gives it all of them",
+                 HairPlugins::task_pool_options() gives it all of them",
                 pool.thread_num()
             );
         }

@@ -160,8 +160,9 @@ pub struct HairStatistics {
     pub mean_newton_iterations: f64,
     /// Wall-clock time the last step of all strands took, s.
     pub step_seconds: f64,
-    /// Of that, the time spent packing strand poses for the GPU ([`PackedStrandPose`], only on strands
-    /// that have one), summed over the threads that stepped them, s: every eighth pose a thread packs is
+    /// Of that, the time spent packing strand poses for the GPU, summed over threads, s.
+    ///
+    /// Only strands that have a [`PackedStrandPose`] are packed. Every eighth pose a thread packs is
     /// timed (a clock read costs half a packing; its own cost, measured alongside, is taken off) and the
     /// rest counted at their mean.
     ///
@@ -208,7 +209,7 @@ pub struct HairStyleHold {
     /// Default 1: the hold fades all along the strand and the tips swing. Held only near the root, a
     /// strand is dragged out of its style by its own free tail (held over half its length at 200/s, a
     /// shaken combed groom's nodes an eighth to three eighths of the way along stay 7.6 mm RMS from their
-    /// places; over all of it, 0.8 mm: `tests/style_hold.rs`).
+    /// places; over all of it, 0.8 mm: `tests/plugin/style_hold.rs`).
     pub reach: f32,
 }
 

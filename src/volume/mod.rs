@@ -8,7 +8,7 @@
 //!   it pushes outwards with [`HairVolume::stiffness`] (Pa): hair rests on hair, and a head of hair has
 //!   volume instead of lying in one layer on the skull.
 //!
-//! [`HairVolumePlugin`] (part of [`crate::HairPlugin`]; off until [`HairVolume::enabled`], since it
+//! [`HairVolumePlugin`] (part of [`crate::HairPlugins`]; off until [`HairVolume::enabled`], since it
 //! costs a sixth to a fifth of a step) does this in [`HairSystems::ExternalForces`]: the
 //! pressure as a force in [`StrandForces`], the smoothing as a change of velocity at the start of the
 //! step ([`StrandForces::velocity_changes`]). Why those two forms: the smoothing is a filter (the
@@ -44,10 +44,8 @@
 //! falls over the face. So by default ([`HairVolume::keep_groomed_volume`]) each node remembers how densely
 //! the hair was packed where it lay in its groom, and the pressure pushes only where hair is packed beyond
 //! both that and the target: a groom rests as it was made, and hair pressed together when the head moves
-//! (or piled by a collider) pushes back. Measured on the example's combed groom after 3 s at rest with
-//! 50 Pa, held at 200/s: 0.21 mm RMS from the groom, as without the pressure, against 4.3 mm measured
-//! against the target alone (`benchmark styles`). The pressure is still 0 by default: it costs a little
-//! more of the grid's time and, measured so, changes little in motion (`benchmark coverage`).
+//! (or piled by a collider) pushes back (`docs/testing.md` has the figures). The pressure is 0 by
+//! default: it costs a little more of the grid's time and changes little in motion.
 //!
 //! Checking settings before using them:
 //!
@@ -181,7 +179,7 @@ impl HairVolumeGrids {
 }
 
 /// Hair–hair interaction through a grid (see the [module documentation](self)); part of
-/// [`crate::HairPlugin`]. Without it (or with [`HairVolume::enabled`] off) strands meet only colliders.
+/// [`crate::HairPlugins`]. Without it (or with [`HairVolume::enabled`] off) strands meet only colliders.
 #[derive(Debug, Clone)]
 pub struct HairVolumePlugin {
     /// The fixed-timestep schedule the simulation runs in.

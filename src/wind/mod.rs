@@ -36,7 +36,7 @@
 //! use bevy_hair_sim::prelude::*;
 //!
 //! let mut app = App::new();
-//! app.add_plugins((MinimalPlugins, HairPlugin::default()))
+//! app.add_plugins((MinimalPlugins, HairPlugins::default()))
 //!     // 3 m/s from −X, gusting by ±1 m/s, with 0.5 m/s eddies of 30 cm.
 //!     .insert_resource(HairWind { velocity: Vec3::new(3.0, 0.0, 0.0), gusts: 1.0, turbulence: 0.5, ..default() });
 //! let wind = app.world().resource::<HairWind>();
@@ -403,7 +403,7 @@ pub(crate) fn add_wind(
 }
 
 /// Wind for the hair simulation: [`HairWind`] and [`HairWindSource`]s, added to every strand in
-/// [`HairSystems::ExternalForces`]. Part of [`crate::HairPlugin`].
+/// [`HairSystems::ExternalForces`]. Part of [`crate::HairPlugins`].
 #[derive(Debug, Clone)]
 pub struct HairWindPlugin {
     /// The fixed-timestep schedule the simulation runs in.

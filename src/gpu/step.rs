@@ -1,0 +1,1166 @@
+//! The GPU strand step on a plain `wgpu` device: the buffers, the pipeline of `step.wgsl`, uploads,
+//! dispatches and read-back. Bevy's renderer hands its own device to it
+//! ([`HairGpuPlugin`](crate::render::HairGpuPlugin)); tests and benchmarks make one with [`headless_device`].
+
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex};
+
+use bevy::math::{DQuat, DVec2, DVec3};
+use wgpu::util::DeviceExt;
+
+use super::gather::{GATHER_WORKGROUP, Gather, GpuGatherTarget};
+use super::pipelines::{bind_whole_buffers, compute_layout, pipeline_of_module};
+
+use crate::rod::{
+    ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
+};
+
+/// Most workgroups along one dimension of a dispatch (WebGPU's limit).
+const MAX_GROUPS: u32 = 65_535;
+/// Lanes of the step's two pipelines (`LANES` in `step.wgsl`): one workgroup steps a strand, lane `i` owning
+/// edge `i`; strands of up to 32 edges (a game's guides) go to workgroups of 32 lanes, one warp, the others
+/// to workgroups of 64.
+const STEP_LANES: [usize; 2] = [32, 64];
+/// The most nodes a strand stepped on the GPU may have: 64 edges, one per lane of the wider pipeline, the
+/// band of up to 259 unknowns in 15.5 kB of workgroup memory (WebGPU guarantees 16 kB).
+pub const MAX_GPU_NODES: usize = 65;
+/// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
+const REST_ROWS: usize = 5;
+const STATE_ROWS: usize = 5;
+const HEAD_ROWS: usize = 5;
+const COLLIDER_ROWS: usize = 5;
+const STRAND_FLOATS: usize = 4;
+/// The arc-length fraction written for the nodes of a strand that is not held: past any reach (at most 1).
+const HELD_NOWHERE: f64 = 2.0;
+/// `Params` of the shader: twenty words.
+const PARAMS_BYTES: u64 = 80;
+/// Rows of `vec4<u32>` per strand in the work counters (`work` in the shader).
+const WORK_ROWS: usize = 2;
+/// The state's rows a read-back copies: position and θ, velocity and θ̇, reference director and twist (the
+/// history, rows 2 and 3, stays on the GPU).
+const READ_BACK_ROWS: [usize; 3] = [0, 1, 4];
+
+/// Stiffness of an edge's first-order change of length in the GPU's solve, relative to the inertia of its
+/// nodes `m (1/h² + γ/h)`, dimensionless. Large enough that the linear step keeps lengths to first order
+/// (an edge stretches by 1/1000 of what the forces alone would stretch it, before the projection), small
+/// enough that the system's condition number stays near 10³ and single precision solves it to 10⁻⁴.
+pub const STRETCH_RATIO: f64 = 1e3;
+
+/// How near to folded back two consecutive edges of a strand may be for the GPU to take it, rad short of
+/// π (a turn sharper than 166°). The bending's gradients grow as `1/(1 + t⁻·t)`: at this turn they are
+/// 60 times those of a straight strand and the Newton matrix 4 000 times, which single precision still
+/// factorises; a strand folded flat (a tip pushed onto a shoulder, say, folds within 10⁻⁴ rad) makes the
+/// factorisation fail at every step. Such strands stay on the CPU ([`crate::rod::Rod::sharpest_turn`]).
+pub const GPU_FOLD_GAP: f64 = 0.25;
+
+/// The strain single precision can resolve on a strand within a metre of its head: a position's rounding
+/// (6e-8 m) over the shortest edge of 1 mm, doubled. Added to [`StepParams::strain_bound`] for the GPU's
+/// check.
+pub const SINGLE_PRECISION_STRAIN: f64 = 1.2e-4;
+
+/// Newton iterations of each GPU step: the CPU's adaptive count usually stops at one on calm steps and
+/// takes two to four on violent ones; the GPU takes a fixed number. (The CPU's test per strand, tried,
+/// stopped 7 % of the shaken head's strands after one iteration and left a released hair's swing 2.4 mm
+/// from the converged one where two iterations leave 1.6: `docs/performance.md`.)
+pub const GPU_NEWTON_ITERATIONS: u32 = 2;
+
+/// The most rounds of "push out of the colliders, project the lengths" after the solve (friction in the
+/// first); they end once no node moves by more than four times its position's rounding.
+pub const GPU_CONTACT_ROUNDS: u32 = 4;
+
+/// Why a strand cannot be stepped on the GPU, or no GPU step can be made.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum GpuStepError {
+    /// No adapter or device (no GPU, no software Vulkan).
+    #[error("no GPU adapter or device: {0}")]
+    NoDevice(String),
+    /// A strand with more nodes than a workgroup has lanes ([`MAX_GPU_NODES`]), or fewer than three.
+    #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
+    NodeCount {
+        /// The strand's index in the input.
+        strand: usize,
+        /// Its node count.
+        nodes: usize,
+    },
+    /// A strand whose root edge is not clamped (the GPU step roots every strand on its head).
+    #[error("strand {strand}'s root edge is not clamped: the GPU step needs every strand rooted")]
+    Unrooted {
+        /// The strand's index in the input.
+        strand: usize,
+    },
+    /// A strand whose groomed places ([`GpuStrandInput::groomed`]) are not one finite point per node.
+    #[error("strand {strand}'s groomed places for the style hold are not one finite point per node")]
+    Groomed {
+        /// The strand's index in the input.
+        strand: usize,
+    },
+    /// A strand on a head that was not given.
+    #[error("strand {strand} is on head {head}, but only {heads} heads were given")]
+    NoSuchHead {
+        /// The strand's index in the input.
+        strand: usize,
+        /// The head it names.
+        head: usize,
+        /// How many heads were given.
+        heads: usize,
+    },
+    /// A collider shape the GPU step does not meet (cuboids and meshes: the CPU meets them).
+    #[error("collider {collider} of head {head}: the GPU step meets spheres, capsules, ellipsoids and planes")]
+    UnsupportedCollider {
+        /// The head's index.
+        head: usize,
+        /// The collider's index among the head's.
+        collider: usize,
+    },
+    /// A head's pose, air or collider is not finite, its rotation not a unit quaternion, or its style hold's
+    /// rate negative or not finite or its reach outside 0 to 1.
+    #[error(
+        "head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit), or its style hold is out of range"
+    )]
+    InvalidHead {
+        /// The head's index.
+        head: usize,
+    },
+    /// The step's parameters are not valid.
+    #[error(transparent)]
+    InvalidParameters(#[from] RodError),
+}
+
+/// One strand given to [`GpuStrandSolver::new`]: its rod (state, rest shape, material, its root edge
+/// clamped where the head holds it) and its head.
+#[derive(Debug, Clone, Copy)]
+pub struct GpuStrandInput<'a> {
+    /// The strand, with its root edge clamped ([`Rod::clamp_edge`]) at the head's pose of
+    /// [`GpuStrandSolver::new`].
+    pub rod: &'a Rod,
+    /// Index of its head in the poses given to [`GpuStrandSolver::new`] and [`GpuStrandSolver::step`].
+    pub head: usize,
+    /// Distance from the centre line kept outside colliders, m (the strand's radius plus a margin).
+    pub thickness: f64,
+    /// Where the style hold draws each node, in its head's local space (one per node, m), or `None` for a
+    /// strand that is not held: a critically damped spring `−m k (x − x̄) − m c (v − v̄)` inside the solve,
+    /// `x̄` the place carried with the head, as [`crate::rod::Anchor`] on the CPU, with `√k = c/2` from the
+    /// head's [`GpuHeadStep::hold_rate`] and [`GpuHeadStep::hold_reach`].
+    pub groomed: Option<&'a [DVec3]>,
+}
+
+/// A head's motion over one step: its pose at the step's end, its colliders (poses at the step's start
+/// and end, in world space), and the air's velocity around its hair.
+#[derive(Debug, Clone, Default)]
+pub struct GpuHeadStep {
+    /// The head's orientation at the end of the step.
+    pub rotation: DQuat,
+    /// The head's position at the end of the step, m.
+    pub translation: DVec3,
+    /// The colliders its hair meets.
+    pub colliders: Vec<MovingCollider>,
+    /// The air's velocity around the head, m/s (the drag acts on the hair's velocity relative to it).
+    pub air_velocity: DVec3,
+    /// How fast the style hold draws its strands' nodes back to their groomed places
+    /// ([`GpuStrandInput::groomed`]) at the root, 1/s: the angular frequency `ω` of a node's spring
+    /// alone (`k = ω²`, critically damped `c = 2ω`). 0 (the default) holds nothing. Finite, not negative.
+    pub hold_rate: f64,
+    /// How far along each strand the hold reaches, as a fraction of its length, 0 to 1: the frequency
+    /// falls off as `hold_rate (1 − smoothstep(s/(reach·L)))` and is 0 beyond, as
+    /// `HairStyleHold::angular_frequency` on the CPU.
+    pub hold_reach: f64,
+}
+
+/// What a strand's last GPU step reported.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GpuStrandStatus {
+    /// The largest edge strain after the step, dimensionless (after a step failed for over-strain, the
+    /// strain that failed it).
+    pub max_strain: f32,
+    /// Why the last step failed (the strand was put back in its rest pose on its root, at rest), if it did.
+    pub fault: Option<GpuFault>,
+    /// Why the most recent failed step since the upload failed, if any did (read back every few steps,
+    /// this still says why).
+    pub last_fault: Option<GpuFault>,
+    /// Steps that failed since the upload.
+    pub faults: u32,
+    /// Whether the last step could not put the strand outside its colliders with its lengths kept (it
+    /// lies deep inside one that holds its root, say), and kept its state without contact instead.
+    pub contact_given_up: bool,
+}
+
+/// The work a strand's GPU steps took since the upload ([`GpuStrandSolver::read_work`]): what sets the
+/// step's cost on a GPU, where a dispatch runs until its slowest strand is done. Counted by the shader,
+/// in wrapping `u32`s.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GpuStrandWork {
+    /// Steps taken.
+    pub steps: u32,
+    /// Newton iterations (each one assembly, factorisation and solve).
+    pub newton_iterations: u32,
+    /// Projection iterations onto the rest lengths (each one tridiagonal solve).
+    pub projection_iterations: u32,
+    /// Gauss–Seidel sweeps of the projection, where its iteration did not reduce the error.
+    pub projection_sweeps: u32,
+    /// Projection iterations that did not reduce the error, sweep included: spent where single
+    /// precision's rounding, not the lengths, set it.
+    pub projection_stalls: u32,
+    /// Calls of the projection (after each Newton iteration and each contact round).
+    pub projections: u32,
+    /// Contact rounds (push-out, then the lengths again).
+    pub contact_rounds: u32,
+    /// Factorisations redone with a regularised diagonal after a non-positive pivot.
+    pub factorisation_retries: u32,
+}
+
+impl GpuStrandWork {
+    /// The work of every strand summed.
+    pub fn total(work: &[GpuStrandWork]) -> GpuStrandWork {
+        work.iter().fold(GpuStrandWork::default(), |sum, w| GpuStrandWork {
+            steps: sum.steps.wrapping_add(w.steps),
+            newton_iterations: sum.newton_iterations.wrapping_add(w.newton_iterations),
+            projection_iterations: sum.projection_iterations.wrapping_add(w.projection_iterations),
+            projection_sweeps: sum.projection_sweeps.wrapping_add(w.projection_sweeps),
+            projection_stalls: sum.projection_stalls.wrapping_add(w.projection_stalls),
+            projections: sum.projections.wrapping_add(w.projections),
+            contact_rounds: sum.contact_rounds.wrapping_add(w.contact_rounds),
+            factorisation_retries: sum.factorisation_retries.wrapping_add(w.factorisation_retries),
+        })
+    }
+
+    /// Each count per step taken (0 with no step).
+    pub fn per_step(&self) -> [f64; 7] {
+        let steps = f64::from(self.steps.max(1));
+        [
+            self.newton_iterations,
+            self.projection_iterations,
+            self.projection_sweeps,
+            self.projection_stalls,
+            self.projections,
+            self.contact_rounds,
+            self.factorisation_retries,
+        ]
+        .map(|count| f64::from(count) / steps)
+    }
+}
+
+/// Why a GPU step failed for a strand.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GpuFault {
+    /// A position or twist was not finite at `node`.
+    NonFinite {
+        /// The first node found.
+        node: u32,
+    },
+    /// Edge `edge` was strained past the bound.
+    OverStrained {
+        /// The most strained edge.
+        edge: u32,
+    },
+    /// The Newton system did not factorise even regularised.
+    NotPositiveDefinite,
+}
+
+/// The strands' state read back from the GPU, in world space.
+#[derive(Debug, Clone, Default)]
+pub struct GpuStrandStates {
+    /// Per strand, its node positions, m.
+    pub positions: Vec<Vec<DVec3>>,
+    /// Per strand, its node velocities, m/s.
+    pub velocities: Vec<Vec<DVec3>>,
+    /// Per strand, its edges' twist angles θ, rad.
+    pub twists: Vec<Vec<f64>>,
+    /// Per strand, its edges' twist rates dθ/dt, rad/s.
+    pub twist_rates: Vec<Vec<f64>>,
+    /// Per strand, its edges' reference directors (unit, across the edge).
+    pub reference_directors: Vec<Vec<DVec3>>,
+    /// Per strand, the reference twist at each vertex, rad.
+    pub reference_twists: Vec<Vec<f64>>,
+    /// Per strand, its last step's report.
+    pub status: Vec<GpuStrandStatus>,
+}
+
+impl GpuStrandStates {
+    /// Strand `strand` as a rod's snapshot ([`Rod::restore`] takes it): positions, velocities, twists
+    /// and frames from the GPU, no two-step history (the CPU's next step, if any, starts with backward
+    /// Euler) and no contact forces. `None` past the last strand, or where only the status was read back.
+    pub fn snapshot(&self, strand: usize) -> Option<RodSnapshot> {
+        self.clone_strand(strand)?.take_snapshot(0)
+    }
+
+    /// [`GpuStrandStates::snapshot`], moving the strand's vectors out instead of copying them (they are
+    /// left empty, and a second call returns `None`).
+    pub fn take_snapshot(&mut self, strand: usize) -> Option<RodSnapshot> {
+        let positions = std::mem::take(self.positions.get_mut(strand)?);
+        if positions.is_empty() {
+            return None;
+        }
+        let tangents = positions.windows(2).map(|ends| (ends[1] - ends[0]).normalize_or_zero()).collect();
+        let nodes = positions.len();
+        let take = |values: &mut Vec<Vec<f64>>| std::mem::take(&mut values[strand]);
+        let (twist, twist_rates, reference_twist) =
+            (take(&mut self.twists), take(&mut self.twist_rates), take(&mut self.reference_twists));
+        Some(RodSnapshot {
+            state: RodState {
+                positions,
+                velocities: std::mem::take(&mut self.velocities[strand]),
+                twist,
+                twist_rates,
+                contact_normal_forces: vec![0.0; nodes],
+                history: StepHistory {
+                    dt: 0.0,
+                    positions: vec![DVec3::ZERO; nodes],
+                    velocities: vec![DVec3::ZERO; nodes],
+                },
+            },
+            frames: RodFrames {
+                tangents,
+                reference_directors: std::mem::take(&mut self.reference_directors[strand]),
+                reference_twist,
+            },
+        })
+    }
+
+    /// Strand `strand` alone, its state copied (`None` past the last strand or without its state).
+    fn clone_strand(&self, strand: usize) -> Option<GpuStrandStates> {
+        Some(GpuStrandStates {
+            positions: vec![self.positions.get(strand)?.clone()],
+            velocities: vec![self.velocities[strand].clone()],
+            twists: vec![self.twists[strand].clone()],
+            twist_rates: vec![self.twist_rates[strand].clone()],
+            reference_directors: vec![self.reference_directors[strand].clone()],
+            reference_twists: vec![self.reference_twists[strand].clone()],
+            status: self.status.get(strand).copied().into_iter().collect(),
+        })
+    }
+}
+
+/// A device and queue of their own, headless, on whatever adapter wgpu finds (a discrete GPU, or Mesa's
+/// software Vulkan, lavapipe, on a machine without one), for tests and benchmarks.
+pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo), GpuStepError> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter = bevy::tasks::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::HighPerformance,
+        ..Default::default()
+    }))
+    .map_err(|error| GpuStepError::NoDevice(error.to_string()))?;
+    let info = adapter.get_info();
+    let mut limits = wgpu::Limits::default();
+    limits.max_storage_buffers_per_shader_stage = limits.max_storage_buffers_per_shader_stage.max(8);
+    let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
+    let (device, queue) = bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("hair strand step"),
+        required_features: features,
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .map_err(|error| GpuStepError::NoDevice(error.to_string()))?;
+    Ok((device, queue, info))
+}
+
+/// The shader's source.
+pub const STEP_SHADER: &str = include_str!("step.wgsl");
+
+/// Strands stepped on the GPU: their buffers (row planes of node-contiguous strands, positions relative to
+/// their heads), the step's pipelines, and the heads' poses the strands were last stepped to.
+pub struct GpuStrandSolver {
+    pipelines: Arc<GpuStepPipelines>,
+    /// Per pipeline of [`STEP_LANES`]: its bind group, and its parameters (which list it steps).
+    bind_groups: [wgpu::BindGroup; 2],
+    params: [wgpu::Buffer; 2],
+    state: wgpu::Buffer,
+    status: wgpu::Buffer,
+    heads: wgpu::Buffer,
+    colliders: wgpu::Buffer,
+    work: wgpu::Buffer,
+    strand_words: wgpu::Buffer,
+    strand_floats: wgpu::Buffer,
+    rest: wgpu::Buffer,
+    strand_count: usize,
+    /// Nodes of each strand, and the head of each.
+    strands: Arc<StrandLayout>,
+    /// Each head's pose after the last step: rotation and translation (the origin of its strands' positions).
+    head_poses: Vec<(DQuat, DVec3)>,
+    /// The step length the last dispatch used, s (a change restarts BDF2).
+    last_dt: f64,
+    /// Scratch for the per-step uploads.
+    head_rows: Vec<[f32; 4]>,
+    collider_rows: Vec<[f32; 4]>,
+    collider_capacity: usize,
+    /// Read-back buffers the CPU has finished with, for the next read-backs.
+    staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
+    /// Time spent in wgpu's submissions and polls since [`GpuStrandSolver::take_driver_seconds`], s.
+    driver_seconds: f64,
+}
+
+/// The step's and the gather's pipelines on one device, built once ([`GpuStepPipelines::new`] compiles the
+/// step's shader, a few hundred milliseconds on a driver: a hitch if it happened in play) and shared by every
+/// [`GpuStrandSolver`] made on that device ([`GpuStrandSolver::from_upload`]); the plugin builds them at
+/// its first upload and never again.
+pub struct GpuStepPipelines {
+    layout: wgpu::BindGroupLayout,
+    /// The step with 32 lanes a workgroup and with 64 ([`STEP_LANES`]).
+    steps: [wgpu::ComputePipeline; 2],
+    gather: Gather,
+}
+
+impl GpuStepPipelines {
+    /// Compiles the step's and the gather's shaders on `device`.
+    pub fn new(device: &wgpu::Device) -> Arc<Self> {
+        // Bindings: parameters; strand words, floats, rest shape (read); state (written); heads, colliders
+        // (read); status, work counters (written).
+        let read_only = [true, true, true, false, true, true, false, false];
+        let layout = compute_layout(device, "hair strand step", Some(PARAMS_BYTES), &read_only);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("hair strand step"),
+            source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
+        });
+        let steps = STEP_LANES.map(|lanes| {
+            let constants = [("LANES", lanes as f64)];
+            // The step writes every workgroup value before it reads it.
+            let options =
+                wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
+            pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
+        });
+        Arc::new(Self { layout, steps, gather: Gather::new(device) })
+    }
+}
+
+/// The strands as packed for [`GpuStrandSolver::from_upload`]: made from the rods on the CPU (in the main
+/// world, say), turned into buffers where the device is.
+#[derive(Debug, Clone)]
+pub struct GpuStrandUpload {
+    words: Vec<[u32; 4]>,
+    floats: Vec<[f32; 4]>,
+    rest: Vec<[f32; 4]>,
+    state: Vec<[f32; 4]>,
+    layout: Arc<StrandLayout>,
+    head_poses: Vec<(DQuat, DVec3)>,
+}
+
+/// Nodes of each strand, where each starts in the row planes, their sum (a plane's length, at least 1),
+/// how many each pipeline steps, and the head of each.
+#[derive(Debug)]
+struct StrandLayout {
+    node_counts: Vec<usize>,
+    first_nodes: Vec<usize>,
+    total_nodes: usize,
+    /// Strands stepped by each pipeline of [`STEP_LANES`] (listed in that order).
+    list_lengths: [usize; 2],
+    strand_heads: Vec<usize>,
+}
+
+/// Whether the GPU step meets colliders of `shape`: spheres, capsules, ellipsoids and planes (cuboids and
+/// baked meshes are the CPU's alone).
+pub fn gpu_meets(shape: &ColliderShape) -> bool {
+    shape_row(shape).is_some()
+}
+
+/// A collider shape's row in the step's collider buffer (its sizes, and its kind in `w`), if the GPU
+/// meets it.
+fn shape_row(shape: &ColliderShape) -> Option<[f32; 4]> {
+    Some(match *shape {
+        ColliderShape::Sphere { radius } => [radius as f32, 0.0, 0.0, 0.0],
+        ColliderShape::Capsule { radius, half_length } => [radius as f32, half_length as f32, 0.0, 1.0],
+        ColliderShape::Ellipsoid { semi_axes } => vec4(semi_axes, 2.0),
+        ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
+        _ => return None,
+    })
+}
+
+fn vec4(v: DVec3, w: f64) -> [f32; 4] {
+    [v.x as f32, v.y as f32, v.z as f32, w as f32]
+}
+
+impl GpuStrandUpload {
+    /// Packs `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) in
+    /// the GPU's layout. Rejects strands the GPU cannot step ([`GpuStepError`]).
+    pub fn new(strands: &[GpuStrandInput], head_poses: &[(DQuat, DVec3)]) -> Result<Self, GpuStepError> {
+        let strand_count = strands.len();
+        for (index, strand) in strands.iter().enumerate() {
+            let nodes = strand.rod.node_count();
+            if !(3..=MAX_GPU_NODES).contains(&nodes) {
+                return Err(GpuStepError::NodeCount { strand: index, nodes });
+            }
+            if strand.head >= head_poses.len() {
+                return Err(GpuStepError::NoSuchHead { strand: index, head: strand.head, heads: head_poses.len() });
+            }
+            let targets = &strand.rod.constraints().node_targets;
+            if targets[0].is_none() || targets[1].is_none() || strand.rod.constraints().twist_targets[0].is_none() {
+                return Err(GpuStepError::Unrooted { strand: index });
+            }
+            if strand
+                .groomed
+                .is_some_and(|groomed| groomed.len() != nodes || !groomed.iter().all(|place| place.is_finite()))
+            {
+                return Err(GpuStepError::Groomed { strand: index });
+            }
+        }
+        // Row planes of node-contiguous strands, none padded: row `k` of node `i` of strand `s` at
+        // `k * total + first[s] + i`.
+        let first_nodes: Vec<usize> = strands
+            .iter()
+            .scan(0, |next, strand| {
+                let first = *next;
+                *next += strand.rod.node_count();
+                Some(first)
+            })
+            .collect();
+        let total = strands.iter().map(|s| s.rod.node_count()).sum::<usize>().max(1);
+        let padded = strand_count.max(1);
+        let mut words = vec![[0_u32; 4]; padded];
+        // The dispatch lists (`w` of the words): the strands that fit the narrower workgroups, then the rest.
+        let narrow = |strand: &GpuStrandInput| strand.rod.node_count() <= STEP_LANES[0] + 1;
+        let lists: Vec<usize> = (0..strand_count)
+            .filter(|&s| narrow(&strands[s]))
+            .chain((0..strand_count).filter(|&s| !narrow(&strands[s])))
+            .collect();
+        let narrow_count = strands.iter().filter(|strand| narrow(strand)).count();
+        let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
+        let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
+        let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
+        for (s, strand) in strands.iter().enumerate() {
+            let rod = strand.rod;
+            let (rotation, translation) = head_poses[strand.head];
+            let inverse = rotation.inverse();
+            let local = |world: DVec3| inverse * (world - translation);
+            let nodes = rod.node_count();
+            let first = first_nodes[s];
+            words[s] = [nodes as u32, strand.head as u32, first as u32, lists[s] as u32];
+            let stiffness = rod.stiffness();
+            let constraints = rod.constraints();
+            floats[s * STRAND_FLOATS] = [
+                stiffness.stretching as f32,
+                stiffness.bending_1 as f32,
+                stiffness.bending_2 as f32,
+                stiffness.twisting as f32,
+            ];
+            floats[s * STRAND_FLOATS + 1] = vec4(local(constraints.node_targets[0].unwrap()), strand.thickness);
+            floats[s * STRAND_FLOATS + 2] = vec4(local(constraints.node_targets[1].unwrap()), 0.0);
+            floats[s * STRAND_FLOATS + 3] = vec4(inverse * constraints.twist_targets[0].unwrap(), 0.0);
+            let rod_state = rod.state();
+            let frames = rod.frames();
+            let shape = rod.rest_shape();
+            let inertia = rod.inertia();
+            // Arc length from the root as a fraction of the strand's length, for the hold's fade (past 1
+            // where the strand is not held).
+            let mut along = if strand.groomed.is_some() { 0.0 } else { HELD_NOWHERE };
+            let length = rod.rest_length();
+            for node in 0..nodes {
+                let edge = node < nodes - 1;
+                let at = |row: usize| row * total + first + node;
+                let curvature = shape.curvatures.get(node).copied().unwrap_or(DVec2::ZERO);
+                let voronoi = shape.voronoi_lengths.get(node).copied().filter(|l| *l > 0.0).unwrap_or(1.0);
+                rest[at(0)] = [
+                    if edge { shape.lengths[node] as f32 } else { 0.0 },
+                    voronoi as f32,
+                    curvature.x as f32,
+                    curvature.y as f32,
+                ];
+                rest[at(1)] = [
+                    shape.twists.get(node).copied().unwrap_or(0.0) as f32,
+                    inertia.masses[node] as f32,
+                    if edge { inertia.twist_inertias[node] as f32 } else { 0.0 },
+                    0.0,
+                ];
+                let twist = if edge { rod_state.twist[node] } else { 0.0 };
+                let director = if edge { inverse * frames.reference_directors[node] } else { DVec3::X };
+                let reference_twist = frames.reference_twist.get(node).copied().unwrap_or(0.0);
+                rest[at(2)] = vec4(local(rod_state.positions[node]), twist);
+                rest[at(3)] = vec4(director, reference_twist);
+                let groomed = strand.groomed.and_then(|groomed| groomed.get(node)).copied().unwrap_or_default();
+                rest[at(4)] = vec4(groomed, along);
+                if edge {
+                    along += shape.lengths[node] / length;
+                }
+                let row = |row: usize| row * total + first + node;
+                let rate = if edge { rod_state.twist_rates[node] } else { 0.0 };
+                state[row(0)] = vec4(rotation * local(rod_state.positions[node]), twist);
+                state[row(1)] = vec4(rod_state.velocities[node], rate);
+                state[row(4)] = vec4(rotation * director, reference_twist);
+            }
+        }
+        Ok(Self {
+            words,
+            floats,
+            rest,
+            state,
+            layout: Arc::new(StrandLayout {
+                node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
+                first_nodes,
+                total_nodes: total,
+                list_lengths: [narrow_count, strand_count - narrow_count],
+                strand_heads: strands.iter().map(|s| s.head).collect(),
+            }),
+            head_poses: head_poses.to_vec(),
+        })
+    }
+
+    /// How many strands it holds.
+    pub fn strand_count(&self) -> usize {
+        self.layout.node_counts.len()
+    }
+}
+
+impl GpuStrandSolver {
+    /// Uploads `strands` (each rooted on one of the heads at `head_poses`: rotation and translation, m) and
+    /// builds the step's pipeline on `device`. The strands start from their rods' states with no history
+    /// (the first GPU step is backward Euler, as the CPU's first). A fault puts a strand back in the pose
+    /// it has here, relative to its head.
+    pub fn new(
+        device: &wgpu::Device,
+        strands: &[GpuStrandInput],
+        head_poses: &[(DQuat, DVec3)],
+    ) -> Result<Self, GpuStepError> {
+        Ok(Self::from_upload(device, &GpuStepPipelines::new(device), GpuStrandUpload::new(strands, head_poses)?))
+    }
+
+    /// Builds the buffers of `upload` on `device`, stepped with `pipelines` (built on the same device).
+    pub fn from_upload(device: &wgpu::Device, pipelines: &Arc<GpuStepPipelines>, upload: GpuStrandUpload) -> Self {
+        let GpuStrandUpload { words, floats, rest, state, layout: strands, head_poses } = upload;
+        let strand_count = strands.node_counts.len();
+        let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+            })
+        };
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let strand_words = storage("hair strand words", bytemuck::cast_slice(&words), wgpu::BufferUsages::empty());
+        let strand_floats = storage("hair strand floats", bytemuck::cast_slice(&floats), wgpu::BufferUsages::empty());
+        let rest = storage("hair rest shape", bytemuck::cast_slice(&rest), wgpu::BufferUsages::empty());
+        let state = storage("hair strand state", bytemuck::cast_slice(&state), copy);
+        let status = storage("hair strand status", &vec![0_u8; 16 * strand_count.max(1)], copy);
+        let work = storage("hair step work", &vec![0_u8; 16 * WORK_ROWS * strand_count.max(1)], copy);
+        let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
+        let collider_capacity = 4;
+        let colliders = storage(
+            "hair colliders",
+            &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity],
+            wgpu::BufferUsages::COPY_DST,
+        );
+        let params = [(); 2].map(|_| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair step parameters"),
+                size: PARAMS_BYTES,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        });
+        let bind_groups = step_bind_groups(
+            device,
+            pipelines,
+            &params,
+            [&strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
+        );
+        Self {
+            pipelines: pipelines.clone(),
+            bind_groups,
+            params,
+            state,
+            status,
+            heads,
+            colliders,
+            work,
+            strand_words,
+            strand_floats,
+            rest,
+            strand_count,
+            strands,
+            head_poses,
+            last_dt: 0.0,
+            head_rows: Vec::new(),
+            collider_rows: Vec::new(),
+            collider_capacity,
+            staging: Arc::default(),
+            driver_seconds: 0.0,
+        }
+    }
+
+    /// The time [`GpuStrandSolver::step`] spent in wgpu's `submit` and `poll` since the last call, s: the
+    /// driver's share of the CPU's time (on a software adapter such as lavapipe, the GPU's work itself,
+    /// which runs there).
+    pub fn take_driver_seconds(&mut self) -> f64 {
+        std::mem::take(&mut self.driver_seconds)
+    }
+
+    /// How many strands are stepped.
+    pub fn strand_count(&self) -> usize {
+        self.strand_count
+    }
+
+    /// Strand `strand`'s node count (0 past the last).
+    pub fn node_count(&self, strand: usize) -> usize {
+        self.strands.node_counts.get(strand).copied().unwrap_or(0)
+    }
+
+    /// Each strand's head (its index among the heads given at upload).
+    pub fn strand_heads(&self) -> &[usize] {
+        &self.strands.strand_heads
+    }
+
+    /// Records one step of `params.dt` of every strand into `encoder`, with each head moving to its pose in
+    /// `heads` (one per head given to [`GpuStrandSolver::new`], in order), after writing the step's
+    /// parameters, heads and colliders into the queue. Submit the encoder before recording the next step.
+    /// Rejects invalid parameters, heads with a non-finite pose, air or collider, and colliders the GPU
+    /// does not meet; nothing changes then.
+    pub fn record_step(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        params: &StepParams,
+        heads: &[GpuHeadStep],
+    ) -> Result<(), GpuStepError> {
+        params.validate()?;
+        if heads.len() != self.head_poses.len() {
+            return Err(RodError::WrongLength { expected: self.head_poses.len(), actual: heads.len() }.into());
+        }
+        for (index, head) in heads.iter().enumerate() {
+            let finite_pose = |pose: &crate::rod::RigidPose| pose.translation.is_finite() && pose.rotation.is_finite();
+            let usable = head.translation.is_finite()
+                && head.rotation.is_finite()
+                && (head.rotation.length() - 1.0).abs() < 1e-3
+                && head.air_velocity.is_finite()
+                && head.hold_rate.is_finite()
+                && head.hold_rate >= 0.0
+                && (0.0..=1.0).contains(&head.hold_reach)
+                && head
+                    .colliders
+                    .iter()
+                    .all(|c| finite_pose(&c.start) && finite_pose(&c.end) && c.friction.is_finite());
+            if !usable {
+                return Err(GpuStepError::InvalidHead { head: index });
+            }
+        }
+        self.head_rows.clear();
+        self.collider_rows.clear();
+        for (index, (head, before)) in heads.iter().zip(&self.head_poses).enumerate() {
+            let first = self.collider_rows.len() / COLLIDER_ROWS;
+            for (number, collider) in head.colliders.iter().enumerate() {
+                let shape = shape_row(&collider.shape)
+                    .ok_or(GpuStepError::UnsupportedCollider { head: index, collider: number })?;
+                let relative = |translation: DVec3| translation - head.translation;
+                let rotation = |q: DQuat| q.as_quat().to_array();
+                self.collider_rows.extend([
+                    vec4(relative(collider.start.translation), collider.shape.bounding_radius()),
+                    rotation(collider.start.rotation),
+                    vec4(relative(collider.end.translation), collider.friction),
+                    rotation(collider.end.rotation),
+                    shape,
+                ]);
+            }
+            let count = head.colliders.len() as u32;
+            self.head_rows.extend([
+                head.rotation.as_quat().to_array(),
+                vec4(before.1 - head.translation, 0.0),
+                vec4(head.air_velocity, 0.0),
+                [f32::from_bits(first as u32), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
+                before.0.as_quat().to_array(),
+            ]);
+        }
+        for (pose, head) in self.head_poses.iter_mut().zip(heads) {
+            *pose = (head.rotation, head.translation);
+        }
+        let collider_count = self.collider_rows.len() / COLLIDER_ROWS;
+        if collider_count > self.collider_capacity {
+            self.collider_capacity = collider_count.next_power_of_two();
+            self.colliders = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair colliders"),
+                size: (16 * COLLIDER_ROWS * self.collider_capacity) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.bind_groups = step_bind_groups(
+                device,
+                &self.pipelines,
+                &self.params,
+                [
+                    &self.strand_words,
+                    &self.strand_floats,
+                    &self.rest,
+                    &self.state,
+                    &self.heads,
+                    &self.colliders,
+                    &self.status,
+                    &self.work,
+                ],
+            );
+        }
+        if !self.collider_rows.is_empty() {
+            queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
+        }
+        queue.write_buffer(&self.heads, 0, bytemuck::cast_slice(&self.head_rows));
+        let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;
+        self.last_dt = params.dt;
+        let gravity = params.gravity.as_vec3();
+        let mut words: [u32; 20] = [
+            (params.dt as f32).to_bits(),
+            gravity.x.to_bits(),
+            gravity.y.to_bits(),
+            gravity.z.to_bits(),
+            (params.air_damping as f32).to_bits(),
+            (params.axial_drag_ratio as f32).to_bits(),
+            (params.internal_damping as f32).to_bits(),
+            (params.max_rotation as f32).to_bits(),
+            ((params.strain_bound() + SINGLE_PRECISION_STRAIN) as f32).to_bits(),
+            (STRETCH_RATIO as f32).to_bits(),
+            self.strand_count as u32,
+            GPU_NEWTON_ITERATIONS,
+            params.max_projection_iterations,
+            GPU_CONTACT_ROUNDS,
+            u32::from(params.integrator == crate::rod::Integrator::Bdf2),
+            u32::from(restart),
+            (params.strain_tolerance as f32).to_bits(),
+            self.strands.total_nodes as u32,
+            0,
+            0,
+        ];
+        // One workgroup per strand, in one pass: the strands of each pipeline's list.
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("hair strand step"),
+            timestamp_writes: None,
+        });
+        let mut start = 0;
+        for (class, &length) in self.strands.list_lengths.iter().enumerate() {
+            words[18] = start as u32;
+            words[19] = length as u32;
+            queue.write_buffer(&self.params[class], 0, bytemuck::cast_slice(&words));
+            start += length;
+            if length == 0 {
+                continue;
+            }
+            let (x, y) = workgroups(length as u32, 1);
+            pass.set_pipeline(&self.pipelines.steps[class]);
+            pass.set_bind_group(0, &self.bind_groups[class], &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        Ok(())
+    }
+
+    /// One step, submitted at once: [`GpuStrandSolver::record_step`] in an encoder of its own.
+    pub fn step(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        params: &StepParams,
+        heads: &[GpuHeadStep],
+    ) -> Result<wgpu::SubmissionIndex, GpuStepError> {
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair strand step") });
+        self.record_step(device, queue, &mut encoder, params, heads)?;
+        let commands = encoder.finish();
+        let started = std::time::Instant::now();
+        let submission = queue.submit([commands]);
+        // Let wgpu retire finished work (without it, submissions' bookkeeping piles up).
+        let _ = device.poll(wgpu::PollType::Poll);
+        self.driver_seconds += started.elapsed().as_secs_f64();
+        Ok(submission)
+    }
+
+    /// Reads every strand's state back, waiting for the GPU (for tests, benchmarks and on-demand
+    /// read-back; the plugin reads back asynchronously with [`GpuStrandSolver::request_read_back`]).
+    pub fn read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> GpuStrandStates {
+        let mut pending = self.request_read_back(device, queue, true);
+        loop {
+            let _ = device.poll(wgpu::PollType::wait_indefinitely());
+            if let Some(states) = pending.try_take() {
+                return states;
+            }
+        }
+    }
+
+    /// Copies every strand's state as the submitted steps leave it (positions, velocities, twists and
+    /// frames: not the history, which stays on the GPU) into a buffer the CPU can map, and asks for it to
+    /// be mapped: [`GpuReadBack::try_take`] has it once the GPU is done and the device was polled (Bevy's
+    /// renderer polls it every frame). The buffer is reused by later read-backs once its states were taken.
+    /// Without `state`, only each strand's status ([`GpuStrandStates::status`]; 16 bytes a strand, for
+    /// the faults) is read back, and the other fields come back empty.
+    pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
+        let state_bytes = self.read_back_state_bytes(state);
+        let status_bytes = self.status.size();
+        let size = state_bytes + status_bytes;
+        let reused = self.staging.lock().ok().and_then(|mut pool| {
+            let found = pool.iter().position(|buffer| buffer.size() == size)?;
+            Some(pool.swap_remove(found))
+        });
+        let staging = reused.unwrap_or_else(|| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair read-back"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair read-back") });
+        // Row planes 0 and 1 (contiguous in the state), then plane 4.
+        if state {
+            let plane = self.plane_bytes();
+            encoder.copy_buffer_to_buffer(&self.state, 0, &staging, 0, 2 * plane);
+            encoder.copy_buffer_to_buffer(&self.state, 4 * plane, &staging, 2 * plane, plane);
+        }
+        encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
+        queue.submit([encoder.finish()]);
+        let mapped = Arc::new(AtomicU8::new(MAP_PENDING));
+        let signal = mapped.clone();
+        staging.slice(..).map_async(wgpu::MapMode::Read, move |result| {
+            signal.store(if result.is_ok() { MAP_DONE } else { MAP_FAILED }, Ordering::Release);
+        });
+        GpuReadBack {
+            staging: Some(staging),
+            pool: self.staging.clone(),
+            state_bytes,
+            mapped,
+            strands: self.strands.clone(),
+            translations: self.strands.strand_heads.iter().map(|&head| self.head_poses[head].1).collect(),
+        }
+    }
+
+    /// Bytes a read-back moves from the GPU ([`GpuStrandSolver::request_read_back`]), with the state or
+    /// without.
+    pub fn read_back_bytes(&self, state: bool) -> u64 {
+        self.read_back_state_bytes(state) + self.status.size()
+    }
+
+    /// The state's bytes a read-back copies: rows 0, 1 and 4 of every node with the state, none without.
+    fn read_back_state_bytes(&self, state: bool) -> u64 {
+        if state { READ_BACK_ROWS.len() as u64 * self.plane_bytes() } else { 0 }
+    }
+
+    /// The bytes of one row plane of the state (a `vec4` per node of every strand).
+    fn plane_bytes(&self) -> u64 {
+        16 * self.strands.total_nodes as u64
+    }
+
+    /// Each strand's work since the upload ([`GpuStrandWork`]), waiting for the GPU: for tests and
+    /// benchmarks, which bound and print what the step costs on any adapter.
+    pub fn read_work(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Vec<GpuStrandWork> {
+        let bytes = self.work.size();
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("hair step work read-back"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hair step work") });
+        encoder.copy_buffer_to_buffer(&self.work, 0, &staging, 0, bytes);
+        queue.submit([encoder.finish()]);
+        staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+        let _ = device.poll(wgpu::PollType::wait_indefinitely());
+        let data = staging.slice(..).get_mapped_range();
+        let rows: &[[u32; 4]] = bytemuck::cast_slice(&data);
+        (0..self.strand_count)
+            .map(|s| {
+                let [steps, newton_iterations, projection_iterations, projection_sweeps] = rows[WORK_ROWS * s];
+                let [contact_rounds, factorisation_retries, projection_stalls, projections] = rows[WORK_ROWS * s + 1];
+                GpuStrandWork {
+                    steps,
+                    newton_iterations,
+                    projection_iterations,
+                    projection_sweeps,
+                    projection_stalls,
+                    projections,
+                    contact_rounds,
+                    factorisation_retries,
+                }
+            })
+            .collect()
+    }
+
+    /// The buffers [`GpuStrandSolver::gather_target`] binds, for a caller that wants them itself: each
+    /// strand's state (row planes of `vec4<f32>` over every strand's nodes, see `step.wgsl`) and its status.
+    pub fn state_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.state, &self.status)
+    }
+
+    /// Binds what [`GpuStrandSolver::record_gather`] writes for one head's guides: `guides` lists, in the
+    /// order the follower placement lays them out, each guide's strand (an index into the strands given
+    /// at upload) and its first node in the placement's guide nodes, then one past the last node;
+    /// `guide_data` is the placement's step data (positions from word 0, the guide words from
+    /// `guides_offset`), `guide_frames` its director per guide node (`render/followers.wgsl`).
+    pub fn gather_target(
+        &self,
+        device: &wgpu::Device,
+        guides: &[[u32; 2]],
+        guide_data: &wgpu::Buffer,
+        guide_frames: &wgpu::Buffer,
+    ) -> GpuGatherTarget {
+        let solver = [&self.strand_words, &self.strand_floats, &self.state, &self.status];
+        self.pipelines.gather.target(device, solver, guides, guide_data, guide_frames)
+    }
+
+    /// Records the gather of one head's guides (`target`, on head `head` of the upload) after the steps
+    /// recorded or submitted before it: each guide's nodes in world space (the head's translation after
+    /// the last step added), its thickness and flags (a guide whose strand faulted in the last step
+    /// snaps), and the material director `m1` of each node's edge.
+    pub fn record_gather(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &GpuGatherTarget,
+        head: usize,
+        guides_offset: u32,
+    ) {
+        let translation = self.head_poses.get(head).map_or(DVec3::ZERO, |pose| pose.1).as_vec3();
+        let words: [u32; 8] = [
+            self.strands.total_nodes as u32,
+            target.guides,
+            guides_offset,
+            0,
+            translation.x.to_bits(),
+            translation.y.to_bits(),
+            translation.z.to_bits(),
+            0,
+        ];
+        queue.write_buffer(&target.params, 0, bytemuck::cast_slice(&words));
+        let (x, y) = workgroups(target.guides, GATHER_WORKGROUP);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("hair guides gathered"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipelines.gather.pipeline);
+        pass.set_bind_group(0, &target.bind_group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+}
+
+/// The step's bind groups, one per pipeline of [`STEP_LANES`]: its parameters, then `buffers` (strand words,
+/// floats, rest shape, state, heads, colliders, status, work counters).
+fn step_bind_groups(
+    device: &wgpu::Device,
+    pipelines: &GpuStepPipelines,
+    params: &[wgpu::Buffer; 2],
+    buffers: [&wgpu::Buffer; 8],
+) -> [wgpu::BindGroup; 2] {
+    params.each_ref().map(|params| {
+        let all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
+        bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all)
+    })
+}
+
+/// The workgroups of `size` invocations of a dispatch over `invocations`: along X up to the limit, then rows
+/// along Y.
+fn workgroups(invocations: u32, size: u32) -> (u32, u32) {
+    let groups = invocations.div_ceil(size).max(1);
+    if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) }
+}
+
+/// The states of [`GpuReadBack::mapped`].
+const MAP_PENDING: u8 = 0;
+const MAP_DONE: u8 = 1;
+const MAP_FAILED: u8 = 2;
+
+/// A read-back on its way from the GPU ([`GpuStrandSolver::request_read_back`]).
+pub struct GpuReadBack {
+    /// The buffer mapped for the CPU: `None` once handed back to the pool.
+    staging: Option<wgpu::Buffer>,
+    /// Where the buffer goes when its states were taken, for the next read-back.
+    pool: Arc<Mutex<Vec<wgpu::Buffer>>>,
+    state_bytes: u64,
+    /// Set by the mapping's callback.
+    mapped: Arc<AtomicU8>,
+    strands: Arc<StrandLayout>,
+    /// Each strand's head's translation when the read-back was asked for: the origin of its positions.
+    translations: Vec<DVec3>,
+}
+
+impl GpuReadBack {
+    /// The states, once the GPU has copied them and the device was polled since; `None` before. After
+    /// it returned them (or the mapping failed: a lost device), `None` again.
+    pub fn try_take(&mut self) -> Option<GpuStrandStates> {
+        if self.mapped.load(Ordering::Acquire) != MAP_DONE {
+            return None;
+        }
+        self.mapped.store(MAP_FAILED, Ordering::Release);
+        let staging = self.staging.take()?;
+        let data = staging.slice(..).get_mapped_range();
+        let state_bytes = self.state_bytes as usize;
+        let state = (state_bytes > 0).then(|| bytemuck::cast_slice(&data[..state_bytes]));
+        let states = self.unpack(state, bytemuck::cast_slice(&data[state_bytes..]));
+        drop(data);
+        staging.unmap();
+        if let Ok(mut pool) = self.pool.lock() {
+            pool.push(staging);
+        }
+        Some(states)
+    }
+
+    /// Whether the mapping failed or its states were taken: nothing more will come.
+    pub fn is_finished(&self) -> bool {
+        self.mapped.load(Ordering::Acquire) == MAP_FAILED
+    }
+
+    /// The strands' state from the read-back's rows and the status buffer's contents, unpacked on Bevy's
+    /// compute pool in blocks of strands where it has threads.
+    fn unpack(&self, state: Option<&[[f32; 4]]>, status: &[[u32; 4]]) -> GpuStrandStates {
+        const BLOCK: usize = 256;
+        let strands = self.strands.node_counts.len();
+        let blocks = strands.div_ceil(BLOCK);
+        let unpack_block =
+            |block: usize| self.unpack_range(state, status, block * BLOCK..((block + 1) * BLOCK).min(strands));
+        let parts: Vec<GpuStrandStates> = match bevy::tasks::ComputeTaskPool::try_get() {
+            Some(pool) if pool.thread_num() > 1 && blocks > 1 => pool.scope(|scope| {
+                for block in 0..blocks {
+                    let unpack_block = &unpack_block;
+                    scope.spawn(async move { unpack_block(block) });
+                }
+            }),
+            _ => (0..blocks).map(unpack_block).collect(),
+        };
+        let mut states = GpuStrandStates::default();
+        for part in parts {
+            states.positions.extend(part.positions);
+            states.velocities.extend(part.velocities);
+            states.twists.extend(part.twists);
+            states.twist_rates.extend(part.twist_rates);
+            states.reference_directors.extend(part.reference_directors);
+            states.reference_twists.extend(part.reference_twists);
+            states.status.extend(part.status);
+        }
+        states
+    }
+
+    /// The strands in `range`, as [`GpuReadBack::unpack`].
+    fn unpack_range(
+        &self,
+        state: Option<&[[f32; 4]]>,
+        status: &[[u32; 4]],
+        range: std::ops::Range<usize>,
+    ) -> GpuStrandStates {
+        let (counts, firsts, total) = (&self.strands.node_counts, &self.strands.first_nodes, self.strands.total_nodes);
+        let mut states = GpuStrandStates::default();
+        for s in range {
+            if let Some(state) = state {
+                let (nodes, first, translation) = (counts[s], firsts[s], self.translations[s]);
+                // Row planes 0, 1 and 4 of the state, in that order (`READ_BACK_ROWS`).
+                let row = |node: usize, row: usize| state[row * total + first + node];
+                let local = |v: [f32; 4]| DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+                let edges = nodes - 1;
+                states.positions.push((0..nodes).map(|i| translation + local(row(i, 0))).collect());
+                states.velocities.push((0..nodes).map(|i| local(row(i, 1))).collect());
+                states.twists.push((0..edges).map(|i| row(i, 0)[3] as f64).collect());
+                states.twist_rates.push((0..edges).map(|i| row(i, 1)[3] as f64).collect());
+                states.reference_directors.push((0..edges).map(|i| local(row(i, 2))).collect());
+                states.reference_twists.push((0..nodes).map(|i| row(i, 2)[3] as f64).collect());
+            }
+            let [flags, at, strain, faults] = status[s];
+            let reason = |bits: u32| {
+                if bits & 2 != 0 {
+                    Some(GpuFault::NonFinite { node: at })
+                } else if bits & 4 != 0 {
+                    Some(GpuFault::OverStrained { edge: at })
+                } else if bits & 8 != 0 {
+                    Some(GpuFault::NotPositiveDefinite)
+                } else {
+                    None
+                }
+            };
+            states.status.push(GpuStrandStatus {
+                contact_given_up: flags & 16 != 0,
+                max_strain: f32::from_bits(strain),
+                fault: reason(flags),
+                last_fault: reason(faults >> 28),
+                faults: faults & 0x0fff_ffff,
+            });
+        }
+        states
+    }
+}

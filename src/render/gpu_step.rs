@@ -1,0 +1,802 @@
+//! The strands stepped on the GPU inside a Bevy app ([`HairGpuPlugin`]): the main world chooses the
+//! strands and sends each fixed step's head poses, colliders and air; the render world steps them with
+//! [`GpuStrandSolver`] on Bevy's own device (one submission per step, before the render graph), gathers
+//! them into the follower placement's buffers (`render/followers.rs`), and reads them back now and then
+//! through a channel to the main world.
+
+use std::f64::consts::PI;
+use std::sync::mpsc::{Receiver, Sender, channel};
+use std::sync::{Arc, Mutex};
+
+use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
+use bevy::ecs::schedule::InternedScheduleLabel;
+use bevy::math::{DQuat, DVec3};
+use bevy::prelude::*;
+use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
+
+use super::draw::GpuStepCount;
+use crate::followers::{FollowerPlacement, PlaceFollowersOnCpu};
+use crate::gpu::{
+    GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver,
+    GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, gpu_meets,
+};
+use crate::rod::{MovingCollider, StepError, StepParams};
+use crate::schedule::HairStepSystems;
+use crate::simulation::{
+    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
+    SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
+};
+use crate::wind::{HairWind, HairWindSource};
+
+/// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
+/// workgroup per strand), on the device of Bevy's renderer. Add it after [`crate::HairPlugins`],
+/// with Bevy's renderer, in the same schedule (`FixedUpdate` by default):
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// App::new().add_plugins((DefaultPlugins, HairPlugins::default(), HairGpuPlugin::default()));
+/// ```
+///
+/// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
+/// its gravity preload is done and its state is one a step can start from, without two edges folded
+/// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
+/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands, folded
+/// strands) stay on the CPU. A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
+/// state directly (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head
+/// with some on the CPU is drawn from the components. Adding or removing strands uploads the set again,
+/// each from its last read-back state; writing a GPU strand's rod or components from outside has no
+/// effect (the GPU's state is the truth, and the next read-back overwrites them).
+///
+/// **What the GPU meets.** Each head's spheres, capsules, ellipsoids and planes (its own and the shared
+/// ones), with the CPU's rule for a collider holding a root inside it (the strand near the root is left
+/// free of it). Cuboids and mesh colliders are the CPU's alone and are left out, with one warning per
+/// head. The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
+/// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
+/// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
+/// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
+/// strand's groomed pose carried with its head.
+///
+/// **The GPU's state is the truth.** The hair is drawn from it where it is, so by default nothing is read
+/// back but each strand's status every fourth step (16 bytes a strand, for the faults):
+/// [`HairGpuSettings::read_back`] is [`GpuReadBackRate::OnDemand`], and [`StrandNodes`], [`StrandFrames`]
+/// and the strands' rods keep their last read-back state. A game that reads them asks for them every n-th
+/// step ([`GpuReadBackRate::EveryNthStep`]) or once ([`HairGpuSettings::read_back_now`]). They are read
+/// back after every step whatever the setting where something on the CPU reads them every step: a head
+/// drawn from its components (one with some strands on the CPU), followers placed on the CPU
+/// ([`FollowerPlacement::Cpu`], [`PlaceFollowersOnCpu`]). Before the strands on the GPU change (added,
+/// removed, handed back, the GPU turned off), their state is read back, and the new set is uploaded from
+/// it. A read-back is asynchronous: the GPU copies the state into a reused buffer the CPU maps once the
+/// GPU is done, and the first frame that finds it mapped writes the components. With pipelined rendering
+/// that is two frames after the step (the render world runs a frame behind the main world, and the copy
+/// is mapped by the next frame); [`HairGpuStatus::read_back_age`] says how many steps old the components
+/// are.
+///
+/// **Faults** found on the GPU (a non-finite value, an edge strained past the bound, a system that does not
+/// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
+/// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
+/// strands go on. A strand that fails in three read-backs running (the pose it is reset to fails again) is
+/// handed back to the CPU for good, where its faults are held, retried and quarantined as any strand's.
+/// A strand that cannot be put outside its colliders with its lengths kept keeps its
+/// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
+///
+/// **Without an adapter** (no renderer) nothing is uploaded: the CPU steps everything, and
+/// [`HairGpuStatus::error`] says why.
+///
+/// [`StrandForces`]: crate::simulation::StrandForces
+/// [`FollowerPlacement::Cpu`]: crate::followers::FollowerPlacement::Cpu
+/// [`PlaceFollowersOnCpu`]: crate::followers::PlaceFollowersOnCpu
+#[derive(Debug, Clone)]
+pub struct HairGpuPlugin {
+    /// The fixed-timestep schedule the simulation runs in.
+    pub schedule: InternedScheduleLabel,
+}
+
+/// How the GPU steps the hair; change it at any time.
+#[derive(Resource, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairGpuSettings {
+    /// Whether the GPU steps the strands it can. Off, every strand goes back to the CPU, from its last
+    /// read-back state.
+    pub enabled: bool,
+    /// How often [`StrandNodes`], [`StrandFrames`] and the strands' rods are read back from the GPU (by
+    /// default only on demand: see [`HairGpuPlugin`] for when they are read back anyway).
+    pub read_back: GpuReadBackRate,
+    /// Read back once after the next step whatever the rate (cleared when it is sent).
+    pub read_back_now: bool,
+}
+
+impl Default for HairGpuSettings {
+    fn default() -> Self {
+        Self { enabled: true, read_back: GpuReadBackRate::OnDemand, read_back_now: false }
+    }
+}
+
+/// How often the GPU's strands are read back into the ECS ([`HairGpuSettings::read_back`]).
+#[derive(Reflect, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GpuReadBackRate {
+    /// After every step: the components are as current as the latency allows (3.2 MB per step for
+    /// 2 000 strands × 32 edges, and their unpacking on the CPU).
+    EveryStep,
+    /// After every `n`-th step (`n` ≥ 1).
+    EveryNthStep(u32),
+    /// Only when [`HairGpuSettings::read_back_now`] asks (the default): the components keep their last
+    /// read-back state.
+    OnDemand,
+}
+
+/// What the GPU's stepping did, for a game's panel or log.
+#[derive(Resource, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Resource, Debug, Default, Clone, PartialEq)]
+pub struct HairGpuStatus {
+    /// Strands the GPU steps now.
+    pub strands: usize,
+    /// Steps sent to the GPU.
+    pub steps: u64,
+    /// Read-backs written into the components.
+    pub read_backs: u64,
+    /// How many steps older than the last step sent the components' state was when last read back.
+    pub read_back_age: Option<u64>,
+    /// Strand steps that failed on the GPU (each also a [`StrandFault`]).
+    pub faults: u64,
+    /// Strands whose last read-back step could not put them outside their colliders with their lengths
+    /// kept (deep inside a collider that holds the root): they stayed whole, inside, for that step.
+    pub contact_given_up: usize,
+    /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
+    pub error: Option<String>,
+    /// Sets of strands uploaded to the GPU (at the start, and each time the strands it steps change).
+    pub uploads: u32,
+    /// How many times the step's pipelines were built (their shaders compiled, a hitch): once, at the
+    /// first upload; never again for later uploads or changed settings.
+    pub pipeline_builds: u32,
+    /// The main world's time in the plugin's systems during the last update (read-backs written into the
+    /// components, strands chosen, steps ordered), s.
+    pub main_thread_seconds: f64,
+    /// The render world's time in the plugin's system during the last frame it reported (uploads, steps
+    /// recorded and submitted, read-backs unpacked), s.
+    pub render_thread_seconds: f64,
+    /// The part of [`HairGpuStatus::render_thread_seconds`] spent in wgpu's submissions and polls, s: the
+    /// driver's (on a software adapter such as lavapipe, the GPU's work itself, which runs there).
+    pub render_driver_seconds: f64,
+}
+
+/// One fixed step for the render world.
+struct GpuStepOrder {
+    params: StepParams,
+    heads: Vec<GpuHeadStep>,
+    /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
+    read_back: bool,
+    /// Its number among the steps sent.
+    step: u64,
+}
+
+/// A new set of strands for the render world.
+struct GpuUploadOrder {
+    upload: GpuStrandUpload,
+    strands: Arc<Vec<Entity>>,
+}
+
+/// What the main world sends and remembers of the strands on the GPU.
+#[derive(Resource, Default)]
+struct GpuStepQueue {
+    upload: Option<GpuUploadOrder>,
+    steps: Vec<GpuStepOrder>,
+    /// The strands on the GPU, in the upload's order, and their heads.
+    strands: Arc<Vec<Entity>>,
+    heads: Vec<Entity>,
+    /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
+    faults: Vec<u32>,
+    fault_streaks: Vec<u32>,
+    /// Strands that failed [`GPU_FAULT_STREAK`] read-backs running: stepped on the CPU from then on.
+    handed_back: EntityHashSet,
+    /// Bumped at each upload (the renderer lays its heads out again).
+    generation: u32,
+    /// Steps sent since the start.
+    steps_sent: u64,
+    since_read_back: u32,
+    /// The step whose state the components hold, if any was read back.
+    read_back_step: Option<u64>,
+    /// Whether the set of strands must be looked over at the next step.
+    dirty: bool,
+    /// A new set of strands waits for the read-back of this step, so that the strands staying on the GPU
+    /// are uploaded from their state there.
+    upload_waits_for: Option<u64>,
+    /// Whether something on the CPU reads the GPU strands' components every step (a head with strands on
+    /// the CPU too is drawn from its components).
+    components_read: bool,
+    /// Colliders already warned about, by head.
+    warned_colliders: Vec<Entity>,
+}
+
+/// What the render world sends back.
+enum GpuMessage {
+    /// The strands' status after `step`, and their state if `full`.
+    ReadBack {
+        step: u64,
+        strands: Arc<Vec<Entity>>,
+        states: GpuStrandStates,
+        full: bool,
+    },
+    Error(String),
+    /// The step's pipelines were built.
+    PipelinesBuilt,
+    /// The render world's time in `step_on_gpu` this frame, and the part of it in wgpu's submissions and
+    /// polls, s.
+    RenderTime(f64, f64),
+}
+
+/// When the plugin's systems in the fixed schedule started this step.
+#[derive(Resource, Default)]
+struct GpuSystemsClock(Option<std::time::Instant>);
+
+/// The main world's end of the read-backs.
+#[derive(Resource)]
+struct GpuReadBackReceiver(Mutex<Receiver<GpuMessage>>);
+
+impl Plugin for HairGpuPlugin {
+    fn build(&self, app: &mut App) {
+        let (sender, receiver) = channel();
+        app.register_type::<HairGpuSettings>()
+            .register_type::<HairGpuStatus>()
+            .init_resource::<HairGpuSettings>()
+            .init_resource::<HairGpuStatus>()
+            .init_resource::<GpuStepQueue>()
+            .init_resource::<GpuStepCount>()
+            .init_resource::<GpuSystemsClock>()
+            .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
+            .add_systems(PreUpdate, apply_read_backs)
+            .add_systems(
+                self.schedule,
+                (start_clock, choose_gpu_strands, order_gpu_step, stop_clock)
+                    .chain()
+                    .in_set(HairStepSystems::Integrate),
+            );
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
+            warn!("HairGpuPlugin: there is no renderer (add DefaultPlugins first), so the CPU steps the hair");
+            app.world_mut().resource_mut::<HairGpuStatus>().error = Some("no renderer".into());
+            app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
+            return;
+        };
+        render_app
+            .insert_resource(GpuHairRender { sender: Some(sender), ..default() })
+            .add_systems(ExtractSchedule, extract_gpu_steps)
+            .add_systems(
+                Render,
+                step_on_gpu.in_set(RenderSystems::PrepareResources).before(super::followers::prepare_gpu_followers),
+            );
+    }
+}
+
+/// Starts the clock of the plugin's systems in the fixed schedule ([`HairGpuStatus::main_thread_seconds`]).
+fn start_clock(mut clock: ResMut<GpuSystemsClock>) {
+    clock.0 = Some(std::time::Instant::now());
+}
+
+/// Adds the fixed-schedule systems' time to [`HairGpuStatus::main_thread_seconds`].
+fn stop_clock(mut clock: ResMut<GpuSystemsClock>, mut status: ResMut<HairGpuStatus>) {
+    if let Some(started) = clock.0.take() {
+        status.main_thread_seconds += started.elapsed().as_secs_f64();
+    }
+}
+
+/// Looks the strands over when they may have changed and uploads the set the GPU can step: rooted, 3 to
+/// [`MAX_GPU_NODES`] nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat, not handed back after
+/// failing on the GPU. Marks them [`SteppedElsewhere`], and unmarks the others.
+#[allow(clippy::too_many_arguments)]
+fn choose_gpu_strands(
+    mut commands: Commands,
+    settings: Res<HairGpuSettings>,
+    hair_settings: Res<HairSettings>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut count: ResMut<GpuStepCount>,
+    added: Query<(), Added<SimulatedStrand>>,
+    mut removed: RemovedComponents<SimulatedStrand>,
+    strands: Query<(Entity, &SimulatedStrand, &StrandOf, Has<SteppedElsewhere>)>,
+    heads: Query<&HeadMotion, With<HairHead>>,
+    head_strands: Query<&HeadStrands>,
+) {
+    let queue = &mut *queue;
+    queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
+    queue.dirty |= removed.read().count() > 0;
+    if !queue.dirty {
+        return;
+    }
+    queue.dirty = false;
+    let mut chosen: Vec<(Entity, Entity, &SimulatedStrand)> = Vec::new();
+    if settings.enabled {
+        for (entity, strand, &StrandOf(head), _) in &strands {
+            let nodes = strand.rod().node_count();
+            let rooted = strand.root_anchor().is_some() && heads.contains(head);
+            if strand.preload_pending() || strand.rod().unusable_state().is_some() {
+                // Looked over again until the preload is done, or until the CPU's step has put the
+                // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
+                // it was uploaded in, so that must be one a step can start from).
+                queue.dirty = true;
+            } else if rooted
+                && (3..=MAX_GPU_NODES).contains(&nodes)
+                && !strand.is_quarantined()
+                && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
+                && !queue.handed_back.contains(&entity)
+            {
+                chosen.push((head, entity, strand));
+            }
+        }
+    }
+    chosen.sort_by_key(|&(head, entity, _)| (head, entity));
+    let same = chosen.len() == queue.strands.len() && chosen.iter().zip(queue.strands.iter()).all(|(c, s)| c.1 == *s);
+    if same {
+        queue.upload_waits_for = None;
+        return;
+    }
+    // The strands on the GPU now are uploaded again (or handed to the CPU) from their state there: read
+    // back first, unless the GPU stopped answering.
+    if !queue.strands.is_empty() {
+        let asked = *queue.upload_waits_for.get_or_insert(queue.steps_sent + 1);
+        let arrived = queue.read_back_step.is_some_and(|step| step >= asked);
+        if !arrived && queue.steps_sent < asked + UPLOAD_WAIT_STEPS {
+            queue.dirty = true;
+            return;
+        }
+    }
+    queue.upload_waits_for = None;
+    let mut head_list: Vec<Entity> = chosen.iter().map(|c| c.0).collect();
+    head_list.dedup();
+    let poses: Vec<(DQuat, DVec3)> = head_list
+        .iter()
+        .map(|&head| {
+            heads.get(head).map_or((DQuat::IDENTITY, DVec3::ZERO), |m| (m.current.rotation, m.current.translation))
+        })
+        .collect();
+    let margin = f64::from(hair_settings.collision_margin);
+    let groomed: Vec<Option<Vec<DVec3>>> = chosen.iter().map(|&(.., strand)| strand.groomed_in_head()).collect();
+    let inputs: Vec<GpuStrandInput> = chosen
+        .iter()
+        .zip(&groomed)
+        .map(|(&(head, _, strand), groomed)| GpuStrandInput {
+            rod: strand.rod(),
+            head: head_list.binary_search(&head).unwrap_or(0),
+            thickness: strand.contact_thickness(margin),
+            groomed: groomed.as_deref(),
+        })
+        .collect();
+    let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
+    // A head with strands left on the CPU is drawn from its components (`chosen` runs head by head).
+    queue.components_read = chosen
+        .chunk_by(|a, b| a.0 == b.0)
+        .any(|run| head_strands.get(run[0].0).is_ok_and(|strands| strands.strands().len() > run.len()));
+    let on_gpu: Vec<Entity> = match upload {
+        Some(Ok(upload)) => {
+            let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
+            info!("HairGpuPlugin: {} strands of {} heads stepped on the GPU", entities.len(), head_list.len());
+            queue.upload = Some(GpuUploadOrder { upload, strands: entities.clone() });
+            status.uploads += 1;
+            queue.strands = entities;
+            status.error = None;
+            queue.strands.to_vec()
+        }
+        Some(Err(error)) => {
+            error!("HairGpuPlugin: the GPU cannot step this hair, the CPU does: {error}");
+            status.error = Some(error.to_string());
+            queue.strands = Arc::default();
+            Vec::new()
+        }
+        None => {
+            queue.strands = Arc::default();
+            Vec::new()
+        }
+    };
+    queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
+    queue.faults = vec![0; on_gpu.len()];
+    queue.fault_streaks = vec![0; on_gpu.len()];
+    queue.read_back_step = None;
+    queue.steps.clear();
+    queue.generation = queue.generation.wrapping_add(1);
+    count.generation = queue.generation;
+    status.strands = on_gpu.len();
+    let on_gpu: EntityHashSet = on_gpu.into_iter().collect();
+    for (entity, _, _, marked) in &strands {
+        let wanted = on_gpu.contains(&entity);
+        match (wanted, marked) {
+            (true, false) => {
+                commands.entity(entity).insert(SteppedElsewhere);
+            }
+            (false, true) => {
+                commands.entity(entity).remove::<SteppedElsewhere>();
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Sends this fixed step to the render world: each head's pose, its colliders the GPU meets, the air at it
+/// and the style hold, and whether to read back after it.
+#[allow(clippy::too_many_arguments)]
+fn order_gpu_step(
+    time: Res<Time>,
+    checked: Res<CheckedSettings>,
+    hair_settings: Res<HairSettings>,
+    mut settings: ResMut<HairGpuSettings>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut count: ResMut<GpuStepCount>,
+    heads: Query<&HeadMotion>,
+    colliders: StrandColliders,
+    wind: Option<Res<HairWind>>,
+    sources: Query<(&HairWindSource, &GlobalTransform)>,
+    placement: Option<Res<FollowerPlacement>>,
+    followers_on_cpu: Query<(), With<PlaceFollowersOnCpu>>,
+) {
+    let Some(params) = checked.params else { return };
+    if queue.strands.is_empty() {
+        return;
+    }
+    let queue = &mut *queue;
+    let now = time.elapsed_secs_f64();
+    // Valid whenever the checked parameters are (invalid settings hold the hair until fixed).
+    let hold = hair_settings.style_hold;
+    let mut steps = Vec::with_capacity(queue.heads.len());
+    for &head in &queue.heads {
+        let Ok(motion) = heads.get(head) else {
+            steps.push(GpuHeadStep::default());
+            continue;
+        };
+        let pose = motion.current;
+        let all = colliders.of(Some(&StrandOf(head)));
+        let met: Vec<MovingCollider> = all.iter().filter(|collider| gpu_meets(&collider.shape)).cloned().collect();
+        if met.len() < all.len() && !queue.warned_colliders.contains(&head) {
+            warn!("HairGpuPlugin: head {head} has cuboid or mesh colliders, which the GPU step does not meet");
+            queue.warned_colliders.push(head);
+        }
+        // As `HairWindPlugin` blows it (which reports invalid wind): at the head's position.
+        let at = pose.translation.as_vec3();
+        let mut air = wind
+            .as_ref()
+            .filter(|wind| !wind.is_calm() && wind.validate().is_ok())
+            .map_or(Vec3::ZERO, |wind| wind.velocity_at(at, now));
+        for (source, transform) in &sources {
+            if source.validate().is_ok() {
+                air += source.velocity_at(transform, at);
+            }
+        }
+        steps.push(GpuHeadStep {
+            rotation: pose.rotation,
+            translation: pose.translation,
+            colliders: met,
+            air_velocity: air.as_dvec3(),
+            hold_rate: f64::from(hold.rate),
+            hold_reach: f64::from(hold.reach),
+        });
+    }
+    queue.since_read_back += 1;
+    // Read every step by the CPU: followers placed there, or a head drawn from its components.
+    let components_read = queue.components_read
+        || placement.is_none_or(|placement| *placement == FollowerPlacement::Cpu)
+        || !followers_on_cpu.is_empty();
+    let upload_waits = queue.upload_waits_for.is_some_and(|step| step == queue.steps_sent + 1);
+    let read_back = std::mem::take(&mut settings.bypass_change_detection().read_back_now)
+        || components_read
+        || upload_waits
+        || match settings.read_back {
+            GpuReadBackRate::EveryStep => true,
+            GpuReadBackRate::EveryNthStep(n) => queue.since_read_back >= n.max(1),
+            GpuReadBackRate::OnDemand => false,
+        };
+    if read_back {
+        queue.since_read_back = 0;
+    }
+    queue.steps_sent += 1;
+    status.steps = queue.steps_sent;
+    status.read_back_age = queue.read_back_step.map(|step| queue.steps_sent - step);
+    count.steps = queue.steps_sent;
+    queue.steps.push(GpuStepOrder { params, heads: steps, read_back, step: queue.steps_sent });
+}
+
+/// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
+/// GPU found.
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
+fn apply_read_backs(
+    receiver: Res<GpuReadBackReceiver>,
+    mut queue: ResMut<GpuStepQueue>,
+    mut status: ResMut<HairGpuStatus>,
+    mut statistics: ResMut<HairStatistics>,
+    checked: Res<CheckedSettings>,
+    mut strands: Query<(&mut SimulatedStrand, &mut StrandNodes, &mut StrandFrames), With<SteppedElsewhere>>,
+    mut faults: MessageWriter<StrandFault>,
+    time: Res<Time>,
+    mut fault_log: Local<FaultLog>,
+) {
+    let started = std::time::Instant::now();
+    let Ok(receiver) = receiver.0.lock() else { return };
+    let now = time.elapsed_secs_f64();
+    let queue = &mut *queue;
+    for message in receiver.try_iter() {
+        let (step, entities, states, full) = match message {
+            GpuMessage::ReadBack { step, strands, states, full } => (step, strands, states, full),
+            GpuMessage::PipelinesBuilt => {
+                status.pipeline_builds += 1;
+                continue;
+            }
+            GpuMessage::RenderTime(seconds, driver) => {
+                status.render_thread_seconds = seconds;
+                status.render_driver_seconds = driver;
+                continue;
+            }
+            GpuMessage::Error(error) => {
+                if status.error.as_ref() != Some(&error) {
+                    error!("HairGpuPlugin: {error}");
+                    status.error = Some(error);
+                }
+                continue;
+            }
+        };
+        // A read-back of an earlier upload is stale.
+        if !Arc::ptr_eq(&entities, &queue.strands) {
+            continue;
+        }
+        let mut states = states;
+        for (index, &entity) in entities.iter().enumerate() {
+            // The state, where it was read back (the status alone, 16 bytes a strand, touches no component).
+            if full {
+                let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
+                if let Some(snapshot) = states.take_snapshot(index)
+                    && strand.rod_mut().restore(&snapshot).is_ok()
+                {
+                    strand.write_components(Some(1), &mut nodes, &mut frames);
+                }
+            }
+            let report = states.status[index];
+            if report.faults <= queue.faults[index] {
+                queue.fault_streaks[index] = 0;
+                continue;
+            }
+            if !strands.contains(entity) {
+                continue;
+            }
+            queue.faults[index] = report.faults;
+            queue.fault_streaks[index] += 1;
+            status.faults += 1;
+            statistics.faults += 1;
+            let bound = checked.params.as_ref().map_or(0.0, StepParams::strain_bound);
+            let error = step_error(&report, bound);
+            let streak = queue.fault_streaks[index];
+            let handed_back = streak >= GPU_FAULT_STREAK;
+            if fault_log.admit(streak == 1 || handed_back, false) {
+                let consequence = if handed_back {
+                    "it failed every read-back since it was reset on the GPU and is stepped on the CPU from now on"
+                } else {
+                    "it was reset to its rest pose"
+                };
+                warn!("hair strand {entity} failed a step on the GPU, {consequence}: {error}");
+            }
+            if handed_back {
+                queue.handed_back.insert(entity);
+                queue.dirty = true;
+            }
+            faults.write(StrandFault { strand: entity, error });
+        }
+        fault_log.summarise(now);
+        status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
+        if full {
+            status.read_backs += 1;
+            queue.read_back_step = Some(step);
+            status.read_back_age = Some(queue.steps_sent.saturating_sub(step));
+        }
+    }
+    // The first of the plugin's systems in an update: the clock starts again here.
+    status.main_thread_seconds = started.elapsed().as_secs_f64();
+}
+
+/// Steps between two read-backs of the strands' status when their state is not read back: their faults
+/// arrive at most this many steps late (and a few frames, as every read-back).
+const STATUS_STEPS: u64 = 4;
+
+/// Steps a new set of strands waits for the read-back of the old one before it is uploaded anyway (from
+/// the components as they are): a GPU that stopped answering does not hold the hair's changes forever.
+const UPLOAD_WAIT_STEPS: u64 = 30;
+
+/// Read-backs running in which a strand failed on the GPU after which it is handed back to the CPU for
+/// good: the pose it is reset to on the GPU fails again, and the CPU's fault handling (held, retried,
+/// quarantined) takes over.
+const GPU_FAULT_STREAK: u32 = 3;
+
+/// The CPU's name for the last fault the GPU found on a strand (`strain_bound`: the step's, without the
+/// single-precision floor the GPU adds). The strain of an over-strained step is known when that step was
+/// the last one read back; otherwise it was at least the GPU's limit.
+fn step_error(report: &GpuStrandStatus, strain_bound: f64) -> StepError {
+    let limit = strain_bound + SINGLE_PRECISION_STRAIN;
+    match report.last_fault {
+        Some(GpuFault::NonFinite { node }) => StepError::NonFinite { node: node as usize },
+        Some(GpuFault::OverStrained { edge }) => {
+            let strain = if report.fault.is_some() { f64::from(report.max_strain) } else { limit };
+            StepError::OverStrained { edge: edge as usize, strain, limit }
+        }
+        Some(GpuFault::NotPositiveDefinite) | None => StepError::NotPositiveDefinite { dof: 0 },
+    }
+}
+
+/// The render world's side: the solver on Bevy's device and what the main world sent.
+#[derive(Resource, Default)]
+pub(super) struct GpuHairRender {
+    pub(super) solver: Option<GpuStrandSolver>,
+    /// The step's pipelines on Bevy's device, built at the first upload and kept for every later one.
+    pipelines: Option<Arc<GpuStepPipelines>>,
+    /// The strands in the solver's order, and each one's index by entity.
+    strands: Arc<Vec<Entity>>,
+    pub(super) index: EntityHashMap<u32>,
+    /// Each strand's head, as uploaded.
+    pub(super) strand_heads: Vec<usize>,
+    /// Bumped at each upload.
+    pub(super) generation: u32,
+    upload: Option<GpuUploadOrder>,
+    orders: Vec<GpuStepOrder>,
+    /// Read-backs on their way: the step, the strands, the read-back and whether it has their state.
+    read_backs: Vec<(u64, Arc<Vec<Entity>>, GpuReadBack, bool)>,
+    sender: Option<Sender<GpuMessage>>,
+}
+
+/// Moves the main world's upload and steps into the render world.
+fn extract_gpu_steps(mut main_world: ResMut<MainWorld>, mut render: ResMut<GpuHairRender>) {
+    let Some(mut queue) = main_world.get_resource_mut::<GpuStepQueue>() else { return };
+    if let Some(upload) = queue.upload.take() {
+        render.upload = Some(upload);
+        render.orders.clear();
+    }
+    let steps = std::mem::take(&mut queue.steps);
+    render.orders.extend(steps);
+}
+
+/// Uploads a new set of strands, steps them by every fixed step the main world sent, asks for a
+/// read-back after the last step that wants one, and sends the read-backs that arrived.
+fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let started = std::time::Instant::now();
+    let render = &mut *render;
+    let (device, queue): (&wgpu::Device, &wgpu::Queue) = (device.wgpu_device(), &queue);
+    let send = |sender: &Option<Sender<GpuMessage>>, message| {
+        if let Some(sender) = sender {
+            let _ = sender.send(message);
+        }
+    };
+    if let Some(GpuUploadOrder { upload, strands }) = render.upload.take() {
+        if render.pipelines.is_none() {
+            render.pipelines = Some(GpuStepPipelines::new(device));
+            send(&render.sender, GpuMessage::PipelinesBuilt);
+        }
+        let pipelines = render.pipelines.as_ref().expect("built above");
+        render.solver = Some(GpuStrandSolver::from_upload(device, pipelines, upload));
+        render.index = strands.iter().enumerate().map(|(index, &entity)| (entity, index as u32)).collect();
+        render.strand_heads = render.solver.as_ref().map(|s| s.strand_heads().to_vec()).unwrap_or_default();
+        render.strands = strands;
+        render.generation = render.generation.wrapping_add(1);
+        render.read_backs.clear();
+    }
+    let stepped = !render.orders.is_empty();
+    let mut driver = 0.0;
+    if let Some(solver) = render.solver.as_mut() {
+        // The state after the last step that asks for it; else the status after the frame's last step
+        // that is a multiple of `STATUS_STEPS`.
+        let (mut read_back, mut status_only) = (None, None);
+        for order in render.orders.drain(..) {
+            match solver.step(device, queue, &order.params, &order.heads) {
+                Ok(_) if order.read_back => read_back = Some(order.step),
+                Ok(_) if order.step % STATUS_STEPS == 0 => status_only = Some(order.step),
+                Ok(_) => {}
+                Err(error) => send(&render.sender, GpuMessage::Error(gpu_step_error(&error))),
+            }
+        }
+        // The read-back's copies are recorded in microseconds; the rest of the call is its submission.
+        let requested = std::time::Instant::now();
+        if let Some(step) = read_back {
+            let pending = solver.request_read_back(device, queue, true);
+            render.read_backs.push((step, render.strands.clone(), pending, true));
+        } else if let Some(step) = status_only {
+            let pending = solver.request_read_back(device, queue, false);
+            render.read_backs.push((step, render.strands.clone(), pending, false));
+        }
+        driver += requested.elapsed().as_secs_f64() + solver.take_driver_seconds();
+    } else {
+        render.orders.clear();
+    }
+    if !render.read_backs.is_empty() {
+        let polled = std::time::Instant::now();
+        let _ = device.poll(wgpu::PollType::Poll);
+        driver += polled.elapsed().as_secs_f64();
+        let sender = &render.sender;
+        render.read_backs.retain_mut(|(step, strands, read_back, full)| {
+            if let Some(states) = read_back.try_take() {
+                let message = GpuMessage::ReadBack { step: *step, strands: strands.clone(), states, full: *full };
+                send(sender, message);
+            }
+            !read_back.is_finished()
+        });
+    }
+    if stepped {
+        send(&render.sender, GpuMessage::RenderTime(started.elapsed().as_secs_f64(), driver));
+    }
+}
+
+/// The message for a step the GPU could not take.
+fn gpu_step_error(error: &GpuStepError) -> String {
+    format!("a GPU step was not taken: {error}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gpu_faults_are_named_as_the_cpu_names_them() {
+        let bound = 1e-3;
+        let limit = bound + SINGLE_PRECISION_STRAIN;
+        let report = |fault, last_fault, max_strain| GpuStrandStatus {
+            max_strain,
+            fault,
+            last_fault,
+            faults: 1,
+            ..Default::default()
+        };
+        let over = Some(GpuFault::OverStrained { edge: 7 });
+        // Read back on the failed step: its strain.
+        match step_error(&report(over, over, 0.25), bound) {
+            StepError::OverStrained { edge: 7, strain, limit: l } => {
+                assert_eq!((strain, l), (f64::from(0.25_f32), limit));
+            }
+            other => panic!("{other:?}"),
+        }
+        // Read back later: at least the limit (the strain read is the current one, not the failing one).
+        match step_error(&report(None, over, 1e-6), bound) {
+            StepError::OverStrained { edge: 7, strain, .. } => assert_eq!(strain, limit),
+            other => panic!("{other:?}"),
+        }
+        let nan = Some(GpuFault::NonFinite { node: 3 });
+        assert_eq!(step_error(&report(None, nan, 0.0), bound), StepError::NonFinite { node: 3 });
+        let indefinite = Some(GpuFault::NotPositiveDefinite);
+        assert_eq!(step_error(&report(indefinite, indefinite, 0.0), bound), StepError::NotPositiveDefinite { dof: 0 });
+    }
+
+    #[test]
+    fn a_strand_failing_read_back_after_read_back_is_handed_back_to_the_cpu() {
+        use bevy::ecs::system::RunSystemOnce;
+        // The main world's half alone (no renderer): read-backs arrive through a channel the test holds.
+        let mut app = App::new();
+        app.add_plugins((MinimalPlugins, crate::HairPlugins::default(), HairGpuPlugin::default()));
+        let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
+        let strand = app
+            .world_mut()
+            .spawn((crate::simulation::HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.2, 8), StrandOf(head)))
+            .id();
+        app.insert_resource(bevy::time::TimeUpdateStrategy::FixedTimesteps(1));
+        app.update();
+        app.update();
+        assert!(app.world().get::<SimulatedStrand>(strand).is_some(), "the strand is built");
+        app.world_mut().entity_mut(strand).insert(SteppedElsewhere);
+        let (sender, receiver) = channel();
+        app.insert_resource(GpuReadBackReceiver(Mutex::new(receiver)));
+        let strands = Arc::new(vec![strand]);
+        {
+            let mut queue = app.world_mut().resource_mut::<GpuStepQueue>();
+            queue.strands = strands.clone();
+            queue.faults = vec![0];
+            queue.fault_streaks = vec![0];
+        }
+        let indefinite = Some(GpuFault::NotPositiveDefinite);
+        let mut read_back = |step: u64, faults: u32| {
+            let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
+            // No positions: nothing to restore, only the report.
+            let states = GpuStrandStates { status: vec![report], ..default() };
+            sender.send(GpuMessage::ReadBack { step, strands: strands.clone(), states, full: false }).unwrap();
+            app.world_mut().run_system_once(apply_read_backs).unwrap();
+            let messages = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().count();
+            (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))
+        };
+        // Failing, then not (the same count), then failing twice: never three read-backs running.
+        assert_eq!(read_back(1, 1), (1, false));
+        assert_eq!(read_back(2, 1), (0, false));
+        assert_eq!(read_back(3, 2), (1, false));
+        assert_eq!(read_back(4, 3), (1, false));
+        // The third running: handed back (`choose_gpu_strands` leaves it out from now on).
+        assert_eq!(read_back(5, 5), (1, true));
+        assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
+    }
+}
