@@ -30,6 +30,8 @@ static TURN_CHANGED: Condvar = Condvar::new();
 thread_local! {
     /// Whether this thread's test holds [`serial`] (its own apps then take no shared turn).
     static HOLDS_THE_LOG: Cell<bool> = const { Cell::new(false) };
+    /// How many shares this thread's apps hold (a test that holds one cannot wait for none).
+    static SHARES_HERE: Cell<usize> = const { Cell::new(0) };
 }
 
 fn turns() -> MutexGuard<'static, Turns> {
@@ -87,7 +89,16 @@ impl Drop for LogToItself {
 
 /// Installs the recorder (once per binary) and gives the caller the log to itself until the guard drops,
 /// once no other test's app is alive; the lines logged so far are discarded.
+///
+/// # Panics
+/// If an app made on this thread is still alive: it holds a share the call would wait for forever. Take
+/// the log before making the test's apps.
 pub fn serial() -> LogToItself {
+    assert_eq!(
+        SHARES_HERE.with(Cell::get),
+        0,
+        "logs::serial() after this test made an app that is still alive: take the log first"
+    );
     INSTALL.call_once(|| {
         tracing::subscriber::set_global_default(Recorder).expect("no other global subscriber in this test binary");
     });
@@ -108,6 +119,7 @@ pub struct LogShared(());
 
 impl Drop for LogShared {
     fn drop(&mut self) {
+        SHARES_HERE.with(|shares| shares.set(shares.get().saturating_sub(1)));
         turns().sharing -= 1;
         TURN_CHANGED.notify_all();
     }
@@ -124,6 +136,7 @@ pub fn share() -> Option<LogShared> {
         turns = TURN_CHANGED.wait(turns).unwrap_or_else(|poisoned| poisoned.into_inner());
     }
     turns.sharing += 1;
+    SHARES_HERE.with(|shares| shares.set(shares.get() + 1));
     Some(LogShared(()))
 }
 

@@ -219,6 +219,7 @@ fn roots_on_a_skinned_scalp_stay_on_their_triangles_and_move_with_them() {
 
 #[test]
 fn a_rigid_scalp_binds_once_loaded_and_a_skin_without_weights_is_refused() {
+    let _log = logs::serial();
     // A scalp mesh without a skin, as the head's child, added once the strands are there.
     let mut app = app_with_assets();
     let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
@@ -244,7 +245,7 @@ fn a_rigid_scalp_binds_once_loaded_and_a_skin_without_weights_is_refused() {
     assert!((root - DVec3::new(0.01, 1.7, 0.0)).length() < 1e-5, "the root moved with the mesh: {root}");
 
     // A skinned scalp whose mesh has no joint weights: refused (said once), its strands follow the head.
-    let _log = logs::serial();
+    logs::take();
     let mut app = app_with_assets();
     let (neck, _, strands) = spawn_character(&mut app, scalp_mesh(false), 7);
     for _ in 0..5 {
