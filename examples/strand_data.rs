@@ -9,7 +9,6 @@
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::simulation::StrandSnapshotData;
 
 fn main() {
     let mut app = App::new();

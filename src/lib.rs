@@ -415,7 +415,7 @@ pub mod prelude {
     pub use crate::simulation::{
         HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HairStyleHold,
         HeadStrands, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf, StrandRejected, StrandRestShape,
-        StrandSnapshot,
+        StrandSnapshot, StrandSnapshotData,
     };
     pub use crate::volume::{HairVolume, HairVolumePlugin};
     pub use crate::wind::{HairWind, HairWindPlugin, HairWindSource};

@@ -19,7 +19,7 @@
 //! world.spawn((collider, HairColliderOf(head), ChildOf(head)));
 //! // ...or the body's own mesh, baked when it has loaded.
 //! world.spawn((Mesh3d(meshes.add(Capsule3d::new(0.12, 0.3))), HairColliderFromMesh::default(), HairColliderOf(head)));
-//! # Ok::<(), MeshColliderError>(())
+//! # Ok::<(), bevy_hair_sim::collision::MeshColliderError>(())
 //! ```
 //!
 //! **Skinned meshes.** A [`Mesh3d`] that is skinned is drawn where its joints put it, not where its

@@ -19,7 +19,10 @@ pub fn hair_app_with<M>(extra: impl bevy::app::Plugins<M>) -> App {
     if let Some(share) = crate::logs::share() {
         app.insert_resource(share);
     }
-    app.add_plugins((MinimalPlugins, extra, HairPlugins::default()))
+    // Every core in the compute pool, as a game gives it (Bevy's default leaves one of two cores to it);
+    // the first app of the process sets the pool for all.
+    let pools = TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() };
+    app.add_plugins((MinimalPlugins.set(pools), extra, HairPlugins::default()))
         .insert_resource(Time::<Fixed>::from_seconds(DT))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
     app.finish();

@@ -12,10 +12,8 @@ use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::storage::ShaderBuffer;
 use bevy::time::TimeUpdateStrategy;
-use bevy::window::ExitCondition;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::HairMesh;
@@ -41,20 +39,9 @@ struct ReadBack(Arc<Mutex<Option<Vec<f32>>>>);
 /// per update.
 fn rendering_app() -> App {
     let mut app = App::new();
-    app.add_plugins((
-        DefaultPlugins
-            .set(WindowPlugin {
-                primary_window: None,
-                exit_condition: ExitCondition::DontExit,
-                close_when_requested: false,
-                ..default()
-            })
-            // The render world stays in the app (not on a thread of its own), to be seen here.
-            .disable::<PipelinedRenderingPlugin>(),
-        HairPlugins::default(),
-    ))
-    .insert_resource(Time::<Fixed>::from_seconds(DT))
-    .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+    app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
+        .insert_resource(Time::<Fixed>::from_seconds(DT))
+        .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
     // The renderer finds its adapter asynchronously, as `App::run` waits for it.
     while app.plugins_state() == PluginsState::Adding {
         bevy::tasks::tick_global_task_pools_on_main_thread();

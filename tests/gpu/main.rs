@@ -8,3 +8,23 @@ mod plugin;
 mod render_layout;
 mod render_shader;
 mod step;
+
+use bevy::app::PluginGroupBuilder;
+use bevy::prelude::*;
+use bevy_hair_sim::prelude::HairPlugins;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+use bevy::window::ExitCondition;
+
+/// Bevy's default plugins on whatever adapter wgpu finds, with no window, every core in the compute pool,
+/// and the render world kept in the app (not on a thread of its own) so that the tests can look at it.
+fn headless_renderer() -> PluginGroupBuilder {
+    DefaultPlugins
+        .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() })
+        .set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            close_when_requested: false,
+            ..default()
+        })
+        .disable::<PipelinedRenderingPlugin>()
+}

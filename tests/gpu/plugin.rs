@@ -10,9 +10,7 @@ use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::time::TimeUpdateStrategy;
-use bevy::window::ExitCondition;
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
@@ -49,18 +47,7 @@ const DRAWN_TOLERANCE: f32 = 1e-5;
 fn app(gpu: bool) -> App {
     let mut app = App::new();
     if gpu {
-        app.add_plugins((
-            DefaultPlugins
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    close_when_requested: false,
-                    ..default()
-                })
-                .disable::<PipelinedRenderingPlugin>(),
-            HairPlugins::default(),
-            HairGpuPlugin::default(),
-        ));
+        app.add_plugins((crate::headless_renderer(), HairPlugins::default(), HairGpuPlugin::default()));
     } else {
         app.add_plugins((MinimalPlugins, HairPlugins::default()));
     }

@@ -5,7 +5,6 @@ use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{RodError, RodSnapshot};
-use bevy_hair_sim::simulation::StrandSnapshotData;
 use hair_sim_support::headless::{hair_app, spawn_head, strand};
 
 /// A head at the origin with one straight 10 cm strand of 10 edges along +x, in zero gravity.
