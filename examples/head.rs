@@ -32,6 +32,7 @@ use bevy::light::{CascadeShadowConfigBuilder, DirectionalLightShadowMap};
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
 use bevy::time::TimeUpdateStrategy;
+use bevy_hair_sim::groom::{FileStrand, GroomedStrand, PlacedGroomFile};
 use bevy_hair_sim::prelude::*;
 
 use hair_sim_support::example_scene::{BODY, EYE_RADIUS, EYES, FACE, NECK_HEIGHT, SCALP};

@@ -405,10 +405,10 @@ pub mod prelude {
         StrandColors, StrandWidths, UpAxis,
     };
     pub use crate::render::HairAppearance;
-    #[cfg(feature = "render")]
-    pub use crate::render::HairRenderPlugin;
     #[cfg(feature = "gpu")]
     pub use crate::render::{GpuReadBackRate, HairGpuPlugin, HairGpuSettings, HairGpuStatus};
+    #[cfg(feature = "render")]
+    pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::RodMaterial;
     pub use crate::scalp::{CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin};
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};

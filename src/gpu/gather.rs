@@ -17,7 +17,8 @@ pub(super) struct Gather {
     pub(super) pipeline: wgpu::ComputePipeline,
 }
 
-/// One head's guides as [`GpuStrandSolver::record_gather`] writes them for the follower placement.
+/// One head's guides as [`GpuStrandSolver::record_gather`](super::GpuStrandSolver::record_gather) writes
+/// them for the follower placement.
 pub struct GpuGatherTarget {
     pub(super) params: wgpu::Buffer,
     pub(super) bind_group: wgpu::BindGroup,

@@ -16,7 +16,6 @@ use bevy::render::storage::ShaderBuffer;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::render::HairMesh;
 use bevy_hair_sim::render::{GuideLayout, HairStrips};
 use bevy_hair_sim::simulation::PackedStrandPose;
 use bevy_hair_sim::simulation::SimulatedStrand;

@@ -11,9 +11,9 @@ mod step;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
-use bevy_hair_sim::prelude::HairPlugins;
 use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::window::ExitCondition;
+use bevy_hair_sim::prelude::HairPlugins;
 
 /// Bevy's default plugins on whatever adapter wgpu finds, with no window, every core in the compute pool,
 /// and the render world kept in the app (not on a thread of its own) so that the tests can look at it.

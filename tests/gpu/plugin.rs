@@ -14,7 +14,6 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
-use bevy_hair_sim::render::HairMesh;
 use bevy_hair_sim::simulation::SimulatedStrand;
 use bevy_hair_sim::simulation::SteppedElsewhere;
 
