@@ -16,9 +16,7 @@ pub const DT: f64 = 1.0 / 60.0;
 /// [`logs`](crate::logs) while it lives.
 pub fn hair_app_with<M>(extra: impl bevy::app::Plugins<M>) -> App {
     let mut app = App::new();
-    if let Some(share) = crate::logs::share() {
-        app.insert_resource(share);
-    }
+    crate::logs::share_with(&mut app);
     // Every core in the compute pool, as a game gives it (Bevy's default leaves one of two cores to it);
     // the first app of the process sets the pool for all.
     let pools = TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() };

@@ -10,7 +10,7 @@ use std::cell::Cell;
 use std::fmt::Debug;
 use std::sync::{Condvar, Mutex, MutexGuard, Once};
 
-use bevy::prelude::Resource;
+use bevy::prelude::{App, Resource};
 
 use bevy::log::tracing::field::{Field, Visit};
 use bevy::log::tracing::{self, Event, Level, Metadata, Subscriber, span};
@@ -125,19 +125,20 @@ impl Drop for LogShared {
     }
 }
 
-/// A share of the log for an app made on this thread: none if this thread's test holds [`serial`] (its
-/// app's lines are what it reads), else one as soon as no test has the log to itself.
-pub fn share() -> Option<LogShared> {
+/// Gives `app`, made on this thread, a share of the log for as long as it lives, as soon as no test has
+/// the log to itself: none if this thread's test holds [`serial`] (its app's lines are what it reads).
+pub fn share_with(app: &mut App) {
     if HOLDS_THE_LOG.with(Cell::get) {
-        return None;
+        return;
     }
     let mut turns = turns();
     while turns.alone {
         turns = TURN_CHANGED.wait(turns).unwrap_or_else(|poisoned| poisoned.into_inner());
     }
     turns.sharing += 1;
+    drop(turns);
     SHARES_HERE.with(|shares| shares.set(shares.get() + 1));
-    Some(LogShared(()))
+    app.insert_resource(LogShared(()));
 }
 
 /// The warnings and errors logged since the last call, with their messages.

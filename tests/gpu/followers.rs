@@ -17,9 +17,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::{GuideLayout, HairStrips};
-use bevy_hair_sim::simulation::PackedStrandPose;
-use bevy_hair_sim::simulation::SimulatedStrand;
-use bevy_hair_sim::simulation::packed::walk_directors;
+use bevy_hair_sim::simulation::{PackedStrandPose, SimulatedStrand, packed::walk_directors};
 
 /// Fixed step, s.
 const DT: f64 = 1.0 / 60.0;

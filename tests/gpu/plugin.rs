@@ -14,8 +14,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
-use bevy_hair_sim::simulation::SimulatedStrand;
-use bevy_hair_sim::simulation::SteppedElsewhere;
+use bevy_hair_sim::simulation::{SimulatedStrand, SteppedElsewhere};
 
 /// Fixed step, s.
 const DT: f64 = 1.0 / 60.0;

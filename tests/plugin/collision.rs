@@ -9,8 +9,7 @@ use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::collision::ColliderMotion;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::ColliderShape;
-use bevy_hair_sim::rod::RigidPose;
+use bevy_hair_sim::rod::{ColliderShape, RigidPose};
 use hair_sim_support::headless::{DT, hair_app, hair_app_with, strand};
 
 /// Deepest a checked node may be inside a collider grown by the strand's thickness, m.

@@ -4,8 +4,7 @@
 use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::simulation::{FIRST_QUARANTINE, QUARANTINE_WINDOW};
-use bevy_hair_sim::simulation::{SimulatedStrand, StrandHealth};
+use bevy_hair_sim::simulation::{FIRST_QUARANTINE, QUARANTINE_WINDOW, SimulatedStrand, StrandHealth};
 use hair_sim_support::headless::{DT, drain_messages, hair_app, spawn_head, strand};
 use hair_sim_support::logs;
 

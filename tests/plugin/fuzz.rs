@@ -24,10 +24,11 @@ use bevy::prelude::*;
 use bevy::transform::TransformPlugin;
 use bevy_hair_sim::groom::FileStrand;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Anchor, Contacts, Integrator, MovingCollider, RigidPose, StepLoads};
-use bevy_hair_sim::rod::{ColliderShape, Rod, RodError, RodWorkspace, StepError, StepParams};
-use bevy_hair_sim::simulation::SimulatedStrand;
-use bevy_hair_sim::simulation::{HeadMotion, LONGER_STEP_STRAIN_TOLERANCE};
+use bevy_hair_sim::rod::{
+    Anchor, ColliderShape, Contacts, Integrator, MovingCollider, RigidPose, Rod, RodError, RodWorkspace, StepError,
+    StepLoads, StepParams,
+};
+use bevy_hair_sim::simulation::{HeadMotion, LONGER_STEP_STRAIN_TOLERANCE, SimulatedStrand};
 use hair_sim_support::headless::{DT, camera, drain_messages, drawn_is_finite, hair_app_with};
 use hair_sim_support::logs;
 

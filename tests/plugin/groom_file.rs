@@ -5,8 +5,7 @@
 
 use bevy::asset::AssetPlugin;
 use bevy::prelude::*;
-use bevy_hair_sim::groom::FileStrand;
-use bevy_hair_sim::groom::{GroomFile, GroomFileError};
+use bevy_hair_sim::groom::{FileStrand, GroomFile, GroomFileError};
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::simulation::SimulatedStrand;
 use hair_sim_support::headless::{DT, hair_app_with, strand};

@@ -8,8 +8,7 @@ use bevy::mesh::MeshPlugin;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::Rod;
-use bevy_hair_sim::simulation::HeadMotion;
-use bevy_hair_sim::simulation::SimulatedStrand;
+use bevy_hair_sim::simulation::{HeadMotion, SimulatedStrand};
 use hair_sim_support::headless::{DT, drain_messages, hair_app, hair_app_with, spawn_head, strand};
 
 /// The world positions the root edge's two nodes must have for a head whose world transform is `head`.

@@ -85,9 +85,7 @@ fn every_name_of_both_preludes_can_be_used() {
 
     // Ours, beside them, in one app.
     let mut app = App::new();
-    if let Some(share) = hair_sim_support::logs::share() {
-        app.insert_resource(share);
-    }
+    hair_sim_support::logs::share_with(&mut app);
     app.add_plugins((MinimalPlugins, HairPlugins::default()));
     let head = app.world_mut().spawn((HairHead, Transform::default())).id();
     let collider = app.world_mut().spawn((HairCollider::sphere(0.1), HairColliderOf(head), Transform::default())).id();

@@ -6,8 +6,9 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use bevy::math::{DQuat, DVec2, DVec3};
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE};
-use bevy_hair_sim::rod::{Rod, RodError, RodWorkspace, StepError, StepParams};
+use bevy_hair_sim::rod::{
+    MAX_TURNING_ANGLE, MIN_MATERIAL_DIRECTION_ANGLE, Rod, RodError, RodWorkspace, StepError, StepParams,
+};
 use hair_sim_support::headless::{drain_messages, hair_app, spawn_head, strand};
 use hair_sim_support::{hanging_hair, straight_nodes};
 

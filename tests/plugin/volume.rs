@@ -7,8 +7,7 @@ use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::rod::{Contacts, Integrator, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams};
 use bevy_hair_sim::simulation::SimulatedStrand;
-use bevy_hair_sim::volume::HairVolumeGrids;
-use bevy_hair_sim::volume::{GridParticle, VolumeGrid, VolumeParams};
+use bevy_hair_sim::volume::{GridParticle, HairVolumeGrids, VolumeGrid, VolumeParams};
 use hair_sim_support::headless::hair_app;
 
 /// The grid's parameters of the tests: 5 mm cells, smoothing at 5/s, target 0.1, 50 Pa, 60 Hz.

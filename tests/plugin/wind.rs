@@ -4,8 +4,7 @@
 use bevy::math::DVec3;
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::rod::{Contacts, StepLoads};
-use bevy_hair_sim::rod::{Rod, RodWorkspace, StepParams};
+use bevy_hair_sim::rod::{Contacts, Rod, RodWorkspace, StepLoads, StepParams};
 use hair_sim_support::headless::{hair_app, spawn_head, strand};
 use hair_sim_support::logs;
 use hair_sim_support::straight_nodes;
