@@ -97,11 +97,17 @@ fn main() {
         .filter(|&(index, arg)| {
             !arg.starts_with("--")
                 && (index == 0
-                    || !["--threads", "--style", "--motion", "--air-damping"].contains(&args[index - 1].as_str()))
+                    || !["--threads", "--style", "--motion", "--air-damping", "--budget"]
+                        .contains(&args[index - 1].as_str()))
         })
         .map(|(_, arg)| arg.as_str())
         .collect();
     let wanted = |table: &str| tables.is_empty() || tables.contains(&table);
+    let budget = args
+        .iter()
+        .position(|arg| arg == "--budget")
+        .and_then(|position| args.get(position + 1))
+        .map(|value| value.parse::<f32>().expect("--budget needs milliseconds"));
     println!("bevy_hair_sim benchmark: {cores} cores, {threads} compute threads, {steps} measured steps per row");
     if wanted("scaling") {
         scaling(threads, steps);
@@ -146,7 +152,7 @@ fn main() {
     if wanted("coverage") {
         let value = |flag: &str| args.iter().position(|arg| arg == flag).and_then(|position| args.get(position + 1));
         let air_damping = value("--air-damping").map(|value| value.parse::<f32>().expect("--air-damping needs 1/s"));
-        coverage(threads, if quick { 1.0 } else { 4.0 }, value("--motion").map(String::as_str), air_damping);
+        coverage(threads, if quick { 1.0 } else { 4.0 }, value("--motion").map(String::as_str), air_damping, budget);
     }
     if wanted("bare") {
         bare_regions(threads, if quick { 1.0 } else { 4.0 });
@@ -157,11 +163,14 @@ fn main() {
     if wanted("scene") {
         example_scene_cost(threads, if quick { 60 } else { 240 });
     }
+    if wanted("budget") {
+        budgeted_scene_cost(threads, if quick { 60 } else { 240 });
+    }
     if wanted("styles") {
         let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
         let styles: Vec<HairStyle> =
             HairStyle::ALL.into_iter().filter(|style_| style.is_none_or(|name| style_.name() == name)).collect();
-        styles_at_rest(threads, if quick { 1.0 } else { 3.0 }, &styles);
+        styles_at_rest(threads, if quick { 1.0 } else { 3.0 }, &styles, budget);
     }
     #[cfg(feature = "gpu")]
     if wanted("gpu") {
@@ -672,12 +681,24 @@ fn example_app(
     (hold, pressure): (f32, f32),
     still_steps: usize,
 ) -> (bevy::prelude::App, bevy::prelude::Entity) {
+    example_app_within(threads, style, (hold, pressure), still_steps, None)
+}
+
+/// [`example_app`] with a CPU budget of `budget` ms per update ([`HairCpuBudget`]), or none.
+fn example_app_within(
+    threads: usize,
+    style: HairStyle,
+    (hold, pressure): (f32, f32),
+    still_steps: usize,
+    budget: Option<f32>,
+) -> (bevy::prelude::App, bevy::prelude::Entity) {
     let mut app = Scene::app(Some(threads));
     {
         let mut settings = app.world_mut().resource_mut::<HairSettings>();
         settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
         settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
     }
+    app.insert_resource(HairCpuBudget { milliseconds: budget, ..HairCpuBudget::default() });
     let head = example_head(&mut app, style);
     for _ in 0..still_steps {
         app.update();
@@ -731,7 +752,7 @@ fn in_the_hairline_fade(point: Vec3) -> bool {
 /// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
 /// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
 /// ([`HairStyleHold`] at 200/s).
-fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Option<f32>) {
+fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Option<f32>, budget: Option<f32>) {
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::debug::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
@@ -750,7 +771,8 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     const BEHIND: Vec3 = Vec3::new(0.0, 0.3, 1.0);
     let air = air_damping.unwrap_or(HairSettings::default().air_damping);
     println!(
-        "The example's scene moving, {seconds} s each, air drag {air}/s after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
+        "The example's scene moving, {seconds} s each, air drag {air}/s, {} after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
+        budget_words(budget),
         1e3 * HairGroom::default().hairline_fade
     );
     println!(
@@ -763,7 +785,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     let motions = motions.into_iter().filter(|(name, _)| only.is_none_or(|only| only == *name));
     let runs = motions.flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
     for ((name, rotation), (hold, pressure)) in runs {
-        let (mut app, head) = example_app(threads, HairStyle::Straight, (hold, pressure), 60);
+        let (mut app, head) = example_app_within(threads, HairStyle::Straight, (hold, pressure), 60, budget);
         if let Some(air_damping) = air_damping {
             app.world_mut().resource_mut::<HairSettings>().air_damping = air_damping;
         }
@@ -962,22 +984,28 @@ fn example_scene_cost(threads: usize, steps: usize) {
 /// largest over their nodes), the strays against the groomed shape ([`coverage::StrayCheck`]: tips 3 cm
 /// off their 6 neighbours'), and the share of the face below the hairline and of the eyes a camera in
 /// front sees hidden by hair ([`coverage::share_seen`], 1 mm pixels); unheld, held as the example holds
-/// it, and held with the grid's pressure (50 Pa).
-fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
+/// it, and held with the grid's pressure (50 Pa). With a `budget` (ms, [`HairCpuBudget`]) the hair runs
+/// within it, and a last column says how far its guides are drawn from where the same run without the
+/// budget draws them (RMS over their nodes).
+fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle], budget: Option<f32>) {
     use bevy::prelude::Transform;
     use bevy_hair_sim::debug::coverage::{self, StrayCheck};
     println!();
     println!(
-        "Every style at rest after {seconds} s (the example's head and colliders, grid on): distance of the guides' nodes from the groomed shape, strays against it (tips 3 cm off their 6 neighbours'), face below the hairline and eyes hidden by hair seen from the front (1 mm pixels):"
+        "Every style at rest after {seconds} s (the example's head and colliders, grid on), {}: distance of the guides' nodes from the groomed shape, strays against it (tips 3 cm off their 6 neighbours'), face below the hairline and eyes hidden by hair seen from the front (1 mm pixels){}:",
+        budget_words(budget),
+        if budget.is_some() { ", and the drawn guides' distance from the run without a budget" } else { "" }
     );
     println!(
-        "| style | style hold, 1/s | pressure, Pa | from groomed, RMS mm | largest, mm | strays | face hidden | eyes hidden |"
+        "| style | style hold, 1/s | pressure, Pa | from groomed, RMS mm | largest, mm | strays | face hidden | eyes hidden |{}",
+        if budget.is_some() { " from the unbudgeted, RMS mm |" } else { "" }
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|{}", if budget.is_some() { "---:|" } else { "" });
     let (face, eyes) = example_face_points();
+    let still_steps = (seconds * 60.0).round() as usize;
     for &style in styles {
         for (hold, pressure) in [(0.0, 0.0), (0.0, 50.0), (200.0, 0.0), (200.0, 50.0)] {
-            let (app, head) = example_app(threads, style, (hold, pressure), (seconds * 60.0).round() as usize);
+            let (app, head) = example_app_within(threads, style, (hold, pressure), still_steps, budget);
             let world = app.world();
             let transform = world.get::<Transform>(head).expect("the head exists");
             let pose = bevy::math::Affine3A::from_rotation_translation(transform.rotation, transform.translation);
@@ -1004,8 +1032,27 @@ fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
                 let points: Vec<Vec3> = points.iter().map(|&point| pose.transform_point3(point)).collect();
                 1.0 - coverage::share_seen(&points, hairs.iter().copied(), in_front, (0.001, width))
             };
+            let from_unbudgeted = match budget {
+                None => String::new(),
+                Some(_) => {
+                    let (reference, reference_head) = example_app(threads, style, (hold, pressure), still_steps);
+                    let reference_strands =
+                        reference.world().get::<HeadStrands>(reference_head).expect("the groom grew").strands();
+                    let (mut squared, mut count) = (0.0_f64, 0_usize);
+                    for (&strand, &reference_strand) in strands.iter().zip(reference_strands) {
+                        let drawn = &world.get::<StrandNodes>(strand).expect("a strand").positions;
+                        let unbudgeted =
+                            &reference.world().get::<StrandNodes>(reference_strand).expect("a strand").positions;
+                        for (node, reference_node) in drawn.iter().zip(unbudgeted) {
+                            squared += f64::from(node.distance_squared(*reference_node));
+                            count += 1;
+                        }
+                    }
+                    format!(" {:.2} |", 1e3 * (squared / count.max(1) as f64).sqrt())
+                }
+            };
             println!(
-                "| {} | {hold} | {pressure} | {:.2} | {:.1} | {:.2} % | {:.1} % | {:.1} % |",
+                "| {} | {hold} | {pressure} | {:.2} | {:.1} | {:.2} % | {:.1} % | {:.1} % |{from_unbudgeted}",
                 style.name(),
                 1e3 * (squared / count as f64).sqrt(),
                 1e3 * largest,
@@ -1014,6 +1061,103 @@ fn styles_at_rest(threads: usize, seconds: f32, styles: &[HairStyle]) {
                 100.0 * hidden(&eyes)
             );
         }
+    }
+}
+
+/// "no CPU budget", or "within a CPU budget of `budget` ms per update".
+fn budget_words(budget: Option<f32>) -> String {
+    budget.map_or_else(|| "no CPU budget".to_owned(), |budget| format!("within a CPU budget of {budget} ms per update"))
+}
+
+/// The example's default scene (as [`example_scene_cost`] runs it, the followers placed on the GPU as the
+/// example places them) with no CPU budget, within 4 ms and within 2 ms per update ([`HairCpuBudget`]),
+/// still and shaken: the six apps stepped in turn for `steps` updates after two still seconds (the budget's
+/// choice settles in them), so that the machine's drifts fall on all alike. Per update, ms: the mean, the
+/// 95th percentile and the largest of the whole `app.update()`, the updates over the budget, the hair's
+/// own clock ([`HairStatistics::update_seconds`], mean) and the step intervals the budget used.
+fn budgeted_scene_cost(threads: usize, steps: usize) {
+    use bevy::prelude::Transform;
+    use bevy_hair_sim::followers::FollowerPlacement;
+    println!();
+    println!(
+        "The example's default scene within a CPU budget ({threads} threads, followers placed on the GPU as the example places them), ms per update over {steps} updates:"
+    );
+    println!(
+        "| motion | budget, ms | mean | 95th percentile | largest | updates over the budget | hair's own clock, mean | of it: guides, grid, followers | step intervals used | Newton iterations per stepped guide |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---|---|---:|");
+    type Motion = fn(f32) -> bevy::prelude::Quat;
+    let motions: [(&str, Motion); 2] = [("still", |_| bevy::prelude::Quat::IDENTITY), ("shaken", shaken)];
+    let budgets = [None, Some(4.0_f32), Some(2.0)];
+    let budgets: Vec<Option<f32>> = match std::env::var("ONLY_BUDGET") {
+        Ok(v) => vec![Some(v.parse().unwrap())],
+        Err(_) => budgets.to_vec(),
+    };
+    struct Run {
+        motion: (&'static str, Motion),
+        budget: Option<f32>,
+        app: bevy::prelude::App,
+        head: bevy::prelude::Entity,
+        times: Vec<f64>,
+        own: Vec<f64>,
+        parts: [f64; 3],
+        intervals: std::collections::BTreeSet<u32>,
+        iterations: f64,
+    }
+    let mut runs: Vec<Run> = motions
+        .into_iter()
+        .flat_map(|motion| budgets.iter().map(move |&budget| (motion, budget)))
+        .map(|(motion, budget)| {
+            let (mut app, head) = example_app_within(threads, HairStyle::Straight, (200.0, 0.0), 0, budget);
+            app.insert_resource(FollowerPlacement::Gpu);
+            if let Ok(level) = std::env::var("FIXED_LEVEL") {
+                app.world_mut()
+                    .entity_mut(head)
+                    .insert(HairDetail::fixed(HairDetailLevel::Stepped(level.parse().unwrap())));
+            }
+            for _ in 0..120 {
+                app.update();
+            }
+            let intervals = std::collections::BTreeSet::new();
+            Run { motion, budget, app, head, times: vec![], own: vec![], parts: [0.0; 3], intervals, iterations: 0.0 }
+        })
+        .collect();
+    for step in 1..=steps {
+        for run in &mut runs {
+            run.app.world_mut().get_mut::<Transform>(run.head).expect("the head exists").rotation =
+                (run.motion.1)(step as f32 / 60.0);
+            let started = Instant::now();
+            run.app.update();
+            run.times.push(started.elapsed().as_secs_f64());
+            let statistics = run.app.world().resource::<HairStatistics>();
+            run.own.push(statistics.update_seconds);
+            let parts = [statistics.step_seconds, statistics.volume_seconds, statistics.follower_seconds];
+            for (sum, part) in run.parts.iter_mut().zip(parts) {
+                *sum += 1e3 * part / steps as f64;
+            }
+            run.intervals.insert(statistics.budget_step_interval);
+            run.iterations += statistics.mean_newton_iterations / steps as f64;
+        }
+    }
+    for run in &mut runs {
+        let mean = 1e3 * run.times.iter().sum::<f64>() / run.times.len() as f64;
+        let own = 1e3 * run.own.iter().sum::<f64>() / run.own.len() as f64;
+        let over =
+            run.budget.map_or(0, |budget| run.times.iter().filter(|&&time| 1e3 * time > f64::from(budget)).count());
+        run.times.sort_by(f64::total_cmp);
+        let percentile = 1e3 * run.times[(run.times.len() * 95).div_ceil(100) - 1];
+        let largest = 1e3 * run.times[run.times.len() - 1];
+        let intervals: Vec<String> = run.intervals.iter().map(u32::to_string).collect();
+        println!(
+            "| {} | {} | {mean:.2} | {percentile:.2} | {largest:.2} | {over} | {own:.2} | {:.2}, {:.2}, {:.2} | {} | {:.2} |",
+            run.motion.0,
+            run.budget.map_or("none".to_owned(), |budget| budget.to_string()),
+            run.parts[0],
+            run.parts[1],
+            run.parts[2],
+            intervals.join(", "),
+            run.iterations
+        );
     }
 }
 

@@ -64,6 +64,7 @@ fn main() {
             style_hold: HairStyleHold { rate: options.style_hold, ..default() },
             ..default()
         })
+        .insert_resource(HairCpuBudget { milliseconds: options.budget, ..default() })
         .insert_resource(breeze(options.wind))
         .add_systems(Startup, spawn_scene)
         .insert_resource(DirectionalLightShadowMap { size: 4096 })
@@ -129,6 +130,8 @@ struct Options {
     appearance: HairAppearance,
     /// A level of detail to keep (`None`: chosen from the camera's distance).
     detail: Option<HairDetailLevel>,
+    /// The hair's CPU budget per fixed step, ms (`None`: no budget; see [`HairCpuBudget`]).
+    budget: Option<f32>,
     /// Whether the camera blurs what moves (Bevy's `MotionBlur`, from the hair's motion vectors).
     motion_blur: bool,
     /// Whether the camera smooths edges over frames (Bevy's `TemporalAntiAliasing`, MSAA off) instead of
@@ -166,7 +169,7 @@ impl Options {
             [--pitch DEGREES] [--distance M]
             [--colliders on|off] [--groom procedural|ratboy] [--combing on|off] [--wind M/S]
             [--integrator bdf2|euler] [--grid on|off] [--pressure PA] [--hold 1/S] [--draw hair|lines|both]
-            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--gpu on|off] [--motion-blur on|off] [--taa on|off]
+            [--draw-every-frame on|off] [--detail auto|full|2|4|carried] [--budget MS] [--gpu on|off] [--motion-blur on|off] [--taa on|off]
             [--color black|dark brown|brown|auburn|red|blonde|light blonde|white] [--highlight-filtering 0-4]";
 
     /// The procedural groom these options ask for, on the example's scalp.
@@ -214,6 +217,7 @@ impl Options {
             draw_every_frame: false,
             appearance: HairAppearance::default(),
             detail: None,
+            budget: None,
             gpu: false,
             highlight_filtering: None,
             motion_blur: false,
@@ -274,6 +278,7 @@ impl Options {
                         .find(|drawing| drawing.name() == value)
                         .ok_or_else(|| format!("--draw needs hair, lines or both, got {value:?}"))?
                 }
+                "--budget" => options.budget = Some(number("milliseconds per fixed step")?),
                 "--detail" => {
                     options.detail = match value.as_str() {
                         "auto" => None,

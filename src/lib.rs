@@ -114,7 +114,7 @@
 //! | [`HairSimulationPlugin`] | heads, strands, their data, [`HairSettings`](simulation::HairSettings), [`HairStatistics`](simulation::HairStatistics), the step; configures the [sets](schedule) | no hair |
 //! | [`HairCollisionPlugin`] | tracks [`HairCollider`](collision::HairCollider)s and gathers each head's set | hair passes through everything |
 //! | [`HairScalpPlugin`] | roots bound to a scalp mesh, rigid or skinned ([`HairScalpMesh`](scalp::HairScalpMesh)) | roots follow their head only |
-//! | [`HairDetailPlugin`] | levels of detail from the cameras | every head at full detail |
+//! | [`HairDetailPlugin`] | levels of detail from the cameras, and the CPU budget ([`HairCpuBudget`](detail::HairCpuBudget)) | every head at full detail, no budget |
 //! | [`HairFollowersPlugin`] | binds and places follower hairs | followers ignored |
 //! | [`HairVolumePlugin`] | hair–hair interaction through a grid, when [`HairVolume::enabled`](simulation::HairVolume::enabled) | strands meet only colliders |
 //! | [`HairWindPlugin`] | [`HairWind`](wind::HairWind) and [`HairWindSource`](wind::HairWindSource)s | still air |
@@ -396,7 +396,7 @@ pub mod prelude {
     #[cfg(feature = "egui")]
     pub use crate::debug::HairPanelPlugin;
     pub use crate::debug::{HairGizmoPlugin, HairGizmos};
-    pub use crate::detail::{HairDetail, HairDetailLevel, HairDetailPlugin, HairDetailSettings};
+    pub use crate::detail::{HairCpuBudget, HairDetail, HairDetailLevel, HairDetailPlugin, HairDetailSettings};
     pub use crate::followers::{
         FollowerNodes, FollowerPlacement, HairFollowers, HairFollowersPlugin, PlaceFollowersOnCpu,
     };

@@ -11,7 +11,7 @@ use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
 use super::HairGizmos;
-use crate::detail::{HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
+use crate::detail::{HairCpuBudget, HairDetailLevel, HairDetailSettings, MAX_STEP_INTERVAL};
 use crate::groom::{Combing, HairGroom, HairStyle};
 use crate::render::{HairAppearance, HairMesh};
 use crate::rod::{Integrator, RodMaterial};
@@ -131,7 +131,7 @@ fn hair_panel(
     mut commands: Commands,
     heads: Query<(Entity, Option<&HairAppearance>), With<HairHead>>,
     mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
-    detail_settings: Option<ResMut<HairDetailSettings>>,
+    detail: Option<(ResMut<HairDetailSettings>, ResMut<HairCpuBudget>)>,
 ) -> Result {
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
@@ -146,7 +146,7 @@ fn hair_panel(
     let mut rendered = rendered_shown;
     let shown_appearance = heads.iter().next().map(|(_, appearance)| appearance.cloned().unwrap_or_default());
     let mut appearance = shown_appearance.clone();
-    let mut edited_detail = detail_settings.as_deref().cloned();
+    let mut edited_detail = detail.as_ref().map(|(settings, budget)| ((**settings).clone(), **budget));
     egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics, memory.frame_rate);
         step_time_plot(ui, &memory.step_milliseconds);
@@ -169,8 +169,8 @@ fn hair_panel(
         ui.collapsing("wind", |ui| wind_grid(ui, &mut edited_wind));
         ui.collapsing("material", |ui| material_grid(ui, &mut edited.default_material));
         ui.collapsing("collisions", |ui| collision_grid(ui, &mut edited, drawing.as_mut()));
-        if let Some(detail) = edited_detail.as_mut() {
-            ui.collapsing("levels of detail", |ui| detail_grid(ui, detail, &statistics));
+        if let Some((detail, budget)) = edited_detail.as_mut() {
+            ui.collapsing("levels of detail and budget", |ui| detail_grid(ui, detail, budget, &statistics));
         }
         ui.collapsing("drawing", |ui| {
             ui.horizontal(|ui| {
@@ -206,10 +206,13 @@ fn hair_panel(
     if edited_wind != *wind {
         *wind = edited_wind;
     }
-    if let (Some(mut detail), Some(edited)) = (detail_settings, edited_detail)
-        && *detail != edited
-    {
-        *detail = edited;
+    if let (Some((mut detail, mut budget)), Some((edited, edited_budget))) = (detail, edited_detail) {
+        if *detail != edited {
+            *detail = edited;
+        }
+        if *budget != edited_budget {
+            *budget = edited_budget;
+        }
     }
     memory.held_groom = groom.filter(|_| groom_held);
     if let Some(edit) = groom.filter(|_| !groom_held) {
@@ -248,6 +251,11 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
             format!("{:.2} ms, densest {:.2}", 1e3 * statistics.volume_seconds, statistics.max_volume_fraction),
         );
         row("step time", format!("{:.2} ms", 1e3 * statistics.step_seconds));
+        let interval = match statistics.budget_step_interval {
+            0 | 1 => String::new(),
+            interval => format!(", stepped every {interval} fixed steps to keep the budget"),
+        };
+        row("hair update (CPU)", format!("{:.2} ms{interval}", 1e3 * statistics.update_seconds));
         row("frame rate", format!("{frame_rate:.0} fps"));
         row("largest strain", format!("{:.1e}", statistics.max_strain));
         row("Newton iterations", format!("{:.2} per strand", statistics.mean_newton_iterations));
@@ -340,10 +348,26 @@ fn settings_grid(ui: &mut egui::Ui, settings: &mut HairSettings) {
     });
 }
 
-/// Levels of detail ([`HairDetailSettings`]) and the heads at each level.
-fn detail_grid(ui: &mut egui::Ui, detail: &mut HairDetailSettings, statistics: &HairStatistics) {
+/// Levels of detail ([`HairDetailSettings`]), the CPU budget ([`HairCpuBudget`]) and the heads at each level.
+fn detail_grid(
+    ui: &mut egui::Ui,
+    detail: &mut HairDetailSettings,
+    budget: &mut HairCpuBudget,
+    statistics: &HairStatistics,
+) {
     let heads = statistics.heads_by_detail;
     egui::Grid::new("hair detail").num_columns(2).show(ui, |ui| {
+        ui.label("CPU budget");
+        let mut budgeted = budget.milliseconds.is_some();
+        if ui.checkbox(&mut budgeted, "on").changed() {
+            budget.milliseconds = budgeted.then_some(4.0);
+        }
+        ui.end_row();
+        if let Some(milliseconds) = budget.milliseconds.as_mut() {
+            grid_row(ui, "budget (ms per step)", egui::Slider::new(milliseconds, 0.5..=30.0).logarithmic(true));
+            let coarsest = egui::Slider::new(&mut budget.max_step_interval, 1..=MAX_STEP_INTERVAL);
+            grid_row(ui, "coarsest step interval", coarsest);
+        }
         ui.label("chosen from the camera");
         ui.checkbox(&mut detail.enabled, "on");
         ui.end_row();

@@ -19,10 +19,13 @@
 //!   faster or slower than the fixed steps until it has its new lag, so the drawn hair never moves more
 //!   than 25 % faster than the hair itself; the simulation never jumps either (a longer or shorter step
 //!   starts from where the hair is).
+//! - **The hair–hair grid** ([`crate::volume`]) is sampled by the strands stepped at each fixed step, each
+//!   standing for the hairs of the `n` fixed steps its step spans, and smoothed over as long: the head's
+//!   hair is as dense on the grid as at full detail, at `1/n` of the splat's cost.
 //! - **What is lost at a coarser level:** motion faster than the longer step resolves (the implicit step
 //!   damps it, as at a lower frame rate; a longer step also takes one Newton iteration and projects the
-//!   edge lengths to 1e-6 instead of 1e-8, which damps a little more), the hair–hair interaction of
-//!   [`crate::volume`] (only heads at full detail take part in their grid), and up to `n − 1` fixed
+//!   edge lengths to 1e-6 instead of 1e-8, which damps a little more), the grid's detail (a quarter of the
+//!   strands at a time at every fourth step), and up to `n − 1` fixed
 //!   steps of delay in the hair's motion relative to its head. Going coarser, the hair's motion relative
 //!   to its head slows by a quarter for `4 (n − 1)` fixed steps while the drawn clock falls behind, the
 //!   strand meanwhile stepped every fixed step (so that its drawn shape always has a keyframe ahead).
@@ -35,6 +38,12 @@
 //! Distances are to the nearest active [`Camera`]; a head is out of sight when no active camera's
 //! [`Frustum`] reaches a ball around it as large as its hair. Without any camera (a server, a test),
 //! every head is at full detail.
+//!
+//! **A CPU budget.** [`HairCpuBudget`] (off by default) says how many milliseconds of each fixed step the
+//! hair may take on the CPU; the plugin measures every update ([`HairStatistics::update_seconds`]) and
+//! steps every head at least every `n`-th fixed step, `n` chosen to keep it
+//! ([`HairStatistics::budget_step_interval`]). What it costs and what it changes on the example's head is
+//! in `docs/performance.md`.
 //!
 //! ```
 //! use bevy::prelude::*;
@@ -53,15 +62,23 @@
 //!         commands.entity(head).insert(HairDetail::fixed(HairDetailLevel::Stepped(4)));
 //!     }
 //! }
+//! // A game whose hair may take 4 ms of each fixed step on the CPU.
+//! # let mut app = App::new();
+//! app.insert_resource(HairCpuBudget::milliseconds(4.0));
 //! assert_eq!(HairDetailSettings::default().level_at(7.0, true), HairDetailLevel::Stepped(4));
 //! assert_eq!(HairDetailSettings::default().level_at(1.0, false), HairDetailLevel::Carried);
 //! ```
 
+mod budget;
+
 use bevy::camera::primitives::{Frustum, Sphere};
 use bevy::prelude::*;
 
+pub use budget::HairCpuBudget;
+use budget::{BudgetKeeper, keep_cpu_budget, start_update_clock};
+
 use crate::rod::RodError;
-use crate::schedule::HairPinSystems;
+use crate::schedule::{HairPinSystems, HairStepSystems, HairSystems};
 pub use crate::simulation::{DRAWN_CLOCK_RATE_CHANGE, HairDetailLevel, HeadsByDetail, LONGER_STEP_STRAIN_TOLERANCE};
 use crate::simulation::{HairHead, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand, StrandOf};
 
@@ -220,9 +237,22 @@ impl Plugin for HairDetailPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<HairDetail>()
             .register_type::<HairDetailSettings>()
+            .register_type::<HairCpuBudget>()
             .init_resource::<HairDetailSettings>()
+            .init_resource::<HairCpuBudget>()
+            .init_resource::<BudgetKeeper>()
             .register_required_components::<HairHead, HairDetail>()
-            .add_systems(self.schedule, choose_hair_detail.in_set(HairPinSystems::ChooseDetail));
+            .add_systems(
+                self.schedule,
+                (
+                    start_update_clock
+                        .in_set(HairSystems::PinRoots)
+                        .before(HairPinSystems::Track)
+                        .before(HairPinSystems::Colliders),
+                    choose_hair_detail.in_set(HairPinSystems::ChooseDetail),
+                    keep_cpu_budget.in_set(HairSystems::Step).after(HairStepSystems::Follow),
+                ),
+            );
     }
 }
 
@@ -252,6 +282,7 @@ pub(crate) fn choose_hair_detail(
     mut heads: Query<HeadItem>,
     mut strands: Query<(Entity, &mut SimulatedStrand, &StrandOf)>,
     mut statistics: ResMut<HairStatistics>,
+    budget: Res<BudgetKeeper>,
     mut memory: Local<DetailMemory>,
 ) {
     let DetailMemory { fixed_step, reported, viewers } = &mut *memory;
@@ -300,8 +331,8 @@ pub(crate) fn choose_hair_detail(
             || viewers.iter().any(|viewer| viewer.frustum.is_none_or(|frustum| frustum.intersects_sphere(&ball, true)));
         let level = match detail.fixed {
             Some(level) => level,
-            None if !valid || !settings.enabled || viewers.is_empty() => HairDetailLevel::FULL,
-            None => settings.next_level(detail.level, distance, on_screen),
+            None if !valid || !settings.enabled || viewers.is_empty() => budget.coarsen(HairDetailLevel::FULL),
+            None => budget.coarsen(settings.next_level(detail.level, distance, on_screen)),
         };
         let new = HairDetail { level, distance, on_screen, reach, ..*detail };
         detail.set_if_neq(new);

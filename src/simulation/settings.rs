@@ -179,6 +179,13 @@ pub struct HairStatistics {
     pub max_volume_fraction: f64,
     /// Why the current settings cannot be used, while they cannot.
     pub settings_error: Option<String>,
+    /// Wall-clock time of the hair's systems in the last fixed step that simulated hair, s: from pinning
+    /// the roots to the placed followers, what [`HairCpuBudget`](crate::detail::HairCpuBudget) keeps
+    /// (measured by the `HairDetailPlugin`).
+    pub update_seconds: f64,
+    /// The step interval the [`HairCpuBudget`](crate::detail::HairCpuBudget) steps every head at at least,
+    /// fixed steps: 1 when it coarsens nothing (or there is none), 0 before the first fixed step.
+    pub budget_step_interval: u32,
 }
 
 /// Holding hair in its groomed style, in [`HairSettings::style_hold`]: each node of a rooted strand is

@@ -368,10 +368,16 @@ pub(crate) fn step_strands(
     let valid = checked.params;
     let started = Instant::now();
     let now = time.elapsed_secs_f64();
-    // Strands of one node count side by side, so that they share lockstep batches; the order changes
-    // no strand's result (a strand in a batch ends bit for bit where it would alone).
+    // Strands stepped now first, those of one node count and one step length side by side, so that they
+    // share lockstep batches (at a coarser level of detail a head's strands take their turns by entity,
+    // and neighbours in entity order are due on different fixed steps); the order changes no strand's
+    // result (a strand in a batch ends bit for bit where it would alone).
     order.clear();
-    order.extend(strands.iter().map(|(entity, strand, ..)| (strand.rod().node_count(), entity)));
+    order.extend(strands.iter().map(|(entity, strand, ..)| {
+        let detail = &strand.detail;
+        let key = (usize::from(!detail.due) << 40) | (strand.rod().node_count() << 20) | detail.elapsed as usize;
+        (key, entity)
+    }));
     order.sort_unstable();
     // Small tasks: strands cost unequal amounts (contacts, and levels of detail that step some heads now
     // and others not), and big tasks leave one thread waiting on another.
@@ -440,8 +446,8 @@ pub(crate) fn step_strands(
 /// A strand of a lockstep batch, as the query gives it.
 type BatchItem<'w, 's> = QueryItem<'w, 's, StepItem>;
 
-/// Steps up to [`LANES`] strands: those due to take one step together in lockstep, those that take
-/// several (a coarser level of detail) one at a time, and records each in the thread's tally.
+/// Steps up to [`LANES`] strands: those due to take a step of one length (one fixed step, or several at a
+/// coarser level of detail) together in lockstep, any other alone, and records each in the thread's tally.
 fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepThread) {
     let StepThread { workspace, tally, anchors } = thread;
     let contacts_of = |strand: &SimulatedStrand, strand_of: Option<&StrandOf>| Contacts {
@@ -499,6 +505,7 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
     {
         let mut together = ArrayVec::<_, LANES>::new();
         let mut lanes = ArrayVec::<usize, LANES>::new();
+        let mut together_length = None;
         for (index, (_, strand, forces, .., strand_of)) in items.iter_mut().enumerate() {
             if starts[index].is_none() {
                 continue;
@@ -506,7 +513,10 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
             let contacts = contacts_of(strand, *strand_of);
             let loads = StepLoads { anchors: held[index].then_some(&anchors[index][..]), ..forces.loads() };
             let strand = LockstepStrand { rod: strand.rod_to_step(), loads, contacts };
-            if steps[index] == 1 {
+            // Strands of the batch's first step length in lockstep, any other alone (the order puts
+            // strands of one step length together, so a batch rarely mixes them).
+            let length = *together_length.get_or_insert(steps[index]);
+            if steps[index] == length {
                 together.push(strand);
                 lanes.push(index);
             } else {
@@ -514,7 +524,11 @@ fn step_batch(context: &StepContext, items: &mut [BatchItem], thread: &mut StepT
                 results[index] = workspace.step(&longer, &mut [strand])[0].take();
             }
         }
-        for (index, result) in lanes.into_iter().zip(workspace.step(&params, &mut together)) {
+        let batch_params = match together_length {
+            Some(length) if length > 1 => longer_step_params(&params, length),
+            _ => params,
+        };
+        for (index, result) in lanes.into_iter().zip(workspace.step(&batch_params, &mut together)) {
             results[index] = result;
         }
     }

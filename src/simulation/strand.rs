@@ -651,6 +651,12 @@ impl SimulatedStrand {
         self.detail.due
     }
 
+    /// The length of the step the strand takes at this fixed step if it is stepped, in fixed steps (known
+    /// once its root is pinned): one at full detail, the fixed steps since its last step at a coarser level.
+    pub fn step_length(&self) -> u32 {
+        self.detail.elapsed.max(1)
+    }
+
     /// Sets the strand's level of detail at this fixed step, and whether it is stepped in it.
     pub(crate) fn set_detail(&mut self, level: HairDetailLevel, due: bool) {
         if self.detail.level == HairDetailLevel::Carried && level != HairDetailLevel::Carried {

@@ -123,6 +123,9 @@ struct HeadGrid {
     strands: Vec<(Entity, usize)>,
     /// Nodes of the head's strands this step.
     nodes: usize,
+    /// The head's step interval at its level of detail, fixed steps: its strands take their turns, each
+    /// standing on the grid for the hairs of the fixed steps it steps over.
+    step_interval: u32,
     /// The box around the usable particles of each piece the collect cut them into, m.
     piece_bounds: Vec<(DVec3, DVec3)>,
     /// The volume fraction where each node of each strand lay in its groom, measured once per strand
@@ -229,11 +232,13 @@ pub(crate) fn interact_through_grid(
     // Where each strand's nodes go in its head's particles, in query order (so the sums are the same
     // from run to run), then the nodes copied there in parallel.
     for (strand, _, strand_of, _, _, entity) in &strands {
-        // Only hair at full detail meets other hair (see `crate::detail`).
-        if !at_full_detail(strand) {
+        // Only the hair stepped now meets other hair; at a coarser level of detail that is the share of
+        // the head's strands whose turn it is (see `crate::detail`).
+        if !steps_on_the_grid(strand) {
             continue;
         }
         let group = grids.group(strand_of.map(|of| of.0));
+        group.step_interval = strand.detail_level().step_interval().unwrap_or(1);
         group.strands.push((entity, group.nodes));
         group.nodes += strand.rod().node_count();
     }
@@ -249,7 +254,7 @@ pub(crate) fn interact_through_grid(
         for group in &mut grids.groups {
             let strand_of = |entity: Entity| {
                 let (strand, _, _, represented, followers, _) = readonly.get(entity).ok()?;
-                Some((strand, represented_hairs(represented, followers)))
+                Some((strand, hairs_on_the_grid(strand, represented, followers)))
             };
             measure_groomed_fractions(group, strand_of, &params);
         }
@@ -274,7 +279,7 @@ pub(crate) fn interact_through_grid(
             *bounds = grid::EMPTY_BOX;
             for &(entity, offset) in strands_of_piece {
                 let Ok((strand, _, _, represented, followers, _)) = readonly.get(entity) else { continue };
-                let hairs = represented_hairs(represented, followers);
+                let hairs = hairs_on_the_grid(strand, represented, followers);
                 let rod = strand.rod();
                 let moving = if strand.is_quarantined() { 0.0 } else { hairs };
                 let density = rod.material().density;
@@ -300,6 +305,8 @@ pub(crate) fn interact_through_grid(
     let mut max_fraction = 0.0_f64;
     for group in &mut grids.groups {
         let bounds = group.piece_bounds.iter().fold(grid::EMPTY_BOX, |bounds, &piece| grid::enclosing(bounds, piece));
+        // A strand of a head at a coarser level steps over several fixed steps: smoothed over as long.
+        let params = VolumeParams { dt: params.dt * f64::from(group.step_interval.max(1)), ..params };
         group.grid.build_within(&group.particles, bounds, &params);
         max_fraction = max_fraction.max(group.grid.max_volume_fraction());
     }
@@ -307,7 +314,7 @@ pub(crate) fn interact_through_grid(
     let grids = &*grids;
     strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, ..)| {
         let Some(grid) = grids.grid(strand_of.map(|of| of.0)) else { return };
-        if strand.is_quarantined() || !at_full_detail(strand) {
+        if strand.is_quarantined() || !steps_on_the_grid(strand) {
             return;
         }
         let rod = strand.rod();
@@ -364,9 +371,21 @@ fn measure_groomed_fractions<'a>(
     }
 }
 
-/// Whether `strand` is stepped at this fixed step at full detail (see [`crate::detail`]).
-fn at_full_detail(strand: &SimulatedStrand) -> bool {
-    strand.steps_now() && strand.detail_level() == HairDetailLevel::FULL
+/// Whether `strand` meets the other hair on the grid at this fixed step: when it is stepped in it.
+fn steps_on_the_grid(strand: &SimulatedStrand) -> bool {
+    strand.steps_now() && strand.detail_level() != HairDetailLevel::Carried
+}
+
+/// How many hairs a strand stands for on the grid at this fixed step: its [`represented_hairs`] for each
+/// fixed step its step spans. At a coarser level of detail `n`, a head's strands take their turns, about
+/// one in `n` at each fixed step, each stepping over `n` fixed steps: the head's hair on the grid is as
+/// dense as at full detail, sampled by a share of its strands.
+fn hairs_on_the_grid(
+    strand: &SimulatedStrand,
+    represented: Option<&RepresentedHairs>,
+    followers: Option<&HairFollowers>,
+) -> f64 {
+    represented_hairs(represented, followers) * f64::from(strand.step_length())
 }
 
 /// How many hairs a strand stands for: its [`RepresentedHairs`], or itself and its followers.
