@@ -7,14 +7,16 @@
 //!
 //! Arguments: the tables to print (`scaling`, `parts`, `collisions`, `parallel`, `memory`, `preload`,
 //! `lockstep`, `mesh-collider`, `followers`, `integrators`, `volume`, `render`, `crowd`, `coverage`,
-//! `bare`, `hold`, `scene`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
+//! `bare`, `hold`, `scene`, `budget`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
 //! compute threads (one per core by default), `--style NAME` to measure one style in `styles`,
 //! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`, `--air-damping G` the air's
-//! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default. Bevy's task pools are set
+//! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default, `--budget MS` a CPU budget
+//! (`HairCpuBudget`) in `coverage` and `styles`, `--guides N` the example's 22 000 hairs grown from `N`
+//! guides instead of 2 000 in `coverage`, `styles`, `scene` and `budget`. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
 
 use std::process::Command;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use bevy::math::{DVec3, Vec2, Vec3};
@@ -97,7 +99,7 @@ fn main() {
         .filter(|&(index, arg)| {
             !arg.starts_with("--")
                 && (index == 0
-                    || !["--threads", "--style", "--motion", "--air-damping", "--budget"]
+                    || !["--threads", "--style", "--motion", "--air-damping", "--budget", "--guides"]
                         .contains(&args[index - 1].as_str()))
         })
         .map(|(_, arg)| arg.as_str())
@@ -108,6 +110,9 @@ fn main() {
         .position(|arg| arg == "--budget")
         .and_then(|position| args.get(position + 1))
         .map(|value| value.parse::<f32>().expect("--budget needs milliseconds"));
+    if let Some(guides) = flag_value(&args, "--guides") {
+        GUIDES.store(guides.max(1), Ordering::Relaxed);
+    }
     println!("bevy_hair_sim benchmark: {cores} cores, {threads} compute threads, {steps} measured steps per row");
     if wanted("scaling") {
         scaling(threads, steps);
@@ -644,20 +649,31 @@ mod gpu {
     }
 }
 
-/// The example's followers per guide.
+/// The example's guides and followers per guide.
+const EXAMPLE_GUIDES: usize = 2000;
 const EXAMPLE_FOLLOWERS: usize = 10;
 
+/// The guides the example's head is grown with in this run (`--guides N`; the example's 2 000 by
+/// default), each with as many followers as keep its 22 000 hairs drawn.
+static GUIDES: AtomicUsize = AtomicUsize::new(EXAMPLE_GUIDES);
+
+/// The followers per guide of this run's groom: the example's 22 000 hairs over [`GUIDES`] guides.
+fn followers_per_guide() -> usize {
+    (EXAMPLE_GUIDES * (1 + EXAMPLE_FOLLOWERS)).div_ceil(GUIDES.load(Ordering::Relaxed)).max(1) - 1
+}
+
 /// The example's head (`examples/head.rs`) in `app`, with its groom of `style` (2 000 combed guides × 24
-/// edges, 10 followers each) and its colliders: skull and face on the head; neck, shoulders and torso.
+/// edges, 10 followers each, or [`GUIDES`] with [`followers_per_guide`]) and its colliders: skull and face
+/// on the head; neck, shoulders and torso.
 fn example_head(app: &mut bevy::prelude::App, style: HairStyle) -> bevy::prelude::Entity {
     use bevy::prelude::{ChildOf, Transform};
     let groom = HairGroom {
         scalp: example_scene::SCALP,
-        strand_count: 2000,
+        strand_count: GUIDES.load(Ordering::Relaxed),
         segments: 24,
         style,
         seed: 1,
-        followers_per_guide: EXAMPLE_FOLLOWERS,
+        followers_per_guide: followers_per_guide(),
         ..HairGroom::default()
     };
     let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, example_scene::NECK_HEIGHT, 0.0))).id();
@@ -729,7 +745,7 @@ fn drawn_width(world: &bevy::prelude::World, strand: bevy::prelude::Entity) -> f
     let material = *world.get::<SimulatedStrand>(strand).expect("a strand").rod().material();
     let represented = world.get::<bevy_hair_sim::volume::RepresentedHairs>(strand).map_or(1, |hairs| hairs.0);
     2.0 * (material.semi_axis_1 * material.semi_axis_2).sqrt() as f32
-        * (represented as f32 / (1 + EXAMPLE_FOLLOWERS) as f32).max(1.0)
+        * (represented as f32 / (1 + followers_per_guide()) as f32).max(1.0)
 }
 
 /// Whether `point` (head-local, on the example's scalp) lies in the hairline's fade
@@ -1070,11 +1086,13 @@ fn budget_words(budget: Option<f32>) -> String {
 }
 
 /// The example's default scene (as [`example_scene_cost`] runs it, the followers placed on the GPU as the
-/// example places them) with no CPU budget, within 4 ms and within 2 ms per update ([`HairCpuBudget`]),
-/// still and shaken: the six apps stepped in turn for `steps` updates after two still seconds (the budget's
-/// choice settles in them), so that the machine's drifts fall on all alike. Per update, ms: the mean, the
-/// 95th percentile and the largest of the whole `app.update()`, the updates over the budget, the hair's
-/// own clock ([`HairStatistics::update_seconds`], mean) and the step intervals the budget used.
+/// example places them) with no CPU budget, within 4 ms and within 2 ms per update ([`HairCpuBudget`]), and
+/// held at step intervals of 2, 4, 8 and 16 fixed steps and carried ([`HairDetail::fixed`], what each of the
+/// budget's intervals costs, and its floor), still and shaken: the apps stepped in turn for `steps` updates
+/// after two still seconds (the budget's choice settles in them), so that the machine's drifts fall on all
+/// alike. Per update, ms: the mean, the 95th percentile and the largest of the whole `app.update()`, the
+/// updates over the budget, the hair's own clock ([`HairStatistics::update_seconds`], mean) and its parts,
+/// and the step intervals the budget used.
 fn budgeted_scene_cost(threads: usize, steps: usize) {
     use bevy::prelude::Transform;
     use bevy_hair_sim::followers::FollowerPlacement;
@@ -1083,43 +1101,55 @@ fn budgeted_scene_cost(threads: usize, steps: usize) {
         "The example's default scene within a CPU budget ({threads} threads, followers placed on the GPU as the example places them), ms per update over {steps} updates:"
     );
     println!(
-        "| motion | budget, ms | mean | 95th percentile | largest | updates over the budget | hair's own clock, mean | of it: guides, grid, followers | step intervals used | Newton iterations per stepped guide |"
+        "| motion | budget, ms, or level held | mean | 95th percentile | largest | updates over the budget | hair's own clock, mean | of it: guides, grid | step intervals used | Newton iterations per stepped guide |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---|---|---:|");
+    println!("|---|---|---:|---:|---:|---:|---:|---|---|---:|");
     type Motion = fn(f32) -> bevy::prelude::Quat;
     let motions: [(&str, Motion); 2] = [("still", |_| bevy::prelude::Quat::IDENTITY), ("shaken", shaken)];
-    let budgets = [None, Some(4.0_f32), Some(2.0)];
-    let budgets: Vec<Option<f32>> = match std::env::var("ONLY_BUDGET") {
-        Ok(v) => vec![Some(v.parse().unwrap())],
-        Err(_) => budgets.to_vec(),
-    };
+    #[derive(Clone, Copy)]
+    enum Setting {
+        Budget(Option<f32>),
+        Held(HairDetailLevel),
+    }
+    let settings = [
+        Setting::Budget(None),
+        Setting::Budget(Some(4.0)),
+        Setting::Budget(Some(2.0)),
+        Setting::Held(HairDetailLevel::Stepped(2)),
+        Setting::Held(HairDetailLevel::Stepped(4)),
+        Setting::Held(HairDetailLevel::Stepped(8)),
+        Setting::Held(HairDetailLevel::Stepped(16)),
+        Setting::Held(HairDetailLevel::Carried),
+    ];
     struct Run {
         motion: (&'static str, Motion),
-        budget: Option<f32>,
+        setting: Setting,
         app: bevy::prelude::App,
         head: bevy::prelude::Entity,
         times: Vec<f64>,
         own: Vec<f64>,
-        parts: [f64; 3],
+        parts: [f64; 2],
         intervals: std::collections::BTreeSet<u32>,
         iterations: f64,
     }
     let mut runs: Vec<Run> = motions
         .into_iter()
-        .flat_map(|motion| budgets.iter().map(move |&budget| (motion, budget)))
-        .map(|(motion, budget)| {
+        .flat_map(|motion| settings.map(|setting| (motion, setting)))
+        .map(|(motion, setting)| {
+            let budget = match setting {
+                Setting::Budget(budget) => budget,
+                Setting::Held(_) => None,
+            };
             let (mut app, head) = example_app_within(threads, HairStyle::Straight, (200.0, 0.0), 0, budget);
             app.insert_resource(FollowerPlacement::Gpu);
-            if let Ok(level) = std::env::var("FIXED_LEVEL") {
-                app.world_mut()
-                    .entity_mut(head)
-                    .insert(HairDetail::fixed(HairDetailLevel::Stepped(level.parse().unwrap())));
+            if let Setting::Held(level) = setting {
+                app.world_mut().entity_mut(head).insert(HairDetail::fixed(level));
             }
             for _ in 0..120 {
                 app.update();
             }
             let intervals = std::collections::BTreeSet::new();
-            Run { motion, budget, app, head, times: vec![], own: vec![], parts: [0.0; 3], intervals, iterations: 0.0 }
+            Run { motion, setting, app, head, times: vec![], own: vec![], parts: [0.0; 2], intervals, iterations: 0.0 }
         })
         .collect();
     for step in 1..=steps {
@@ -1131,8 +1161,7 @@ fn budgeted_scene_cost(threads: usize, steps: usize) {
             run.times.push(started.elapsed().as_secs_f64());
             let statistics = run.app.world().resource::<HairStatistics>();
             run.own.push(statistics.update_seconds);
-            let parts = [statistics.step_seconds, statistics.volume_seconds, statistics.follower_seconds];
-            for (sum, part) in run.parts.iter_mut().zip(parts) {
+            for (sum, part) in run.parts.iter_mut().zip([statistics.step_seconds, statistics.volume_seconds]) {
                 *sum += 1e3 * part / steps as f64;
             }
             run.intervals.insert(statistics.budget_step_interval);
@@ -1142,19 +1171,26 @@ fn budgeted_scene_cost(threads: usize, steps: usize) {
     for run in &mut runs {
         let mean = 1e3 * run.times.iter().sum::<f64>() / run.times.len() as f64;
         let own = 1e3 * run.own.iter().sum::<f64>() / run.own.len() as f64;
-        let over =
-            run.budget.map_or(0, |budget| run.times.iter().filter(|&&time| 1e3 * time > f64::from(budget)).count());
+        let (setting, over) = match run.setting {
+            Setting::Budget(None) => ("none".to_owned(), "".to_owned()),
+            Setting::Budget(Some(budget)) => {
+                let over = run.times.iter().filter(|&&time| 1e3 * time > f64::from(budget)).count();
+                (budget.to_string(), over.to_string())
+            }
+            Setting::Held(HairDetailLevel::Stepped(interval)) => {
+                (format!("held: every {interval} fixed steps"), String::new())
+            }
+            Setting::Held(HairDetailLevel::Carried) => ("held carried".to_owned(), String::new()),
+        };
         run.times.sort_by(f64::total_cmp);
         let percentile = 1e3 * run.times[(run.times.len() * 95).div_ceil(100) - 1];
         let largest = 1e3 * run.times[run.times.len() - 1];
         let intervals: Vec<String> = run.intervals.iter().map(u32::to_string).collect();
         println!(
-            "| {} | {} | {mean:.2} | {percentile:.2} | {largest:.2} | {over} | {own:.2} | {:.2}, {:.2}, {:.2} | {} | {:.2} |",
+            "| {} | {setting} | {mean:.2} | {percentile:.2} | {largest:.2} | {over} | {own:.2} | {:.2}, {:.2} | {} | {:.2} |",
             run.motion.0,
-            run.budget.map_or("none".to_owned(), |budget| budget.to_string()),
             run.parts[0],
             run.parts[1],
-            run.parts[2],
             intervals.join(", "),
             run.iterations
         );

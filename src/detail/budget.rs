@@ -13,16 +13,17 @@ use crate::simulation::{HairDetailLevel, HairStatistics};
 /// step), and how coarse it may go to keep it. Off by default: every head at the level of detail its
 /// distance gives ([`crate::detail`]), the reference behaviour.
 ///
-/// The budget counts the wall-clock time of the hair's systems in the fixed step, from pinning the roots to
-/// the placed followers (growing grooms and building strands, one-off costs, are not counted), with every compute thread working ([`HairStatistics::update_seconds`]). It is kept
-/// by the lever that changes the look least per millisecond saved, measured on the example's scene
-/// (`docs/performance.md`): every head's strands are stepped every `n`-th fixed step, with a step `n` times
-/// as long, each strand on its own turn so that every fixed step costs about the same, and drawn
-/// interpolated between its steps, carried with its head (a level of detail, [`HairDetailLevel::Stepped`]),
-/// the hair–hair grid sampled by the strands stepped at each fixed step. `n` is chosen from what the
-/// updates cost: coarser as soon as the update's running mean is over the budget, finer once the cost
-/// predicted there leaves a margin. Heads with a [`HairDetail::fixed`](super::HairDetail::fixed) level keep
-/// it. [`HairStatistics::budget_step_interval`] says which `n` is in use.
+/// The budget counts the wall-clock time of the hair's systems in the fixed step, from growing grooms and
+/// building strands to the placed followers (a groom growing once moves no choice), with every compute thread
+/// working ([`HairStatistics::update_seconds`]). It is kept by the lever that changes the look least per
+/// millisecond saved, measured on the example's scene (`docs/performance.md`): every head's strands are stepped
+/// every `n`-th fixed step, with a step `n` times as long, each strand on its own turn so that every fixed step
+/// costs about the same, and drawn interpolated between its steps, carried with its head (a level of detail,
+/// [`HairDetailLevel::Stepped`]), the hair–hair grid sampled by the strands stepped at each fixed step. `n` is
+/// chosen from what the updates cost: coarser as soon as more than two of the last 16 updates are over the
+/// budget, finer once the cost predicted there leaves a margin. Heads with a
+/// [`HairDetail::fixed`](super::HairDetail::fixed) level keep it. [`HairStatistics::budget_step_interval`] says
+/// which `n` is in use.
 ///
 /// ```
 /// use bevy::prelude::*;
@@ -77,9 +78,12 @@ impl HairCpuBudget {
     }
 }
 
-/// The last fixed steps whose costs are judged, by their median (a one-off spike, a groom growing or a
-/// strand preloaded, moves no choice).
+/// The last fixed steps whose costs are judged.
 const SAMPLES: usize = 16;
+/// Which of the last [`SAMPLES`] updates, from the cheapest, stands for what an interval costs: the
+/// largest but two (the 14th of 16), so that the budget holds for most updates, not only half of them,
+/// while a one-off spike (a groom growing, a strand preloaded) moves no choice.
+const JUDGED_SAMPLE: usize = SAMPLES - 3;
 /// Fixed steps at an interval before a finer one is tried (2 s at 60 Hz).
 const STEPS_BEFORE_FINER: u32 = 120;
 /// Fixed steps after the budget was exceeded during which no interval as fine as the exceeded one is
@@ -111,7 +115,8 @@ pub(crate) struct BudgetKeeper {
     /// The last [`SAMPLES`] updates at this interval, s: the whole, and its part that scales with the
     /// strands stepped (their step and the grid), oldest overwritten first.
     samples: [(f64, f64); SAMPLES],
-    /// The medians of `samples` once they are all of this interval, s.
+    /// The judged sample ([`JUDGED_SAMPLE`]) of `samples`, whole and scaling part, once they are all of
+    /// this interval, s.
     whole: f64,
     scaling: f64,
     /// Fixed steps before an interval at least as fine as `refused` may be tried again.
@@ -158,19 +163,19 @@ impl BudgetKeeper {
     }
 
     /// Records one more update of `whole` seconds, `scaling` of them in the strands' step and the grid, and
-    /// the medians of the last [`SAMPLES`].
+    /// the judged sample of the last [`SAMPLES`] of each.
     fn record(&mut self, whole: f64, scaling: f64) {
         self.samples[self.measured as usize % SAMPLES] = (whole, scaling);
         self.measured += 1;
-        let median = |part: fn(&(f64, f64)) -> f64| {
+        let judged = |part: fn(&(f64, f64)) -> f64| {
             let mut values = self.samples.map(|sample| part(&sample));
             values.sort_unstable_by(f64::total_cmp);
-            values[SAMPLES / 2]
+            values[JUDGED_SAMPLE]
         };
-        (self.whole, self.scaling) = (median(|sample| sample.0), median(|sample| sample.1));
+        (self.whole, self.scaling) = (judged(|sample| sample.0), judged(|sample| sample.1));
     }
 
-    /// What an update is predicted to cost at `interval`, s, from the medians at the interval in use:
+    /// What an update is predicted to cost at `interval`, s, from the judged costs at the interval in use:
     /// the strands' part scales with the share of them stepped at each fixed step, the rest stays.
     fn predicted(&self, interval: u32) -> f64 {
         let fixed = (self.whole - self.scaling).max(0.0);
@@ -214,11 +219,11 @@ pub(crate) fn start_update_clock(mut keeper: ResMut<BudgetKeeper>) {
 /// with a [`HairCpuBudget`], chooses the step interval of the next fixed steps: every head's hair is stepped
 /// at least that rarely ([`BudgetKeeper::coarsen`], applied by the level of detail's choice).
 ///
-/// **The choice.** The medians of the last 16 updates, whole and of its part that scales with the strands
-/// stepped (the step and the grid), predict what another interval would cost: the scaling part in
+/// **The choice.** Of the last 16 updates, the largest but two, whole and of its part that scales with the
+/// strands stepped (the step and the grid), predict what another interval would cost: the scaling part in
 /// proportion to the strands stepped per fixed step, twice that again at full detail (more Newton
 /// iterations), the rest unchanged. After 16 measured fixed steps at an interval (once the drawn clocks
-/// have the interval's lag), a median over the budget moves to the finest coarser interval predicted within
+/// have the interval's lag), a cost over the budget moves to the finest coarser interval predicted within
 /// 85 % of it, and keeps the intervals as fine as the exceeded one untried for 600 fixed steps; after 120
 /// fixed steps within the budget, the finest finer interval predicted within 70 % of it is tried.
 pub(crate) fn keep_cpu_budget(

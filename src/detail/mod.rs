@@ -78,7 +78,7 @@ pub use budget::HairCpuBudget;
 use budget::{BudgetKeeper, keep_cpu_budget, start_update_clock};
 
 use crate::rod::RodError;
-use crate::schedule::{HairPinSystems, HairStepSystems, HairSystems};
+use crate::schedule::{HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
 pub use crate::simulation::{DRAWN_CLOCK_RATE_CHANGE, HairDetailLevel, HeadsByDetail, LONGER_STEP_STRAIN_TOLERANCE};
 use crate::simulation::{HairHead, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand, StrandOf};
 
@@ -245,10 +245,7 @@ impl Plugin for HairDetailPlugin {
             .add_systems(
                 self.schedule,
                 (
-                    start_update_clock
-                        .in_set(HairSystems::PinRoots)
-                        .before(HairPinSystems::Track)
-                        .before(HairPinSystems::Colliders),
+                    start_update_clock.in_set(HairSystems::Prepare).before(HairPrepareSystems::Grow),
                     choose_hair_detail.in_set(HairPinSystems::ChooseDetail),
                     keep_cpu_budget.in_set(HairSystems::Step).after(HairStepSystems::Follow),
                 ),

@@ -179,8 +179,8 @@ pub struct HairStatistics {
     pub max_volume_fraction: f64,
     /// Why the current settings cannot be used, while they cannot.
     pub settings_error: Option<String>,
-    /// Wall-clock time of the hair's systems in the last fixed step that simulated hair, s: from pinning
-    /// the roots to the placed followers, what [`HairCpuBudget`](crate::detail::HairCpuBudget) keeps
+    /// Wall-clock time of the hair's systems in the last fixed step that simulated hair, s: from growing
+    /// grooms and building strands to the placed followers, what [`HairCpuBudget`](crate::detail::HairCpuBudget) keeps
     /// (measured by the `HairDetailPlugin`).
     pub update_seconds: f64,
     /// The step interval the [`HairCpuBudget`](crate::detail::HairCpuBudget) steps every head at at least,
