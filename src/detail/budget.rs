@@ -90,7 +90,7 @@ const STEPS_BEFORE_FINER: u32 = 120;
 /// tried again (10 s at 60 Hz): the motion that made it too costly may still be going on.
 const STEPS_BEFORE_RETRYING: u32 = 600;
 /// The share of the budget a coarser interval is chosen to fill, by its predicted cost: room for the
-/// steps that cost more than the mean.
+/// prediction's error and the updates that cost more than the judged one.
 const COARSER_AIM: f64 = 0.85;
 /// The share of the budget a finer interval must be predicted to fill at most before it is tried.
 const FINER_AIM: f64 = 0.7;
@@ -100,7 +100,7 @@ const FINER_AIM: f64 = 0.7;
 const FULL_DETAIL_FACTOR: f64 = 2.0;
 
 /// What [`keep_cpu_budget`] keeps from one fixed step to the next: the clock of this update, the
-/// interval in use and the running means of what it costs there.
+/// interval in use and what the last updates at it cost.
 #[derive(Resource, Debug)]
 pub(crate) struct BudgetKeeper {
     /// When this fixed step's hair systems started.
