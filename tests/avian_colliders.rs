@@ -221,6 +221,7 @@ mod beside_avians_prelude {
             type_name::<SharedHairCollider>(),
             type_name::<HairGizmoPlugin>(),
             type_name::<HairGizmos>(),
+            type_name::<HairCpuBudget>(),
             type_name::<HairDetail>(),
             type_name::<HairDetailLevel>(),
             type_name::<HairDetailPlugin>(),

@@ -5,7 +5,7 @@
 use bevy::platform::time::Instant;
 use bevy::prelude::*;
 
-use super::MAX_STEP_INTERVAL;
+use super::{MAX_STEP_INTERVAL, valid_or_reported_once};
 use crate::rod::RodError;
 use crate::simulation::{HairDetailLevel, HairStatistics};
 
@@ -235,21 +235,9 @@ pub(crate) fn keep_cpu_budget(
     let whole = started.elapsed().as_secs_f64();
     statistics.update_seconds = whole;
     keeper.retry_in = keeper.retry_in.saturating_sub(1);
-    let milliseconds = match budget.validate() {
-        Ok(()) => {
-            keeper.reported = None;
-            budget.milliseconds
-        }
-        Err(error) => {
-            let message = error.to_string();
-            if keeper.reported.as_ref() != Some(&message) {
-                error!("HairCpuBudget rejected, the hair runs without a budget until it is fixed: {message}");
-                keeper.reported = Some(message);
-            }
-            None
-        }
-    };
-    let Some(milliseconds) = milliseconds else {
+    let consequence = "HairCpuBudget rejected, the hair runs without a budget until it is fixed";
+    let valid = valid_or_reported_once(budget.validate(), &mut keeper.reported, consequence);
+    let Some(milliseconds) = budget.milliseconds.filter(|_| valid) else {
         if keeper.step_interval != 1 {
             keeper.move_to(1);
         }

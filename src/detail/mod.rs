@@ -284,20 +284,11 @@ pub(crate) fn choose_hair_detail(
 ) {
     let DetailMemory { fixed_step, reported, viewers } = &mut *memory;
     *fixed_step += 1;
-    let valid = match settings.validate() {
-        Ok(()) => {
-            *reported = None;
-            true
-        }
-        Err(error) => {
-            let message = error.to_string();
-            if reported.as_ref() != Some(&message) {
-                error!("HairDetailSettings rejected, every head is at full detail until they are fixed: {message}");
-                *reported = Some(message);
-            }
-            false
-        }
-    };
+    let valid = valid_or_reported_once(
+        settings.validate(),
+        reported,
+        "HairDetailSettings rejected, every head is at full detail until they are fixed",
+    );
     viewers.clear();
     let active = cameras.iter().filter(|(camera, ..)| camera.is_active);
     viewers.extend(
@@ -348,6 +339,21 @@ pub(crate) fn choose_hair_detail(
         let due = due || strand.detail.falling_behind(level);
         strand.set_detail(level, due);
     });
+}
+
+/// Whether settings checked as `checked` can be used; an error is logged as `consequence: error` once, when
+/// it differs from the last one logged (`reported`), and forgotten once the settings are valid again.
+fn valid_or_reported_once(checked: Result<(), RodError>, reported: &mut Option<String>, consequence: &str) -> bool {
+    let Err(error) = checked else {
+        *reported = None;
+        return true;
+    };
+    let message = error.to_string();
+    if reported.as_ref() != Some(&message) {
+        error!("{consequence}: {message}");
+        *reported = Some(message);
+    }
+    false
 }
 
 /// What [`choose_hair_detail`] reads and writes of a head.

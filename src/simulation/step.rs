@@ -363,7 +363,7 @@ pub(crate) fn step_strands(
     mut fault_messages: MessageWriter<StrandFault>,
     mut threads: Local<Parallel<StepThread>>,
     mut fault_log: Local<FaultLog>,
-    mut order: Local<Vec<(usize, Entity)>>,
+    mut order: Local<Vec<(StepOrder, Entity)>>,
 ) {
     let valid = checked.params;
     let started = Instant::now();
@@ -375,8 +375,7 @@ pub(crate) fn step_strands(
     order.clear();
     order.extend(strands.iter().map(|(entity, strand, ..)| {
         let detail = &strand.detail;
-        let key = (usize::from(!detail.due) << 40) | (strand.rod().node_count() << 20) | detail.elapsed as usize;
-        (key, entity)
+        ((!detail.due, strand.rod().node_count(), detail.elapsed), entity)
     }));
     order.sort_unstable();
     // Small tasks: strands cost unequal amounts (contacts, and levels of detail that step some heads now
@@ -442,6 +441,10 @@ pub(crate) fn step_strands(
     statistics.mean_newton_iterations =
         if strands_stepped > 0 { newton_iterations as f64 / strands_stepped as f64 } else { 0.0 };
 }
+
+/// Where a strand goes in the step's order: not due after due, then by node count and step length (fixed
+/// steps since its last step), so that strands that can share a lockstep batch are side by side.
+type StepOrder = (bool, usize, u32);
 
 /// A strand of a lockstep batch, as the query gives it.
 type BatchItem<'w, 's> = QueryItem<'w, 's, StepItem>;

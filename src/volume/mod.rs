@@ -75,8 +75,7 @@ use crate::parallel::run_in_parallel;
 use crate::schedule::HairSystems;
 pub use crate::simulation::HairVolume;
 use crate::simulation::{
-    CheckedSettings, HairDetailLevel, HairSettings, HairStatistics, SimulatedStrand, SteppedElsewhere, StrandForces,
-    StrandOf,
+    CheckedSettings, HairSettings, HairStatistics, SimulatedStrand, SteppedElsewhere, StrandForces, StrandOf,
 };
 pub use grid::{GridParticle, MAX_GRID_BRICKS, VolumeGrid, VolumeParams};
 
@@ -233,8 +232,8 @@ pub(crate) fn interact_through_grid(
     // from run to run), then the nodes copied there in parallel.
     for (strand, _, strand_of, _, _, entity) in &strands {
         // Only the hair stepped now meets other hair; at a coarser level of detail that is the share of
-        // the head's strands whose turn it is (see `crate::detail`).
-        if !steps_on_the_grid(strand) {
+        // the head's strands whose turn it is, and carried hair never (see `crate::detail`).
+        if !strand.steps_now() {
             continue;
         }
         let group = grids.group(strand_of.map(|of| of.0));
@@ -314,7 +313,7 @@ pub(crate) fn interact_through_grid(
     let grids = &*grids;
     strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, ..)| {
         let Some(grid) = grids.grid(strand_of.map(|of| of.0)) else { return };
-        if strand.is_quarantined() || !steps_on_the_grid(strand) {
+        if strand.is_quarantined() || !strand.steps_now() {
             return;
         }
         let rod = strand.rod();
@@ -369,11 +368,6 @@ fn measure_groomed_fractions<'a>(
             group.strands.iter().map(|(entity, _)| *entity).collect();
         group.groomed.retain(|entity, _| present.contains(entity));
     }
-}
-
-/// Whether `strand` meets the other hair on the grid at this fixed step: when it is stepped in it.
-fn steps_on_the_grid(strand: &SimulatedStrand) -> bool {
-    strand.steps_now() && strand.detail_level() != HairDetailLevel::Carried
 }
 
 /// How many hairs a strand stands for on the grid at this fixed step: its [`represented_hairs`] for each

@@ -57,6 +57,14 @@ pub fn spawn_head(app: &mut App, transform: Transform, count: usize, segments: u
     (head, strands)
 }
 
+/// A head's pose at fixed step `step`: swaying 3 cm and turning ±0.5 rad about once a second, around `base`.
+pub fn moving_pose(base: Vec3, step: usize) -> Transform {
+    let time = step as f32 / 60.0;
+    let sway = 0.03 * (std::f32::consts::TAU * 1.1 * time).sin();
+    Transform::from_translation(base + Vec3::new(sway, 0.0, 0.0))
+        .with_rotation(Quat::from_rotation_y(0.5 * (std::f32::consts::TAU * 0.9 * time).sin()))
+}
+
 /// The simulated strand of `entity`.
 pub fn strand(app: &App, entity: Entity) -> &SimulatedStrand {
     app.world().get::<SimulatedStrand>(entity).unwrap_or_else(|| {

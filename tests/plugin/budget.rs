@@ -6,15 +6,12 @@ use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::simulation::SimulatedStrand;
 use bevy_hair_sim::volume::HairVolumeGrids;
-use hair_sim_support::headless::{hair_app, strand};
+use hair_sim_support::headless::{hair_app, moving_pose, strand};
 use hair_sim_support::logs;
 
-/// The head's pose at step `step`: at 1.6 m, swaying 3 cm and turning ±0.5 rad about once a second.
-fn moving_pose(step: usize) -> Transform {
-    let time = step as f32 / 60.0;
-    let sway = 0.03 * (std::f32::consts::TAU * 1.1 * time).sin();
-    Transform::from_xyz(sway, 1.6, 0.0)
-        .with_rotation(Quat::from_rotation_y(0.5 * (std::f32::consts::TAU * 0.9 * time).sin()))
+/// The head's pose at fixed step `step`: at 1.6 m, swaying and turning ([`moving_pose`]).
+fn moving_head(step: usize) -> Transform {
+    moving_pose(Vec3::new(0.0, 1.6, 0.0), step)
 }
 
 /// An app with a groom of `strands` combed guides × 16 edges on a skull collider, the grid on, within
@@ -25,7 +22,7 @@ fn budgeted_head(strands: usize, budget: HairCpuBudget) -> (App, Entity, Vec<Ent
     app.insert_resource(budget);
     let groom = HairGroom { strand_count: strands, segments: 16, ..default() };
     let skull = groom.scalp.semi_axes;
-    let head = app.world_mut().spawn((HairHead, groom, moving_pose(0))).id();
+    let head = app.world_mut().spawn((HairHead, groom, moving_head(0))).id();
     app.world_mut().spawn((HairCollider::ellipsoid(skull), HairColliderOf(head), ChildOf(head)));
     app.update();
     let strands = app.world().get::<HeadStrands>(head).expect("hair grew").strands().to_vec();
@@ -46,13 +43,13 @@ fn a_budget_no_update_can_keep_steps_the_hair_at_the_coarsest_interval_with_its_
         .iter()
         .map(|&entity| {
             let rod = strand(&app, entity).rod();
-            let to_local = moving_pose(0).compute_affine().inverse();
+            let to_local = moving_head(0).compute_affine().inverse();
             [0, 1].map(|node| to_local.transform_point3(rod.positions()[node].as_vec3()))
         })
         .collect();
     let (mut worst_root, mut intervals, mut stepped) = (0.0_f32, Vec::new(), Vec::new());
     for step in 1..=240 {
-        *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_pose(step);
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_head(step);
         app.update();
         let statistics = app.world().resource::<HairStatistics>();
         assert!(statistics.update_seconds > 0.0, "the update is measured");
@@ -62,7 +59,7 @@ fn a_budget_no_update_can_keep_steps_the_hair_at_the_coarsest_interval_with_its_
             assert_eq!(app.world().get::<HairDetail>(head).unwrap().level(), HairDetailLevel::Stepped(4));
             assert!(statistics.max_volume_fraction > 0.0, "the hair stepped meets the other hair on the grid");
         }
-        let pose = moving_pose(step);
+        let pose = moving_head(step);
         for (&entity, anchor) in strands.iter().zip(&anchors) {
             let nodes = &app.world().get::<StrandNodes>(entity).unwrap().positions;
             for (node, local) in nodes.iter().zip(anchor) {
@@ -98,7 +95,7 @@ fn without_a_budget_or_with_one_every_update_keeps_the_hair_steps_bit_for_bit_as
     let runs = [HairCpuBudget::default(), HairCpuBudget::milliseconds(1e6)].map(|budget| {
         let (mut app, head, strands) = budgeted_head(60, budget);
         for step in 1..=150 {
-            *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_pose(step);
+            *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_head(step);
             app.update();
             assert_eq!(app.world().resource::<HairStatistics>().budget_step_interval, 1);
             assert_eq!(app.world().resource::<HairStatistics>().strands, 60, "every strand at every step");
@@ -176,7 +173,7 @@ fn a_strand_of_a_budgeted_head_steps_on_its_turns_only() {
     let budget = HairCpuBudget { milliseconds: Some(1e-3), max_step_interval: 3 };
     let (mut app, head, strands) = budgeted_head(30, budget);
     for step in 1..=80 {
-        *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_pose(step);
+        *app.world_mut().get_mut::<Transform>(head).unwrap() = moving_head(step);
         app.update();
     }
     assert_eq!(app.world().resource::<HairStatistics>().budget_step_interval, 3);

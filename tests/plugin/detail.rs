@@ -4,15 +4,7 @@
 use bevy::prelude::*;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::simulation::SimulatedStrand;
-use hair_sim_support::headless::{camera, hair_app, spawn_head};
-
-/// The head's pose at step `step`: swaying 3 cm and turning ±0.5 rad about once a second, around `base`.
-fn moving_pose(base: Vec3, step: usize) -> Transform {
-    let time = step as f32 / 60.0;
-    let sway = 0.03 * (std::f32::consts::TAU * 1.1 * time).sin();
-    Transform::from_translation(base + Vec3::new(sway, 0.0, 0.0))
-        .with_rotation(Quat::from_rotation_y(0.5 * (std::f32::consts::TAU * 0.9 * time).sin()))
-}
+use hair_sim_support::headless::{camera, hair_app, moving_pose, spawn_head};
 
 /// The drawn nodes of `strands` in their head's rigid local frame (`R⁻¹ (x − t)`).
 fn head_local_nodes(app: &App, head: Entity, strands: &[Entity]) -> Vec<Vec3> {
