@@ -401,8 +401,8 @@ pub mod prelude {
         FollowerNodes, FollowerPlacement, HairFollowers, HairFollowersPlugin, PlaceFollowersOnCpu,
     };
     pub use crate::groom::{
-        Combing, GroomFile, GroomPlacement, GroomSurface, HairGroom, HairGroomFile, HairGroomPlugin, HairStyle, Scalp,
-        StrandColors, StrandWidths, UpAxis,
+        Combing, GroomFile, GroomPlacement, GroomSurface, HairGroom, HairGroomFile, HairGroomPlugin, HairStyle,
+        HeadAxes, Scalp, StrandColors, StrandWidths, UpAxis,
     };
     pub use crate::render::HairAppearance;
     #[cfg(feature = "gpu")]

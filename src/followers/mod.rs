@@ -166,7 +166,16 @@ impl FollowerNodes {
 
     /// Binds `followers` to the guide `spec` at rest: each node's offset in the guide's rest material
     /// frames, gathered towards the tip by its clumping and moved across the guide by its scatter.
-    fn bind(&mut self, spec: &HairStrand, followers: &HairFollowers, default: &RodMaterial) -> Result<(), String> {
+    /// Binds `followers` to the guide `spec` on a head of scale `head_scale` (each follower's root offset from
+    /// the guide's scaled with the head, as the roots are: a [`HairStrand`]'s root is head-local, its shape
+    /// from the root in metres).
+    fn bind(
+        &mut self,
+        spec: &HairStrand,
+        followers: &HairFollowers,
+        default: &RodMaterial,
+        head_scale: DVec3,
+    ) -> Result<(), String> {
         let HairFollowers { curves, clumping, clumping_variation, scatter } = followers;
         let (clumping, variation, scatter) = (f64::from(*clumping), f64::from(*clumping_variation), *scatter);
         if !(0.0..=1.0).contains(&clumping) {
@@ -195,10 +204,17 @@ impl FollowerNodes {
             let clumping = (clumping * (1.0 + variation * (2.0 * clump_draw - 1.0))).min(1.0);
             let amplitude = f64::from(scatter) * amplitude_draw;
             let (angle, turn) = (TAU * angle_draw, PI * (2.0 * turn_draw - 1.0));
+            // The follower's root from the guide's in metres.
+            let roots_apart = (curve[0].as_dvec3() - local[0]) * head_scale;
             for (node, point) in curve.iter().enumerate() {
                 let frame = rod.material_frame(node.saturating_sub(1));
                 let s = node as f64 / (nodes - 1) as f64;
-                let offset = (1.0 - clumping * s) * (point.as_dvec3() - local[node]);
+                let apart = if head_scale == DVec3::ONE {
+                    point.as_dvec3() - local[node]
+                } else {
+                    (point.as_dvec3() - curve[0].as_dvec3()) - (local[node] - local[0]) + roots_apart
+                };
+                let offset = (1.0 - clumping * s) * apart;
                 let (sin, cos) = (angle + turn * s).sin_cos();
                 let strayed = amplitude * s * s;
                 self.offsets.push(
@@ -433,7 +449,7 @@ fn bind_followers(settings: Res<HairSettings>, mut guides: Query<GuideToBind>) {
             continue;
         }
         let rejection = nodes.rejection.take();
-        if let Err(reason) = nodes.bind(&spec, &followers, &settings.default_material) {
+        if let Err(reason) = nodes.bind(&spec, &followers, &settings.default_material, strand.spawn_scale()) {
             // Tried again when the guide or the settings change; the same reason is not news.
             if followers.is_changed() || rejection.as_ref() != Some(&reason) {
                 error!("hair strand {entity}: its followers were rejected: {reason}");

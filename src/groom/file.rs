@@ -21,8 +21,10 @@ use bevy::asset::io::Reader;
 use bevy::asset::{AssetLoader, AssetPlugin, LoadContext};
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
 use thiserror::Error;
 
+use super::head_frame::{GroomFrame, HeadAxes};
 use super::procedural::{GroomError, MAX_GROOM_SEGMENTS};
 use super::surface::{GroomSurface, ScalpSurface};
 use crate::followers::HairFollowers;
@@ -464,7 +466,8 @@ pub struct GroomPlacement {
     pub metres_per_unit: f32,
     /// Which of the file's axes points up. Default Y.
     pub up: UpAxis,
-    /// Moves the groom (in metres, after the unit conversion and the up axis) into the head's local space.
+    /// Moves the groom (in metres, after the unit conversion and the up axis) into the head's local space,
+    /// with the head's scale taken out: a groom is placed at its size in metres on a scaled rig.
     pub transform: Transform,
     /// Edges per simulated strand, from 2 to [`MAX_GROOM_SEGMENTS`]: every strand is resampled to this
     /// many edges of equal length, keeping its length. Default 16.
@@ -783,6 +786,7 @@ fn place_groom_files(
     settings: Res<HairSettings>,
     heads: GroomFileHeads,
     placed: Query<(), With<FileStrand>>,
+    transforms: TransformHelper,
 ) {
     let reloaded: Vec<AssetId<GroomFile>> = events
         .read()
@@ -802,10 +806,19 @@ fn place_groom_files(
             continue;
         };
         // On a scalp that is not known yet: wait for it.
-        let scalp = surface.as_deref().map(GroomSurface::surface);
-        if matches!(scalp, Some(None)) {
+        if matches!(surface.as_deref(), Some(GroomSurface::Waiting)) {
             continue;
         }
+        // Placed in metres on a scaled head (its scale taken out), then given to it.
+        let frame = GroomFrame::of_head(head, HeadAxes::default(), &transforms).unwrap_or_default();
+        let scaled_surface = match frame.surface_of(surface.as_deref()) {
+            Ok(scaled) => scaled,
+            Err(error) => {
+                error!("hair groom file of head {head}: its scalp cannot be used ({error}); no strands are placed");
+                continue;
+            }
+        };
+        let scalp = scaled_surface.as_ref().map(GroomSurface::surface);
         let placement = match scalp.flatten() {
             Some(scalp) if fit => groom.placement.fitted_to(file, scalp),
             _ => {
@@ -835,6 +848,7 @@ fn place_groom_files(
                 followers.curves.iter_mut().for_each(|curve| scalp.move_onto(curve));
             }
         }
+        frame.grown_to_head(&mut guides);
         if skipped > 0 {
             warn!(
                 "hair groom file of head {head}: {skipped} degenerate strands (fewer than 3 distinct points, or no length) skipped"

@@ -75,6 +75,7 @@
 //! A groom's look in motion is measured, without a picture, by [`crate::debug::coverage`].
 
 mod file;
+mod head_frame;
 mod procedural;
 mod surface;
 
@@ -85,6 +86,7 @@ pub use file::{
     FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
     MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, StrandColors, UpAxis,
 };
+pub use head_frame::HeadAxes;
 pub use procedural::{
     Combing, GroomError, GroomObstacles, GroomedStrand, HAIRLINE_SPARSEST, HAIRLINE_THINNEST, HairGroom, HairStyle,
     MAX_GROOM_HAIRS, MAX_GROOM_SEGMENTS, Scalp, ScalpRoot, StrandWidths,

@@ -6,9 +6,11 @@
 
 use std::f32::consts::{FRAC_PI_3, TAU};
 
+use bevy::math::Affine3A;
 use bevy::prelude::*;
 use thiserror::Error;
 
+use super::head_frame::{GroomFrame, HeadAxes};
 use super::surface::{GroomSurface, ScalpSurface};
 use crate::collision::mesh::MeshColliderError;
 use crate::collision::{HairCollider, HeadColliders};
@@ -17,13 +19,15 @@ use crate::rod::{ColliderShape, RigidPose};
 use crate::simulation::{HairStrand, HeadStrands, StrandOf};
 use crate::volume::RepresentedHairs;
 
-/// The hair-bearing part of a head: an ellipsoid skull in the head's local space (`−Z`, Bevy's forward,
-/// is the face) and a hairline. Roots are spread over it along a golden-angle spiral, so they are evenly
+/// The hair-bearing part of a head: an ellipsoid skull in the groom's frame (`−Z`, Bevy's forward, is the
+/// face, `+Y` the crown; turned onto the head's [`HeadAxes`] and sized in metres whatever the head's
+/// scale) and a hairline. Roots are spread over it along a golden-angle spiral, so they are evenly
 /// spaced, without clumps or bald stripes.
 #[derive(Reflect, Debug, Clone, Copy, PartialEq)]
 #[reflect(Debug, Default, Clone, PartialEq)]
 pub struct Scalp {
-    /// Centre of the skull ellipsoid in the head's local space, m.
+    /// Centre of the skull ellipsoid from the head's origin, m, along the groom's axes (`x` left to right,
+    /// `y` up, `z` back).
     pub centre: Vec3,
     /// Semi-axes of the skull ellipsoid, m: half its width (x, ear to ear), height (y) and depth (z).
     /// Default 0.1 m each (a sphere).
@@ -213,11 +217,19 @@ pub const MAX_GROOM_HAIRS: usize = 1_000_000;
 /// strands of `style` over `scalp`, each marked [`GroomedStrand`]. Changing the groom despawns the
 /// groomed strands and grows new ones (strands you spawned yourself on the head are kept). An invalid
 /// groom is reported with an error message and the head keeps its hair.
+///
+/// Every length in a groom is metres, and its directions are the groom's design axes (the face `−Z`, the
+/// crown `+Y`), whatever the head's rig: the groom is grown on its head turned onto the head's
+/// [`HeadAxes`] and sized by the head's scale, so the same groom looks the same on a head modelled in
+/// centimetres and spawned at a scale of 0.01, or on a joint whose face looks along `+X`.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct HairGroom {
     /// Where hair grows.
     pub scalp: Scalp,
+    /// Which way the head's face and crown point in its local space (its rig's own axes). Default: the
+    /// face `−Z`, the crown `+Y`.
+    pub head_axes: HeadAxes,
     /// Number of strands (with their followers at most [`MAX_GROOM_HAIRS`]). Default 2 000.
     pub strand_count: usize,
     /// Edges per strand (nodes are one more), from 2 to [`MAX_GROOM_SEGMENTS`]. More edges resolve curls
@@ -288,6 +300,7 @@ impl Default for HairGroom {
     fn default() -> Self {
         Self {
             scalp: Scalp::default(),
+            head_axes: HeadAxes::default(),
             strand_count: 2000,
             segments: 24,
             style: HairStyle::Straight,
@@ -411,6 +424,16 @@ impl HairGroom {
         obstacles: &GroomObstacles,
     ) -> Result<Vec<(HairStrand, HairFollowers)>, GroomError> {
         self.validate()?;
+        // Grown along the design's axes, then turned onto the head's.
+        let frame = GroomFrame { rotation: self.head_axes.rotation()?, scale: 1.0 };
+        if !frame.is_identity() {
+            let surface = surface.map(|surface| surface.mapped(|position| frame.to_frame(position))).transpose()?;
+            let designed = Self { head_axes: HeadAxes::default(), ..self.clone() };
+            let mut grown =
+                designed.grow_with_followers_around(surface.as_ref(), &obstacles.seen_turned_by(frame.rotation))?;
+            frame.grown_to_head(&mut grown);
+            return Ok(grown);
+        }
         let every = 1 + self.followers_per_guide;
         let mut random = fastrand::Rng::with_seed(self.seed);
         let (guide_roots, follower_roots) = match surface {
@@ -459,9 +482,12 @@ impl HairGroom {
     /// groom's seed: the same groom thins the same hairs.
     pub fn hairline_widths(&self, grown: &[(HairStrand, HairFollowers)]) -> Vec<StrandWidths> {
         let mut random = fastrand::Rng::with_seed(self.seed ^ 0x6861_6972_6c69_6e65);
+        // The roots along the groom's axes.
+        let to_design = self.head_axes.rotation().unwrap_or(Quat::IDENTITY).inverse();
         let mut share = |root: Option<&Vec3>| {
             let drawn = random.f32();
             let Some(&root) = root.filter(|_| self.hairline_fade > 0.0) else { return 1.0 };
+            let root = if to_design == Quat::IDENTITY { root } else { to_design * root };
             let inside = (self.scalp.depth_inside_hairline(root) / self.hairline_fade).clamp(0.0, 1.0);
             let smooth = inside * inside * (3.0 - 2.0 * inside);
             let kept = drawn < HAIRLINE_SPARSEST + (1.0 - HAIRLINE_SPARSEST) * smooth;
@@ -562,15 +588,22 @@ impl GroomObstacles {
         Self { shapes: shapes.into_iter().filter(|(shape, _)| shape.validate().is_ok()).collect() }
     }
 
-    /// The colliders tied to `head` ([`HeadColliders`]) in its local space, as they are placed now.
+    /// The colliders tied to `head` ([`HeadColliders`]) in its local space, as they are placed now, sized in
+    /// metres when the head is scaled (`scaled`: its scale taken out, as [`GroomFrame`] grows hair).
     fn of_head(
         head: Entity,
+        scaled: bool,
         colliders: &Query<&HeadColliders>,
         shapes: &Query<&HairCollider>,
         transforms: &TransformHelper,
     ) -> Self {
         let Ok(head_transform) = transforms.compute_global_transform(head) else { return Self::default() };
-        let to_head = head_transform.affine().inverse();
+        let to_head = if scaled {
+            let (_, rotation, translation) = head_transform.to_scale_rotation_translation();
+            Affine3A::from_rotation_translation(rotation, translation).inverse()
+        } else {
+            head_transform.affine().inverse()
+        };
         let own = colliders.get(head).map(HeadColliders::colliders).unwrap_or_default();
         Self::new(own.iter().filter_map(|&entity| {
             let collider = shapes.get(entity).ok()?;
@@ -582,6 +615,15 @@ impl GroomObstacles {
     /// Whether there are none.
     pub fn is_empty(&self) -> bool {
         self.shapes.is_empty()
+    }
+
+    /// These obstacles seen from a frame turned by `rotation` from the one they are placed in.
+    fn seen_turned_by(&self, rotation: Quat) -> Self {
+        let inverse = rotation.inverse().as_dquat();
+        let shapes = self.shapes.iter().map(|(shape, pose)| {
+            (shape.clone(), RigidPose::new((inverse * pose.rotation).normalize(), inverse * pose.translation))
+        });
+        Self { shapes: shapes.collect() }
     }
 
     /// Of the obstacles that do not hold `root` (a hair grows out of the shapes its root is in), the one
@@ -906,6 +948,16 @@ pub enum GroomError {
         /// What it must satisfy.
         requirement: &'static str,
     },
+    /// A head's [`HeadAxes`](super::HeadAxes) do not make a frame.
+    #[error(
+        "the head's axes need a forward and an up that are finite, not zero and not parallel, got forward {forward} and up {up}"
+    )]
+    HeadAxes {
+        /// The forward given.
+        forward: Vec3,
+        /// The up given.
+        up: Vec3,
+    },
     /// The skull ellipsoid is degenerate.
     #[error(
         "the scalp's skull needs a finite centre and positive finite semi-axes, got centre {centre} and semi-axes {semi_axes}"
@@ -1003,8 +1055,17 @@ pub(super) fn grow_groomed_hair(
         if matches!(surface, Some(GroomSurface::Waiting)) {
             continue;
         }
-        let obstacles = GroomObstacles::of_head(head, &colliders, &shapes, &transforms);
-        let grown = match groom.grow_with_followers_around(surface.and_then(GroomSurface::surface), &obstacles) {
+        // Grown in metres on a scaled head (its scale taken out), then given to it.
+        let frame = GroomFrame::of_head(head, HeadAxes::default(), &transforms).unwrap_or_default();
+        let obstacles = GroomObstacles::of_head(head, !frame.is_identity(), &colliders, &shapes, &transforms);
+        let grown = frame.surface_of(surface).and_then(|surface| {
+            let mut grown =
+                groom.grow_with_followers_around(surface.as_ref().and_then(GroomSurface::surface), &obstacles)?;
+            let widths = groom.hairline_widths(&grown);
+            frame.grown_to_head(&mut grown);
+            Ok((grown, widths))
+        });
+        let (grown, widths) = match grown {
             Ok(grown) => grown,
             Err(error) => {
                 error!("hair groom of head {head} rejected, it keeps its hair: {error}");
@@ -1017,7 +1078,6 @@ pub(super) fn grow_groomed_hair(
             }
         }
         let hairs = RepresentedHairs(groom.hairs_per_strand());
-        let widths = groom.hairline_widths(&grown);
         for ((strand, followers), widths) in grown.into_iter().zip(widths) {
             let mut spawned = commands.spawn((strand, followers, StrandOf(head), GroomedStrand, hairs));
             if widths.hairs.iter().any(|&share| share < 1.0) {

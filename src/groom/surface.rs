@@ -107,6 +107,11 @@ impl ScalpSurface {
         Ok(surface)
     }
 
+    /// Its vertices (m), triangles and the hair density at each vertex.
+    pub(crate) fn parts(&self) -> (&[Vec3], &[[u32; 3]], &[f32]) {
+        (&self.positions, &self.triangles, &self.density)
+    }
+
     /// This surface with a hair density (0 to 1) at each vertex: roots are spread by area times the
     /// density blended across each triangle. Fails if the counts differ, a density is outside 0 to 1, or
     /// no triangle has any.

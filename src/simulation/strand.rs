@@ -317,6 +317,11 @@ impl SimulatedStrand {
         })
     }
 
+    /// The scale of its head when the strand was spawned (by which its root, head-local, was placed).
+    pub(crate) fn spawn_scale(&self) -> DVec3 {
+        self.spawn_head.scale
+    }
+
     /// The simulated rod: node positions (m, world space) and velocities, frames, twist, rest shape.
     pub fn rod(&self) -> &Rod {
         &self.rod

@@ -7,6 +7,7 @@ mod followers;
 mod plugin;
 mod render_layout;
 mod render_shader;
+mod scaled_rigs;
 mod step;
 
 use bevy::app::PluginGroupBuilder;

@@ -19,6 +19,7 @@ mod mesh_colliders;
 mod names_beside_avian;
 mod plugin_faults;
 mod robustness;
+mod scaled_rigs;
 mod scalp_binding;
 mod scalp_groom;
 mod strand_data;
