@@ -4,6 +4,7 @@
 //! strands' nodes and their followers', and every follower's root is on the head where its curve puts it.
 
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use bevy::app::PluginsState;
 use bevy::prelude::*;
@@ -11,7 +12,7 @@ use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::FollowerPlacement;
 use bevy_hair_sim::prelude::*;
-use bevy_hair_sim::render::GuideLayout;
+use bevy_hair_sim::render::{GuideLayout, HairStrips};
 
 /// Fixed step, s.
 const DT: f64 = 1.0 / 60.0;
@@ -65,31 +66,27 @@ fn root_pose(step: usize, scale: f32) -> Transform {
 /// guides and 3 followers each on the joint; returns the root and the head joint.
 fn spawn_rig(app: &mut App, scale: f32) -> (Entity, Entity) {
     let root = app.world_mut().spawn(root_pose(0, scale)).id();
-    let groom = HairGroom { strand_count: 32, followers_per_guide: 3, segments: 12, ..default() };
+    // A hard hairline: every hair drawn (the GPU leaves the nodes of hairs thinned out at a faded hairline
+    // unwritten).
+    let groom = HairGroom { strand_count: 32, followers_per_guide: 3, segments: 12, hairline_fade: 0.0, ..default() };
     let joint = Transform::from_xyz(0.0, 0.05 / scale, 0.0);
     let head = app.world_mut().spawn((HairHead, groom, joint, ChildOf(root), PlaceFollowersOnCpu)).id();
     (root, head)
 }
 
-/// What should be drawn of `head`'s hair (world space), in the layout's order: each guide's nodes, then
-/// each follower's, `x_g + o_t t + o_1 m1 + o_2 m2` in the frame of the guide's edge arriving at the node
-/// (the root edge's at the root). Also the followers' roots where the head puts their curves' roots.
-fn drawn_expected(app: &App, head: Entity) -> (Vec<Vec3>, Vec<(usize, Vec3)>) {
-    let mut meshes = app.world().try_query::<&HairMesh>().unwrap();
-    let layout: Vec<GuideLayout> = meshes.single(app.world()).expect("one hair mesh").strips().guides().to_vec();
-    assert_eq!(layout.len(), 32);
-    let head_transform = app.world().get::<GlobalTransform>(head).unwrap();
-    let (mut drawn, mut roots) = (Vec::new(), Vec::new());
-    for guide in &layout {
+/// What the GPU-stepped hair should draw of `head` now (world space, the layout's order), from its
+/// read-back components: each guide's nodes, then each follower's, `x_g + o_t t + o_1 m1 + o_2 m2` in the
+/// frame of the guide's edge arriving at the node (the root edge's at the root).
+fn drawn_from_components(app: &App) -> Vec<Vec3> {
+    let mut drawn = Vec::new();
+    for guide in layout(app) {
         let nodes = app.world().get::<StrandNodes>(guide.entity).unwrap();
         let frames = app.world().get::<StrandFrames>(guide.entity).unwrap();
         let followers = app.world().get::<FollowerNodes>(guide.entity).unwrap();
-        let curves = &app.world().get::<HairFollowers>(guide.entity).unwrap().curves;
         let x = &nodes.positions;
         drawn.extend(x.iter().copied());
         assert_eq!(guide.followers as usize, followers.count());
-        for (follower, curve) in followers.rest_offsets().chunks_exact(x.len()).zip(curves) {
-            roots.push((drawn.len(), head_transform.transform_point(curve[0])));
+        for follower in followers.rest_offsets().chunks_exact(x.len()) {
             for (node, offset) in follower.iter().enumerate() {
                 let edge = node.saturating_sub(1);
                 let t = (x[edge + 1] - x[edge]).normalize();
@@ -100,14 +97,53 @@ fn drawn_expected(app: &App, head: Entity) -> (Vec<Vec3>, Vec<(usize, Vec3)>) {
             }
         }
     }
-    (drawn, roots)
+    drawn
 }
 
-/// The drawn nodes read back from the GPU (over a few frames without steps), world space: the buffer's
-/// positions through the hair mesh's transform.
-fn read_back_drawn(app: &mut App) -> Vec<Vec3> {
+/// What the CPU draws of the hair at the fixed clock's fraction `alpha` of a step: the strands' nodes and
+/// their followers placed on the CPU, interpolated between the last two steps (`HairStrips::fill`).
+fn drawn_interpolated(app: &App, alpha: f32) -> Vec<Vec3> {
+    let world = app.world();
+    let mut expected = HairStrips::default();
+    expected.set_layout(layout(app));
+    let lookup = |entity| Some((world.get::<StrandNodes>(entity)?, world.get::<FollowerNodes>(entity)));
+    expected.fill(alpha, 1, lookup).expect("hair to draw");
+    expected.positions().chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+/// The hair mesh's layout: 32 guides.
+fn layout(app: &App) -> Vec<GuideLayout> {
+    let mut meshes = app.world().try_query::<&HairMesh>().unwrap();
+    let layout: Vec<GuideLayout> = meshes.single(app.world()).expect("one hair mesh").strips().guides().to_vec();
+    assert_eq!(layout.len(), 32);
+    layout
+}
+
+/// The largest distance (m) of a follower's root from where `head` puts its curve's root, with the
+/// followers' nodes `drawn` in the layout's order (guide, then its followers, `nodes` each).
+fn followers_off_their_roots(app: &App, head: Entity, drawn: &[Vec3], nodes: usize) -> f32 {
+    let head_transform = app.world().get::<GlobalTransform>(head).unwrap();
+    let mut at = 0;
+    let mut largest = 0.0_f32;
+    for guide in layout(app) {
+        at += nodes;
+        for curve in &app.world().get::<HairFollowers>(guide.entity).unwrap().curves {
+            largest = largest.max(drawn[at].distance(head_transform.transform_point(curve[0])));
+            at += nodes;
+        }
+    }
+    largest
+}
+
+/// The drawn nodes read back from the GPU, as the buffer holds them (where the hair was stepped; the hair
+/// mesh's transform carries them onto the head as it is drawn), read frame after frame (time standing
+/// still) until they are `expected` or 120 frames have passed (the GPU draws a frame or two behind);
+/// checks the hair mesh's transform is rigid.
+fn read_back_drawn(app: &mut App, expected: &[Vec3]) -> Vec<Vec3> {
     let mut meshes = app.world_mut().query::<(&HairMesh, &GlobalTransform)>();
-    let (hair_mesh, _) = meshes.single(app.world()).unwrap();
+    let (hair_mesh, transform) = meshes.single(app.world()).unwrap();
+    let (scale, _, _) = transform.to_scale_rotation_translation();
+    assert!((scale - Vec3::ONE).abs().max_element() < 1e-5, "the hair mesh is drawn scaled by {scale}");
     let buffer = hair_mesh.positions_buffer().clone();
     let received: Arc<Mutex<Option<Vec<f32>>>> = Arc::default();
     let sink = received.clone();
@@ -119,19 +155,29 @@ fn read_back_drawn(app: &mut App) -> Vec<Vec3> {
         })
         .id();
     let mut drawn = None;
-    for _ in 0..60 {
+    for _ in 0..120 {
         app.update();
         if let Some(values) = received.lock().unwrap().take() {
-            drawn = Some(values);
-            break;
+            let nodes: Vec<Vec3> = values.chunks_exact(3).map(Vec3::from_slice).collect();
+            let matched = nodes.len() >= expected.len() && largest_difference(&nodes, expected).0 <= DRAWN_TOLERANCE;
+            drawn = Some(nodes);
+            if matched {
+                break;
+            }
         }
     }
     app.world_mut().despawn(reader);
-    let (_, transform) = meshes.single(app.world()).unwrap();
-    let (scale, _, _) = transform.to_scale_rotation_translation();
-    assert!((scale - Vec3::ONE).abs().max_element() < 1e-5, "the hair mesh is drawn scaled by {scale}");
-    let drawn = drawn.expect("the drawn nodes were read back");
-    drawn.chunks_exact(3).map(|node| transform.transform_point(Vec3::from_slice(node))).collect()
+    drawn.expect("the drawn nodes were read back")
+}
+
+/// The largest distance (m) between a drawn node and the expected one, and its node.
+fn largest_difference(drawn: &[Vec3], expected: &[Vec3]) -> (f32, usize) {
+    expected
+        .iter()
+        .zip(drawn)
+        .enumerate()
+        .map(|(node, (expected, drawn))| (expected.distance(*drawn), node))
+        .fold((0.0, 0), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a })
 }
 
 #[test]
@@ -141,25 +187,41 @@ fn hair_on_a_scaled_rig_is_drawn_where_it_is_simulated_on_every_draw_path() {
         for scale in [0.01, 100.0] {
             let mut app = app(path);
             let (root, head) = spawn_rig(&mut app, scale);
-            for step in 1..=20 {
+            for step in 1..=60 {
                 *app.world_mut().get_mut::<Transform>(root).unwrap() = root_pose(step, scale);
                 app.update();
             }
-            // Paused: the components hold the last step (read back, on the GPU's path) and are drawn as they are.
-            app.world_mut().resource_mut::<HairPause>().paused = true;
-            for _ in 0..3 {
+            let (expected, placed) = if matches!(path, DrawPath::GpuStep) {
+                // Paused until the components hold the last step, read back; then one more step, after
+                // which what is drawn (the interpolation's fraction 0) is that step's placement.
+                app.world_mut().resource_mut::<HairPause>().paused = true;
+                for _ in 0..60 {
+                    app.update();
+                    if app.world().resource::<HairGpuStatus>().read_back_age == Some(0) {
+                        break;
+                    }
+                }
+                assert_eq!(app.world().resource::<HairGpuStatus>().read_back_age, Some(0), "read back");
+                let expected = drawn_from_components(&app);
+                app.world_mut().resource_mut::<HairPause>().step_once();
                 app.update();
-            }
-            let (expected, roots) = drawn_expected(&app, head);
-            let drawn = read_back_drawn(&mut app);
+                (expected.clone(), expected)
+            } else {
+                // Half a step on without a step, then time stands still: drawn halfway between the steps.
+                let fixed = app.world().resource::<Time<Fixed>>();
+                let to_halfway = (fixed.timestep() / 2).saturating_sub(fixed.overstep());
+                app.insert_resource(TimeUpdateStrategy::ManualDuration(to_halfway));
+                app.update();
+                app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
+                let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
+                assert!((alpha - 0.5).abs() < 1e-3, "drawn halfway between steps: {alpha}");
+                (drawn_interpolated(&app, alpha), drawn_interpolated(&app, 1.0))
+            };
+            // Where the last step placed the followers' roots: where the head puts them.
+            let off_root = followers_off_their_roots(&app, head, &placed, 13);
+            let drawn = read_back_drawn(&mut app, &expected);
             assert!(drawn.len() >= expected.len(), "{} nodes drawn, {} expected", drawn.len(), expected.len());
-            let (largest, node) = expected
-                .iter()
-                .zip(&drawn)
-                .enumerate()
-                .map(|(node, (expected, drawn))| (expected.distance(*drawn), node))
-                .fold((0.0, 0), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a });
-            let off_root = roots.iter().map(|&(node, root)| drawn[node].distance(root)).fold(0.0, f32::max);
+            let (largest, node) = largest_difference(&drawn, &expected);
             // The hair lies on a head 10 cm across in the world, whatever the rig's units.
             let head_at = app.world().get::<GlobalTransform>(head).unwrap().translation();
             let reach = drawn[..expected.len()].iter().map(|node| node.distance(head_at)).fold(0.0, f32::max);
