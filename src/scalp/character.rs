@@ -6,7 +6,7 @@ use bevy::prelude::*;
 
 use super::HairScalpMesh;
 use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSettings};
-use crate::groom::{HairGroom, HairGroomFile};
+use crate::groom::{HairGroom, HairGroomFile, HeadAxes};
 use crate::simulation::HairHead;
 
 /// Puts hair on a character by the names of its head joint, scalp mesh and collider meshes.
@@ -16,9 +16,14 @@ use crate::simulation::HairHead;
 /// [`head_joint`](Self::head_joint) becomes the [`HairHead`], bound to the scalp mesh named
 /// [`scalp_mesh`](Self::scalp_mesh) ([`HairScalpMesh`]) and given the [`hair`](Self::hair); each mesh
 /// named in [`collider_meshes`](Self::collider_meshes) is baked into a collider of that head
-/// ([`HairColliderFromMesh`]). A name may be that of the mesh's entity or of a node above it (a glTF
-/// node's primitives are its children). Until every name is found, the search is tried again each frame;
-/// [`HairOnCharacterStatus`] says how it stands.
+/// ([`HairColliderFromMesh`]). A mesh's name may be that of its entity, of a node above it (a glTF
+/// node's primitives are its children), or the glTF mesh's own name (Bevy names each primitive's entity
+/// `<mesh name>.<material name>`; the first primitive is taken). Until every name is found, the search is
+/// tried again each frame; [`HairOnCharacterStatus`] says how it stands.
+///
+/// A rig's head joint has axes of its own: give them with [`HairOnCharacter::with_head_axes`] and a
+/// procedural groom turns onto them. The groom's lengths are metres whatever the character's scale (a
+/// character modelled in centimetres and spawned at 0.01 wears the same hair as one modelled in metres).
 ///
 /// A skinned collider mesh is baked in the head joint's space (through the joint's inverse bind pose)
 /// and follows that joint rigidly: a face and ears do; a body that bends away from the head is better
@@ -88,6 +93,16 @@ impl HairOnCharacter {
         self
     }
 
+    /// The head joint's own axes: its face looks along `forward` and its crown along `up`, in the joint's
+    /// local space ([`HeadAxes`]); a procedural groom turns onto them (a groom file is turned by its
+    /// [`GroomPlacement`](crate::groom::GroomPlacement)'s transform).
+    pub fn with_head_axes(mut self, forward: Vec3, up: Vec3) -> Self {
+        if let CharacterHair::Groom(groom) = &mut self.hair {
+            groom.head_axes = HeadAxes::new(forward, up);
+        }
+        self
+    }
+
     /// Colliders baked from the meshes of these names.
     pub fn with_collider_meshes(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.collider_meshes = names.into_iter().map(Into::into).collect();
@@ -114,10 +129,20 @@ pub(crate) fn attach_hair_to_characters(
         let named = |wanted: &str| {
             children.iter_descendants(root).find(|&entity| names.get(entity).is_ok_and(|name| name.as_str() == wanted))
         };
-        // The entity named, or its first descendant, with a mesh.
+        // The entity named, or its first descendant, with a mesh; else the first primitive of the glTF mesh
+        // of that name (Bevy names a glTF primitive's entity `<mesh name>.<material name>`).
         let mesh_named = |wanted: &str| {
-            let entity = named(wanted)?;
-            std::iter::once(entity).chain(children.iter_descendants(entity)).find(|&entity| meshes.contains(entity))
+            let in_node = named(wanted).and_then(|entity| {
+                std::iter::once(entity).chain(children.iter_descendants(entity)).find(|&entity| meshes.contains(entity))
+            });
+            in_node.or_else(|| {
+                children.iter_descendants(root).find(|&entity| {
+                    meshes.contains(entity)
+                        && names.get(entity).is_ok_and(|name| {
+                            name.as_str().strip_prefix(wanted).is_some_and(|rest| rest.starts_with('.'))
+                        })
+                })
+            })
         };
         let head = named(&character.head_joint);
         let scalp = character.scalp_mesh.as_deref().map(|name| (name, mesh_named(name)));

@@ -272,19 +272,21 @@ fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
             Transform::default(),
             HairOnCharacter::new("Head", CharacterHair::Groom(groom))
                 .with_scalp_mesh("Scalp")
-                .with_collider_meshes(["Face"]),
+                // The face by its glTF mesh's name, the scalp by its node's.
+                .with_collider_meshes(["FaceMesh"]),
         ))
         .id();
     app.update();
     match app.world().get::<HairOnCharacterStatus>(character) {
         Some(HairOnCharacterStatus::Waiting { missing, frames }) => {
-            assert_eq!(missing, &["Head", "Scalp", "Face"]);
+            assert_eq!(missing, &["Head", "Scalp", "FaceMesh"]);
             assert_eq!(*frames, 1);
         }
         other => panic!("waiting for the scene, got {other:?}"),
     }
     // The scene: neck and head joints, the skinned scalp as the primitive under a node named "Scalp", and a
-    // face (a skinned ball in front of the head) under "Face".
+    // face (a skinned ball in front of the head) under "Face", its primitive named as Bevy names a glTF
+    // primitive, `<mesh name>.<material name>`.
     let (neck, head, _) = spawn_character(&mut app, scalp_mesh(true), usize::MAX);
     let world = app.world_mut();
     world.entity_mut(neck).insert((Name::new("Neck"), ChildOf(character)));
@@ -303,7 +305,7 @@ fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
         .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; count]);
     let ball = world.resource_mut::<Assets<Mesh>>().add(ball);
     let face = world.spawn((Name::new("Face"), ChildOf(character))).id();
-    world.spawn((Mesh3d(ball), skin, Transform::default(), ChildOf(face)));
+    world.spawn((Name::new("FaceMesh.Skin"), Mesh3d(ball), skin, Transform::default(), ChildOf(face)));
     for _ in 0..30 {
         app.update();
     }
