@@ -42,6 +42,8 @@ fn main() {
         HairPlugins::default(),
     ))
     .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
+    // The style held near the roots and hair meeting hair.
+    .insert_resource(HairSettings::styled())
     .add_systems(Startup, spawn_character)
     .add_systems(Update, (move_joints, toggle_colliders, report_attachment));
     if options.screenshot.is_some() {
@@ -138,9 +140,11 @@ fn spawn_character(
         perceptual_roughness: 0.7,
         ..default()
     });
+    // The scalp is skin, a little darker where the hair shades it: at the hairline, where the hair thins
+    // out, it reads as skin, not as a cap.
     let scalp_tone = materials.add(StandardMaterial {
-        base_color: Color::srgb(0.09, 0.06, 0.04),
-        perceptual_roughness: 0.9,
+        base_color: Color::srgb(0.6, 0.44, 0.35),
+        perceptual_roughness: 0.8,
         ..default()
     });
     let cloth = materials.add(StandardMaterial { base_color: Color::srgb(0.25, 0.3, 0.38), ..default() });

@@ -15,12 +15,9 @@ fn main() {
             DefaultPlugins.set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
             HairPlugins::default(),
         ))
-        // The groomed style held near the roots, and hair pressing on hair (both off by default).
-        .insert_resource(HairSettings {
-            style_hold: HairStyleHold { rate: 200.0, ..default() },
-            volume: HairVolume { enabled: true, ..default() },
-            ..default()
-        })
+        // The groomed style held near the roots, and hair meeting hair (the defaults are the reference
+        // mechanics, without either).
+        .insert_resource(HairSettings::styled())
         .add_systems(Startup, setup)
         .add_systems(Update, nod)
         .run();

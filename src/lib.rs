@@ -58,6 +58,25 @@
 //! pauses the simulation or runs it one step at a time. With the `render` feature the hair is drawn as lit,
 //! shadowed strands ([`render`]); without it, as gizmo lines ([`debug`](mod@debug)).
 //!
+//! **On a glTF character**, put [`HairOnCharacter`](scalp::HairOnCharacter) on the scene's root: once the
+//! scene has spawned it finds the head joint by name (and a scalp mesh and face, if named) and grows the
+//! groom there, turned onto the joint's own axes and sized in metres whatever the character's scale
+//! (`examples/gltf_character.rs`):
+//!
+//! ```no_run
+//! # use bevy::prelude::*;
+//! # use bevy_hair_sim::prelude::*;
+//! fn spawn_fox(mut commands: Commands, assets: Res<AssetServer>) {
+//!     let mane = HairGroom { style: HairStyle::Short, ..default() };
+//!     commands.spawn((
+//!         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("models/Fox.glb"))),
+//!         Transform::from_scale(Vec3::splat(0.01)), // modelled in centimetres
+//!         // The head joint's +X runs down the snout, its +Y up through the crown.
+//!         HairOnCharacter::new("b_Head_05", CharacterHair::Groom(mane)).with_head_axes(Vec3::X, Vec3::Y),
+//!     ));
+//! }
+//! ```
+//!
 //! **Headless apps** (servers, tests, tools) use `MinimalPlugins`. The app's first `update()` only starts
 //! Bevy's clocks and runs no fixed step, and the plugin's warnings and errors are logged through
 //! `tracing`, which prints nothing without Bevy's `LogPlugin` (not in `MinimalPlugins`). With
@@ -123,6 +142,7 @@
 //! | `HairRenderPlugin` (`render` feature) | hair drawn in Bevy's PBR pipeline (needs Bevy's `PbrPlugin`) | lines only |
 //! | `HairGpuPlugin` (`gpu` feature; not in the group) | the strands stepped on the GPU, followers placed and hair drawn from there, read back into the components | the CPU steps every strand |
 //! | `HairPanelPlugin` (`egui` feature; not in the group) | a live panel of settings and statistics | – |
+//! | [`HairDiagnosticsPlugin`](debug::HairDiagnosticsPlugin) (not in the group) | the hair's statistics in Bevy's `DiagnosticsStore` ([`HairDiagnostics`](debug::HairDiagnostics)) | – |
 //!
 //! # Scheduling
 //! The simulation runs in [`FixedUpdate`] (or the fixed-timestep schedule given to [`HairPlugins::new`]) at
@@ -395,7 +415,7 @@ pub mod prelude {
     };
     #[cfg(feature = "egui")]
     pub use crate::debug::HairPanelPlugin;
-    pub use crate::debug::{HairGizmoPlugin, HairGizmos};
+    pub use crate::debug::{HairDiagnosticsPlugin, HairGizmoPlugin, HairGizmos};
     pub use crate::detail::{HairCpuBudget, HairDetail, HairDetailLevel, HairDetailPlugin, HairDetailSettings};
     pub use crate::followers::{
         FollowerNodes, FollowerPlacement, HairFollowers, HairFollowersPlugin, PlaceFollowersOnCpu,

@@ -631,7 +631,8 @@ impl GroomPlacement {
 ///     commands.spawn((HairHead, groom, Transform::from_xyz(0.0, 1.2, 0.0)));
 /// }
 /// ```
-#[derive(Component, Debug, Clone, PartialEq)]
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Component, Debug, Clone, PartialEq)]
 #[require(HairHead)]
 pub struct HairGroomFile {
     /// The groom file.
@@ -665,7 +666,8 @@ pub struct FileStrand;
 /// them hair by hair. The renderer reads it when it lays the head's hair out (when the strands are
 /// spawned or change); a hair it names no colours for, or with another number of colours than nodes, is
 /// drawn in its head's [`HairAppearance`](crate::render::HairAppearance) colours.
-#[derive(Component, Debug, Clone, Default, PartialEq)]
+#[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct StrandColors {
     /// Per drawn hair (the guide first), per node: its colour.
     pub hairs: Vec<Vec<LinearRgba>>,
@@ -875,5 +877,7 @@ pub(super) fn build_groom_files(app: &mut App, schedule: InternedScheduleLabel) 
     app.init_asset::<GroomFile>()
         .init_asset_loader::<GroomFileLoader>()
         .register_type::<FileStrand>()
+        .register_type::<HairGroomFile>()
+        .register_type::<StrandColors>()
         .add_systems(schedule, place_groom_files.in_set(HairPrepareSystems::Grow));
 }

@@ -109,6 +109,7 @@ impl Plugin for HairGroomPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<HairGroom>()
             .register_type::<GroomedStrand>()
+            .register_type::<StrandWidths>()
             .add_systems(self.schedule, procedural::grow_groomed_hair.in_set(HairPrepareSystems::Grow));
         file::build_groom_files(app, self.schedule);
     }

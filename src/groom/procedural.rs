@@ -290,7 +290,8 @@ pub const HAIRLINE_SPARSEST: f32 = 0.3;
 /// [`HairGroom`] gives it to the strands it grows by its hairline ([`HairGroom::hairline_fade`]); give it to
 /// strands of your own to thin their hair. The renderer reads it when it lays the head's hair out (when the
 /// strands are spawned or change); a hair it has no share for is drawn whole.
-#[derive(Component, Debug, Clone, Default, PartialEq)]
+#[derive(Component, Reflect, Debug, Clone, Default, PartialEq)]
+#[reflect(Component, Debug, Default, Clone, PartialEq)]
 pub struct StrandWidths {
     /// Per drawn hair (the guide first): its share of the strand's width, 0 to 1.
     pub hairs: Vec<f32>,
@@ -827,8 +828,8 @@ impl CombedPath<'_> {
     }
 }
 
-/// `segments + 1` points at arc lengths `0, edge, 2 edge, …` along the polyline `path` (the last point
-/// where the path ends short).
+/// `segments + 1` points at arc lengths `0, edge, 2 edge, …` along the polyline `path`, continued along
+/// its last direction where the path ends short.
 fn resample(path: &[Vec3], edge: f32, segments: usize) -> Vec<Vec3> {
     let mut nodes = Vec::with_capacity(segments + 1);
     let (mut walked, mut index) = (0.0, 0);
@@ -843,7 +844,19 @@ fn resample(path: &[Vec3], edge: f32, segments: usize) -> Vec<Vec3> {
                 let span = path[index].distance(next).max(f32::MIN_POSITIVE);
                 path[index].lerp(next, ((wanted - walked) / span).clamp(0.0, 1.0))
             }
-            None => path[index],
+            // Past the path's end (a path cut short, by an obstacle or the combing's turn), on along its
+            // last direction: every edge keeps its length (a strand with nodes on top of each other
+            // cannot be simulated).
+            None => {
+                let last = path[index];
+                let direction = path[..index]
+                    .iter()
+                    .rev()
+                    .map(|&before| (last - before).normalize_or_zero())
+                    .find(|direction| *direction != Vec3::ZERO)
+                    .unwrap_or(Vec3::NEG_Y);
+                last + direction * (wanted - walked).max(0.0)
+            }
         };
         nodes.push(point);
     }
@@ -1084,5 +1097,22 @@ pub(super) fn grow_groomed_hair(
                 spawned.insert(widths);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_path_cut_short_is_resampled_into_edges_of_one_length() {
+        // A path of 2.5 edges, resampled to 6: on past its end along its last direction.
+        let path = [Vec3::ZERO, Vec3::new(0.0, -0.01, 0.0), Vec3::new(0.015, -0.01, 0.0)];
+        let nodes = resample(&path, 0.01, 6);
+        assert_eq!(nodes.len(), 7);
+        for (index, edge) in nodes.windows(2).enumerate() {
+            assert!((edge[0].distance(edge[1]) - 0.01).abs() < 1e-6, "edge {index}: {:?}", edge);
+        }
+        assert!(nodes[6].distance(Vec3::new(0.05, -0.01, 0.0)) < 1e-6, "{}", nodes[6]);
     }
 }

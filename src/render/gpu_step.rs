@@ -504,6 +504,7 @@ fn apply_read_backs(
     checked: Res<CheckedSettings>,
     mut strands: Query<(&mut SimulatedStrand, &mut StrandNodes, &mut StrandFrames), With<SteppedElsewhere>>,
     mut faults: MessageWriter<StrandFault>,
+    mut commands: Commands,
     time: Res<Time>,
     mut fault_log: Local<FaultLog>,
 ) {
@@ -574,7 +575,9 @@ fn apply_read_backs(
                 queue.handed_back.insert(entity);
                 queue.dirty = true;
             }
-            faults.write(StrandFault { strand: entity, error });
+            let fault = StrandFault { strand: entity, error };
+            commands.trigger(fault.clone());
+            faults.write(fault);
         }
         fault_log.summarise(now);
         status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();

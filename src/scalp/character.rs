@@ -32,16 +32,21 @@ use crate::simulation::HairHead;
 /// ```
 /// # use bevy::prelude::*;
 /// # use bevy_hair_sim::prelude::*;
-/// # fn spawn(mut commands: Commands) {
+/// # fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
 /// commands.spawn((
-///     Transform::default(), // beside WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("character.glb")))
+///     WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("character.glb"))),
+///     Transform::from_scale(Vec3::splat(0.01)), // modelled in centimetres
 ///     HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
+///         .with_head_axes(Vec3::X, Vec3::Y) // the joint's face and crown directions
 ///         .with_scalp_mesh("Scalp")
 ///         .with_collider_meshes(["Face"]),
 /// ));
 /// # }
 /// ```
-#[derive(Component, Debug, Clone)]
+///
+/// `examples/gltf_character.rs` puts a mane on Bevy's animated fox this way.
+#[derive(Component, Reflect, Debug, Clone, PartialEq)]
+#[reflect(Component, Debug, Clone, PartialEq)]
 pub struct HairOnCharacter {
     /// `Name` of the joint the hair grows on (the head bone): its local space is the hair's.
     pub head_joint: String,
@@ -54,7 +59,8 @@ pub struct HairOnCharacter {
 }
 
 /// The hair [`HairOnCharacter`] puts on a character's head joint.
-#[derive(Debug, Clone)]
+#[derive(Reflect, Debug, Clone, PartialEq)]
+#[reflect(Debug, Clone, PartialEq)]
 pub enum CharacterHair {
     /// A procedural groom, in the joint's space.
     Groom(HairGroom),
@@ -65,7 +71,8 @@ pub enum CharacterHair {
 }
 
 /// How a [`HairOnCharacter`] stands; on its entity.
-#[derive(Component, Debug, Clone, PartialEq, Eq)]
+#[derive(Component, Reflect, Debug, Clone, PartialEq, Eq)]
+#[reflect(Component, Debug, Clone, PartialEq)]
 pub enum HairOnCharacterStatus {
     /// Some names are not among the descendants yet (the scene may still be loading).
     Waiting {

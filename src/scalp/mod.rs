@@ -163,6 +163,8 @@ impl Plugin for HairScalpPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<HairScalpMesh>()
             .register_type::<ScalpRootBinding>()
+            .register_type::<HairOnCharacter>()
+            .register_type::<HairOnCharacterStatus>()
             .add_systems(
                 self.schedule,
                 (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),

@@ -361,6 +361,7 @@ pub(crate) fn step_strands(
     elsewhere: Query<(), With<SteppedElsewhere>>,
     colliders: StrandColliders,
     mut fault_messages: MessageWriter<StrandFault>,
+    mut commands: Commands,
     mut threads: Local<Parallel<StepThread>>,
     mut fault_log: Local<FaultLog>,
     mut order: Local<Vec<(StepOrder, Entity)>>,
@@ -421,6 +422,7 @@ pub(crate) fn step_strands(
         for fault in tally.faults.drain(..) {
             fault_log.record(now, &fault);
             statistics.faults += 1;
+            commands.trigger(fault.message.clone());
             fault_messages.write(fault.message);
         }
         // Start the next step from zero, keeping the fault list's memory.

@@ -861,9 +861,14 @@ pub struct SteppedElsewhere;
 /// degenerate) has been reset to its rest pose on its head; on invalid input (a non-finite force, a head
 /// pose its root cannot follow) the step was skipped. A strand that failed again soon after is also
 /// quarantined (see [`SimulatedStrand`]). The other strands are not affected.
-#[derive(Message, Debug, Clone, PartialEq)]
+///
+/// Both a [`Message`] (read every strand's faults with a `MessageReader<StrandFault>`) and an
+/// [`EntityEvent`] triggered on the strand (observe one strand's: `commands.entity(strand).observe(|fault:
+/// On<StrandFault>| …)`).
+#[derive(Message, EntityEvent, Debug, Clone, PartialEq)]
 pub struct StrandFault {
     /// The strand entity.
+    #[event_target]
     pub strand: Entity,
     /// What went wrong.
     pub error: StepError,

@@ -4,6 +4,7 @@
 //! and what the renderer computes on the CPU and the shader it compiles. `cargo test --test gpu`.
 
 mod followers;
+mod gltf_character;
 mod plugin;
 mod render_layout;
 mod render_shader;

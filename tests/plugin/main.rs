@@ -2,6 +2,7 @@
 //! heads, strands, colliders, the grid, wind, levels of detail, faults and the log, grooms and their
 //! files, and the crate's layout. `cargo test --test plugin`.
 
+mod bevy_tools;
 mod budget;
 mod collision;
 mod combed;

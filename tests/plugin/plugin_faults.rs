@@ -24,6 +24,15 @@ fn a_strand_poisoned_with_nan_is_reset_and_reported_and_its_neighbours_are_unaff
     let (mut clean, strands) = setup();
     let (mut poisoned, _) = setup();
     let victim = strands[3];
+    // Observed on the strand too: the fault is an event triggered on it.
+    let observed: std::sync::Arc<std::sync::Mutex<Vec<Entity>>> = default();
+    let seen = observed.clone();
+    for &strand in &strands {
+        let seen = seen.clone();
+        poisoned.world_mut().entity_mut(strand).observe(move |fault: On<StrandFault>| {
+            seen.lock().unwrap().push(fault.strand);
+        });
+    }
     poisoned.world_mut().get_mut::<SimulatedStrand>(victim).unwrap().rod_mut().positions_mut()[5] = DVec3::NAN;
     clean.update();
     poisoned.update();
@@ -31,6 +40,7 @@ fn a_strand_poisoned_with_nan_is_reset_and_reported_and_its_neighbours_are_unaff
     let faults = drain_messages::<StrandFault>(&mut poisoned);
     assert_eq!(faults.len(), 1, "{faults:?}");
     assert_eq!(faults[0].strand, victim);
+    assert_eq!(*observed.lock().unwrap(), [victim], "observed on the victim alone, once");
     assert_eq!(poisoned.world().resource::<HairStatistics>().faults, 1);
 
     // Reset to its rest pose on the (rotated) head: its spawn shape, turned and moved with the head.

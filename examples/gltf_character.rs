@@ -1,0 +1,202 @@
+//! Hair on a real glTF character, loaded through the asset server as a game loads one: Bevy's animated
+//! fox (`assets/models/Fox.glb`, modelled in centimetres and spawned at a scale of 0.01), playing its own
+//! clips, with a mane grown on its head joint. The joint's axes are the rig's own (its `+X` runs down the
+//! snout, its `+Y` up through the crown): `HairOnCharacter::with_head_axes` turns the groom onto them, and
+//! the groom's lengths are metres whatever the rig's scale.
+//!
+//! ```sh
+//! cargo run --release --features examples --example gltf_character
+//! cargo run --release --features examples --example gltf_character -- --clip walk
+//! ```
+//!
+//! Options: `--clip survey|walk|run` (the fox's clips), and picture mode `--screenshot PATH --frames N`
+//! (N frames of exactly 1/60 s, then a PNG, then exit). Press C to show the colliders.
+//!
+//! The fox: CC0 model by PixelMannen, rigging and animation by @tomkranis (CC-BY 4.0), glTF conversion by
+//! @AsoboStudio and @scurest (CC-BY 4.0); see `assets/models/Fox.LICENSE.md`.
+
+use std::f32::consts::PI;
+use std::time::Duration;
+
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy::time::TimeUpdateStrategy;
+use bevy::world_serialization::WorldInstanceReady;
+use bevy_hair_sim::prelude::*;
+
+/// The character, as the asset server finds it under `assets/`.
+const FOX: &str = "models/Fox.glb";
+
+fn main() {
+    let options = match Options::from_args(std::env::args().skip(1)) {
+        Ok(options) => options,
+        Err(message) => {
+            eprintln!("{message}\n\n{}", Options::USAGE);
+            std::process::exit(2);
+        }
+    };
+    let window = Window { title: "bevy_hair_sim: glTF character".into(), resolution: (1280, 800).into(), ..default() };
+    let mut app = App::new();
+    app.add_plugins((
+        DefaultPlugins
+            .set(WindowPlugin { primary_window: Some(window), ..default() })
+            .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
+        HairPlugins::default(),
+    ))
+    .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
+    // The style held near the roots and hair meeting hair.
+    .insert_resource(HairSettings::styled())
+    .insert_resource(GlobalAmbientLight { color: Color::WHITE, brightness: 400.0, ..default() })
+    .add_systems(Startup, (spawn_fox, spawn_stage))
+    .add_systems(Update, (toggle_colliders, report_attachment));
+    if options.screenshot.is_some() {
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
+            .add_systems(Update, take_picture);
+    }
+    app.insert_resource(options).run();
+}
+
+/// Command-line options.
+#[derive(Resource, Debug, Clone)]
+struct Options {
+    /// Which of the fox's clips plays: 0 survey, 1 walk, 2 run.
+    clip: usize,
+    screenshot: Option<String>,
+    frames: u32,
+}
+
+impl Options {
+    const USAGE: &str = "usage: gltf_character [--clip survey|walk|run] [--screenshot PATH] [--frames N]";
+
+    fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
+        let mut options = Self { clip: 1, screenshot: None, frames: 240 };
+        while let Some(flag) = args.next() {
+            let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
+            match (flag.as_str(), value.as_str()) {
+                ("--clip", "survey") => options.clip = 0,
+                ("--clip", "walk") => options.clip = 1,
+                ("--clip", "run") => options.clip = 2,
+                ("--screenshot", path) => options.screenshot = Some(path.to_owned()),
+                ("--frames", count) => {
+                    options.frames = count.parse().map_err(|_| format!("--frames needs a count, got {count}"))?
+                }
+                _ => return Err(format!("unknown option {flag} {value}")),
+            }
+        }
+        Ok(options)
+    }
+}
+
+/// The clip to play once the fox's scene has spawned.
+#[derive(Component)]
+struct ClipToPlay {
+    graph: Handle<AnimationGraph>,
+    index: AnimationNodeIndex,
+}
+
+/// The fox's mane: short hair combed back over the crown and down the neck, in metres along the groom's
+/// axes (the face `−Z`, the crown `+Y`). The skull ellipsoid sits 8 cm in front of the head joint (which is
+/// at the back of the fox's skull) and 4 cm above it.
+fn fox_mane() -> HairGroom {
+    HairGroom {
+        scalp: Scalp {
+            centre: Vec3::new(0.0, 0.04, -0.08),
+            semi_axes: Vec3::new(0.055, 0.05, 0.085),
+            nape_height: -0.1,
+            brow_height: 0.55,
+        },
+        strand_count: 400,
+        followers_per_guide: 6,
+        segments: 12,
+        style: HairStyle::Short,
+        ..default()
+    }
+}
+
+/// Loads the fox as a glTF scene, with the mane on its head joint.
+fn spawn_fox(
+    mut commands: Commands,
+    assets: Res<AssetServer>,
+    options: Res<Options>,
+    mut graphs: ResMut<Assets<AnimationGraph>>,
+) {
+    let (graph, index) =
+        AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(options.clip).from_asset(FOX)));
+    commands
+        .spawn((
+            WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(FOX))),
+            // Modelled in centimetres.
+            Transform::from_scale(Vec3::splat(0.01)),
+            ClipToPlay { graph: graphs.add(graph), index },
+            // The head joint's +X runs down the snout, its +Y up through the crown.
+            HairOnCharacter::new("b_Head_05", CharacterHair::Groom(fox_mane())).with_head_axes(Vec3::X, Vec3::Y),
+        ))
+        .observe(play_clip_when_ready);
+}
+
+/// Starts the clip on the scene's animation player once the scene has spawned.
+fn play_clip_when_ready(
+    ready: On<WorldInstanceReady>,
+    mut commands: Commands,
+    children: Query<&Children>,
+    clips: Query<&ClipToPlay>,
+    mut players: Query<&mut AnimationPlayer>,
+) {
+    let Ok(clip) = clips.get(ready.entity) else { return };
+    for child in children.iter_descendants(ready.entity) {
+        if let Ok(mut player) = players.get_mut(child) {
+            player.play(clip.index).repeat();
+            commands.entity(child).insert(AnimationGraphHandle(clip.graph.clone()));
+        }
+    }
+}
+
+/// A camera on the fox's head, a floor and a sun.
+fn spawn_stage(
+    mut commands: Commands,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    commands.spawn((
+        Camera3d::default(),
+        Transform::from_xyz(0.9, 0.85, 1.0).looking_at(Vec3::new(0.0, 0.45, 0.1), Vec3::Y),
+    ));
+    commands.spawn((
+        Mesh3d(meshes.add(Plane3d::default().mesh().size(20.0, 20.0))),
+        MeshMaterial3d(materials.add(Color::srgb(0.3, 0.4, 0.3))),
+    ));
+    commands.spawn((
+        DirectionalLight { illuminance: 8_000.0, shadow_maps_enabled: true, ..default() },
+        Transform::from_rotation(Quat::from_euler(EulerRot::ZYX, 0.0, 1.0, -PI / 4.0)),
+    ));
+}
+
+fn toggle_colliders(keys: Res<ButtonInput<KeyCode>>, mut gizmos: ResMut<GizmoConfigStore>) {
+    if keys.just_pressed(KeyCode::KeyC) {
+        let config = gizmos.config_mut::<HairGizmos>().1;
+        config.draw_colliders = !config.draw_colliders;
+    }
+}
+
+/// Says once when the hair is on, and what is still missing while it waits.
+fn report_attachment(characters: Query<&HairOnCharacterStatus, Changed<HairOnCharacterStatus>>) {
+    for status in &characters {
+        if let HairOnCharacterStatus::Attached { head } = status {
+            info!("hair attached to the fox's head joint {head}");
+        }
+    }
+}
+
+/// Picture mode: after the asked number of frames, saves a screenshot and exits once it is written.
+fn take_picture(mut commands: Commands, options: Res<Options>, mut frames: Local<u32>) {
+    *frames += 1;
+    if *frames != options.frames {
+        return;
+    }
+    let Some(path) = options.screenshot.clone() else { return };
+    commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path)).observe(
+        |_: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
+            exit.write(AppExit::Success);
+        },
+    );
+}

@@ -1,0 +1,113 @@
+//! Hair on the shipped glTF character (`assets/models/Fox.glb`, Bevy's animated fox: modelled in
+//! centimetres, spawned at a scale of 0.01, its head joint's axes its own), loaded through the asset
+//! server as a game loads it and played through its walk for two seconds: every root stays on the head
+//! joint where the step placed it, the hair stays within the rig's scale, nothing is rejected or faults.
+
+use std::time::Duration;
+
+use bevy::app::PluginsState;
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_hair_sim::prelude::*;
+use bevy_hair_sim::simulation::{SimulatedStrand, StrandRejected};
+
+/// The character, under the crate's `assets/`.
+const FOX: &str = "models/Fox.glb";
+
+/// The largest distance (m) of a root from where its head joint puts it at the step: the root is set from
+/// the joint's pose each step, in `f64` from the joint's `f32` transform (positions near a metre, an ulp
+/// 6e-8 m; the joint's matrix applied in `f32` here, a few ulps).
+const ROOT_TOLERANCE: f32 = 1e-5;
+
+#[test]
+fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let mut app = App::new();
+    app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
+        .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
+    while app.plugins_state() == PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+
+    let assets = app.world().resource::<AssetServer>().clone();
+    let (graph, walk) = AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(1).from_asset(FOX)));
+    let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
+    let groom = HairGroom {
+        scalp: Scalp { centre: Vec3::new(0.0, 0.04, -0.08), semi_axes: Vec3::new(0.055, 0.05, 0.085), ..default() },
+        strand_count: 100,
+        followers_per_guide: 2,
+        segments: 12,
+        style: HairStyle::Short,
+        ..default()
+    };
+    let fox = app
+        .world_mut()
+        .spawn((
+            WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(FOX))),
+            Transform::from_scale(Vec3::splat(0.01)),
+            HairOnCharacter::new("b_Head_05", CharacterHair::Groom(groom)).with_head_axes(Vec3::X, Vec3::Y),
+        ))
+        .id();
+
+    // Loaded (on the asset server's threads), spawned, the hair attached and grown.
+    let mut head = None;
+    for _ in 0..2000 {
+        app.update();
+        if let Some(HairOnCharacterStatus::Attached { head: joint }) = app.world().get::<HairOnCharacterStatus>(fox)
+            && app.world().get::<HeadStrands>(*joint).is_some_and(|strands| !strands.strands().is_empty())
+        {
+            head = Some(*joint);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let head = head.expect("the fox loaded and its hair grew within 2 000 frames");
+    assert_eq!(app.world().get::<Name>(head).map(Name::as_str), Some("b_Head_05"));
+    let scale = app.world().get::<GlobalTransform>(head).unwrap().to_scale_rotation_translation().0;
+    assert!((scale - Vec3::splat(0.01)).abs().max_element() < 1e-6, "the head joint is scaled {scale}");
+
+    // The walk, on the scene's animation player.
+    let mut players = app.world_mut().query_filtered::<Entity, With<AnimationPlayer>>();
+    let player = players.iter(app.world()).find(|&entity| {
+        std::iter::successors(Some(entity), |&entity| app.world().get::<ChildOf>(entity).map(ChildOf::parent))
+            .any(|ancestor| ancestor == fox)
+    });
+    let player = player.expect("the fox's scene has an animation player");
+    app.world_mut().entity_mut(player).insert(AnimationGraphHandle(graph));
+    app.world_mut().get_mut::<AnimationPlayer>(player).unwrap().play(walk).repeat();
+
+    let strands = app.world().get::<HeadStrands>(head).unwrap().strands().to_vec();
+    assert_eq!(strands.len(), 100);
+    let first_root = app.world().get::<StrandNodes>(strands[0]).unwrap().positions[0];
+    let (mut worst_root, mut farthest, mut root_travel) = (0.0_f32, 0.0_f32, 0.0_f32);
+    // The joint as the animation and Bevy's propagation left it after an update: where the next update's
+    // fixed step finds it (the animation moves it after the step, in `PostUpdate`).
+    let mut joint = *app.world().get::<GlobalTransform>(head).unwrap();
+    for _ in 0..120 {
+        app.update();
+        for &strand in &strands {
+            assert!(app.world().get::<StrandRejected>(strand).is_none(), "strand {strand} rejected");
+            let spec = app.world().get::<HairStrand>(strand).unwrap();
+            let root = app.world().get::<SimulatedStrand>(strand).unwrap().rod().positions()[0].as_vec3();
+            worst_root = worst_root.max(root.distance(joint.transform_point(spec.nodes[0])));
+            let nodes = &app.world().get::<StrandNodes>(strand).unwrap().positions;
+            farthest = nodes.iter().map(|node| node.distance(joint.translation())).fold(farthest, f32::max);
+        }
+        joint = *app.world().get::<GlobalTransform>(head).unwrap();
+        let root = app.world().get::<StrandNodes>(strands[0]).unwrap().positions[0];
+        root_travel = root_travel.max(root.distance(first_root));
+    }
+    let statistics = app.world().resource::<HairStatistics>();
+    println!(
+        "the fox's walk, 2 s: roots within {worst_root:.1e} m of the head joint's places for them, every node within {farthest:.3} m of the joint, a root travelled up to {root_travel:.2} m, {} faults",
+        statistics.faults
+    );
+    assert!(worst_root <= ROOT_TOLERANCE, "a root is {worst_root} m from its place on the head joint");
+    assert!(root_travel > 0.01, "the walk moved the head {root_travel} m: the clip did not play");
+    // Short hair on a head 17 cm long: within 30 cm of the joint (in centimetres it would be metres away).
+    assert!(farthest < 0.3, "hair {farthest} m from the head joint");
+    assert_eq!(statistics.faults, 0);
+}
