@@ -11,7 +11,7 @@
 //! ```
 //!
 //! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at 0.3 of its size),
-//! `--animate sway|still`, and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
+//! `--animate sway|still`, `--view front|back`, and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
 //! then a PNG, then exit). Press C to show the colliders.
 
 use std::f32::consts::{FRAC_PI_2, TAU};
@@ -58,6 +58,8 @@ fn main() {
 struct Options {
     groom: Groom,
     animate: bool,
+    /// Whether the camera looks at the face (true) or the back of the head.
+    front: bool,
     screenshot: Option<String>,
     frames: u32,
 }
@@ -70,11 +72,10 @@ enum Groom {
 }
 
 impl Options {
-    const USAGE: &str =
-        "usage: character [--groom straight|curly|ratboy] [--animate sway|still] [--screenshot PATH] [--frames N]";
+    const USAGE: &str = "usage: character [--groom straight|curly|ratboy] [--animate sway|still] [--view front|back] [--screenshot PATH] [--frames N]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut options = Self { groom: Groom::Straight, animate: true, screenshot: None, frames: 240 };
+        let mut options = Self { groom: Groom::Straight, animate: true, front: true, screenshot: None, frames: 240 };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             match (flag.as_str(), value.as_str()) {
@@ -83,6 +84,8 @@ impl Options {
                 ("--groom", "ratboy") => options.groom = Groom::Ratboy,
                 ("--animate", "sway") => options.animate = true,
                 ("--animate", "still") => options.animate = false,
+                ("--view", "front") => options.front = true,
+                ("--view", "back") => options.front = false,
                 ("--screenshot", path) => options.screenshot = Some(path.to_owned()),
                 ("--frames", count) => {
                     options.frames = count.parse().map_err(|_| format!("--frames needs a count, got {count}"))?
@@ -211,10 +214,9 @@ fn spawn_character(
         DirectionalLight { illuminance: 8000.0, shadow_maps_enabled: true, ..default() },
         Transform::from_xyz(1.0, 3.0, -2.0).looking_at(Vec3::new(0.0, 1.5, 0.0), Vec3::Y),
     ));
-    commands.spawn((
-        Camera3d::default(),
-        Transform::from_xyz(0.55, 1.72, -0.62).looking_at(Vec3::new(0.0, 1.55, 0.0), Vec3::Y),
-    ));
+    let eye = if options.front { Vec3::new(0.55, 1.72, -0.62) } else { Vec3::new(-0.45, 1.75, 0.7) };
+    commands
+        .spawn((Camera3d::default(), Transform::from_translation(eye).looking_at(Vec3::new(0.0, 1.55, 0.0), Vec3::Y)));
 }
 
 /// `mesh` with joint indices (neck 0, head 1) and weights: `head(position)` for the head, the rest the

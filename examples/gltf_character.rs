@@ -9,7 +9,7 @@
 //! cargo run --release --features examples --example gltf_character -- --clip walk
 //! ```
 //!
-//! Options: `--clip survey|walk|run` (the fox's clips), and picture mode `--screenshot PATH --frames N`
+//! Options: `--clip survey|walk|run` (the fox's clips), `--view front|back`, and picture mode `--screenshot PATH --frames N`
 //! (N frames of exactly 1/60 s, then a PNG, then exit). Press C to show the colliders.
 //!
 //! The fox: CC0 model by PixelMannen, rigging and animation by @tomkranis (CC-BY 4.0), glTF conversion by
@@ -61,21 +61,26 @@ fn main() {
 struct Options {
     /// Which of the fox's clips plays: 0 survey, 1 walk, 2 run.
     clip: usize,
+    /// Whether the camera looks at the fox's face (true) or from behind.
+    front: bool,
     screenshot: Option<String>,
     frames: u32,
 }
 
 impl Options {
-    const USAGE: &str = "usage: gltf_character [--clip survey|walk|run] [--screenshot PATH] [--frames N]";
+    const USAGE: &str =
+        "usage: gltf_character [--clip survey|walk|run] [--view front|back] [--screenshot PATH] [--frames N]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut options = Self { clip: 1, screenshot: None, frames: 240 };
+        let mut options = Self { clip: 1, front: true, screenshot: None, frames: 240 };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             match (flag.as_str(), value.as_str()) {
                 ("--clip", "survey") => options.clip = 0,
                 ("--clip", "walk") => options.clip = 1,
                 ("--clip", "run") => options.clip = 2,
+                ("--view", "front") => options.front = true,
+                ("--view", "back") => options.front = false,
                 ("--screenshot", path) => options.screenshot = Some(path.to_owned()),
                 ("--frames", count) => {
                     options.frames = count.parse().map_err(|_| format!("--frames needs a count, got {count}"))?
@@ -95,13 +100,18 @@ struct ClipToPlay {
 }
 
 /// The fox's mane: short hair combed back over the crown and down the neck, in metres along the groom's
-/// axes (the face `−Z`, the crown `+Y`). The skull ellipsoid sits 8 cm in front of the head joint (which is
-/// at the back of the fox's skull) and 4 cm above it.
+/// axes (the face `−Z`, the crown `+Y`). The skull is read off the model: an ellipsoid around the fox's
+/// low-poly cranium, 9.5 cm in front of the head joint (which sits at the back of the skull) and 4.5 cm
+/// above it, 17 cm across, 20 cm tall and 23 cm long, its top a centimetre above the head's top facets (a
+/// smooth skull inside flat facets would hide the hair under them). (`HairOnCharacter::with_scalp_fitted_to_head`
+/// fits the skull to the head's skinned vertices instead, which suits a head that is mostly skull; the
+/// fox's head vertices take in its snout and ears, and the skull fitted to them is 24 × 34 × 32 cm: the hair
+/// then sits on a dome above its head, as a wig would.)
 fn fox_mane() -> HairGroom {
     HairGroom {
         scalp: Scalp {
-            centre: Vec3::new(0.0, 0.04, -0.08),
-            semi_axes: Vec3::new(0.055, 0.05, 0.085),
+            centre: Vec3::new(0.0, 0.045, -0.095),
+            semi_axes: Vec3::new(0.085, 0.1, 0.115),
             nape_height: -0.1,
             brow_height: 0.55,
         },
@@ -154,13 +164,14 @@ fn play_clip_when_ready(
 /// A camera on the fox's head, a floor and a sun.
 fn spawn_stage(
     mut commands: Commands,
+    options: Res<Options>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
 ) {
-    commands.spawn((
-        Camera3d::default(),
-        Transform::from_xyz(0.9, 0.85, 1.0).looking_at(Vec3::new(0.0, 0.45, 0.1), Vec3::Y),
-    ));
+    // The fox faces +Z; its head is about 0.6 m up and 0.4 m forward.
+    let eye = if options.front { Vec3::new(0.45, 0.8, 1.1) } else { Vec3::new(-0.45, 1.05, -0.55) };
+    commands
+        .spawn((Camera3d::default(), Transform::from_translation(eye).looking_at(Vec3::new(0.0, 0.6, 0.4), Vec3::Y)));
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(20.0, 20.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.3, 0.4, 0.3))),

@@ -98,7 +98,7 @@ impl GroomFrame {
     }
 
     /// The head-local point `local` in this frame, m.
-    pub fn to_frame(&self, local: Vec3) -> Vec3 {
+    pub fn point_in_frame(self, local: Vec3) -> Vec3 {
         self.rotation.inverse() * (self.scale * local)
     }
 
@@ -106,7 +106,7 @@ impl GroomFrame {
     pub fn surface_of(&self, surface: Option<&GroomSurface>) -> Result<Option<GroomSurface>, GroomError> {
         Ok(match surface {
             Some(GroomSurface::Ready(shape)) if !self.is_identity() => {
-                Some(GroomSurface::Ready(Arc::new(shape.mapped(|position| self.to_frame(position))?)))
+                Some(GroomSurface::Ready(Arc::new(shape.mapped(|position| self.point_in_frame(position))?)))
             }
             _ => surface.cloned(),
         })

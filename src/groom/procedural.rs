@@ -55,6 +55,46 @@ pub struct ScalpRoot {
 }
 
 impl Scalp {
+    /// This scalp's hairline on the skull ellipsoid fitted to `points` (m, along the groom's axes: a head's
+    /// vertices): the axis-aligned ellipsoid `A x² + B y² + C z² + D x + E y + F z = 1` nearest them by
+    /// least squares (the algebraic fit: exact for points on an ellipsoid, whether they cover it or only
+    /// its top, as a scalp does). Fails, naming why, with fewer than 9 points or points that no such
+    /// ellipsoid fits (a plane, a saddle).
+    pub fn fitted_to(&self, points: &[Vec3]) -> Result<Self, GroomError> {
+        let unfit = |reason: &'static str| GroomError::ScalpFit { points: points.len(), reason };
+        if points.len() < 9 {
+            return Err(unfit("fewer than 9 points"));
+        }
+        // Centred and scaled to about unit size first, for the normal equations' conditioning.
+        let mean = points.iter().map(|point| point.as_dvec3()).sum::<bevy::math::DVec3>() / points.len() as f64;
+        let spread = points.iter().map(|point| (point.as_dvec3() - mean).length()).fold(0.0, f64::max);
+        if !(spread.is_finite() && spread > 0.0) {
+            return Err(unfit("the points are not finite and distinct"));
+        }
+        let mut normal = [[0.0_f64; 6]; 6];
+        let mut right = [0.0_f64; 6];
+        for point in points {
+            let p = (point.as_dvec3() - mean) / spread;
+            let row = [p.x * p.x, p.y * p.y, p.z * p.z, p.x, p.y, p.z];
+            for i in 0..6 {
+                right[i] += row[i];
+                for j in 0..6 {
+                    normal[i][j] += row[i] * row[j];
+                }
+            }
+        }
+        let [a, b, c, d, e, f] = solve_symmetric(normal, right).ok_or_else(|| unfit("they fit no quadric"))?;
+        if !(a > 0.0 && b > 0.0 && c > 0.0) {
+            return Err(unfit("they fit no ellipsoid"));
+        }
+        let centre = bevy::math::DVec3::new(-d / (2.0 * a), -e / (2.0 * b), -f / (2.0 * c));
+        let level = 1.0 + a * centre.x * centre.x + b * centre.y * centre.y + c * centre.z * centre.z;
+        let semi_axes = bevy::math::DVec3::new((level / a).sqrt(), (level / b).sqrt(), (level / c).sqrt()) * spread;
+        let fitted = Self { centre: (mean + centre * spread).as_vec3(), semi_axes: semi_axes.as_vec3(), ..*self };
+        fitted.validate().map_err(|_| unfit("they fit no ellipsoid"))?;
+        Ok(fitted)
+    }
+
     /// `count` roots spread evenly over the scalp: the points of a golden-angle spiral over the whole
     /// skull that fall inside the hairline, with the spiral's length chosen so that at least `count` do
     /// (the few extra are dropped evenly along the spiral). Fails if the hairline leaves less than 0.1 %
@@ -428,7 +468,8 @@ impl HairGroom {
         // Grown along the design's axes, then turned onto the head's.
         let frame = GroomFrame { rotation: self.head_axes.rotation()?, scale: 1.0 };
         if !frame.is_identity() {
-            let surface = surface.map(|surface| surface.mapped(|position| frame.to_frame(position))).transpose()?;
+            let surface =
+                surface.map(|surface| surface.mapped(|position| frame.point_in_frame(position))).transpose()?;
             let designed = Self { head_axes: HeadAxes::default(), ..self.clone() };
             let mut grown =
                 designed.grow_with_followers_around(surface.as_ref(), &obstacles.seen_turned_by(frame.rotation))?;
@@ -828,6 +869,30 @@ impl CombedPath<'_> {
     }
 }
 
+/// The solution of the symmetric positive definite system `matrix · x = right` (Cholesky), if the matrix is
+/// positive definite.
+fn solve_symmetric(mut matrix: [[f64; 6]; 6], right: [f64; 6]) -> Option<[f64; 6]> {
+    let scale = (0..6).map(|i| matrix[i][i]).fold(0.0, f64::max);
+    for j in 0..6 {
+        let pivot = matrix[j][j] - (0..j).map(|k| matrix[j][k] * matrix[j][k]).sum::<f64>();
+        if pivot.is_nan() || pivot <= 1e-14 * scale {
+            return None;
+        }
+        matrix[j][j] = pivot.sqrt();
+        for i in j + 1..6 {
+            matrix[i][j] = (matrix[i][j] - (0..j).map(|k| matrix[i][k] * matrix[j][k]).sum::<f64>()) / matrix[j][j];
+        }
+    }
+    let mut x = right;
+    for i in 0..6 {
+        x[i] = (x[i] - (0..i).map(|k| matrix[i][k] * x[k]).sum::<f64>()) / matrix[i][i];
+    }
+    for i in (0..6).rev() {
+        x[i] = (x[i] - (i + 1..6).map(|k| matrix[k][i] * x[k]).sum::<f64>()) / matrix[i][i];
+    }
+    Some(x)
+}
+
 /// `segments + 1` points at arc lengths `0, edge, 2 edge, …` along the polyline `path`, continued along
 /// its last direction where the path ends short.
 fn resample(path: &[Vec3], edge: f32, segments: usize) -> Vec<Vec3> {
@@ -960,6 +1025,14 @@ pub enum GroomError {
         value: f64,
         /// What it must satisfy.
         requirement: &'static str,
+    },
+    /// No skull ellipsoid fits a head's points ([`Scalp::fitted_to`]).
+    #[error("no skull ellipsoid fits the head's {points} points: {reason}")]
+    ScalpFit {
+        /// How many points were given.
+        points: usize,
+        /// Why none fits.
+        reason: &'static str,
     },
     /// A head's [`HeadAxes`](super::HeadAxes) do not make a frame.
     #[error(
@@ -1103,6 +1176,32 @@ pub(super) fn grow_groomed_hair(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_skull_is_fitted_to_points_on_its_top_alone() {
+        let skull = Scalp { centre: Vec3::new(0.01, 0.04, -0.07), semi_axes: Vec3::new(0.07, 0.085, 0.1), ..default() };
+        // Points over the top half of the ellipsoid only, as a scalp or a head's upper vertices lie.
+        let points: Vec<Vec3> = (0..400)
+            .map(|index| {
+                let height = index as f32 / 400.0;
+                let around = index as f32 * 2.399_963;
+                let ring = (1.0 - height * height).sqrt();
+                skull.centre + skull.semi_axes * Vec3::new(ring * around.cos(), height, ring * around.sin())
+            })
+            .collect();
+        let fitted = Scalp::default().fitted_to(&points).unwrap();
+        assert!(fitted.centre.distance(skull.centre) < 1e-5, "{}", fitted.centre);
+        assert!((fitted.semi_axes - skull.semi_axes).abs().max_element() < 1e-5, "{}", fitted.semi_axes);
+        assert_eq!(
+            (fitted.nape_height, fitted.brow_height),
+            (Scalp::default().nape_height, Scalp::default().brow_height)
+        );
+        // A plane fits no ellipsoid, and too few points none at all: errors, not NaN.
+        let flat: Vec<Vec3> =
+            (0..20).map(|index| Vec3::new(index as f32 * 0.01, 0.0, (index % 4) as f32 * 0.01)).collect();
+        assert!(matches!(Scalp::default().fitted_to(&flat), Err(GroomError::ScalpFit { .. })));
+        assert!(matches!(Scalp::default().fitted_to(&points[..5]), Err(GroomError::ScalpFit { .. })));
+    }
 
     #[test]
     fn a_path_cut_short_is_resampled_into_edges_of_one_length() {

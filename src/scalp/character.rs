@@ -1,8 +1,10 @@
 //! Hair put on a character by the names in its scene: [`HairOnCharacter`].
 
 use bevy::math::Affine3A;
+use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
+use bevy::transform::helper::TransformHelper;
 
 use super::HairScalpMesh;
 use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSettings};
@@ -56,6 +58,12 @@ pub struct HairOnCharacter {
     pub collider_meshes: Vec<String>,
     /// The hair put on the joint.
     pub hair: CharacterHair,
+    /// Whether a procedural groom's [`Scalp`](crate::groom::Scalp) ellipsoid is fitted to the head's skinned
+    /// vertices (those the head joint weighs at least half) before it grows ([`Scalp::fitted_to`]), its
+    /// hairline kept: the skull found on the rig, not measured by hand. Default `false`: the groom's own.
+    ///
+    /// [`Scalp::fitted_to`]: crate::groom::Scalp::fitted_to
+    pub fit_scalp: bool,
 }
 
 /// The hair [`HairOnCharacter`] puts on a character's head joint.
@@ -91,7 +99,7 @@ pub enum HairOnCharacterStatus {
 impl HairOnCharacter {
     /// Hair `hair` on the joint named `head_joint`, following the joint, with no colliders.
     pub fn new(head_joint: impl Into<String>, hair: CharacterHair) -> Self {
-        Self { head_joint: head_joint.into(), scalp_mesh: None, collider_meshes: Vec::new(), hair }
+        Self { head_joint: head_joint.into(), scalp_mesh: None, collider_meshes: Vec::new(), hair, fit_scalp: false }
     }
 
     /// The roots bound to the mesh named `name`.
@@ -110,6 +118,13 @@ impl HairOnCharacter {
         self
     }
 
+    /// A procedural groom's skull ellipsoid fitted to the head's skinned vertices
+    /// ([`HairOnCharacter::fit_scalp`]).
+    pub fn with_scalp_fitted_to_head(mut self) -> Self {
+        self.fit_scalp = true;
+        self
+    }
+
     /// Colliders baked from the meshes of these names.
     pub fn with_collider_meshes(mut self, names: impl IntoIterator<Item = impl Into<String>>) -> Self {
         self.collider_meshes = names.into_iter().map(Into::into).collect();
@@ -121,6 +136,7 @@ impl HairOnCharacter {
 const FRAMES_BEFORE_WARNING: u32 = 600;
 
 /// Attaches waiting [`HairOnCharacter`]s whose names are all found.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn attach_hair_to_characters(
     mut commands: Commands,
     mut characters: Query<(Entity, &HairOnCharacter, Option<&mut HairOnCharacterStatus>)>,
@@ -128,6 +144,8 @@ pub(crate) fn attach_hair_to_characters(
     names: Query<&Name>,
     meshes: Query<(&Mesh3d, Option<&SkinnedMesh>)>,
     bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
+    mesh_assets: Option<Res<Assets<Mesh>>>,
+    transforms: TransformHelper,
 ) {
     for (root, character, status) in &mut characters {
         if matches!(status.as_deref(), Some(HairOnCharacterStatus::Attached { .. })) {
@@ -155,12 +173,25 @@ pub(crate) fn attach_hair_to_characters(
         let scalp = character.scalp_mesh.as_deref().map(|name| (name, mesh_named(name)));
         let colliders: Vec<(&str, Option<Entity>)> =
             character.collider_meshes.iter().map(|name| (name.as_str(), mesh_named(name))).collect();
-        let missing: Vec<String> = std::iter::once((character.head_joint.as_str(), head))
+        let mut missing: Vec<String> = std::iter::once((character.head_joint.as_str(), head))
             .chain(scalp)
             .chain(colliders.iter().copied())
             .filter(|(_, found)| found.is_none())
             .map(|(name, _)| name.to_owned())
             .collect();
+        // The head's skinned vertices, to fit the skull to, once their meshes have loaded.
+        let fitting = character.fit_scalp && matches!(character.hair, CharacterHair::Groom(_));
+        let fit_to = head.filter(|_| fitting).and_then(|head| {
+            let skins = children.iter_descendants(root).filter_map(|entity| match meshes.get(entity) {
+                Ok((mesh, Some(skin))) => Some((mesh, skin)),
+                _ => None,
+            });
+            let vertices = head_vertices(head, skins, mesh_assets.as_deref(), bindposes.as_deref());
+            if vertices.is_none() {
+                missing.push(format!("{} (its skinned meshes, loading)", character.head_joint));
+            }
+            vertices
+        });
         let Some(head) = head.filter(|_| missing.is_empty()) else {
             let frames = match status.as_deref() {
                 Some(HairOnCharacterStatus::Waiting { frames, .. }) => frames + 1,
@@ -178,12 +209,33 @@ pub(crate) fn attach_hair_to_characters(
             }
             continue;
         };
+        let mut hair = character.hair.clone();
+        if let (Some(vertices), CharacterHair::Groom(groom)) = (fit_to, &mut hair) {
+            // In metres along the groom's axes (the joint's scale as it is now, propagated or not).
+            let scale = transforms
+                .compute_global_transform(head)
+                .map_or(1.0, |transform| transform.to_scale_rotation_translation().0.element_sum() / 3.0);
+            let to_design = groom.head_axes.rotation().unwrap_or(Quat::IDENTITY).inverse();
+            let points: Vec<Vec3> = vertices.iter().map(|&vertex| to_design * (vertex * scale)).collect();
+            match groom.scalp.fitted_to(&points) {
+                Ok(fitted) => {
+                    info!(
+                        "hair on character {root}: the skull fitted to {} head vertices: centre {} m, semi-axes {} m",
+                        points.len(),
+                        fitted.centre,
+                        fitted.semi_axes
+                    );
+                    groom.scalp = fitted;
+                }
+                Err(error) => error!("hair on character {root}: its groom keeps its own scalp, as {error}"),
+            }
+        }
         let mut joint = commands.entity(head);
         joint.insert(HairHead);
         if let Some((_, Some(scalp))) = scalp {
             joint.insert(HairScalpMesh(scalp));
         }
-        match &character.hair {
+        match &hair {
             CharacterHair::Groom(groom) => {
                 joint.insert(groom.clone());
             }
@@ -224,4 +276,44 @@ pub(crate) fn attach_hair_to_characters(
         }
         commands.entity(root).insert(HairOnCharacterStatus::Attached { head });
     }
+}
+
+/// The vertices of the skinned meshes `skins` that the joint `head` weighs at least half, in the joint's
+/// local space (through its inverse bind pose); `None` while a mesh or its bind poses have not loaded.
+fn head_vertices<'a>(
+    head: Entity,
+    skins: impl Iterator<Item = (&'a Mesh3d, &'a SkinnedMesh)>,
+    meshes: Option<&Assets<Mesh>>,
+    bindposes: Option<&Assets<SkinnedMeshInverseBindposes>>,
+) -> Option<Vec<Vec3>> {
+    let mut vertices = Vec::new();
+    for (mesh, skin) in skins {
+        let Some(joint) = skin.joints.iter().position(|&joint| joint == head) else { continue };
+        let mesh = meshes?.get(&mesh.0)?;
+        let to_joint = *bindposes?.get(&skin.inverse_bindposes)?.get(joint)?;
+        let (
+            Some(VertexAttributeValues::Float32x3(positions)),
+            Some(indices),
+            Some(VertexAttributeValues::Float32x4(weights)),
+        ) = (
+            mesh.attribute(Mesh::ATTRIBUTE_POSITION),
+            mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX),
+            mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+        )
+        else {
+            continue;
+        };
+        let indices: Vec<[u16; 4]> = match indices {
+            VertexAttributeValues::Uint16x4(indices) => indices.clone(),
+            VertexAttributeValues::Uint8x4(indices) => indices.iter().map(|index| index.map(u16::from)).collect(),
+            _ => continue,
+        };
+        for ((position, index), weight) in positions.iter().zip(&indices).zip(weights) {
+            let on_head: f32 = (0..4).filter(|&k| usize::from(index[k]) == joint).map(|k| weight[k]).sum();
+            if on_head >= 0.5 {
+                vertices.push(to_joint.transform_point3(Vec3::from_array(*position)));
+            }
+        }
+    }
+    Some(vertices)
 }

@@ -330,3 +330,74 @@ fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
     assert!(collider.shape.contains(DVec3::new(0.0, -0.05, -0.1)));
     assert!(!collider.shape.contains(DVec3::new(0.0, -0.05, -0.05)));
 }
+
+#[test]
+fn a_character_s_skull_is_fitted_to_its_head_vertices_in_metres_along_its_own_axes() {
+    let mut app = app_with_assets();
+    // A rig modelled in centimetres, spawned at 0.01. Its head joint's +X is the face's direction and its
+    // +Y the crown's (as the fox's); the head mesh, skinned wholly to it, is an ellipsoid 14 cm wide
+    // (joint z), 17 cm tall (joint y) and 20 cm deep (joint x), centred 8 cm in front of the joint and 4 cm
+    // above it; the neck's vertices are the neck joint's.
+    let character = app
+        .world_mut()
+        .spawn((
+            Transform::from_scale(Vec3::splat(0.01)),
+            HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom { strand_count: 30, ..default() }))
+                .with_head_axes(Vec3::X, Vec3::Y)
+                .with_scalp_fitted_to_head(),
+        ))
+        .id();
+    let neck_pose = Transform::from_xyz(0.0, 150.0, 0.0);
+    let head_pose = Transform::from_xyz(0.0, 12.0, 0.0).with_rotation(Quat::from_rotation_y(0.4));
+    let world = app.world_mut();
+    let neck = world.spawn((neck_pose, Name::new("Neck"), ChildOf(character))).id();
+    let head = world.spawn((head_pose, Name::new("Head"), ChildOf(neck))).id();
+    let bind_head = neck_pose.to_matrix() * head_pose.to_matrix();
+    let inverse_bindposes = world
+        .resource_mut::<Assets<SkinnedMeshInverseBindposes>>()
+        .add(vec![neck_pose.to_matrix().inverse(), bind_head.inverse()]);
+    // In the joint's space (cm): semi-axes 10 along x (depth), 8.5 along y (height), 7 along z (width).
+    let skull =
+        Sphere::new(1.0).mesh().uv(48, 32).scaled_by(Vec3::new(10.0, 8.5, 7.0)).translated_by(Vec3::new(8.0, 4.0, 0.0));
+    let neck_ball = Sphere::new(5.0).mesh().ico(3).unwrap().translated_by(Vec3::new(0.0, -10.0, 0.0));
+    let (skull_count, neck_count) = (skull.count_vertices(), neck_ball.count_vertices());
+    let mut head_mesh = skull.transformed_by(Transform::from_matrix(bind_head));
+    head_mesh.merge(&neck_ball.transformed_by(Transform::from_matrix(bind_head))).unwrap();
+    let indices: Vec<[u16; 4]> =
+        std::iter::repeat_n([1, 0, 0, 0], skull_count).chain(std::iter::repeat_n([0, 1, 0, 0], neck_count)).collect();
+    let head_mesh = head_mesh
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(indices))
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; skull_count + neck_count]);
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(head_mesh);
+    world.spawn((
+        Name::new("Body"),
+        Mesh3d(mesh),
+        SkinnedMesh { inverse_bindposes, joints: vec![neck, head] },
+        Transform::default(),
+        ChildOf(character),
+    ));
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(app.world().get::<HairOnCharacterStatus>(character), Some(&HairOnCharacterStatus::Attached { head }));
+    let scalp = app.world().get::<HairGroom>(head).expect("the groom on the head joint").scalp;
+    // In metres along the groom's axes (x left to right, y up, z back): the joint's z, y and −x.
+    println!("fitted skull: centre {} m, semi-axes {} m", scalp.centre, scalp.semi_axes);
+    assert!(scalp.centre.distance(Vec3::new(0.0, 0.04, -0.08)) < 1e-5, "centre {}", scalp.centre);
+    assert!((scalp.semi_axes - Vec3::new(0.07, 0.085, 0.1)).abs().max_element() < 1e-5, "{}", scalp.semi_axes);
+    // The groom grew on it: every root on the fitted skull, placed through the rig's scale.
+    let strands = app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+    assert_eq!(strands.len(), 30);
+    let joint = *app.world().get::<GlobalTransform>(head).unwrap();
+    for strand in strands {
+        let root = strand_root(&app, strand);
+        let local = joint.rotation().inverse() * (root - joint.translation()) / 0.01; // joint space, cm
+        let on_skull = ((local - Vec3::new(8.0, 4.0, 0.0)) / Vec3::new(10.0, 8.5, 7.0)).length();
+        assert!((on_skull - 1.0).abs() < 1e-3, "a root at {on_skull} of the skull's radius");
+    }
+}
+
+/// A strand's root, world space, m.
+fn strand_root(app: &App, entity: Entity) -> Vec3 {
+    strand(app, entity).rod().positions()[0].as_vec3()
+}
