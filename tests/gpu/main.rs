@@ -30,3 +30,36 @@ fn headless_renderer() -> PluginGroupBuilder {
         })
         .disable::<PipelinedRenderingPlugin>()
 }
+
+/// Reads the buffer `buffer` back frame after frame (one `app.update()` each) until `done` accepts what
+/// arrived or `frames` frames have passed; returns the last read-back, if any arrived.
+fn read_back_until(
+    app: &mut App,
+    buffer: Handle<bevy::render::storage::ShaderBuffer>,
+    frames: usize,
+    mut done: impl FnMut(&[f32]) -> bool,
+) -> Option<Vec<f32>> {
+    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+    let received: std::sync::Arc<std::sync::Mutex<Option<Vec<f32>>>> = default();
+    let sink = received.clone();
+    let reader = app
+        .world_mut()
+        .spawn(Readback::buffer(buffer))
+        .observe(move |event: On<ReadbackComplete>| {
+            *sink.lock().unwrap() = Some(event.to_shader_type());
+        })
+        .id();
+    let mut last = None;
+    for _ in 0..frames {
+        app.update();
+        if let Some(values) = received.lock().unwrap().take() {
+            let finished = done(&values);
+            last = Some(values);
+            if finished {
+                break;
+            }
+        }
+    }
+    app.world_mut().despawn(reader);
+    last
+}

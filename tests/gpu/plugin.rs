@@ -4,12 +4,9 @@
 //! back into the components. Checked against the same app stepped on the CPU, and the drawn nodes
 //! against the read-back components.
 
-use std::sync::{Arc, Mutex};
-
 use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
-use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
@@ -337,34 +334,15 @@ fn drawn_expected(app: &App, head: Entity, margin: f32, pose: Transform) -> Vec<
 fn compare_drawn(app: &mut App, expected: &[f32]) -> (f32, usize) {
     let mut meshes = app.world_mut().query::<&HairMesh>();
     let buffer = meshes.single(app.world()).unwrap().positions_buffer().clone();
-    let received: Arc<Mutex<Option<Vec<f32>>>> = Arc::default();
-    let sink = received.clone();
-    let reader = app
-        .world_mut()
-        .spawn(Readback::buffer(buffer))
-        .observe(move |event: On<ReadbackComplete>| {
-            *sink.lock().unwrap() = Some(event.to_shader_type());
-        })
-        .id();
-    let mut result = None;
-    for _ in 0..60 {
-        app.update();
-        if let Some(drawn) = received.lock().unwrap().take() {
-            assert!(drawn.len() >= expected.len(), "{} floats drawn, {} expected", drawn.len(), expected.len());
-            let difference = |node: usize| {
-                let at = |values: &[f32]| Vec3::from_slice(&values[3 * node..3 * node + 3]);
-                at(&drawn).distance(at(expected))
-            };
-            result = Some(
-                (0..expected.len() / 3)
-                    .map(|node| (difference(node), node))
-                    .fold((0.0, 0), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a }),
-            );
-            break;
-        }
-    }
-    app.world_mut().despawn(reader);
-    result.expect("the drawn nodes were read back")
+    let drawn = crate::read_back_until(app, buffer, 60, |_| true).expect("the drawn nodes were read back");
+    assert!(drawn.len() >= expected.len(), "{} floats drawn, {} expected", drawn.len(), expected.len());
+    let difference = |node: usize| {
+        let at = |values: &[f32]| Vec3::from_slice(&values[3 * node..3 * node + 3]);
+        at(&drawn).distance(at(expected))
+    };
+    (0..expected.len() / 3)
+        .map(|node| (difference(node), node))
+        .fold((0.0, 0), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a })
 }
 
 /// Each guide's RMS distance (m) from its groomed places carried with the head, over every node of every

@@ -3,12 +3,10 @@
 //! is spawned at a scale of 0.01 (and one at 100): the drawn nodes, read back from the GPU, are the
 //! strands' nodes and their followers', and every follower's root is on the head where its curve puts it.
 
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use bevy::app::PluginsState;
 use bevy::prelude::*;
-use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::FollowerPlacement;
 use bevy_hair_sim::prelude::*;
@@ -145,29 +143,12 @@ fn read_back_drawn(app: &mut App, expected: &[Vec3]) -> Vec<Vec3> {
     let (scale, _, _) = transform.to_scale_rotation_translation();
     assert!((scale - Vec3::ONE).abs().max_element() < 1e-5, "the hair mesh is drawn scaled by {scale}");
     let buffer = hair_mesh.positions_buffer().clone();
-    let received: Arc<Mutex<Option<Vec<f32>>>> = Arc::default();
-    let sink = received.clone();
-    let reader = app
-        .world_mut()
-        .spawn(Readback::buffer(buffer))
-        .observe(move |event: On<ReadbackComplete>| {
-            *sink.lock().unwrap() = Some(event.to_shader_type());
-        })
-        .id();
-    let mut drawn = None;
-    for _ in 0..120 {
-        app.update();
-        if let Some(values) = received.lock().unwrap().take() {
-            let nodes: Vec<Vec3> = values.chunks_exact(3).map(Vec3::from_slice).collect();
-            let matched = nodes.len() >= expected.len() && largest_difference(&nodes, expected).0 <= DRAWN_TOLERANCE;
-            drawn = Some(nodes);
-            if matched {
-                break;
-            }
-        }
-    }
-    app.world_mut().despawn(reader);
-    drawn.expect("the drawn nodes were read back")
+    let nodes = |values: &[f32]| -> Vec<Vec3> { values.chunks_exact(3).map(Vec3::from_slice).collect() };
+    let drawn = crate::read_back_until(app, buffer, 120, |values| {
+        let drawn = nodes(values);
+        drawn.len() >= expected.len() && largest_difference(&drawn, expected).0 <= DRAWN_TOLERANCE
+    });
+    nodes(&drawn.expect("the drawn nodes were read back"))
 }
 
 /// The largest distance (m) between a drawn node and the expected one, and its node.
