@@ -7,7 +7,6 @@
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use bevy::app::PluginsState;
 use bevy::core_pipeline::prepass::MotionVectorPrepass;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
@@ -39,12 +38,7 @@ fn rendering_app() -> App {
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
         .insert_resource(Time::<Fixed>::from_seconds(DT))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
-    // The renderer finds its adapter asynchronously, as `App::run` waits for it.
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    crate::finish_adding_plugins(&mut app);
     app.update();
     app
 }
@@ -165,33 +159,18 @@ fn compare_drawn_halfway(app: &mut App) -> (f32, usize, usize) {
     assert_eq!(layout.len(), 150);
     assert!(followers >= 600, "{followers} followers");
 
-    let received = ReadBack::default();
-    let sink = received.clone();
-    let reader = app
-        .world_mut()
-        .spawn(Readback::buffer(buffer))
-        .observe(move |event: On<ReadbackComplete>| {
-            *sink.0.lock().unwrap() = Some(event.to_shader_type());
-        })
-        .id();
     let mut worst = (f32::INFINITY, 0);
-    for _ in 0..120 {
-        app.update();
-        let Some(drawn) = received.0.lock().unwrap().take() else { continue };
+    crate::read_back_until(app, buffer, 120, |drawn| {
         assert!(drawn.len() >= expected.positions().len(), "{} floats read back", drawn.len());
         let difference = |node: usize| {
             let at = |values: &[f32]| Vec3::from_slice(&values[3 * node..3 * node + 3]);
-            at(&drawn).distance(at(expected.positions()))
+            at(drawn).distance(at(expected.positions()))
         };
-        let (largest, node) = (0..expected.node_count())
+        worst = (0..expected.node_count())
             .map(|node| (difference(node), node))
             .fold((0.0, 0), |a, b| if b.0 > a.0 { b } else { a });
-        worst = (largest, node);
-        if largest <= 1e-5 {
-            break;
-        }
-    }
-    app.world_mut().despawn(reader);
+        worst.0 <= 1e-5
+    });
     assert!(worst.0.is_finite(), "no read-back arrived from the GPU in 120 frames");
     (worst.0, worst.1, expected.node_count())
 }

@@ -5,7 +5,6 @@
 
 use std::time::Duration;
 
-use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::prelude::*;
@@ -26,11 +25,7 @@ fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
         .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
         .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    crate::finish_adding_plugins(&mut app);
 
     let assets = app.world().resource::<AssetServer>().clone();
     let (graph, walk) = AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(1).from_asset(FOX)));

@@ -63,3 +63,13 @@ fn read_back_until(
     app.world_mut().despawn(reader);
     last
 }
+
+/// Finishes adding `app`'s plugins as `App::run` does: waits for the renderer to find its adapter
+/// (asynchronously), then finishes and cleans up the plugins.
+fn finish_adding_plugins(app: &mut App) {
+    while app.plugins_state() == bevy::app::PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+}

@@ -4,7 +4,6 @@
 //! back into the components. Checked against the same app stepped on the CPU, and the drawn nodes
 //! against the read-back components.
 
-use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::time::TimeUpdateStrategy;
@@ -51,11 +50,7 @@ fn app(gpu: bool) -> App {
         .insert_resource(HairWind { velocity: Vec3::new(1.5, 0.0, 0.5), ..default() })
         // The comparisons read the components: read back after every step (off by default).
         .insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..default() });
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    crate::finish_adding_plugins(&mut app);
     app.update();
     app
 }

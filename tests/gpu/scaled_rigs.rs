@@ -5,7 +5,6 @@
 
 use std::time::Duration;
 
-use bevy::app::PluginsState;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::FollowerPlacement;
@@ -43,11 +42,7 @@ fn app(path: DrawPath) -> App {
             .insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..default() });
     }
     app.insert_resource(Time::<Fixed>::from_seconds(DT)).insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
-    while app.plugins_state() == PluginsState::Adding {
-        bevy::tasks::tick_global_task_pools_on_main_thread();
-    }
-    app.finish();
-    app.cleanup();
+    crate::finish_adding_plugins(&mut app);
     app.update();
     app
 }
