@@ -137,13 +137,7 @@ fn followers_placed_on_the_gpu_match_the_cpu_placement() {
 fn compare_drawn_halfway(app: &mut App) -> (f32, usize, usize) {
     // On to half a step past the last step, without a step (the drawing interpolates halfway), then time
     // stands still.
-    let fixed = app.world().resource::<Time<Fixed>>();
-    let to_halfway = (fixed.timestep() / 2).saturating_sub(fixed.overstep());
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(to_halfway));
-    app.update();
-    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
-    let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
-    assert!((alpha - 0.5).abs() < 1e-3, "drawn halfway between steps: {alpha}");
+    let alpha = crate::stop_halfway_between_steps(app);
 
     // What the CPU would draw: its placement, interpolated as `HairStrips` writes it.
     let mut meshes = app.world_mut().query::<&HairMesh>();

@@ -73,3 +73,29 @@ fn finish_adding_plugins(app: &mut App) {
     app.finish();
     app.cleanup();
 }
+
+/// Runs one update half a step past the last fixed step, with no step (the drawing interpolates halfway),
+/// then stops the clock; returns the interpolation's fraction (checked to be a half).
+fn stop_halfway_between_steps(app: &mut App) -> f32 {
+    use bevy::time::TimeUpdateStrategy;
+    let fixed = app.world().resource::<Time<Fixed>>();
+    let to_halfway = (fixed.timestep() / 2).saturating_sub(fixed.overstep());
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(to_halfway));
+    app.update();
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(std::time::Duration::ZERO));
+    let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
+    assert!((alpha - 0.5).abs() < 1e-3, "drawn halfway between steps: {alpha}");
+    alpha
+}
+
+/// Where the GPU draws node `node` of a follower with rest offset `offset` on a guide of nodes `x` and
+/// frames `frames`: `x_g + o_t t + o_1 m1 + o_2 m2` in the frame of the guide's edge arriving at the node
+/// (the root edge's at the root), `m1` taken across the drawn edge.
+fn follower_node(x: &[Vec3], frames: &bevy_hair_sim::simulation::StrandFrames, node: usize, offset: Vec3) -> Vec3 {
+    let edge = node.saturating_sub(1);
+    let t = (x[edge + 1] - x[edge]).normalize();
+    let m1 = frames.material_frame(edge).unwrap().m1;
+    let m1 = (m1 - m1.dot(t) * t).normalize();
+    let m2 = t.cross(m1);
+    x[node] + offset.x * t + offset.y * m1 + offset.z * m2
+}

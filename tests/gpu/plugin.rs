@@ -307,12 +307,7 @@ fn drawn_expected(app: &App, head: Entity, margin: f32, pose: Transform) -> Vec<
         assert_eq!(guide.followers as usize, followers.count());
         for follower in followers.rest_offsets().chunks_exact(x.len()) {
             for (node, offset) in follower.iter().enumerate() {
-                let edge = node.saturating_sub(1);
-                let t = (x[edge + 1] - x[edge]).normalize();
-                let m1 = frames.material_frame(edge).unwrap().m1;
-                let m1 = (m1 - m1.dot(t) * t).normalize();
-                let m2 = t.cross(m1);
-                let mut p = x[node] + offset.x * t + offset.y * m1 + offset.z * m2;
+                let mut p = crate::follower_node(x, frames, node, *offset);
                 let away = p - pose.translation;
                 if node >= 2 && away.length() < SKULL + thickness {
                     p = pose.translation + away.normalize() * (SKULL + thickness);

@@ -3,8 +3,6 @@
 //! is spawned at a scale of 0.01 (and one at 100): the drawn nodes, read back from the GPU, are the
 //! strands' nodes and their followers', and every follower's root is on the head where its curve puts it.
 
-use std::time::Duration;
-
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::followers::FollowerPlacement;
@@ -81,12 +79,7 @@ fn drawn_from_components(app: &App) -> Vec<Vec3> {
         assert_eq!(guide.followers as usize, followers.count());
         for follower in followers.rest_offsets().chunks_exact(x.len()) {
             for (node, offset) in follower.iter().enumerate() {
-                let edge = node.saturating_sub(1);
-                let t = (x[edge + 1] - x[edge]).normalize();
-                let m1 = frames.material_frame(edge).unwrap().m1;
-                let m1 = (m1 - m1.dot(t) * t).normalize();
-                let m2 = t.cross(m1);
-                drawn.push(x[node] + offset.x * t + offset.y * m1 + offset.z * m2);
+                drawn.push(crate::follower_node(x, frames, node, *offset));
             }
         }
     }
@@ -184,13 +177,7 @@ fn hair_on_a_scaled_rig_is_drawn_where_it_is_simulated_on_every_draw_path() {
                 (expected.clone(), expected)
             } else {
                 // Half a step on without a step, then time stands still: drawn halfway between the steps.
-                let fixed = app.world().resource::<Time<Fixed>>();
-                let to_halfway = (fixed.timestep() / 2).saturating_sub(fixed.overstep());
-                app.insert_resource(TimeUpdateStrategy::ManualDuration(to_halfway));
-                app.update();
-                app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::ZERO));
-                let alpha = app.world().resource::<Time<Fixed>>().overstep_fraction();
-                assert!((alpha - 0.5).abs() < 1e-3, "drawn halfway between steps: {alpha}");
+                let alpha = crate::stop_halfway_between_steps(&mut app);
                 (drawn_interpolated(&app, alpha), drawn_interpolated(&app, 1.0))
             };
             // Where the last step placed the followers' roots: where the head puts them.
