@@ -144,3 +144,30 @@ const ROUNDING_TOLERANCE: f32 = 1e-5;
 /// from its own state rounded to `f32` drifts by millimetres in two seconds, `tests/gpu/plugin.rs`). The
 /// wrong scale moves hair by the rig's units for metres (metres at 0.01, hundredths of its size at 100).
 const SHAKEN_TOLERANCE: f32 = 2e-3;
+
+#[test]
+fn a_head_scaled_unevenly_is_told_once_and_its_hair_grown_at_the_mean_scale() {
+    let _log = hair_sim_support::logs::serial();
+    let mut app = hair_app();
+    // Half as wide as it is tall and deep: hair keeps its shape as a head turns, so it cannot follow.
+    let scale = Vec3::new(0.005, 0.01, 0.01);
+    let groom = HairGroom { strand_count: 20, segments: 8, combing: None, ..default() };
+    let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0).with_scale(scale))).id();
+    for _ in 0..5 {
+        app.update();
+    }
+    let lines = hair_sim_support::logs::take();
+    let told: Vec<_> = lines.iter().filter(|(_, line)| line.contains("differs between its axes")).collect();
+    assert_eq!(told.len(), 1, "told once: {lines:?}");
+    assert!(told[0].1.contains(&head.to_string()), "{told:?}");
+    // Grown at the mean scale (0.00833): roots on the default 10 cm skull in metres, placed through the
+    // head's own scale, so within the skull scaled by the axes' ratios to the mean.
+    let strands = app.world().get::<HeadStrands>(head).expect("the hair grew").strands().to_vec();
+    assert_eq!(strands.len(), 20);
+    let mean = scale.element_sum() / 3.0;
+    for strand in strands {
+        let root = app.world().get::<StrandNodes>(strand).unwrap().positions[0] - Vec3::new(0.0, 1.6, 0.0);
+        let on_skull = (root / (0.1 * scale / mean)).length();
+        assert!((on_skull - 1.0).abs() < 1e-4, "a root at {on_skull} of the scaled skull");
+    }
+}
