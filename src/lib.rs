@@ -433,7 +433,9 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::render::{HairMesh, HairRenderPlugin};
     pub use crate::rod::RodMaterial;
-    pub use crate::scalp::{CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin};
+    pub use crate::scalp::{
+        CharacterHair, HairOnCharacter, HairOnCharacterStatus, HairScalpMesh, HairScalpPlugin, ScalpWhereHeadSkins,
+    };
     pub use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
     pub use crate::simulation::{
         HairHead, HairPause, HairSettings, HairSimulationPlugin, HairStatistics, HairStrand, HairStyleHold,

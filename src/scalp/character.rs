@@ -6,7 +6,7 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use super::HairScalpMesh;
+use super::{HairScalpMesh, ScalpWhereHeadSkins};
 use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSettings};
 use crate::groom::{HairGroom, HairGroomFile, HeadAxes};
 use crate::simulation::HairHead;
@@ -64,6 +64,9 @@ pub struct HairOnCharacter {
     ///
     /// [`Scalp::fitted_to`]: crate::groom::Scalp::fitted_to
     pub fit_scalp: bool,
+    /// Whether the scalp mesh grows hair where the head joint skins it ([`ScalpWhereHeadSkins`]) rather than
+    /// by its painted density: for a character that is one skinned mesh. Default `false`.
+    pub scalp_where_head_skins: bool,
 }
 
 /// The hair [`HairOnCharacter`] puts on a character's head joint.
@@ -99,7 +102,14 @@ pub enum HairOnCharacterStatus {
 impl HairOnCharacter {
     /// Hair `hair` on the joint named `head_joint`, following the joint, with no colliders.
     pub fn new(head_joint: impl Into<String>, hair: CharacterHair) -> Self {
-        Self { head_joint: head_joint.into(), scalp_mesh: None, collider_meshes: Vec::new(), hair, fit_scalp: false }
+        Self {
+            head_joint: head_joint.into(),
+            scalp_mesh: None,
+            collider_meshes: Vec::new(),
+            hair,
+            fit_scalp: false,
+            scalp_where_head_skins: false,
+        }
     }
 
     /// The roots bound to the mesh named `name`.
@@ -115,6 +125,15 @@ impl HairOnCharacter {
         if let CharacterHair::Groom(groom) = &mut self.hair {
             groom.head_axes = HeadAxes::new(forward, up);
         }
+        self
+    }
+
+    /// Hair grown on the mesh named `name` where the head joint skins it (its weight for the head as the
+    /// density; [`ScalpWhereHeadSkins`]), its roots bound to it: the head's own triangles as its scalp, on
+    /// a character that is one skinned mesh with no painted density.
+    pub fn with_scalp_where_head_skins(mut self, name: impl Into<String>) -> Self {
+        self.scalp_mesh = Some(name.into());
+        self.scalp_where_head_skins = true;
         self
     }
 
@@ -234,6 +253,9 @@ pub(crate) fn attach_hair_to_characters(
         joint.insert(HairHead);
         if let Some((_, Some(scalp))) = scalp {
             joint.insert(HairScalpMesh(scalp));
+            if character.scalp_where_head_skins {
+                joint.insert(ScalpWhereHeadSkins);
+            }
         }
         match &hair {
             CharacterHair::Groom(groom) => {

@@ -61,6 +61,15 @@ use crate::simulation::{HairStrand, HeadMotion, SimulatedStrand, StrandOf};
 #[require(ScalpPose, GroomSurface)]
 pub struct HairScalpMesh(pub Entity);
 
+/// On a [`HairHead`](crate::simulation::HairHead) with a [`HairScalpMesh`]: hair grows on the scalp mesh
+/// where the head joint skins it, each vertex's density its weight for the head (see
+/// [`ScalpSurface`]), instead of the density painted in the mesh's vertex
+/// colours. For a character that is one skinned mesh from head to tail: the head's own triangles become
+/// its scalp. [`HairOnCharacter::with_scalp_where_head_skins`] puts it on.
+#[derive(Component, Reflect, Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[reflect(Component, Debug, Default, PartialEq, Clone)]
+pub struct ScalpWhereHeadSkins;
+
 /// Where a strand's root is bound on its head's scalp mesh; added by the plugin.
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, PartialEq, Clone)]
@@ -165,6 +174,7 @@ impl Plugin for HairScalpPlugin {
             .register_type::<ScalpRootBinding>()
             .register_type::<HairOnCharacter>()
             .register_type::<HairOnCharacterStatus>()
+            .register_type::<ScalpWhereHeadSkins>()
             .add_systems(
                 self.schedule,
                 (pose_scalps, bind_roots, follow_scalps).chain().in_set(HairPinSystems::FollowScalp),
@@ -258,6 +268,7 @@ type SurfaceHeads<'w, 's> = Query<
         &'static mut ScalpPose,
         Option<Ref<'static, HairGroom>>,
         Option<Ref<'static, HairGroomFile>>,
+        Has<ScalpWhereHeadSkins>,
     ),
 >;
 
@@ -272,7 +283,7 @@ fn shape_groom_surfaces(
     bindposes: Option<Res<Assets<SkinnedMeshInverseBindposes>>>,
     mut heads: SurfaceHeads,
 ) {
-    for (head, scalp, mut surface, mut pose, groom, file) in &mut heads {
+    for (head, scalp, mut surface, mut pose, groom, file, where_head_skins) in &mut heads {
         // A new scalp may do what the last could not: its problems are said anew (this runs first of
         // the scalp's systems in a step).
         if scalp.is_changed() && pose.mesh_problem.is_some() {
@@ -301,7 +312,13 @@ fn shape_groom_surfaces(
                 let mesh = meshes.as_ref().and_then(|meshes| meshes.get(&mesh3d.0)).ok_or(None)?;
                 let posed = PosedScalp::new(mesh, skinned, &joints).map_err(Some)?;
                 let positions = posed.posed.iter().map(|position| position.as_vec3()).collect();
-                let shaped = ScalpSurface::new(positions, posed.triangles).and_then(|shaped| shaped.painted_by(mesh));
+                let head_weights = where_head_skins
+                    .then(|| scalp_meshes.get(scalp.0).ok().and_then(|(_, skin)| joint_weights(mesh, skin?, head)))
+                    .flatten();
+                let shaped = ScalpSurface::new(positions, posed.triangles).and_then(|shaped| match head_weights {
+                    Some(weights) => shaped.with_density(weights),
+                    None => shaped.painted_by(mesh),
+                });
                 shaped.map_err(|error| Some(error.into()))
             });
         match shaped {
@@ -318,6 +335,24 @@ fn shape_groom_surfaces(
             }
         }
     }
+}
+
+/// Each vertex's weight for the joint `joint` in `mesh` skinned by `skin`, 0 to 1; `None` if the skin does
+/// not name the joint or the mesh has no weights.
+fn joint_weights(mesh: &Mesh, skin: &SkinnedMesh, joint: Entity) -> Option<Vec<f32>> {
+    let index = skin.joints.iter().position(|&entity| entity == joint)?;
+    let indices: Vec<[u16; 4]> = match mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_INDEX).ok()? {
+        VertexAttributeValues::Uint16x4(indices) => indices.clone(),
+        VertexAttributeValues::Uint8x4(indices) => indices.iter().map(|index| index.map(u16::from)).collect(),
+        _ => return None,
+    };
+    let VertexAttributeValues::Float32x4(weights) = mesh.try_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT).ok()? else {
+        return None;
+    };
+    let weight = |(joints, weights): (&[u16; 4], &[f32; 4])| {
+        (0..4).filter(|&k| usize::from(joints[k]) == index).map(|k| weights[k]).sum::<f32>().clamp(0.0, 1.0)
+    };
+    Some(indices.iter().zip(weights).map(weight).collect())
 }
 
 /// Records `problem` on the head's scalp in `slot`, logging it when it is new.

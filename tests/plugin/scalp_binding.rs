@@ -331,70 +331,107 @@ fn hair_on_a_character_finds_its_head_scalp_and_face_by_name() {
     assert!(!collider.shape.contains(DVec3::new(0.0, -0.05, -0.05)));
 }
 
-#[test]
-fn a_character_s_skull_is_fitted_to_its_head_vertices_in_metres_along_its_own_axes() {
-    let mut app = app_with_assets();
-    // A rig modelled in centimetres, spawned at 0.01. Its head joint's +X is the face's direction and its
-    // +Y the crown's (as the fox's); the head mesh, skinned wholly to it, is an ellipsoid 14 cm wide
-    // (joint z), 17 cm tall (joint y) and 20 cm deep (joint x), centred 8 cm in front of the joint and 4 cm
-    // above it; the neck's vertices are the neck joint's.
-    let character = app
-        .world_mut()
-        .spawn((
-            Transform::from_scale(Vec3::splat(0.01)),
-            HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom { strand_count: 30, ..default() }))
-                .with_head_axes(Vec3::X, Vec3::Y)
-                .with_scalp_fitted_to_head(),
-        ))
-        .id();
+/// A rig modelled in centimetres, spawned at 0.01, with `character` on its root. Its head joint's +X is the
+/// face's direction and its +Y the crown's (as the fox's); its one mesh, "Body", is a head ellipsoid 14 cm
+/// wide (joint z), 17 cm tall (joint y) and 20 cm deep (joint x), centred 8 cm in front of the joint and
+/// 4 cm above it and skinned wholly to it, and a neck ball below skinned to the neck. Returns the root and
+/// the head joint.
+fn centimetre_rig(app: &mut App, character: HairOnCharacter) -> (Entity, Entity) {
+    let root = app.world_mut().spawn((Transform::from_scale(Vec3::splat(0.01)), character)).id();
     let neck_pose = Transform::from_xyz(0.0, 150.0, 0.0);
     let head_pose = Transform::from_xyz(0.0, 12.0, 0.0).with_rotation(Quat::from_rotation_y(0.4));
     let world = app.world_mut();
-    let neck = world.spawn((neck_pose, Name::new("Neck"), ChildOf(character))).id();
+    let neck = world.spawn((neck_pose, Name::new("Neck"), ChildOf(root))).id();
     let head = world.spawn((head_pose, Name::new("Head"), ChildOf(neck))).id();
     let bind_head = neck_pose.to_matrix() * head_pose.to_matrix();
     let inverse_bindposes = world
         .resource_mut::<Assets<SkinnedMeshInverseBindposes>>()
         .add(vec![neck_pose.to_matrix().inverse(), bind_head.inverse()]);
-    // In the joint's space (cm): semi-axes 10 along x (depth), 8.5 along y (height), 7 along z (width).
-    let skull =
-        Sphere::new(1.0).mesh().uv(48, 32).scaled_by(Vec3::new(10.0, 8.5, 7.0)).translated_by(Vec3::new(8.0, 4.0, 0.0));
+    let skull = Sphere::new(1.0).mesh().uv(48, 32).scaled_by(SKULL_CM).translated_by(SKULL_CENTRE_CM);
     let neck_ball = Sphere::new(5.0).mesh().ico(3).unwrap().translated_by(Vec3::new(0.0, -10.0, 0.0));
     let (skull_count, neck_count) = (skull.count_vertices(), neck_ball.count_vertices());
-    let mut head_mesh = skull.transformed_by(Transform::from_matrix(bind_head));
-    head_mesh.merge(&neck_ball.transformed_by(Transform::from_matrix(bind_head))).unwrap();
+    let mut body = skull.transformed_by(Transform::from_matrix(bind_head));
+    body.merge(&neck_ball.transformed_by(Transform::from_matrix(bind_head))).unwrap();
     let indices: Vec<[u16; 4]> =
         std::iter::repeat_n([1, 0, 0, 0], skull_count).chain(std::iter::repeat_n([0, 1, 0, 0], neck_count)).collect();
-    let head_mesh = head_mesh
+    let body = body
         .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(indices))
         .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; skull_count + neck_count]);
-    let mesh = world.resource_mut::<Assets<Mesh>>().add(head_mesh);
+    let mesh = world.resource_mut::<Assets<Mesh>>().add(body);
     world.spawn((
         Name::new("Body"),
         Mesh3d(mesh),
         SkinnedMesh { inverse_bindposes, joints: vec![neck, head] },
         Transform::default(),
-        ChildOf(character),
+        ChildOf(root),
     ));
+    (root, head)
+}
+
+/// The centimetre rig's skull in its head joint's space, cm: semi-axes 10 along x (depth), 8.5 along y
+/// (height), 7 along z (width), and its centre.
+const SKULL_CM: Vec3 = Vec3::new(10.0, 8.5, 7.0);
+const SKULL_CENTRE_CM: Vec3 = Vec3::new(8.0, 4.0, 0.0);
+
+/// Each strand root of `head` on the centimetre rig, in its head joint's space, cm, as a multiple of the
+/// skull's radius there (1 on the skull).
+fn roots_on_the_skull(app: &App, head: Entity) -> Vec<f32> {
+    let joint = *app.world().get::<GlobalTransform>(head).unwrap();
+    let strands = app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
+    strands
+        .into_iter()
+        .map(|strand| {
+            let local = joint.rotation().inverse() * (strand_root(app, strand) - joint.translation()) / 0.01;
+            ((local - SKULL_CENTRE_CM) / SKULL_CM).length()
+        })
+        .collect()
+}
+
+#[test]
+fn a_character_s_skull_is_fitted_to_its_head_vertices_in_metres_along_its_own_axes() {
+    let mut app = app_with_assets();
+    let character = HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom { strand_count: 30, ..default() }))
+        .with_head_axes(Vec3::X, Vec3::Y)
+        .with_scalp_fitted_to_head();
+    let (root, head) = centimetre_rig(&mut app, character);
     for _ in 0..5 {
         app.update();
     }
-    assert_eq!(app.world().get::<HairOnCharacterStatus>(character), Some(&HairOnCharacterStatus::Attached { head }));
+    assert_eq!(app.world().get::<HairOnCharacterStatus>(root), Some(&HairOnCharacterStatus::Attached { head }));
     let scalp = app.world().get::<HairGroom>(head).expect("the groom on the head joint").scalp;
     // In metres along the groom's axes (x left to right, y up, z back): the joint's z, y and −x.
     println!("fitted skull: centre {} m, semi-axes {} m", scalp.centre, scalp.semi_axes);
     assert!(scalp.centre.distance(Vec3::new(0.0, 0.04, -0.08)) < 1e-5, "centre {}", scalp.centre);
     assert!((scalp.semi_axes - Vec3::new(0.07, 0.085, 0.1)).abs().max_element() < 1e-5, "{}", scalp.semi_axes);
     // The groom grew on it: every root on the fitted skull, placed through the rig's scale.
-    let strands = app.world().get::<HeadStrands>(head).expect("the groom grew").strands().to_vec();
-    assert_eq!(strands.len(), 30);
-    let joint = *app.world().get::<GlobalTransform>(head).unwrap();
-    for strand in strands {
-        let root = strand_root(&app, strand);
-        let local = joint.rotation().inverse() * (root - joint.translation()) / 0.01; // joint space, cm
-        let on_skull = ((local - Vec3::new(8.0, 4.0, 0.0)) / Vec3::new(10.0, 8.5, 7.0)).length();
-        assert!((on_skull - 1.0).abs() < 1e-3, "a root at {on_skull} of the skull's radius");
+    let roots = roots_on_the_skull(&app, head);
+    assert_eq!(roots.len(), 30);
+    assert!(roots.iter().all(|on_skull| (on_skull - 1.0).abs() < 1e-3), "{roots:?}");
+}
+
+#[test]
+fn a_character_of_one_skinned_mesh_grows_hair_where_its_head_joint_skins_it() {
+    let mut app = app_with_assets();
+    let groom = HairGroom { strand_count: 40, ..default() };
+    let character = HairOnCharacter::new("Head", CharacterHair::Groom(groom))
+        .with_head_axes(Vec3::X, Vec3::Y)
+        .with_scalp_where_head_skins("Body")
+        .with_scalp_fitted_to_head();
+    let (_, head) = centimetre_rig(&mut app, character);
+    for _ in 0..10 {
+        app.update();
     }
+    assert_eq!(app.world().get::<ScalpWhereHeadSkins>(head), Some(&ScalpWhereHeadSkins));
+    // Every root on the head's triangles, none on the neck ball the same mesh holds: on the skull's mesh, a
+    // UV sphere of 48 segments and 32 rings, whose flat quads lie inside the ellipsoid by up to
+    // 1 − cos(π/48) cos(π/64) = 0.33 % of its radius at their centres, and never outside it.
+    let roots = roots_on_the_skull(&app, head);
+    let (lowest, highest) = roots.iter().fold((f32::INFINITY, 0.0_f32), |(low, high), &on| (low.min(on), high.max(on)));
+    println!("{} roots, at {lowest:.4} to {highest:.4} of the skull's radius", roots.len());
+    assert!(roots.len() >= 40, "{} roots", roots.len());
+    assert!(lowest > 1.0 - 3.4e-3 && highest < 1.0 + 1e-5, "{roots:?}");
+    let strands = app.world().get::<HeadStrands>(head).unwrap().strands().to_vec();
+    assert!(strands.iter().all(|&strand| app.world().get::<ScalpRootBinding>(strand).is_some()), "every root bound");
 }
 
 /// A strand's root, world space, m.
