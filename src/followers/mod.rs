@@ -164,11 +164,10 @@ impl FollowerNodes {
         previous.iter().zip(current).map(move |(a, b)| a.lerp(*b, alpha))
     }
 
-    /// Binds `followers` to the guide `spec` at rest: each node's offset in the guide's rest material
-    /// frames, gathered towards the tip by its clumping and moved across the guide by its scatter.
-    /// Binds `followers` to the guide `spec` on a head of scale `head_scale` (each follower's root offset from
-    /// the guide's scaled with the head, as the roots are: a [`HairStrand`]'s root is head-local, its shape
-    /// from the root in metres).
+    /// Binds `followers` to the guide `spec` at rest, on a head of scale `head_scale`: each node's offset in
+    /// the guide's rest material frames, gathered towards the tip by its clumping and moved across the
+    /// guide by its scatter. The follower's root offset from the guide's is scaled with the head, as the
+    /// roots are (a [`HairStrand`]'s root is head-local, its shape from the root in metres).
     fn bind(
         &mut self,
         spec: &HairStrand,
@@ -204,17 +203,13 @@ impl FollowerNodes {
             let clumping = (clumping * (1.0 + variation * (2.0 * clump_draw - 1.0))).min(1.0);
             let amplitude = f64::from(scatter) * amplitude_draw;
             let (angle, turn) = (TAU * angle_draw, PI * (2.0 * turn_draw - 1.0));
-            // The follower's root from the guide's in metres.
-            let roots_apart = (curve[0].as_dvec3() - local[0]) * head_scale;
+            // The roots' head-local offset taken to metres: `(s − 1)(f_0 − g_0)` more (exactly nothing at a
+            // scale of 1).
+            let roots_scaled = (curve[0].as_dvec3() - local[0]) * (head_scale - DVec3::ONE);
             for (node, point) in curve.iter().enumerate() {
                 let frame = rod.material_frame(node.saturating_sub(1));
                 let s = node as f64 / (nodes - 1) as f64;
-                let apart = if head_scale == DVec3::ONE {
-                    point.as_dvec3() - local[node]
-                } else {
-                    (point.as_dvec3() - curve[0].as_dvec3()) - (local[node] - local[0]) + roots_apart
-                };
-                let offset = (1.0 - clumping * s) * apart;
+                let offset = (1.0 - clumping * s) * (point.as_dvec3() - local[node] + roots_scaled);
                 let (sin, cos) = (angle + turn * s).sin_cos();
                 let strayed = amplitude * s * s;
                 self.offsets.push(

@@ -24,7 +24,7 @@ use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 use thiserror::Error;
 
-use super::head_frame::{GroomFrame, HeadAxes};
+use super::head_frame::GroomFrame;
 use super::procedural::{GroomError, MAX_GROOM_SEGMENTS};
 use super::surface::{GroomSurface, ScalpSurface};
 use crate::followers::HairFollowers;
@@ -812,7 +812,7 @@ fn place_groom_files(
             continue;
         }
         // Placed in metres on a scaled head (its scale taken out), then given to it.
-        let frame = GroomFrame::of_head(head, HeadAxes::default(), &transforms).unwrap_or_default();
+        let frame = GroomFrame::of_head(head, &transforms);
         let scaled_surface = match frame.surface_of(surface.as_deref()) {
             Ok(scaled) => scaled,
             Err(error) => {

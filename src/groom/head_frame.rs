@@ -62,34 +62,36 @@ pub(crate) struct GroomFrame {
     pub scale: f32,
 }
 
-impl Default for GroomFrame {
-    fn default() -> Self {
-        Self { rotation: Quat::IDENTITY, scale: 1.0 }
-    }
-}
-
 /// How far a head's scale may differ between its axes (relative) and still be taken as uniform.
 const UNIFORM_SCALE_TOLERANCE: f32 = 1e-3;
 
 impl GroomFrame {
-    /// The frame of `head` as it is placed now, with `axes`. A scale that differs between the head's axes
-    /// cannot be honoured (hair would stretch as the head turns): it is reported, and the hair grown at
-    /// the mean scale. A head with no usable transform yet is taken unscaled (its strands wait for it).
-    pub fn of_head(head: Entity, axes: HeadAxes, transforms: &TransformHelper) -> Result<Self, GroomError> {
-        let rotation = axes.rotation()?;
+    /// The frame of `head` as it is placed now: its scale taken out ([`GroomFrame::head_scale`]), its axes
+    /// left to the groom ([`HeadAxes`]). A scale that differs between the head's axes cannot be honoured
+    /// (hair would stretch as the head turns): it is reported, and the hair grown at the mean scale.
+    pub fn of_head(head: Entity, transforms: &TransformHelper) -> Self {
+        let (scale, uneven) = Self::head_scale(head, transforms);
+        if let Some(uneven) = uneven {
+            error!(
+                "hair of head {head}: its scale {uneven} differs between its axes; hair keeps its shape as a head turns, so it is grown at the mean scale {scale}"
+            );
+        }
+        Self { rotation: Quat::IDENTITY, scale }
+    }
+
+    /// `head`'s scale as it is placed now, as one number: the mean of its axes' scales, with the scale
+    /// itself when they differ by more than [`UNIFORM_SCALE_TOLERANCE`]. 1 for a head with no usable
+    /// transform yet (its strands wait for it).
+    pub fn head_scale(head: Entity, transforms: &TransformHelper) -> (f32, Option<Vec3>) {
         let scale = transforms
             .compute_global_transform(head)
             .ok()
             .map(|transform| transform.to_scale_rotation_translation().0)
             .filter(|scale| scale.is_finite() && scale.min_element() > 0.0);
-        let Some(scale) = scale else { return Ok(Self { rotation, scale: 1.0 }) };
+        let Some(scale) = scale else { return (1.0, None) };
         let mean = scale.element_sum() / 3.0;
-        if (scale.max_element() - scale.min_element()) > UNIFORM_SCALE_TOLERANCE * mean {
-            error!(
-                "hair of head {head}: its scale {scale} differs between its axes; hair keeps its shape as a head turns, so it is grown at the mean scale {mean}"
-            );
-        }
-        Ok(Self { rotation, scale: mean })
+        let uneven = scale.max_element() - scale.min_element() > UNIFORM_SCALE_TOLERANCE * mean;
+        (mean, uneven.then_some(scale))
     }
 
     /// Whether this is the head's own space (nothing to turn or scale).

@@ -86,6 +86,7 @@ pub use file::{
     FIBRE_RADIUS_RANGE, FileStrand, GroomFile, GroomFileError, GroomFileLoader, GroomPlacement, HairGroomFile,
     MIN_RELATIVE_STRAND_LENGTH, PlacedGroomFile, PlacedStrands, StrandColors, UpAxis,
 };
+pub(crate) use head_frame::GroomFrame;
 pub use head_frame::HeadAxes;
 pub use procedural::{
     Combing, GroomError, GroomObstacles, GroomedStrand, HAIRLINE_SPARSEST, HAIRLINE_THINNEST, HairGroom, HairStyle,

@@ -1142,7 +1142,7 @@ pub(super) fn grow_groomed_hair(
             continue;
         }
         // Grown in metres on a scaled head (its scale taken out), then given to it.
-        let frame = GroomFrame::of_head(head, HeadAxes::default(), &transforms).unwrap_or_default();
+        let frame = GroomFrame::of_head(head, &transforms);
         let obstacles = GroomObstacles::of_head(head, !frame.is_identity(), &colliders, &shapes, &transforms);
         let grown = frame.surface_of(surface).and_then(|surface| {
             let mut grown =

@@ -6,9 +6,9 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::transform::helper::TransformHelper;
 
-use super::{HairScalpMesh, ScalpWhereHeadSkins};
+use super::{HairScalpMesh, ScalpWhereHeadSkins, joint_weights};
 use crate::collision::{HairColliderFromMesh, HairColliderOf, MeshColliderSettings};
-use crate::groom::{HairGroom, HairGroomFile, HeadAxes};
+use crate::groom::{GroomFrame, HairGroom, HairGroomFile, HeadAxes};
 use crate::simulation::HairHead;
 
 /// Puts hair on a character by the names of its head joint, scalp mesh and collider meshes.
@@ -231,11 +231,11 @@ pub(crate) fn attach_hair_to_characters(
         let mut hair = character.hair.clone();
         if let (Some(vertices), CharacterHair::Groom(groom)) = (fit_to, &mut hair) {
             // In metres along the groom's axes (the joint's scale as it is now, propagated or not).
-            let scale = transforms
-                .compute_global_transform(head)
-                .map_or(1.0, |transform| transform.to_scale_rotation_translation().0.element_sum() / 3.0);
-            let to_design = groom.head_axes.rotation().unwrap_or(Quat::IDENTITY).inverse();
-            let points: Vec<Vec3> = vertices.iter().map(|&vertex| to_design * (vertex * scale)).collect();
+            let frame = GroomFrame {
+                rotation: groom.head_axes.rotation().unwrap_or(Quat::IDENTITY),
+                scale: GroomFrame::head_scale(head, &transforms).0,
+            };
+            let points: Vec<Vec3> = vertices.iter().map(|&vertex| frame.point_in_frame(vertex)).collect();
             match groom.scalp.fitted_to(&points) {
                 Ok(fitted) => {
                     info!(
@@ -313,29 +313,13 @@ fn head_vertices<'a>(
         let Some(joint) = skin.joints.iter().position(|&joint| joint == head) else { continue };
         let mesh = meshes?.get(&mesh.0)?;
         let to_joint = *bindposes?.get(&skin.inverse_bindposes)?.get(joint)?;
-        let (
-            Some(VertexAttributeValues::Float32x3(positions)),
-            Some(indices),
-            Some(VertexAttributeValues::Float32x4(weights)),
-        ) = (
-            mesh.attribute(Mesh::ATTRIBUTE_POSITION),
-            mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX),
-            mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT),
-        )
+        let (Some(VertexAttributeValues::Float32x3(positions)), Some(weights)) =
+            (mesh.attribute(Mesh::ATTRIBUTE_POSITION), joint_weights(mesh, skin, head))
         else {
             continue;
         };
-        let indices: Vec<[u16; 4]> = match indices {
-            VertexAttributeValues::Uint16x4(indices) => indices.clone(),
-            VertexAttributeValues::Uint8x4(indices) => indices.iter().map(|index| index.map(u16::from)).collect(),
-            _ => continue,
-        };
-        for ((position, index), weight) in positions.iter().zip(&indices).zip(weights) {
-            let on_head: f32 = (0..4).filter(|&k| usize::from(index[k]) == joint).map(|k| weight[k]).sum();
-            if on_head >= 0.5 {
-                vertices.push(to_joint.transform_point3(Vec3::from_array(*position)));
-            }
-        }
+        let on_head = positions.iter().zip(weights).filter(|(_, weight)| *weight >= 0.5);
+        vertices.extend(on_head.map(|(position, _)| to_joint.transform_point3(Vec3::from_array(*position))));
     }
     Some(vertices)
 }
