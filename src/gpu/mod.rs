@@ -6,8 +6,9 @@
 //! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
 //! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
 //! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
-//! inextensibility, contact with the head's spheres, capsules, ellipsoids and planes with Coulomb
-//! friction, and the style hold (springs towards each strand's groomed places carried with its head,
+//! inextensibility, contact with the head's colliders of every shape with Coulomb friction (spheres,
+//! capsules, ellipsoids at their closest point, planes, boxes sharp or rounded, and meshes through their
+//! baked distance fields, uploaded once and sampled trilinearly), and the style hold (springs towards each strand's groomed places carried with its head,
 //! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU).
 //!
 //! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns edge `i` and the node
@@ -42,8 +43,14 @@
 //!   stop when no node moved by more than its position's rounding. A dispatch runs until its slowest
 //!   strand is done, so an exit below what `f32` can reach cost every strand beside it.
 //! - *Contact*: springs inside the solve, as on the CPU, then a push-out after it (friction on the slip,
-//!   lengths again), where the CPU re-solves friction inside Newton. Edges dipping into a collider between
-//!   their nodes are the CPU's alone.
+//!   edges dipping in between their nodes pushed out at their deepest point, lengths again), where the CPU
+//!   re-solves friction inside Newton and iterates until the set of touching nodes holds. With two Newton
+//!   iterations and no re-solve, three things keep resting hair at rest: an edge's push moves each node
+//!   along the collider's normal at itself (not along the push, which would slide a contact's end nodes a
+//!   little every step); a node an edge's push left above the surface keeps its spring that far out in the
+//!   next step (it would fall a step's worth and be pushed out again); and contact is inelastic (a pushed
+//!   node keeps no speed away from the surface beyond the surface's own). Where hair rests, it rests within
+//!   a millimetre or a few of the CPU's (`tests/gpu/colliders.rs`).
 //!
 //! **Work counters.** The shader counts each strand's Newton iterations, projection iterations and
 //! sweeps, contact rounds and factorisation retries ([`GpuStrandWork`], [`GpuStrandSolver::read_work`]),
@@ -67,5 +74,5 @@ pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeli
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError,
     GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_meets, headless_device,
+    GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
 };

@@ -12,7 +12,8 @@ use super::gather::{GATHER_WORKGROUP, Gather, GpuGatherTarget};
 use super::pipelines::{bind_whole_buffers, compute_layout, pipeline_of_module};
 
 use crate::rod::{
-    ColliderShape, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory, StepParams,
+    ColliderShape, DistanceField, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory,
+    StepParams,
 };
 
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
@@ -28,7 +29,7 @@ pub const MAX_GPU_NODES: usize = 65;
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 5;
 const HEAD_ROWS: usize = 5;
-const COLLIDER_ROWS: usize = 5;
+const COLLIDER_ROWS: usize = 8;
 const STRAND_FLOATS: usize = 4;
 /// The arc-length fraction written for the nodes of a strand that is not held: past any reach (at most 1).
 const HELD_NOWHERE: f64 = 2.0;
@@ -104,13 +105,14 @@ pub enum GpuStepError {
         /// How many heads were given.
         heads: usize,
     },
-    /// A collider shape the GPU step does not meet (cuboids and meshes: the CPU meets them).
-    #[error("collider {collider} of head {head}: the GPU step meets spheres, capsules, ellipsoids and planes")]
-    UnsupportedCollider {
-        /// The head's index.
-        head: usize,
-        /// The collider's index among the head's.
-        collider: usize,
+    /// The colliders of a step, with their mesh colliders' distance fields, are larger than one storage
+    /// buffer of the device may be (`max_storage_buffer_binding_size`; WebGPU guarantees 128 MiB).
+    #[error("the colliders and their mesh fields take {bytes} bytes, more than the device's {limit} a buffer")]
+    CollidersTooLarge {
+        /// Bytes the colliders and their fields need.
+        bytes: u64,
+        /// The device's limit, bytes.
+        limit: u64,
     },
     /// A head's pose, air or collider is not finite, its rotation not a unit quaternion, or its style hold's
     /// rate negative or not finite or its reach outside 0 to 1.
@@ -381,7 +383,15 @@ pub struct GpuStrandSolver {
     /// Scratch for the per-step uploads.
     head_rows: Vec<[f32; 4]>,
     collider_rows: Vec<[f32; 4]>,
+    /// Colliders the buffer holds rows for; the mesh fields' samples follow them.
     collider_capacity: usize,
+    /// Rows of `vec4` the collider buffer has room for, fields included.
+    collider_buffer_rows: usize,
+    /// The mesh colliders' distance fields whose samples the collider buffer holds, in order, and the row
+    /// where each starts (kept alive, so that a field's address names it while it is there).
+    fields: Vec<(Arc<DistanceField>, usize)>,
+    /// Scratch: the fields of this step's colliders.
+    step_fields: Vec<(Arc<DistanceField>, usize)>,
     /// Read-back buffers the CPU has finished with, for the next read-backs.
     staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
     /// Time spent in wgpu's submissions and polls since [`GpuStrandSolver::take_driver_seconds`], s.
@@ -445,22 +455,29 @@ struct StrandLayout {
     strand_heads: Vec<usize>,
 }
 
-/// Whether the GPU step meets colliders of `shape`: spheres, capsules, ellipsoids and planes (cuboids and
-/// baked meshes are the CPU's alone).
-pub fn gpu_meets(shape: &ColliderShape) -> bool {
-    shape_row(shape).is_some()
-}
-
-/// A collider shape's row in the step's collider buffer (its sizes, and its kind in `w`), if the GPU
-/// meets it.
-fn shape_row(shape: &ColliderShape) -> Option<[f32; 4]> {
-    Some(match *shape {
-        ColliderShape::Sphere { radius } => [radius as f32, 0.0, 0.0, 0.0],
-        ColliderShape::Capsule { radius, half_length } => [radius as f32, half_length as f32, 0.0, 1.0],
-        ColliderShape::Ellipsoid { semi_axes } => vec4(semi_axes, 2.0),
-        ColliderShape::Plane => [0.0, 0.0, 0.0, 3.0],
-        _ => return None,
-    })
+/// A collider shape's rows in the step's collider buffer after its poses (its kind and sizes, and for a
+/// mesh its field's grid), with `field_row` the row where a mesh's field samples start.
+fn shape_rows(shape: &ColliderShape, field_row: usize) -> [[f32; 4]; 4] {
+    // The least radius of curvature, finite for a plane (a large number, which no edge reaches).
+    let curvature = shape.smallest_curvature_radius().min(1e30);
+    let zero = [0.0; 4];
+    let simple = |row: [f32; 4], extra: f64| [row, vec4(DVec3::new(extra, 0.0, 0.0), curvature), zero, zero];
+    match *shape {
+        ColliderShape::Sphere { radius } => simple([radius as f32, 0.0, 0.0, 0.0], 0.0),
+        ColliderShape::Capsule { radius, half_length } => simple([radius as f32, half_length as f32, 0.0, 1.0], 0.0),
+        ColliderShape::Ellipsoid { semi_axes } => simple(vec4(semi_axes, 2.0), 0.0),
+        ColliderShape::Plane => simple([0.0, 0.0, 0.0, 3.0], 0.0),
+        ColliderShape::Cuboid { half_extents, rounding } => simple(vec4(half_extents, 4.0), rounding),
+        ColliderShape::Mesh { ref field, scale, inflation } => {
+            let counts = field.sample_counts().map(|n| f32::from_bits(n as u32));
+            [
+                vec4(scale, 5.0),
+                [inflation as f32, field.cell_size() as f32, f32::from_bits(field_row as u32), curvature as f32],
+                vec4(field.bounds().0, 0.0),
+                [counts[0], counts[1], counts[2], 0.0],
+            ]
+        }
+    }
 }
 
 fn vec4(v: DVec3, w: f64) -> [f32; 4] {
@@ -668,6 +685,9 @@ impl GpuStrandSolver {
             head_rows: Vec::new(),
             collider_rows: Vec::new(),
             collider_capacity,
+            collider_buffer_rows: COLLIDER_ROWS * collider_capacity,
+            fields: Vec::new(),
+            step_fields: Vec::new(),
             staging: Arc::default(),
             driver_seconds: 0.0,
         }
@@ -693,6 +713,93 @@ impl GpuStrandSolver {
     /// Each strand's head (its index among the heads given at upload).
     pub fn strand_heads(&self) -> &[usize] {
         &self.strands.strand_heads
+    }
+
+    /// Writes the colliders of `heads` into the collider buffer (their poses relative to their heads' new
+    /// translations, their shapes), and the samples of their mesh fields after them when the set of fields
+    /// changed; grows the buffer (and binds it again) when they do not fit.
+    fn place_colliders(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        heads: &[GpuHeadStep],
+    ) -> Result<(), GpuStepError> {
+        let collider_count: usize = heads.iter().map(|head| head.colliders.len()).sum();
+        let capacity = self.collider_capacity.max(collider_count.next_power_of_two());
+        // The fields in the order their colliders come, each once, from the row after the colliders'.
+        self.step_fields.clear();
+        let mut row = COLLIDER_ROWS * capacity;
+        for collider in heads.iter().flat_map(|head| &head.colliders) {
+            if let ColliderShape::Mesh { field, .. } = &collider.shape
+                && !self.step_fields.iter().any(|(known, _)| Arc::ptr_eq(known, field))
+            {
+                self.step_fields.push((field.clone(), row));
+                row += field.samples().len().div_ceil(4);
+            }
+        }
+        let bytes = 16 * row as u64;
+        let limit = u64::from(device.limits().max_storage_buffer_binding_size);
+        if bytes > limit {
+            return Err(GpuStepError::CollidersTooLarge { bytes, limit });
+        }
+        let same_fields = self.fields.len() == self.step_fields.len()
+            && self.fields.iter().zip(&self.step_fields).all(|(a, b)| Arc::ptr_eq(&a.0, &b.0) && a.1 == b.1);
+        let grown = row > self.collider_buffer_rows;
+        if grown {
+            self.collider_buffer_rows = row.next_power_of_two();
+            self.colliders = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair colliders"),
+                size: (16 * self.collider_buffer_rows) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.bind_groups = step_bind_groups(
+                device,
+                &self.pipelines,
+                &self.params,
+                [
+                    &self.strand_words,
+                    &self.strand_floats,
+                    &self.rest,
+                    &self.state,
+                    &self.heads,
+                    &self.colliders,
+                    &self.status,
+                    &self.work,
+                ],
+            );
+        }
+        self.collider_capacity = capacity;
+        if grown || !same_fields {
+            for (field, row) in &self.step_fields {
+                queue.write_buffer(&self.colliders, 16 * *row as u64, bytemuck::cast_slice(field.samples()));
+            }
+            std::mem::swap(&mut self.fields, &mut self.step_fields);
+        }
+        self.collider_rows.clear();
+        for head in heads {
+            for collider in &head.colliders {
+                let relative = |translation: DVec3| translation - head.translation;
+                let rotation = |q: DQuat| q.as_quat().to_array();
+                let field_row = match &collider.shape {
+                    ColliderShape::Mesh { field, .. } => {
+                        self.fields.iter().find(|(known, _)| Arc::ptr_eq(known, field)).map_or(0, |(_, row)| *row)
+                    }
+                    _ => 0,
+                };
+                self.collider_rows.extend([
+                    vec4(relative(collider.start.translation), 0.0),
+                    rotation(collider.start.rotation),
+                    vec4(relative(collider.end.translation), collider.friction),
+                    rotation(collider.end.rotation),
+                ]);
+                self.collider_rows.extend(shape_rows(&collider.shape, field_row));
+            }
+        }
+        if !self.collider_rows.is_empty() {
+            queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
+        }
+        Ok(())
     }
 
     /// Records one step of `params.dt` of every strand into `encoder`, with each head moving to its pose in
@@ -729,62 +836,22 @@ impl GpuStrandSolver {
                 return Err(GpuStepError::InvalidHead { head: index });
             }
         }
+        self.place_colliders(device, queue, heads)?;
         self.head_rows.clear();
-        self.collider_rows.clear();
-        for (index, (head, before)) in heads.iter().zip(&self.head_poses).enumerate() {
-            let first = self.collider_rows.len() / COLLIDER_ROWS;
-            for (number, collider) in head.colliders.iter().enumerate() {
-                let shape = shape_row(&collider.shape)
-                    .ok_or(GpuStepError::UnsupportedCollider { head: index, collider: number })?;
-                let relative = |translation: DVec3| translation - head.translation;
-                let rotation = |q: DQuat| q.as_quat().to_array();
-                self.collider_rows.extend([
-                    vec4(relative(collider.start.translation), collider.shape.bounding_radius()),
-                    rotation(collider.start.rotation),
-                    vec4(relative(collider.end.translation), collider.friction),
-                    rotation(collider.end.rotation),
-                    shape,
-                ]);
-            }
+        let mut first = 0;
+        for (head, before) in heads.iter().zip(&self.head_poses) {
             let count = head.colliders.len() as u32;
             self.head_rows.extend([
                 head.rotation.as_quat().to_array(),
                 vec4(before.1 - head.translation, 0.0),
                 vec4(head.air_velocity, 0.0),
-                [f32::from_bits(first as u32), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
+                [f32::from_bits(first), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
                 before.0.as_quat().to_array(),
             ]);
+            first += count;
         }
         for (pose, head) in self.head_poses.iter_mut().zip(heads) {
             *pose = (head.rotation, head.translation);
-        }
-        let collider_count = self.collider_rows.len() / COLLIDER_ROWS;
-        if collider_count > self.collider_capacity {
-            self.collider_capacity = collider_count.next_power_of_two();
-            self.colliders = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hair colliders"),
-                size: (16 * COLLIDER_ROWS * self.collider_capacity) as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            self.bind_groups = step_bind_groups(
-                device,
-                &self.pipelines,
-                &self.params,
-                [
-                    &self.strand_words,
-                    &self.strand_floats,
-                    &self.rest,
-                    &self.state,
-                    &self.heads,
-                    &self.colliders,
-                    &self.status,
-                    &self.work,
-                ],
-            );
-        }
-        if !self.collider_rows.is_empty() {
-            queue.write_buffer(&self.colliders, 0, bytemuck::cast_slice(&self.collider_rows));
         }
         queue.write_buffer(&self.heads, 0, bytemuck::cast_slice(&self.head_rows));
         let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;

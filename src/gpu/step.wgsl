@@ -20,12 +20,14 @@
 //      reduction: one iteration between Newton iterations, after the last until single precision
 //      resolves no better;
 //   4. contact: nodes inside a collider (at its end pose, grown by the strand's thickness) put on its
-//      surface, with Coulomb friction against their slip over the step relative to the collider, then the
-//      lengths again, touching nodes moving only along their surfaces, until no node moves by more than
-//      its position's rounding;
+//      surface, with Coulomb friction against their slip over the step relative to the collider, and
+//      edges dipping in between their nodes pushed out at their deepest point, then the lengths again,
+//      touching nodes moving only along their surfaces, until no node moves by more than its position's
+//      rounding;
 //   5. checks: a strand with a non-finite value or an edge strained past the bound is put back in its rest
 //      pose on its root, at rest, and its status says why;
-//   6. velocities `v = (x − x̂)/h`, twist rates by backward Euler, and the history for the next step.
+//   6. velocities `v = (x − x̂)/h` (a node the contact moved keeping no speed away from the surface beyond
+//      the surface's own), twist rates by backward Euler, and the history for the next step.
 //
 // Every decision that ends a loop (a pivot, the projection's error, a contact round) is taken from a
 // value all lanes read after a barrier (a reduction over the lanes, a pivot in workgroup memory), so the
@@ -82,10 +84,13 @@ const STRAND_FLOATS: u32 = 4u;
 // velocity, 0), (first collider, colliders as bits, the style hold's rate in 1/s and its reach), (rotation
 // at the step's start).
 const HEAD_ROWS: u32 = 5u;
-// Per collider: (centre at the start, relative to its head's new translation; bounding radius),
-// (rotation at the start), (centre at the end; friction), (rotation at the end), (shape: sphere
-// (r, 0, 0, 0), capsule (r, half length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3)).
-const COLLIDER_ROWS: u32 = 5u;
+// Per collider: (centre at the start, relative to its head's new translation; 0), (rotation at the start),
+// (centre at the end; friction), (rotation at the end), (shape: sphere (r, 0, 0, 0), capsule (r, half
+// length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3), box (half extents, 4), mesh (its field's
+// scale, 5)), (a box's rounding or a mesh's inflation, m; a mesh field's cell, m; the row its samples start
+// at, as bits; the shape's least radius of curvature, m), (a mesh field's first sample's position, 0),
+// (its samples along X, Y, Z, as bits; 0). Mesh fields' samples follow the colliders, four a row.
+const COLLIDER_ROWS: u32 = 8u;
 
 // Lanes per workgroup, one strand each, and so the most edges a strand may have: 32 or 64, set when the
 // pipeline is built (`STEP_LANES` in `step.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
@@ -187,6 +192,16 @@ var<private> x_carried: vec3<f32>;
 var<private> start_tangent: vec3<f32>;
 var<private> normal: vec3<f32>;
 var<private> spring: f32;
+// Whether the contact after the solve moved this lane's node this step, and the speed of the collider's
+// surface there along `normal` (m/s), for the velocity's inelastic contact.
+var<private> pushed: bool;
+var<private> surface_speed: f32;
+// How far above its collider's surface pushing out an edge left this lane's node in the last step, m (kept
+// in the `w` of its state's fourth row; 0 where it did not); whether an edge's push moved it in this one,
+// and the collider that did.
+var<private> lifted_before: f32;
+var<private> lifted: bool;
+var<private> lifted_by: u32;
 var<private> arc: f32;
 // The root node (lane 0's besides node 1): prescribed, only carried, loaded and stored.
 var<private> root_x: vec3<f32>;
@@ -764,7 +779,7 @@ fn gauss_seidel_sweep() {
 // strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not
 // torn trying to be outside.
 fn meets(c: u32, thickness: f32) -> bool {
-    let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness).distance, 0.0);
+    let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness, 0.0).distance, 0.0);
     return own_edge && node >= 2u && arc > reach;
 }
 
@@ -783,8 +798,12 @@ fn add_contact_springs(inertia: f32) {
         if !meets(c, thickness) {
             continue;
         }
-        let contact = touch(c, x, thickness);
-        if contact.distance >= CONTACT_GAP {
+        // A node that pushing out an edge left above the surface in the last step keeps its spring that
+        // far out (and half as far again), with no force until it sinks in, rather than falling a step's
+        // worth and being pushed out again: hair resting across a curved collider comes to rest.
+        let gap = CONTACT_GAP + 1.5 * lifted_before;
+        let contact = touch(c, x, thickness, gap);
+        if contact.distance >= gap {
             continue;
         }
         let i = node;
@@ -1046,69 +1065,398 @@ fn solve() {
     workgroupBarrier();
 }
 
-// The signed distance of `p` (head-relative) from collider `c` at its end pose grown by `thickness`, the
-// closest surface point and the outward normal (head-relative): radially for a sphere, from the axis for a
-// capsule, along the gradient from the radial point for an ellipsoid, straight up for a plane.
+// Where a point meets a collider grown by the strand's thickness: the signed distance (negative inside),
+// the closest surface point and the outward normal there. Exact within `CONTACT_GAP` of the surface;
+// further out the distance is a lower bound (`distance_bound`) and the point and normal are not used.
 struct Touch {
     distance: f32,
     surface: vec3<f32>,
     normal: vec3<f32>,
 }
 
-fn touch(c: u32, p: vec3<f32>, thickness: f32) -> Touch {
-    let centre = colliders[c * COLLIDER_ROWS + 2u].xyz;
-    let rotation = colliders[c * COLLIDER_ROWS + 3u];
-    let shape = colliders[c * COLLIDER_ROWS + 4u];
-    let local = inverse_rotate(rotation, p - centre);
-    var result: Touch;
-    var surface = local;
-    var n = vec3<f32>(0.0, 1.0, 0.0);
-    var distance = 1e30;
-    if shape.w == 0.0 {
-        let radius = shape.x + thickness;
-        let r = length(local);
-        if r > 0.0 {
-            n = local / r;
-        }
-        distance = r - radius;
-        surface = n * radius;
-    } else if shape.w == 1.0 {
-        let radius = shape.x + thickness;
-        let axis = vec3<f32>(0.0, clamp(local.y, -shape.y, shape.y), 0.0);
-        let away = local - axis;
-        let r = length(away);
-        n = vec3<f32>(1.0, 0.0, 0.0);
-        if r > 0.0 {
-            n = away / r;
-        }
-        distance = r - radius;
-        surface = axis + n * radius;
-    } else if shape.w == 2.0 {
-        let axes = shape.xyz + vec3<f32>(thickness);
-        let scaled = length(local / axes);
-        if scaled > 0.0 {
-            let on = local / scaled;
-            n = normalize(on / (axes * axes));
-            // The distance along the normal from the radial point, to first order.
-            distance = dot(local - on, n);
-            surface = on;
-        } else {
-            distance = -axes.y;
-            surface = vec3<f32>(0.0, axes.y, 0.0);
-        }
-    } else if shape.w == 3.0 {
-        distance = local.y - thickness;
-        surface = vec3<f32>(local.x, thickness, local.z);
+fn collider_row(c: u32, row: u32) -> vec4<f32> {
+    return colliders[c * COLLIDER_ROWS + row];
+}
+
+// Sample `index` of the distance field whose samples start at row `base` of the collider buffer (four a
+// row, X fastest).
+fn field_sample(base: u32, index: u32) -> f32 {
+    let row = colliders[base + index / 4u];
+    return row[index % 4u];
+}
+
+// A mesh collider's baked field at `q` (the field's own frame): the trilinear distance and its gradient
+// `(d, ∇d)`; outside the grid, `max(|q − c|, d(c) − |q − c|)` from the grid's nearest point `c`
+// (`DistanceField::distance_and_gradient`).
+fn field_distance(c: u32, q: vec3<f32>) -> vec4<f32> {
+    let extra = collider_row(c, 5u);
+    let cell = extra.y;
+    let base = bitcast<u32>(extra.z);
+    let low = collider_row(c, 6u).xyz;
+    let counts = bitcast<vec3<u32>>(collider_row(c, 7u).xyz);
+    let high = low + vec3<f32>(counts - vec3<u32>(1u)) * cell;
+    let inner = clamp(q, low, high);
+    let local = (inner - low) / cell;
+    let corner = min(vec3<u32>(max(floor(local), vec3<f32>(0.0))), counts - vec3<u32>(2u));
+    let f = clamp(local - vec3<f32>(corner), vec3<f32>(0.0), vec3<f32>(1.0));
+    let start = corner.x + counts.x * (corner.y + counts.y * corner.z);
+    let dy = counts.x;
+    let dz = counts.x * counts.y;
+    // Along X on the cell's four X edges, then Y, then Z.
+    let a00 = field_sample(base, start);
+    let b00 = field_sample(base, start + 1u);
+    let a10 = field_sample(base, start + dy);
+    let b10 = field_sample(base, start + dy + 1u);
+    let a01 = field_sample(base, start + dz);
+    let b01 = field_sample(base, start + dz + 1u);
+    let a11 = field_sample(base, start + dy + dz);
+    let b11 = field_sample(base, start + dy + dz + 1u);
+    let x00 = mix(a00, b00, f.x);
+    let x10 = mix(a10, b10, f.x);
+    let x01 = mix(a01, b01, f.x);
+    let x11 = mix(a11, b11, f.x);
+    let y0 = mix(x00, x10, f.y);
+    let y1 = mix(x01, x11, f.y);
+    let distance = mix(y0, y1, f.z);
+    let along_x = mix(mix(b00 - a00, b10 - a10, f.y), mix(b01 - a01, b11 - a11, f.y), f.z);
+    let along_y = mix(x10 - x00, x11 - x01, f.z);
+    let gradient = vec3<f32>(along_x, along_y, y1 - y0) / cell;
+    let away = q - inner;
+    let gap = length(away);
+    if gap > 0.0 {
+        return vec4<f32>(max(gap, distance - gap), away / gap);
     }
-    result.distance = distance;
-    result.surface = centre + rotate(rotation, surface);
-    result.normal = rotate(rotation, n);
+    return vec4<f32>(distance, gradient);
+}
+
+// A mesh collider's signed distance at `local` (its frame, m) grown by `grown` m, and its gradient: the
+// field at `local / scale` taken at the least scale (`mesh_distance` on the CPU).
+fn mesh_distance(c: u32, local: vec3<f32>, grown: f32) -> vec4<f32> {
+    let scale = collider_row(c, 4u).xyz;
+    let least = min(scale.x, min(scale.y, scale.z));
+    let field = field_distance(c, local / scale);
+    return vec4<f32>(field.x * least - grown, field.yzw / scale * least);
+}
+
+// The signed distance of box `|x_i| ≤ h_i` (negative inside): `|max(q, 0)| + min(max_i q_i, 0)`,
+// `q = |p| − h` (Quílez, "distance functions").
+fn box_distance(h: vec3<f32>, p: vec3<f32>) -> f32 {
+    let q = abs(p) - h;
+    return length(max(q, vec3<f32>(0.0))) + min(max(q.x, max(q.y, q.z)), 0.0);
+}
+
+// A lower bound on the signed distance from `local` (collider `c`'s frame) to its surface grown by
+// `thickness`, m: exact but for ellipsoids (the gap between the surface and its scaling through `local`)
+// and meshes (the interpolated field). Cheap: it rules out what cannot touch.
+fn distance_bound(c: u32, local: vec3<f32>, thickness: f32) -> f32 {
+    let shape = collider_row(c, 4u);
+    let kind = u32(shape.w);
+    switch kind {
+        case 0u: {
+            return length(local) - shape.x - thickness;
+        }
+        case 1u: {
+            let axis = vec3<f32>(0.0, clamp(local.y, -shape.y, shape.y), 0.0);
+            return length(local - axis) - shape.x - thickness;
+        }
+        case 2u: {
+            let axes = shape.xyz + vec3<f32>(thickness);
+            let scale = length(local / axes);
+            let axis = select(max(axes.x, max(axes.y, axes.z)), min(axes.x, min(axes.y, axes.z)), scale >= 1.0);
+            return (scale - 1.0) * axis;
+        }
+        case 3u: {
+            return local.y - thickness;
+        }
+        case 4u: {
+            return box_distance(shape.xyz, local) - collider_row(c, 5u).x - thickness;
+        }
+        default: {
+            return mesh_distance(c, local, collider_row(c, 5u).x + thickness).x;
+        }
+    }
+}
+
+// The closest point on the ellipsoid with semi-axes `a` to `p`: `x_i = a_i² p_i / (a_i² + λ)` where
+// `F(λ) = Σ (a_i p_i / (a_i² + λ))² − 1 = 0` (Eberly, "Distance from a point to an ellipsoid"), by
+// Newton's method safeguarded with bisection on `λ ∈ (−a_min², |a ∘ p|]`; radially for a point on a
+// symmetry plane through the centre, where `F` has no pole (`closest_ellipsoid_point` on the CPU).
+fn closest_on_ellipsoid(a: vec3<f32>, p: vec3<f32>) -> Touch {
+    let squared = a * a;
+    let smallest = min(squared.x, min(squared.y, squared.z));
+    var low = -smallest;
+    var high = max(length(a * p), 0.0);
+    var lambda = clamp(0.0, low, high);
+    for (var k = 0u; k < 32u; k++) {
+        let denominator = squared + vec3<f32>(lambda);
+        let scaled = a * p / denominator;
+        let f = dot(scaled, scaled) - 1.0;
+        let derivative = -2.0 * dot(scaled * scaled, vec3<f32>(1.0) / denominator);
+        if f > 0.0 {
+            low = lambda;
+        } else {
+            high = lambda;
+        }
+        if abs(f) < 4.0 * UNIT_ROUNDOFF || high - low <= 4.0 * UNIT_ROUNDOFF * smallest {
+            break;
+        }
+        let newton = lambda - f / derivative;
+        lambda = select(0.5 * (low + high), newton, newton > low && newton < high);
+    }
+    var result: Touch;
+    let surface = squared * p / (squared + vec3<f32>(lambda));
+    let on = dot(surface / a, surface / a);
+    if finite3(surface) && abs(on - 1.0) < 1e-4 && dot(surface, surface) > 0.0 {
+        result.surface = surface;
+    } else {
+        let direction = select(vec3<f32>(0.0, 1.0, 0.0), normalize(p), dot(p, p) > 0.0);
+        result.surface = direction / length(direction / a);
+    }
+    result.normal = normalize(result.surface / squared);
+    result.distance = dot(p - result.surface, result.normal);
     return result;
+}
+
+// Where `local` (collider `c`'s frame) meets its surface grown by `thickness`: radially for a sphere, from
+// the axis for a capsule, the closest point for an ellipsoid, straight up for a plane; for a box, from its
+// nearest point outside it and through the nearest face inside; for a mesh, Newton steps along the field's
+// gradient to its zero level, `p ← p − d ∇d / |∇d|²`.
+fn touch_local(c: u32, local: vec3<f32>, thickness: f32, gap: f32) -> Touch {
+    var result: Touch;
+    result.distance = distance_bound(c, local, thickness);
+    result.surface = local;
+    result.normal = vec3<f32>(0.0, 1.0, 0.0);
+    if result.distance >= gap {
+        return result;
+    }
+    let shape = collider_row(c, 4u);
+    let kind = u32(shape.w);
+    switch kind {
+        case 0u, 1u: {
+            let radius = shape.x + thickness;
+            let axis = vec3<f32>(0.0, clamp(local.y, -shape.y, shape.y), 0.0);
+            let away = local - axis;
+            let r = length(away);
+            if r > 0.0 {
+                result.normal = away / r;
+            } else if kind == 1u {
+                result.normal = vec3<f32>(1.0, 0.0, 0.0);
+            }
+            result.surface = axis + result.normal * radius;
+        }
+        case 2u: {
+            result = closest_on_ellipsoid(shape.xyz + vec3<f32>(thickness), local);
+        }
+        case 3u: {
+            result.surface = vec3<f32>(local.x, thickness, local.z);
+        }
+        case 4u: {
+            let h = shape.xyz;
+            let rounding = collider_row(c, 5u).x + thickness;
+            let nearest = clamp(local, -h, h);
+            let away = local - nearest;
+            if dot(away, away) > 0.0 {
+                result.normal = normalize(away);
+                result.surface = nearest + rounding * result.normal;
+            } else {
+                let q = abs(local) - h;
+                var axis = 2u;
+                if q.x >= q.y && q.x >= q.z {
+                    axis = 0u;
+                } else if q.y >= q.z {
+                    axis = 1u;
+                }
+                var n = vec3<f32>(0.0);
+                n[axis] = select(1.0, -1.0, local[axis] < 0.0);
+                var surface = local;
+                surface[axis] = n[axis] * (h[axis] + rounding);
+                result.normal = n;
+                result.surface = surface;
+            }
+            result.distance = dot(local - result.surface, result.normal);
+        }
+        default: {
+            let grown = collider_row(c, 5u).x + thickness;
+            var surface = local;
+            for (var k = 0u; k < 8u; k++) {
+                let field = mesh_distance(c, surface, grown);
+                let squared = dot(field.yzw, field.yzw);
+                if abs(field.x) <= MOVE_MARGIN * UNIT_ROUNDOFF * length(surface) || squared < 1e-12 {
+                    break;
+                }
+                surface -= field.yzw * (field.x / squared);
+            }
+            let gradient = mesh_distance(c, surface, grown).yzw;
+            result.normal = select(vec3<f32>(0.0, 1.0, 0.0), normalize(gradient), dot(gradient, gradient) > 0.0);
+            result.surface = surface;
+        }
+    }
+    return result;
+}
+
+// The signed distance of `p` (head-relative) from collider `c` at its end pose grown by `thickness`, the
+// closest surface point and the outward normal (head-relative), as `touch_local` finds them.
+fn touch(c: u32, p: vec3<f32>, thickness: f32, gap: f32) -> Touch {
+    let centre = collider_row(c, 2u).xyz;
+    let rotation = collider_row(c, 3u);
+    var result = touch_local(c, inverse_rotate(rotation, p - centre), thickness, gap);
+    result.surface = centre + rotate(rotation, result.surface);
+    result.normal = rotate(rotation, result.normal);
+    return result;
+}
+
+// The fraction along `start`–`end` of its point closest to the origin.
+fn closest_to_origin(start: vec3<f32>, end: vec3<f32>) -> f32 {
+    let path = end - start;
+    let squared = dot(path, path);
+    return select(0.0, clamp(-dot(start, path) / squared, 0.0, 1.0), squared > 0.0);
+}
+
+// The fraction along `start`–`end` of its point closest to the axis segment `(0, ±half_length, 0)`: the
+// closest points of two segments (Ericson, *Real-Time Collision Detection*, 5.1.9).
+fn closest_to_axis(start: vec3<f32>, end: vec3<f32>, half_length: f32) -> f32 {
+    let path = end - start;
+    let axis = vec3<f32>(0.0, 2.0 * half_length, 0.0);
+    let offset = start + 0.5 * axis;
+    let a = dot(path, path);
+    let e = dot(axis, axis);
+    let f = dot(axis, offset);
+    let c = dot(path, offset);
+    if a == 0.0 {
+        return 0.0;
+    }
+    if e == 0.0 {
+        return clamp(-c / a, 0.0, 1.0);
+    }
+    let b = dot(path, axis);
+    let denominator = a * e - b * b;
+    let s = select(0.0, clamp((b * f - c * e) / denominator, 0.0, 1.0), denominator > 0.0);
+    let t = (b * s + f) / e;
+    if t < 0.0 {
+        return clamp(-c / a, 0.0, 1.0);
+    }
+    if t > 1.0 {
+        return clamp((b - c) / a, 0.0, 1.0);
+    }
+    return s;
+}
+
+// The fraction between `low` and `high` along `start`–`end` of its point deepest in collider `c` (grown by
+// `thickness`), and the distance there: a golden-section search of `iterations` steps, the ends included
+// (exact where the distance is convex along the segment: a convex solid).
+fn deepest_between(c: u32, start: vec3<f32>, end: vec3<f32>, low_in: f32, high_in: f32, iterations: u32, thickness: f32) -> vec2<f32> {
+    let golden = 0.618034;
+    var low = low_in;
+    var high = high_in;
+    var a = high - golden * (high - low);
+    var b = low + golden * (high - low);
+    var at_a = distance_bound(c, mix(start, end, a), thickness);
+    var at_b = distance_bound(c, mix(start, end, b), thickness);
+    for (var k = 0u; k < iterations; k++) {
+        if at_a <= at_b {
+            high = b;
+            b = a;
+            at_b = at_a;
+            a = high - golden * (high - low);
+            at_a = distance_bound(c, mix(start, end, a), thickness);
+        } else {
+            low = a;
+            a = b;
+            at_a = at_b;
+            b = low + golden * (high - low);
+            at_b = distance_bound(c, mix(start, end, b), thickness);
+        }
+    }
+    var best = vec2<f32>(0.5 * (low + high), distance_bound(c, mix(start, end, 0.5 * (low + high)), thickness));
+    let first = distance_bound(c, mix(start, end, low_in), thickness);
+    if first < best.y {
+        best = vec2<f32>(low_in, first);
+    }
+    let last = distance_bound(c, mix(start, end, high_in), thickness);
+    if last < best.y {
+        best = vec2<f32>(high_in, last);
+    }
+    return best;
+}
+
+// The push (head-relative) that moves the point of the edge `start`–`end` (head-relative) deepest inside
+// collider `c` (grown by `thickness`, at its end pose) out to its surface, and that point's fraction along
+// the edge; a fraction below 0 when the edge does not dip in (`segment_contact` on the CPU).
+fn edge_push(c: u32, start_in: vec3<f32>, end_in: vec3<f32>, thickness: f32) -> vec4<f32> {
+    let none = vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    let centre = collider_row(c, 2u).xyz;
+    let rotation = collider_row(c, 3u);
+    let start = inverse_rotate(rotation, start_in - centre);
+    let end = inverse_rotate(rotation, end_in - centre);
+    let length_along = length(end - start);
+    if distance_bound(c, start, thickness) > length_along {
+        return none;
+    }
+    let shape = collider_row(c, 4u);
+    var fraction = 0.0;
+    switch u32(shape.w) {
+        case 0u: {
+            fraction = closest_to_origin(start, end);
+        }
+        case 1u: {
+            fraction = closest_to_axis(start, end, shape.y);
+        }
+        case 2u: {
+            let axes = shape.xyz + vec3<f32>(thickness);
+            fraction = closest_to_origin(start / axes, end / axes);
+        }
+        case 3u: {
+            // A segment only dips below a plane at an end.
+            return none;
+        }
+        case 4u: {
+            fraction = deepest_between(c, start, end, 0.0, 1.0, 32u, thickness).x;
+        }
+        default: {
+            // Not convex: the deepest of the stretches, at most half a cell of the field long, that can
+            // reach inside (a stretch whose ends lie `d₀` and `d₁` out stays outside if `d₀ + d₁` exceeds
+            // its length; a margin for the interpolation, whose slope may exceed one slightly).
+            let least = min(shape.x, min(shape.y, shape.z));
+            let spacing = 0.5 * collider_row(c, 5u).y * least;
+            let intervals = u32(clamp(ceil(length_along / spacing), 1.0, 64.0));
+            let stretch = length_along / f32(intervals);
+            var deepest = vec2<f32>(0.0, 1e30);
+            var before = distance_bound(c, start, thickness);
+            for (var k = 0u; k < intervals; k++) {
+                let low = f32(k) / f32(intervals);
+                let high = f32(k + 1u) / f32(intervals);
+                let after = distance_bound(c, mix(start, end, high), thickness);
+                if before + after <= 1.1 * stretch {
+                    let found = deepest_between(c, start, end, low, high, 20u, thickness);
+                    if found.y < deepest.y {
+                        deepest = found;
+                    }
+                }
+                before = after;
+            }
+            fraction = deepest.x;
+        }
+    }
+    let point = mix(start, end, fraction);
+    let met = touch_local(c, point, thickness, 0.0);
+    if met.distance >= 0.0 {
+        return none;
+    }
+    return vec4<f32>(rotate(rotation, met.surface - point), fraction);
+}
+
+// The velocity of collider `c`'s body at the point that was at `p` (head-relative) at the step's start,
+// over the step: where its start pose carried to its end pose takes it.
+fn collider_velocity(c: u32, p: vec3<f32>) -> vec3<f32> {
+    let local = inverse_rotate(collider_row(c, 1u), p - collider_row(c, 0u).xyz);
+    let carried = collider_row(c, 2u).xyz + rotate(collider_row(c, 3u), local);
+    return (carried - p) / params.dt;
 }
 
 // This lane's node, where inside a collider, put on its surface; with `friction`, its slip over the step
 // relative to the collider (from where the node was at the start, in the collider's start frame) is
-// cancelled up to μ times the push (Macklin et al. 2014). Returns whether any lane's node moved.
+// cancelled up to μ times the push (Macklin et al. 2014). Then the edges that dip into a collider between
+// their nodes are pushed out at their deepest point (`push_edges`). Returns whether any lane's node moved.
 fn push_out(friction: bool) -> bool {
     let first_collider = bitcast<u32>(head_row(3u).x);
     let count = bitcast<u32>(head_row(3u).y);
@@ -1119,16 +1467,16 @@ fn push_out(friction: bool) -> bool {
         if !meets(c, thickness) {
             continue;
         }
-        let contact = touch(c, x, thickness);
+        let contact = touch(c, x, thickness, 0.0);
         if contact.distance >= 0.0 {
             continue;
         }
         var goal = contact.surface;
         if friction {
-            let mu = colliders[c * COLLIDER_ROWS + 2u].w;
+            let mu = collider_row(c, 2u).w;
             // Where the node started, carried with the collider to its end pose.
-            let start_local = inverse_rotate(colliders[c * COLLIDER_ROWS + 1u], x_start - colliders[c * COLLIDER_ROWS].xyz);
-            let carried = colliders[c * COLLIDER_ROWS + 2u].xyz + rotate(colliders[c * COLLIDER_ROWS + 3u], start_local);
+            let start_local = inverse_rotate(collider_row(c, 1u), x_start - collider_row(c, 0u).xyz);
+            let carried = collider_row(c, 2u).xyz + rotate(collider_row(c, 3u), start_local);
             let slip = goal - carried;
             let tangential = slip - dot(slip, contact.normal) * contact.normal;
             // The normal push this step: the spring's force in the solve (as a displacement over the
@@ -1141,7 +1489,7 @@ fn push_out(friction: bool) -> bool {
                 goal -= tangential * (limit / size);
             }
             // Back onto the surface after the friction's tangential move.
-            let again = touch(c, goal, thickness);
+            let again = touch(c, goal, thickness, 0.0);
             if again.distance < 0.0 {
                 goal = again.surface;
             }
@@ -1152,9 +1500,103 @@ fn push_out(friction: bool) -> bool {
         moved = moved || shift > MOVE_MARGIN * UNIT_ROUNDOFF * length(x);
         x = goal;
         normal = contact.normal;
+        pushed = true;
+        surface_speed = dot(collider_velocity(c, x_start), normal);
     }
     publish_nodes();
+    moved = push_edges(thickness) || moved;
     return largest_over_lanes(select(0.0, 1.0, moved)) > 0.0;
+}
+
+// The edges between free nodes that dip into a collider between their nodes (a strand lying across a box's
+// edge, a chord of a curved surface), each pushed out at its deepest point, the push shared by its two
+// nodes by their inverse masses and their distance from that point, as on the CPU (`push_out` in
+// `rod/contact.rs`); edges shorter than `√(8 ρ thickness)` (ρ the collider's least radius of curvature)
+// cannot dip in without a node touching, and are not tested. Unlike the CPU:
+// - every edge is tested where the nodes are (Jacobi), and a node pushed by both its edges moves by the
+//   mean of their pushes: edge after edge (Gauss–Seidel), each would find less to push than the last;
+// - each node moves along the collider's normal at itself, as far as brings the deepest point out along
+//   the push: along the push itself, the nodes at the ends of a contact would move a little along the
+//   surface each step, and slide resting hair off it;
+// - a node lifted off the surface so has its height kept for the next step's contact spring
+//   (`add_contact_springs`), and its speed away from the surface taken off (contact is inelastic).
+// A node's push from the edge after it passes through `shared_t` (free during contact), with the collider
+// that pushed it. Returns whether this lane's node moved by more than its rounding.
+fn push_edges(thickness: f32) -> bool {
+    let first_collider = bitcast<u32>(head_row(3u).x);
+    let count = bitcast<u32>(head_row(3u).y);
+    // Edge `lane` from node `lane` to node `node`; both free (not the root edge's, not held).
+    let start_arc = arc - rest_at(lane, 0u).x;
+    var start_push = vec3<f32>(0.0);
+    var end_push = vec3<f32>(0.0);
+    var pushed_by = 0.0;
+    if own_edge && lane >= 2u {
+        let start = shared_x[lane].xyz;
+        let end = x;
+        let start_weight = node_inverse_mass(lane);
+        let end_weight = node_inverse_mass(node);
+        for (var k = 0u; k < count; k++) {
+            let c = first_collider + k;
+            let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness, 0.0).distance, 0.0);
+            let shortest = 8.0 * collider_row(c, 5u).w * thickness;
+            let d = end - start;
+            if start_arc <= reach || dot(d, d) <= shortest {
+                continue;
+            }
+            let found = edge_push(c, start + start_push, end + end_push, thickness);
+            let f = found.w;
+            if f < 0.0 {
+                continue;
+            }
+            let start_share = (1.0 - f) * start_weight;
+            let end_share = f * end_weight;
+            let scale = (1.0 - f) * start_share + f * end_share;
+            if scale <= 0.0 {
+                continue;
+            }
+            // Each node moves along the collider's normal at itself, as far as brings the deepest point out
+            // along the push: a push along the edge's own normal would move the nodes at the ends of a
+            // contact a little along the surface each step, and slide resting hair off it.
+            let size = length(found.xyz);
+            let direction = found.xyz / size;
+            let start_normal = touch(c, start + start_push, thickness, 1e30).normal;
+            let end_normal = touch(c, end + end_push, thickness, 1e30).normal;
+            start_push += start_share / scale * size / max(dot(start_normal, direction), 0.5) * start_normal;
+            end_push += end_share / scale * size / max(dot(end_normal, direction), 0.5) * end_normal;
+            pushed_by = f32(c + 1u);
+        }
+    }
+    workgroupBarrier();
+    if own_edge {
+        shared_t[lane] = vec4<f32>(start_push, pushed_by);
+    }
+    workgroupBarrier();
+    var moved = false;
+    if own_edge {
+        var push = end_push;
+        var pushes = select(0.0, 1.0, pushed_by > 0.0);
+        var by = pushed_by;
+        if node < edge_count() && shared_t[node].w > 0.0 {
+            push += shared_t[node].xyz;
+            pushes += 1.0;
+            by = max(by, shared_t[node].w);
+        }
+        if pushes > 0.0 {
+            let shift = push / pushes;
+            let size = length(shift);
+            moved = size > MOVE_MARGIN * UNIT_ROUNDOFF * length(x);
+            x += shift;
+            if size > 0.0 {
+                normal = shift / size;
+                pushed = true;
+                lifted = true;
+                lifted_by = u32(by) - 1u;
+                surface_speed = dot(collider_velocity(u32(by) - 1u, x_start), normal);
+            }
+        }
+    }
+    publish_nodes();
+    return moved;
 }
 
 // This lane's node and edge back in the rest pose the strand was uploaded in, carried with its head.
@@ -1243,6 +1685,9 @@ fn step(
         x = p.xyz + shift;
         x_start = x;
         normal = vec3<f32>(0.0);
+        pushed = false;
+        lifted = false;
+        lifted_before = select(0.0, state[state_index(node, 3u)].w, two_step);
         if two_step {
             let before = state[state_index(node, 2u)].xyz + shift;
             let v_before = state[state_index(node, 3u)].xyz;
@@ -1363,10 +1808,12 @@ fn step(
             }
             project_lengths(params.projection_iterations);
         }
-        let pushed = largest_strain().x;
-        if !(pushed <= params.strain_bound) {
+        let strained = largest_strain().x;
+        if !(strained <= params.strain_bound) {
             x = x_carried;
             normal = vec3<f32>(0.0);
+            pushed = false;
+            lifted = false;
             flags = flags | CONTACT_GIVEN_UP;
             publish_nodes();
         }
@@ -1412,7 +1859,16 @@ fn step(
     // node's by the last lane.
     let stopped = fault != 0u;
     publish_nodes();
-    let v = select((x - x_hat) / h, vec3<f32>(0.0), stopped);
+    var v = select((x - x_hat) / h, vec3<f32>(0.0), stopped);
+    // Contact is inelastic: a node the contact moved keeps no speed away from the surface beyond the
+    // surface's own (the push that put it outside is not a velocity it flies off with, to fall back and be
+    // pushed out again the next step: hair resting on a collider would never rest).
+    if pushed {
+        let away = dot(v, normal) - surface_speed;
+        if away > 0.0 {
+            v -= away * normal;
+        }
+    }
     if own_edge {
         shared_m[node] = vec4<f32>(v, 0.0);
     }
@@ -1425,6 +1881,14 @@ fn step(
         state[state_index(lane, 0u)] = vec4<f32>(shared_x[lane].xyz, theta);
         state[state_index(lane, 1u)] = vec4<f32>(shared_m[lane].xyz, rate);
         state[state_index(lane, 4u)] = vec4<f32>(director, reference_twist);
+        // The history row, with how far above the surface an edge's push left the node (for the next
+        // step's springs).
+        var height = 0.0;
+        if lifted && !stopped {
+            let thickness = strand_floats[strand * STRAND_FLOATS + 1u].w;
+            height = max(touch(lifted_by, x, thickness, 1e30).distance, 0.0);
+        }
+        state[state_index(node, 3u)] = vec4<f32>(v_start, height);
         if node == edge_count() {
             state[state_index(node, 0u)] = vec4<f32>(x, 0.0);
             state[state_index(node, 1u)] = vec4<f32>(v, 0.0);

@@ -19,9 +19,9 @@ use super::draw::GpuStepCount;
 use crate::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver,
-    GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, gpu_meets,
+    GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN,
 };
-use crate::rod::{MovingCollider, StepError, StepParams};
+use crate::rod::{StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
@@ -49,10 +49,11 @@ use crate::wind::{HairWind, HairWindSource};
 /// each from its last read-back state; writing a GPU strand's rod or components from outside has no
 /// effect (the GPU's state is the truth, and the next read-back overwrites them).
 ///
-/// **What the GPU meets.** Each head's spheres, capsules, ellipsoids and planes (its own and the shared
-/// ones), with the CPU's rule for a collider holding a root inside it (the strand near the root is left
-/// free of it). Cuboids and mesh colliders are the CPU's alone and are left out, with one warning per
-/// head. The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
+/// **What the GPU meets.** Each head's colliders, its own and the shared ones, of every shape: spheres,
+/// capsules, ellipsoids (at their closest point), planes, boxes (rounded or not) and meshes (their baked
+/// distance fields, uploaded once and sampled trilinearly), nodes and the edges dipping in between them,
+/// with the CPU's rule for a collider holding a root inside it (the strand near the root is left free of
+/// it). The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
 /// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
 /// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
 /// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
@@ -205,8 +206,6 @@ struct GpuStepQueue {
     /// Whether something on the CPU reads the GPU strands' components every step (a head with strands on
     /// the CPU too is drawn from its components).
     components_read: bool,
-    /// Colliders already warned about, by head.
-    warned_colliders: Vec<Entity>,
 }
 
 /// What the render world sends back.
@@ -443,12 +442,7 @@ fn order_gpu_step(
             continue;
         };
         let pose = motion.current;
-        let all = colliders.of(Some(&StrandOf(head)));
-        let met: Vec<MovingCollider> = all.iter().filter(|collider| gpu_meets(&collider.shape)).cloned().collect();
-        if met.len() < all.len() && !queue.warned_colliders.contains(&head) {
-            warn!("HairGpuPlugin: head {head} has cuboid or mesh colliders, which the GPU step does not meet");
-            queue.warned_colliders.push(head);
-        }
+        let met = colliders.of(Some(&StrandOf(head))).to_vec();
         // As `HairWindPlugin` blows it (which reports invalid wind): at the head's position.
         let at = pose.translation.as_vec3();
         let mut air = wind

@@ -132,6 +132,12 @@ impl DistanceField {
         (self.min, self.min + span * self.cell)
     }
 
+    /// The signed distances at the samples, m, X fastest: sample `(x, y, z)` at `x + n_x (y + n_y z)`
+    /// ([`DistanceField::sample_counts`]), at `min + cell (x, y, z)` ([`DistanceField::bounds`]).
+    pub fn samples(&self) -> &[f32] {
+        &self.values
+    }
+
     /// Edges of the mesh that do not join exactly two triangles (its vertices welded by position): 0 for
     /// a closed mesh.
     pub fn open_edges(&self) -> usize {

@@ -25,7 +25,7 @@ const EPSILON: f64 = f32::EPSILON as f64 / 2.0;
 
 /// The adapter's device and queue, and the binary's turn at the GPU, held until the test ends (the
 /// renderer's tests in this binary take theirs too: see `hair_sim_support::renderer`).
-fn device() -> (MutexGuard<'static, ()>, wgpu::Device, wgpu::Queue) {
+pub(crate) fn device() -> (MutexGuard<'static, ()>, wgpu::Device, wgpu::Queue) {
     let turn = one_at_a_time();
     let (device, queue, info) = headless_device().expect("a GPU adapter (lavapipe on a machine without a GPU)");
     println!("adapter: {} ({:?}, {:?})", info.name, info.device_type, info.backend);
