@@ -738,7 +738,7 @@ impl GpuStrandSolver {
             }
         }
         let bytes = 16 * row as u64;
-        let limit = u64::from(device.limits().max_storage_buffer_binding_size);
+        let limit = device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
             return Err(GpuStepError::CollidersTooLarge { bytes, limit });
         }

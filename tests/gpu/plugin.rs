@@ -7,6 +7,7 @@
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::time::TimeUpdateStrategy;
+use bevy_hair_sim::collision::MeshColliderSettings;
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
@@ -381,4 +382,77 @@ fn the_gpu_holds_the_style_as_the_cpu_does() {
     // where both are nearly in place), and near the CPU's hair.
     assert!((gpu_style - cpu_style).abs() < 0.25 * cpu_style + 1e-3, "{gpu_style} against {cpu_style} m");
     assert!(rms < 0.25 * cpu_style + 1e-3, "GPU − CPU {rms} m");
+}
+
+/// The shapes the GPU step met last: a box across the shoulders and a mesh collider baked from a ball at
+/// the nape (moving with the head), met by the GPU in the app on the shaking head as by the CPU: every
+/// guide on the GPU, no fault, no node or point of an edge more than 1 mm inside either (the issue's
+/// bound for hair resting on a collider), the hair on both, and the hair where the CPU's is.
+#[test]
+fn the_gpu_meets_a_box_and_a_mesh_collider_in_the_app_as_the_cpu_does() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let ball = Sphere::new(0.06).mesh().ico(3).unwrap();
+    let nape = HairCollider::from_mesh(&ball, MeshColliderSettings::default()).unwrap();
+    let nape_offset = Vec3::new(0.0, -0.1, 0.13);
+    let shoulders = HairCollider::cuboid(Vec3::new(0.2, 0.03, 0.06));
+    let shoulders_at = Transform::from_xyz(0.0, 1.425, 0.0);
+    let nape_at = |step: usize| {
+        let pose = head_pose(step);
+        Transform::from_translation(pose.transform_point(nape_offset)).with_rotation(pose.rotation)
+    };
+    let mut apps = [app(true), app(false)];
+    let heads = apps.each_mut().map(|app| {
+        let head = spawn_head(app);
+        let nape = app.world_mut().spawn((nape.clone(), HairColliderOf(head.0), nape_at(0))).id();
+        app.world_mut().spawn((shoulders.clone(), HairColliderOf(head.0), shoulders_at));
+        (head, nape)
+    });
+    for number in 1..=SHAKING_STEPS {
+        for (app, &(head, nape)) in apps.iter_mut().zip(&heads) {
+            *app.world_mut().get_mut::<Transform>(nape).unwrap() = nape_at(number);
+            step(app, head, number);
+        }
+    }
+    let [gpu, cpu] = &mut apps;
+    gpu.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(gpu);
+    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    println!("{status:?}");
+    assert_eq!(status.error, None);
+    assert_eq!((status.strands, status.faults), (64, 0), "every guide on the GPU, no fault");
+    let gpu_head = heads[0].0.0;
+    let guides = gpu.world().get::<HeadStrands>(gpu_head).unwrap().strands().to_vec();
+    assert!(guides.iter().all(|&guide| gpu.world().get::<SteppedElsewhere>(guide).is_some()));
+
+    // How far each point of the hair (nodes, and nine points along each edge) lies from each collider
+    // grown by the strand's thickness, m (negative inside).
+    let margin = HairSettings::default().collision_margin;
+    let colliders =
+        [("the nape's mesh", &nape, nape_at(SHAKING_STEPS)), ("the shoulders' box", &shoulders, shoulders_at)];
+    for (name, collider, at) in colliders {
+        let (mut deepest, mut touching) = (0.0_f64, 0);
+        for &guide in &guides {
+            let nodes = &gpu.world().get::<StrandNodes>(guide).unwrap().positions;
+            let thickness = f64::from(gpu.world().get::<SimulatedStrand>(guide).unwrap().collision_thickness(margin));
+            let grown = collider.shape.inflated(thickness);
+            let distances: Vec<f64> = nodes
+                .windows(2)
+                .flat_map(|edge| (0..10).map(move |k| edge[0].lerp(edge[1], k as f32 / 10.0)))
+                .map(|p| grown.distance_bound(at.rotation.inverse().mul_vec3(p - at.translation).as_dvec3()))
+                .collect();
+            // Past the root edge (the root may sit in the skull's margin).
+            deepest = distances[10..].iter().fold(deepest, |deepest, d| deepest.max(-d));
+            touching += usize::from(distances.iter().any(|d| *d < 1e-3));
+        }
+        println!("{name}: {touching} of 64 guides within 1 mm of it, the deepest point {deepest:.2e} m inside");
+        assert!(touching >= 4, "only {touching} guides reach {name}: the test does not reach the case");
+        assert!(deepest <= 1e-3, "a point of the hair lies {deepest} m inside {name}");
+    }
+
+    let (gpu_nodes, cpu_nodes) = (guide_nodes(gpu, gpu_head), guide_nodes(cpu, heads[1].0.0));
+    let squares: Vec<f32> =
+        gpu_nodes.iter().flatten().zip(cpu_nodes.iter().flatten()).map(|(p, q)| p.distance_squared(*q)).collect();
+    let rms = (squares.iter().sum::<f32>() / squares.len() as f32).sqrt();
+    println!("GPU against CPU after {SHAKING_STEPS} steps: RMS {rms:.2e} m");
+    assert!(rms < PLUGIN_RMS_BOUND, "RMS {rms} m from the CPU");
 }
