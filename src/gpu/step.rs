@@ -15,6 +15,7 @@ use crate::rod::{
     ColliderShape, DistanceField, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory,
     StepParams,
 };
+use crate::wind::AirSnapshot;
 
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
@@ -28,13 +29,15 @@ pub const MAX_GPU_NODES: usize = 65;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 5;
-const HEAD_ROWS: usize = 5;
+const HEAD_ROWS: usize = 6;
 const COLLIDER_ROWS: usize = 8;
 const STRAND_FLOATS: usize = 4;
+/// Rows of the air before the heads' in the heads buffer, in still air ([`GpuStrandSolver::set_air`]).
+const STILL_AIR_ROWS: usize = 2;
 /// The arc-length fraction written for the nodes of a strand that is not held: past any reach (at most 1).
 const HELD_NOWHERE: f64 = 2.0;
-/// `Params` of the shader: twenty words.
-const PARAMS_BYTES: u64 = 80;
+/// `Params` of the shader: twenty-four words.
+const PARAMS_BYTES: u64 = 96;
 /// Rows of `vec4<u32>` per strand in the work counters (`work` in the shader).
 const WORK_ROWS: usize = 2;
 /// The state's rows a read-back copies: position and θ, velocity and θ̇, reference director and twist (the
@@ -114,6 +117,9 @@ pub enum GpuStepError {
         /// The device's limit, bytes.
         limit: u64,
     },
+    /// The air given to [`GpuStrandSolver::set_air`] has a value that is not finite.
+    #[error("the air's wind, turbulence or jets are not finite")]
+    InvalidAir,
     /// A head's pose, air or collider is not finite, its rotation not a unit quaternion, or its style hold's
     /// rate negative or not finite or its reach outside 0 to 1.
     #[error(
@@ -382,6 +388,12 @@ pub struct GpuStrandSolver {
     last_dt: f64,
     /// Scratch for the per-step uploads.
     head_rows: Vec<[f32; 4]>,
+    /// The air every head's hair moves in ([`GpuStrandSolver::set_air`]), as rows of the heads buffer
+    /// before the heads' own: (uniform wind, modes as bits), (jets as bits, 0, 0, 0), two rows a mode
+    /// ((k, φ), (a, 0)), three a jet ((origin, speed), (axis, range), (radius, 0, 0, 0)).
+    air_rows: Vec<[f32; 4]>,
+    /// Rows of `vec4` the heads buffer has room for, the air's included.
+    head_buffer_rows: usize,
     collider_rows: Vec<[f32; 4]>,
     /// Colliders the buffer holds rows for; the mesh fields' samples follow them.
     collider_capacity: usize,
@@ -645,7 +657,8 @@ impl GpuStrandSolver {
         let state = storage("hair strand state", bytemuck::cast_slice(&state), copy);
         let status = storage("hair strand status", &vec![0_u8; 16 * strand_count.max(1)], copy);
         let work = storage("hair step work", &vec![0_u8; 16 * WORK_ROWS * strand_count.max(1)], copy);
-        let heads = storage("hair heads", &vec![0_u8; 16 * HEAD_ROWS * head_poses.len().max(1)], copy);
+        let head_buffer_rows = STILL_AIR_ROWS + HEAD_ROWS * head_poses.len().max(1);
+        let heads = storage("hair heads", &vec![0_u8; 16 * head_buffer_rows], copy);
         let collider_capacity = 4;
         let colliders = storage(
             "hair colliders",
@@ -683,6 +696,8 @@ impl GpuStrandSolver {
             head_poses,
             last_dt: 0.0,
             head_rows: Vec::new(),
+            air_rows: vec![[0.0; 4]; STILL_AIR_ROWS],
+            head_buffer_rows,
             collider_rows: Vec::new(),
             collider_capacity,
             collider_buffer_rows: COLLIDER_ROWS * collider_capacity,
@@ -713,6 +728,60 @@ impl GpuStrandSolver {
     /// Each strand's head (its index among the heads given at upload).
     pub fn strand_heads(&self) -> &[usize] {
         &self.strands.strand_heads
+    }
+
+    /// The bind groups again, after a buffer was made anew.
+    fn bind_again(&mut self, device: &wgpu::Device) {
+        self.bind_groups = step_bind_groups(
+            device,
+            &self.pipelines,
+            &self.params,
+            [
+                &self.strand_words,
+                &self.strand_floats,
+                &self.rest,
+                &self.state,
+                &self.heads,
+                &self.colliders,
+                &self.status,
+                &self.work,
+            ],
+        );
+    }
+
+    /// The air every head's hair moves in from the next step on, besides each head's
+    /// [`GpuHeadStep::air_velocity`]: the wind's uniform part, its turbulence and its jets, sampled by the
+    /// step at each node where it was at the step's start, as [`crate::wind::HairWindPlugin`] samples it
+    /// on the CPU (which interpolates the turbulence between nodes a quarter of its scale apart). Still
+    /// air until set. Refuses air with a value that is not finite (and keeps the air it had).
+    pub fn set_air(&mut self, air: &AirSnapshot) -> Result<(), GpuStepError> {
+        let finite = air.uniform.is_finite()
+            && air.modes.iter().all(|m| m.wave_vector.is_finite() && m.amplitude.is_finite() && m.phase.is_finite())
+            && air.jets.iter().all(|j| {
+                j.origin.is_finite()
+                    && j.axis.is_finite()
+                    && j.speed.is_finite()
+                    && j.radius.is_finite()
+                    && j.range.is_finite()
+            });
+        if !finite {
+            return Err(GpuStepError::InvalidAir);
+        }
+        let bits = |count: usize| f32::from_bits(count as u32);
+        let uniform = air.uniform.as_vec3();
+        self.air_rows.clear();
+        self.air_rows.push([uniform.x, uniform.y, uniform.z, bits(air.modes.len())]);
+        self.air_rows.push([bits(air.jets.len()), 0.0, 0.0, 0.0]);
+        for mode in &air.modes {
+            self.air_rows.push(vec4(mode.wave_vector, mode.phase));
+            self.air_rows.push(vec4(mode.amplitude, 0.0));
+        }
+        for jet in &air.jets {
+            self.air_rows.push(vec4(jet.origin, jet.speed));
+            self.air_rows.push(vec4(jet.axis, jet.range));
+            self.air_rows.push([jet.radius as f32, 0.0, 0.0, 0.0]);
+        }
+        Ok(())
     }
 
     /// Writes the colliders of `heads` into the collider buffer (their poses relative to their heads' new
@@ -753,21 +822,7 @@ impl GpuStrandSolver {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.bind_groups = step_bind_groups(
-                device,
-                &self.pipelines,
-                &self.params,
-                [
-                    &self.strand_words,
-                    &self.strand_floats,
-                    &self.rest,
-                    &self.state,
-                    &self.heads,
-                    &self.colliders,
-                    &self.status,
-                    &self.work,
-                ],
-            );
+            self.bind_again(device);
         }
         self.collider_capacity = capacity;
         if grown || !same_fields {
@@ -838,6 +893,7 @@ impl GpuStrandSolver {
         }
         self.place_colliders(device, queue, heads)?;
         self.head_rows.clear();
+        self.head_rows.extend_from_slice(&self.air_rows);
         let mut first = 0;
         for (head, before) in heads.iter().zip(&self.head_poses) {
             let count = head.colliders.len() as u32;
@@ -847,17 +903,28 @@ impl GpuStrandSolver {
                 vec4(head.air_velocity, 0.0),
                 [f32::from_bits(first), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
                 before.0.as_quat().to_array(),
+                vec4(head.translation, 0.0),
             ]);
             first += count;
         }
         for (pose, head) in self.head_poses.iter_mut().zip(heads) {
             *pose = (head.rotation, head.translation);
         }
+        if self.head_rows.len() > self.head_buffer_rows {
+            self.head_buffer_rows = self.head_rows.len().next_power_of_two();
+            self.heads = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("hair heads"),
+                size: (16 * self.head_buffer_rows) as u64,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.bind_again(device);
+        }
         queue.write_buffer(&self.heads, 0, bytemuck::cast_slice(&self.head_rows));
         let restart = (params.dt - self.last_dt).abs() > 1e-9 * params.dt;
         self.last_dt = params.dt;
         let gravity = params.gravity.as_vec3();
-        let mut words: [u32; 20] = [
+        let mut words: [u32; 24] = [
             (params.dt as f32).to_bits(),
             gravity.x.to_bits(),
             gravity.y.to_bits(),
@@ -876,6 +943,10 @@ impl GpuStrandSolver {
             u32::from(restart),
             (params.strain_tolerance as f32).to_bits(),
             self.strands.total_nodes as u32,
+            0,
+            0,
+            self.air_rows.len() as u32,
+            0,
             0,
             0,
         ];

@@ -66,6 +66,11 @@ struct Params {
     // edges fit this pipeline's lanes).
     list_start: u32,
     list_length: u32,
+    // Rows of the air before the heads' in `heads` (`air_at`).
+    head_base: u32,
+    padding_0: u32,
+    padding_1: u32,
+    padding_2: u32,
 }
 
 // Per strand words: node count, head, its first node in the row planes; and, not the strand's, the `k`th
@@ -80,10 +85,11 @@ const STRAND_FLOATS: u32 = 4u;
 // where the strand is not held).
 // State rows per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
 // back, 0), (reference director of edge i, reference twist at vertex i).
-// Per head: (rotation at the step's end), (shift of the origin: translation before − after, 0), (the air's
-// velocity, 0), (first collider, colliders as bits, the style hold's rate in 1/s and its reach), (rotation
-// at the step's start).
-const HEAD_ROWS: u32 = 5u;
+// Per head, after the air's rows (`air_at`): (rotation at the step's end), (shift of the origin:
+// translation before − after, 0), (the head's own air velocity, 0), (first collider, colliders as bits, the
+// style hold's rate in 1/s and its reach), (rotation at the step's start), (translation at the step's end,
+// 0).
+const HEAD_ROWS: u32 = 6u;
 // Per collider: (centre at the start, relative to its head's new translation; 0), (rotation at the start),
 // (centre at the end; friction), (rotation at the end), (shape: sphere (r, 0, 0, 0), capsule (r, half
 // length, 0, 1), ellipsoid (semi-axes, 2), plane (0, 0, 0, 3), box (half extents, 4), mesh (its field's
@@ -192,6 +198,8 @@ var<private> x_carried: vec3<f32>;
 var<private> start_tangent: vec3<f32>;
 var<private> normal: vec3<f32>;
 var<private> spring: f32;
+// The air's velocity at this lane's node where it was at the step's start (`air_at`).
+var<private> node_air: vec3<f32>;
 // Whether the contact after the solve moved this lane's node this step, and the speed of the collider's
 // surface there along `normal` (m/s), for the velocity's inelastic contact.
 var<private> pushed: bool;
@@ -283,8 +291,38 @@ fn wrap_angle(a: f32) -> f32 {
     return a - 2.0 * pi * floor((a + pi) / (2.0 * pi));
 }
 
+// The air's velocity at `p` (head-relative) at the step's middle: the wind's uniform part, each turbulence
+// mode `a cos(k·x + φ)` and each jet (`AirSnapshot::velocity_at`, in the rows before the heads'), and the
+// head's own air. `k·x` is taken as `k·p + k·T` (T the head's translation), each in range of `f32`.
+fn air_at(p: vec3<f32>) -> vec3<f32> {
+    let header = heads[0];
+    let modes = bitcast<u32>(header.w);
+    let jets = bitcast<u32>(heads[1].x);
+    let translation = head_row(5u).xyz;
+    var air = header.xyz + head_row(2u).xyz;
+    for (var m = 0u; m < modes; m++) {
+        let wave = heads[2u + 2u * m];
+        air += heads[3u + 2u * m].xyz * cos(dot(wave.xyz, p) + dot(wave.xyz, translation) + wave.w);
+    }
+    let first_jet = 2u + 2u * modes;
+    for (var j = 0u; j < jets; j++) {
+        let origin = heads[first_jet + 3u * j];
+        let axis = heads[first_jet + 3u * j + 1u];
+        let radius = heads[first_jet + 3u * j + 2u].x;
+        let offset = p + (translation - origin.xyz);
+        let along = dot(offset, axis.xyz);
+        if along >= 0.0 && along < axis.w && radius > 0.0 {
+            let across = length(offset - along * axis.xyz);
+            let width = radius + 0.1 * along;
+            let decay = (1.0 - along / axis.w) * (1.0 - along / axis.w);
+            air += origin.w * decay * exp(-(across / width) * (across / width)) * axis.xyz;
+        }
+    }
+    return air;
+}
+
 fn head_row(row: u32) -> vec4<f32> {
-    return heads[head * HEAD_ROWS + row];
+    return heads[params.head_base + head * HEAD_ROWS + row];
 }
 
 // The root's targets this step (head-relative): node 0, node 1, the material direction.
@@ -923,7 +961,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                 }
             }
             let gravity = vec3<f32>(params.gravity_x, params.gravity_y, params.gravity_z);
-            let air = head_row(2u).xyz;
+            let air = node_air;
             let mass = rest_at(i, 1u).y;
             let offset = x - x_hat;
             let relative = offset / h - air;
@@ -1698,6 +1736,7 @@ fn step(
             v_hat = v.xyz;
         }
         v_start = v.xyz;
+        node_air = air_at(x_start);
         // The arc length of rest lengths from the root to this node.
         arc = 0.0;
         for (var e = 0u; e < node; e++) {

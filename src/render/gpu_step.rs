@@ -27,6 +27,7 @@ use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
     SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
 };
+use crate::wind::AirSnapshot;
 use crate::wind::{HairWind, HairWindSource};
 
 /// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
@@ -53,8 +54,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// capsules, ellipsoids (at their closest point), planes, boxes (rounded or not) and meshes (their baked
 /// distance fields, uploaded once and sampled trilinearly), nodes and the edges dipping in between them,
 /// with the CPU's rule for a collider holding a root inside it (the strand near the root is left free of
-/// it). The air is the wind ([`HairWind`], [`HairWindSource`]) at the head's position, one velocity per
-/// head, so that eddies smaller than a head are not resolved. Forces in [`StrandForces`], levels of
+/// it). The air is the wind ([`HairWind`], [`HairWindSource`]) sampled by the step at every node, its
+/// gusts, eddies and jets included, as on the CPU (which interpolates the eddies between nodes a quarter
+/// of their size apart; the GPU takes every node). Other forces in [`StrandForces`], levels of
 /// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
 /// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
 /// strand's groomed pose carried with its head.
@@ -166,6 +168,8 @@ pub struct HairGpuStatus {
 struct GpuStepOrder {
     params: StepParams,
     heads: Vec<GpuHeadStep>,
+    /// The wind and its sources at the step's middle, sampled at every node by the step.
+    air: AirSnapshot,
     /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
     read_back: bool,
     /// Its number among the steps sent.
@@ -443,25 +447,24 @@ fn order_gpu_step(
         };
         let pose = motion.current;
         let met = colliders.of(Some(&StrandOf(head))).to_vec();
-        // As `HairWindPlugin` blows it (which reports invalid wind): at the head's position.
-        let at = pose.translation.as_vec3();
-        let mut air = wind
-            .as_ref()
-            .filter(|wind| !wind.is_calm() && wind.validate().is_ok())
-            .map_or(Vec3::ZERO, |wind| wind.velocity_at(at, now));
-        for (source, transform) in &sources {
-            if source.validate().is_ok() {
-                air += source.velocity_at(transform, at);
-            }
-        }
         steps.push(GpuHeadStep {
             rotation: pose.rotation,
             translation: pose.translation,
             colliders: met,
-            air_velocity: air.as_dvec3(),
+            air_velocity: DVec3::ZERO,
             hold_rate: f64::from(hold.rate),
             hold_reach: f64::from(hold.reach),
         });
+    }
+    // As `HairWindPlugin` blows it on the CPU (which reports an invalid wind or source): at the step's
+    // middle, where each node was at its start.
+    let mut air = AirSnapshot::default();
+    if let Some(wind) = wind.as_ref().filter(|wind| wind.validate().is_ok()) {
+        let valid = sources.iter().filter(|(source, transform)| {
+            let affine = transform.affine();
+            source.validate().is_ok() && affine.matrix3.is_finite() && affine.translation.is_finite()
+        });
+        wind.snapshot_into(now - 0.5 * time.delta_secs_f64(), valid, &mut air);
     }
     queue.since_read_back += 1;
     // Read every step by the CPU: followers placed there, or a head drawn from its components.
@@ -484,7 +487,7 @@ fn order_gpu_step(
     status.steps = queue.steps_sent;
     status.read_back_age = queue.read_back_step.map(|step| queue.steps_sent - step);
     count.steps = queue.steps_sent;
-    queue.steps.push(GpuStepOrder { params, heads: steps, read_back, step: queue.steps_sent });
+    queue.steps.push(GpuStepOrder { params, heads: steps, air, read_back, step: queue.steps_sent });
 }
 
 /// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
@@ -675,6 +678,9 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         // that is a multiple of `STATUS_STEPS`.
         let (mut read_back, mut status_only) = (None, None);
         for order in render.orders.drain(..) {
+            if let Err(error) = solver.set_air(&order.air) {
+                send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
+            }
             match solver.step(device, queue, &order.params, &order.heads) {
                 Ok(_) if order.read_back => read_back = Some(order.step),
                 Ok(_) if order.step % STATUS_STEPS == 0 => status_only = Some(order.step),

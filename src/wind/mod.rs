@@ -150,6 +150,35 @@ impl HairWind {
         self.field().velocity_at(position.as_dvec3(), time).as_vec3()
     }
 
+    /// This wind and `sources` (each with its transform) at simulated time `time` (s), into `snapshot`
+    /// (its lists reused): what [`AirSnapshot::velocity_at`] evaluates, equal to
+    /// [`HairWind::velocity_at`] plus each source's [`HairWindSource::velocity_at`]. Invalid sources are
+    /// the caller's to leave out.
+    pub fn snapshot_into<'a>(
+        &self,
+        time: f64,
+        sources: impl IntoIterator<Item = (&'a HairWindSource, &'a GlobalTransform)>,
+        snapshot: &mut AirSnapshot,
+    ) {
+        let field = self.field();
+        snapshot.uniform = field.uniform_at(time);
+        snapshot.modes.clear();
+        if field.turbulent {
+            snapshot.modes.extend(field.modes.iter().map(|mode| AirMode {
+                wave_vector: mode.wave_vector,
+                amplitude: mode.amplitude,
+                phase: (mode.phase + mode.frequency * time - mode.wave_vector.dot(field.mean) * time).rem_euclid(TAU),
+            }));
+        }
+        snapshot.jets.clear();
+        snapshot.jets.extend(
+            sources
+                .into_iter()
+                .filter(|(source, _)| source.speed != 0.0)
+                .map(|(source, transform)| AirJet::of(source, transform)),
+        );
+    }
+
     /// The wind at one time, ready to evaluate at many points.
     fn field(&self) -> WindField {
         let mean = self.velocity.as_dvec3();
@@ -179,6 +208,87 @@ impl HairWind {
             modes,
             turbulent: self.turbulence > 0.0,
         }
+    }
+}
+
+/// The air of [`HairWind`] and the [`HairWindSource`]s at one instant, ready to evaluate at many points:
+/// what the GPU's step samples at every node (`crate::gpu::GpuStrandSolver::set_air`), and what
+/// [`AirSnapshot::velocity_at`] gives on the CPU. Built by [`HairWind::snapshot_into`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct AirSnapshot {
+    /// The mean wind with its gust at that instant, m/s: the same everywhere.
+    pub uniform: DVec3,
+    /// The turbulence's modes, each `a cos(k·x + φ)` at that instant (none in still air).
+    pub modes: Vec<AirMode>,
+    /// The wind sources' jets.
+    pub jets: Vec<AirJet>,
+}
+
+/// One mode of [`HairWind`]'s turbulence at one instant: the air's velocity `a cos(k·x + φ)` at `x`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AirMode {
+    /// The wave vector `k`, rad/m.
+    pub wave_vector: DVec3,
+    /// The amplitude `a` (across `k`), m/s.
+    pub amplitude: DVec3,
+    /// The phase `φ` at that instant, rad, in `[0, 2π)`: the mode's own phase and frequency, and the mean
+    /// wind's carrying, `φ₀ + ω t − k·U t`.
+    pub phase: f64,
+}
+
+/// A [`HairWindSource`] where it is: a round jet from `origin` along `axis` (see [`HairWindSource`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct AirJet {
+    /// Where the jet starts, m.
+    pub origin: DVec3,
+    /// The unit direction it blows along.
+    pub axis: DVec3,
+    /// [`HairWindSource::speed`], m/s.
+    pub speed: f64,
+    /// [`HairWindSource::radius`], m.
+    pub radius: f64,
+    /// [`HairWindSource::range`], m.
+    pub range: f64,
+}
+
+impl AirJet {
+    /// `source`'s jet where `transform` puts it: from its position along its forward direction (local −Z).
+    pub fn of(source: &HairWindSource, transform: &GlobalTransform) -> Self {
+        Self {
+            origin: transform.translation().as_dvec3(),
+            axis: transform.forward().as_vec3().as_dvec3(),
+            speed: f64::from(source.speed),
+            radius: f64::from(source.radius),
+            range: f64::from(source.range),
+        }
+    }
+
+    /// The jet's air velocity at `position`, m/s ([`HairWindSource::velocity_at`]).
+    pub fn velocity_at(&self, position: DVec3) -> DVec3 {
+        let offset = position - self.origin;
+        let along = offset.dot(self.axis);
+        if !(along >= 0.0 && along < self.range) || self.radius <= 0.0 {
+            return DVec3::ZERO;
+        }
+        let across = (offset - along * self.axis).length();
+        let width = self.radius + 0.1 * along;
+        let decay = (1.0 - along / self.range).powi(2);
+        self.speed * decay * (-(across / width).powi(2)).exp() * self.axis
+    }
+}
+
+impl AirSnapshot {
+    /// Whether no air moves anywhere.
+    pub fn is_still(&self) -> bool {
+        self.uniform == DVec3::ZERO && self.modes.is_empty() && self.jets.is_empty()
+    }
+
+    /// The air's velocity at `position` (m), m/s: the uniform wind, every turbulence mode and every jet.
+    pub fn velocity_at(&self, position: DVec3) -> DVec3 {
+        let turbulence: DVec3 =
+            self.modes.iter().map(|mode| mode.amplitude * (mode.wave_vector.dot(position) + mode.phase).cos()).sum();
+        let jets: DVec3 = self.jets.iter().map(|jet| jet.velocity_at(position)).sum();
+        self.uniform + turbulence + jets
     }
 }
 
@@ -215,16 +325,7 @@ impl HairWindSource {
 
     /// The air's velocity at `position` (m) from this source placed at `transform`, m/s.
     pub fn velocity_at(&self, transform: &GlobalTransform, position: Vec3) -> Vec3 {
-        let axis = transform.forward().as_vec3();
-        let offset = position - transform.translation();
-        let along = offset.dot(axis);
-        if !(along >= 0.0 && along < self.range) || self.radius <= 0.0 {
-            return Vec3::ZERO;
-        }
-        let across = (offset - along * axis).length();
-        let width = self.radius + 0.1 * along;
-        let decay = (1.0 - along / self.range).powi(2);
-        self.speed * decay * (-(across / width).powi(2)).exp() * axis
+        AirJet::of(self, transform).velocity_at(position.as_dvec3()).as_vec3()
     }
 }
 
@@ -422,6 +523,38 @@ impl Plugin for HairWindPlugin {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_snapshot_blows_what_the_wind_and_its_sources_blow() {
+        let wind = HairWind {
+            velocity: Vec3::new(2.0, 0.0, -1.0),
+            gusts: 1.0,
+            turbulence: 0.6,
+            turbulence_scale: 0.4,
+            seed: 5,
+            ..default()
+        };
+        let fan = HairWindSource { speed: 5.0, radius: 0.05, range: 1.0 };
+        let transform =
+            GlobalTransform::from(Transform::from_xyz(0.1, 1.6, 0.6).looking_at(Vec3::new(0.0, 1.6, 0.0), Vec3::Y));
+        let mut snapshot = AirSnapshot::default();
+        // Late in a game (an hour), where the phases would lose digits if they were not wrapped.
+        for time in [0.0, 12.34, 3600.5] {
+            wind.snapshot_into(time, [(&fan, &transform)], &mut snapshot);
+            assert_eq!(snapshot.modes.len(), TURBULENCE_MODES);
+            for point in [Vec3::new(0.0, 1.6, 0.0), Vec3::new(0.05, 1.5, 0.3), Vec3::new(-0.2, 1.8, 0.1)] {
+                let expected =
+                    wind.field().velocity_at(point.as_dvec3(), time) + fan.velocity_at(&transform, point).as_dvec3();
+                let got = snapshot.velocity_at(point.as_dvec3());
+                // `HairWindSource::velocity_at` rounds the fan's air to `f32`; the modes' phases are
+                // wrapped to [0, 2π), exact to `f64` rounding of `ω t` (1e-12 rad an hour in).
+                assert!(got.distance(expected) < 1e-6, "at {point}, t = {time}: {got} against {expected}");
+            }
+        }
+        // A still wind and no source: nothing moves.
+        HairWind::default().snapshot_into(1.0, [], &mut snapshot);
+        assert!(snapshot.is_still() && snapshot.velocity_at(DVec3::ONE) == DVec3::ZERO);
+    }
 
     #[test]
     fn calm_wind_is_zero_everywhere() {

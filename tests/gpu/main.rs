@@ -11,6 +11,7 @@ mod render_layout;
 mod render_shader;
 mod scaled_rigs;
 mod step;
+mod wind;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::prelude::*;
