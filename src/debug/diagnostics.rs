@@ -44,6 +44,25 @@ impl HairDiagnostics {
     /// The step interval a CPU budget keeps ([`HairStatistics::budget_step_interval`]), fixed steps.
     pub const BUDGET_STEP_INTERVAL: DiagnosticPath = DiagnosticPath::const_new("hair/budget_step_interval");
 
+    /// Nodes touching a collider after the GPU's last step read back
+    /// ([`HairGpuStatus::contacts`](crate::render::HairGpuStatus::contacts); `gpu` feature).
+    #[cfg(feature = "gpu")]
+    pub const GPU_CONTACTS: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_contacts");
+    /// Largest edge strain after the GPU's last step read back
+    /// ([`HairGpuStatus::max_strain`](crate::render::HairGpuStatus::max_strain); `gpu` feature).
+    #[cfg(feature = "gpu")]
+    pub const GPU_MAX_STRAIN: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_max_strain");
+    /// The render thread's time stepping the hair on the GPU in the last frame, ms
+    /// ([`HairGpuStatus::render_thread_seconds`](crate::render::HairGpuStatus::render_thread_seconds);
+    /// `gpu` feature).
+    #[cfg(feature = "gpu")]
+    pub const GPU_RENDER_THREAD_TIME: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_render_thread_time");
+
+    /// The GPU's paths, with their suffixes.
+    #[cfg(feature = "gpu")]
+    const GPU: [(DiagnosticPath, &'static str); 3] =
+        [(Self::GPU_CONTACTS, ""), (Self::GPU_MAX_STRAIN, ""), (Self::GPU_RENDER_THREAD_TIME, "ms")];
+
     /// Every path, with the suffix its values are logged with.
     const ALL: [(DiagnosticPath, &'static str); 9] = [
         (Self::UPDATE_TIME, "ms"),
@@ -64,6 +83,13 @@ impl Plugin for HairDiagnosticsPlugin {
             app.register_diagnostic(Diagnostic::new(path).with_suffix(suffix));
         }
         app.add_systems(Last, measure_hair);
+        #[cfg(feature = "gpu")]
+        {
+            for (path, suffix) in HairDiagnostics::GPU {
+                app.register_diagnostic(Diagnostic::new(path).with_suffix(suffix));
+            }
+            app.add_systems(Last, measure_gpu);
+        }
     }
 }
 
@@ -84,4 +110,14 @@ fn measure_hair(statistics: Option<Res<HairStatistics>>, mut diagnostics: Diagno
     for (path, value) in figures {
         diagnostics.add_measurement(&path, || value);
     }
+}
+
+/// Adds the GPU's figures ([`HairGpuStatus`](crate::render::HairGpuStatus)) to the store, where
+/// `HairGpuPlugin` runs.
+#[cfg(feature = "gpu")]
+fn measure_gpu(status: Option<Res<crate::render::HairGpuStatus>>, mut diagnostics: Diagnostics) {
+    let Some(status) = status else { return };
+    diagnostics.add_measurement(&HairDiagnostics::GPU_CONTACTS, || status.contacts as f64);
+    diagnostics.add_measurement(&HairDiagnostics::GPU_MAX_STRAIN, || f64::from(status.max_strain));
+    diagnostics.add_measurement(&HairDiagnostics::GPU_RENDER_THREAD_TIME, || status.render_thread_seconds * 1e3);
 }

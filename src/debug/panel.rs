@@ -132,6 +132,7 @@ fn hair_panel(
     heads: Query<(Entity, Option<&HairAppearance>), With<HairHead>>,
     mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
     detail: Option<(ResMut<HairDetailSettings>, ResMut<HairCpuBudget>)>,
+    #[cfg(feature = "gpu")] gpu: Option<Res<crate::render::HairGpuStatus>>,
 ) -> Result {
     memory.record(&statistics, real_time.delta_secs());
     let mut edited = settings.clone();
@@ -149,6 +150,10 @@ fn hair_panel(
     let mut edited_detail = detail.as_ref().map(|(settings, budget)| ((**settings).clone(), **budget));
     egui::Window::new("Hair").default_width(320.0).show(contexts.ctx_mut()?, |ui| {
         statistics_grid(ui, &statistics, memory.frame_rate);
+        #[cfg(feature = "gpu")]
+        if let Some(gpu) = gpu.as_deref() {
+            gpu_grid(ui, gpu);
+        }
         step_time_plot(ui, &memory.step_milliseconds);
         ui.horizontal(|ui| {
             let label = if edited_pause.paused { "▶ run" } else { "⏸ pause" };
@@ -266,6 +271,33 @@ fn statistics_grid(ui: &mut egui::Ui, statistics: &HairStatistics, frame_rate: f
     if let Some(error) = &statistics.settings_error {
         ui.colored_label(egui::Color32::LIGHT_RED, error);
     }
+}
+
+/// What the GPU's step did, where `HairGpuPlugin` runs: the strands it steps, what the last read-back said
+/// about them, and what stepping them cost the render thread (on a software adapter, the GPU's work too).
+#[cfg(feature = "gpu")]
+fn gpu_grid(ui: &mut egui::Ui, gpu: &crate::render::HairGpuStatus) {
+    if let Some(error) = &gpu.error {
+        ui.colored_label(egui::Color32::LIGHT_RED, format!("GPU step: {error}"));
+    }
+    if gpu.strands == 0 {
+        return;
+    }
+    egui::Grid::new("hair GPU statistics").num_columns(2).show(ui, |ui| {
+        let mut row = |name: &str, value: String| {
+            ui.label(name);
+            ui.label(value);
+            ui.end_row();
+        };
+        row("GPU step", format!("{} strands, {} steps", gpu.strands, gpu.steps));
+        row(
+            "GPU render thread",
+            format!("{:.2} ms (driver {:.2} ms)", 1e3 * gpu.render_thread_seconds, 1e3 * gpu.render_driver_seconds),
+        );
+        row("GPU largest strain", format!("{:.1e}", gpu.max_strain));
+        row("GPU nodes in contact", gpu.contacts.to_string());
+        row("GPU faults / given up", format!("{} / {}", gpu.faults, gpu.contact_given_up));
+    });
 }
 
 /// A line plot of the recent step times, scaled to their largest.

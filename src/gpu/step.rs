@@ -187,6 +187,9 @@ pub struct GpuStrandStatus {
     pub last_fault: Option<GpuFault>,
     /// Steps that failed since the upload.
     pub faults: u32,
+    /// Nodes touching a collider after the last step: held by a contact spring in the solve or moved by
+    /// the contact after it.
+    pub contacts: u32,
     /// Whether the last step could not put the strand outside its colliders with its lengths kept (it
     /// lies deep inside one that holds its root, say), and kept its state without contact instead.
     pub contact_given_up: bool,
@@ -1292,6 +1295,7 @@ impl GpuReadBack {
                 }
             };
             states.status.push(GpuStrandStatus {
+                contacts: flags >> 8,
                 contact_given_up: flags & 16 != 0,
                 max_strain: f32::from_bits(strain),
                 fault: reason(flags),

@@ -120,6 +120,8 @@ const FAULT_NON_FINITE: u32 = 2u;
 const FAULT_OVER_STRAINED: u32 = 4u;
 const FAULT_NOT_DEFINITE: u32 = 8u;
 const CONTACT_GIVEN_UP: u32 = 16u;
+// The nodes touching a collider after the step, in `status[s].x` from this bit up.
+const CONTACTS_SHIFT: u32 = 8u;
 // A collider holding the root this deep inside it leaves this many times the depth of strand free of it.
 const HELD_REACH: f32 = 2.0;
 // A node this close to a collider's grown surface, m, has a contact spring in the solve (with no force
@@ -381,6 +383,19 @@ fn largest_over_lanes(value: f32) -> f32 {
         atomicStore(&reduced, 0u);
     }
     return bitcast<f32>(largest);
+}
+
+// How many lanes say `yes`.
+fn count_over_lanes(yes: bool) -> u32 {
+    workgroupBarrier();
+    atomicAdd(&reduced, select(0u, 1u, yes));
+    workgroupBarrier();
+    let count = atomicLoad(&reduced);
+    workgroupBarrier();
+    if lane == 0u {
+        atomicStore(&reduced, 0u);
+    }
+    return count;
 }
 
 // The smallest of every lane's `value`.
@@ -1699,7 +1714,7 @@ fn step(
     if lane == 0u {
         atomicStore(&reduced, 0u);
     }
-    var flags = status[strand].x;
+    var flags = status[strand].x & ((1u << CONTACTS_SHIFT) - 1u);
     if params.restart != 0u {
         flags = flags & ~HAS_HISTORY;
     }
@@ -1893,6 +1908,10 @@ fn step(
         flags = flags | HAS_HISTORY;
     }
 
+    // The nodes touching a collider after the step: held by a contact spring in the solve or moved by the
+    // contact after it (`HairStatistics::contacts` on the CPU).
+    let contacts = count_over_lanes(own_edge && fault == 0u && (spring > 0.0 || pushed));
+
     // 6. Velocities and the state written back: each node's velocity shared (in `shared_m`), then row `k`
     // of node `lane` (its position and velocity beside edge `lane`'s θ and θ̇) by lane `lane`, the last
     // node's by the last lane.
@@ -1944,7 +1963,8 @@ fn step(
             at = fault_at;
         }
         let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
-        status[strand] = vec4<u32>((flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault, at, bitcast<u32>(reported), failures);
+        let kept = (flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault;
+        status[strand] = vec4<u32>(kept | (contacts << CONTACTS_SHIFT), at, bitcast<u32>(reported), failures);
         work_steps.x = 1u;
         let row = strand * WORK_ROWS;
         work[row] = work[row] + work_steps;

@@ -146,6 +146,12 @@ pub struct HairGpuStatus {
     /// Strands whose last read-back step could not put them outside their colliders with their lengths
     /// kept (deep inside a collider that holds the root): they stayed whole, inside, for that step.
     pub contact_given_up: usize,
+    /// Nodes touching a collider after the last step read back (every fourth step at least): held by a
+    /// contact spring or moved by the contact (the GPU's [`HairStatistics::contacts`]).
+    pub contacts: usize,
+    /// The largest edge strain of any strand after the last step read back, dimensionless (the GPU's
+    /// [`HairStatistics::max_strain`]).
+    pub max_strain: f32,
     /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
     pub error: Option<String>,
     /// Sets of strands uploaded to the GPU (at the start, and each time the strands it steps change).
@@ -578,6 +584,8 @@ fn apply_read_backs(
         }
         fault_log.summarise(now);
         status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
+        status.contacts = states.status.iter().map(|report| report.contacts as usize).sum();
+        status.max_strain = states.status.iter().map(|report| report.max_strain).fold(0.0, f32::max);
         if full {
             status.read_backs += 1;
             queue.read_back_step = Some(step);

@@ -4,13 +4,16 @@
 //! back into the components. Checked against the same app stepped on the CPU, and the drawn nodes
 //! against the read-back components.
 
+use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::collision::MeshColliderSettings;
+use bevy_hair_sim::debug::{HairDiagnostics, HairDiagnosticsPlugin};
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
+use bevy_hair_sim::rod::StepParams;
 use bevy_hair_sim::simulation::{SimulatedStrand, SteppedElsewhere};
 
 /// Fixed step, s.
@@ -42,7 +45,12 @@ const DRAWN_TOLERANCE: f32 = 1e-5;
 fn app(gpu: bool) -> App {
     let mut app = App::new();
     if gpu {
-        app.add_plugins((crate::headless_renderer(), HairPlugins::default(), HairGpuPlugin::default()));
+        app.add_plugins((
+            crate::headless_renderer(),
+            HairPlugins::default(),
+            HairGpuPlugin::default(),
+            HairDiagnosticsPlugin,
+        ));
     } else {
         app.add_plugins((MinimalPlugins, HairPlugins::default()));
     }
@@ -420,6 +428,21 @@ fn the_gpu_meets_a_box_and_a_mesh_collider_in_the_app_as_the_cpu_does() {
     println!("{status:?}");
     assert_eq!(status.error, None);
     assert_eq!((status.strands, status.faults), (64, 0), "every guide on the GPU, no fault");
+    // The GPU's figures: the nodes in contact, near the CPU's count on its own hair; the largest strain
+    // within the step's bound; both in Bevy's diagnostics.
+    let cpu_contacts = cpu.world().resource::<HairStatistics>().contacts;
+    let bound = StepParams::default().strain_bound() as f32;
+    println!(
+        "nodes in contact: GPU {}, CPU {cpu_contacts}; GPU's largest strain {:.1e}",
+        status.contacts, status.max_strain
+    );
+    assert!(status.contacts > 0 && status.contacts <= 64 * 16, "{} nodes in contact", status.contacts);
+    assert!(status.contacts * 2 >= cpu_contacts && status.contacts <= 2 * cpu_contacts);
+    assert!(status.max_strain > 0.0 && status.max_strain < bound, "largest strain {}", status.max_strain);
+    let store = gpu.world().resource::<DiagnosticsStore>();
+    let measured = |path: DiagnosticPath| store.get(&path).and_then(|diagnostic| diagnostic.value());
+    assert_eq!(measured(HairDiagnostics::GPU_CONTACTS), Some(status.contacts as f64));
+    assert_eq!(measured(HairDiagnostics::GPU_MAX_STRAIN), Some(f64::from(status.max_strain)));
     let gpu_head = heads[0].0.0;
     let guides = gpu.world().get::<HeadStrands>(gpu_head).unwrap().strands().to_vec();
     assert!(guides.iter().all(|&guide| gpu.world().get::<SteppedElsewhere>(guide).is_some()));
