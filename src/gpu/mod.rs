@@ -72,7 +72,7 @@ mod step;
 pub use gather::{GATHER_SHADER, GpuGatherTarget};
 pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
 pub use step::{
-    GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError,
-    GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    GpuStrandWork, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
+    GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
+    GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
+    GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
 };

@@ -123,7 +123,7 @@ pub enum GpuStepError {
     /// A head's pose, air or collider is not finite, its rotation not a unit quaternion, or its style hold's
     /// rate negative or not finite or its reach outside 0 to 1.
     #[error(
-        "head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit), or its style hold is out of range"
+        "head {head}'s pose, air velocity or colliders are not finite (or its rotation is not unit), or its style hold or cadence is out of range"
     )]
     InvalidHead {
         /// The head's index.
@@ -162,8 +162,11 @@ pub struct GpuHeadStep {
     pub translation: DVec3,
     /// The colliders its hair meets.
     pub colliders: Vec<MovingCollider>,
-    /// The air's velocity around the head, m/s (the drag acts on the hair's velocity relative to it).
+    /// The air's velocity around the head, m/s (the drag acts on the hair's velocity relative to it),
+    /// besides the air of [`GpuStrandSolver::set_air`].
     pub air_velocity: DVec3,
+    /// Whether its hair is stepped in this fixed step, and how long a step it takes, or carried.
+    pub cadence: GpuHairCadence,
     /// How fast the style hold draws its strands' nodes back to their groomed places
     /// ([`GpuStrandInput::groomed`]) at the root, 1/s: the angular frequency `ω` of a node's spring
     /// alone (`k = ω²`, critically damped `c = 2ω`). 0 (the default) holds nothing. Finite, not negative.
@@ -173,6 +176,31 @@ pub struct GpuHeadStep {
     /// `HairStyleHold::angular_frequency` on the CPU.
     pub hold_reach: f64,
 }
+
+/// What a head's hair does in a fixed step on the GPU ([`GpuHeadStep::cadence`]): its level of detail.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GpuHairCadence {
+    /// Stepped, with a step as long as this many fixed steps, 1 to [`MAX_GPU_SPAN`] (1, the default:
+    /// every fixed step; `n`: every `n`-th, as `HairDetailLevel::Stepped(n)` on the CPU, with backward
+    /// Euler where the last step was not as long).
+    Step(u32),
+    /// Carried rigidly with the head from its pose at the last fixed step, not simulated, its velocity the
+    /// head's rigid motion: hair out of sight, which comes back with its head's motion.
+    Carried,
+    /// Carried rigidly with the head like [`GpuHairCadence::Carried`], waiting for its next step at a
+    /// coarser level: its velocity turns with the head and is kept, so that the next step (as long as the
+    /// fixed steps since the last) goes on with the hair's own motion.
+    Waiting,
+}
+
+impl Default for GpuHairCadence {
+    fn default() -> Self {
+        Self::Step(1)
+    }
+}
+
+/// The most fixed steps one GPU step may span ([`GpuHairCadence::Step`]).
+pub const MAX_GPU_SPAN: u32 = 255;
 
 /// What a strand's last GPU step reported.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -886,6 +914,7 @@ impl GpuStrandSolver {
                 && head.hold_rate.is_finite()
                 && head.hold_rate >= 0.0
                 && (0.0..=1.0).contains(&head.hold_reach)
+                && !matches!(head.cadence, GpuHairCadence::Step(span) if span == 0 || span > MAX_GPU_SPAN)
                 && head
                     .colliders
                     .iter()
@@ -906,7 +935,16 @@ impl GpuStrandSolver {
                 vec4(head.air_velocity, 0.0),
                 [f32::from_bits(first), f32::from_bits(count), head.hold_rate as f32, head.hold_reach as f32],
                 before.0.as_quat().to_array(),
-                vec4(head.translation, 0.0),
+                {
+                    // As the shader reads it (`CARRIED`, `WAITING`).
+                    let span = match head.cadence {
+                        GpuHairCadence::Step(span) => span,
+                        GpuHairCadence::Carried => 0,
+                        GpuHairCadence::Waiting => u32::MAX,
+                    };
+                    let translation = head.translation.as_vec3();
+                    [translation.x, translation.y, translation.z, f32::from_bits(span)]
+                },
             ]);
             first += count;
         }
@@ -1295,7 +1333,7 @@ impl GpuReadBack {
                 }
             };
             states.status.push(GpuStrandStatus {
-                contacts: flags >> 8,
+                contacts: (flags >> 8) & 0xff,
                 contact_given_up: flags & 16 != 0,
                 max_strain: f32::from_bits(strain),
                 fault: reason(flags),

@@ -120,8 +120,15 @@ const FAULT_NON_FINITE: u32 = 2u;
 const FAULT_OVER_STRAINED: u32 = 4u;
 const FAULT_NOT_DEFINITE: u32 = 8u;
 const CONTACT_GIVEN_UP: u32 = 16u;
-// The nodes touching a collider after the step, in `status[s].x` from this bit up.
+// The bits of `status[s].x` that are flags; the nodes touching a collider after the step from bit 8 (at
+// most 65), the fixed steps the last step spanned from bit 16 (`span`).
+const STATUS_FLAGS: u32 = 0xffu;
 const CONTACTS_SHIFT: u32 = 8u;
+const SPAN_SHIFT: u32 = 16u;
+// A head's `span` (the `w` of its sixth row) when its hair is carried with it: out of sight (its velocity
+// the head's rigid motion), or waiting for its next step at a coarser level (its own motion kept).
+const CARRIED: u32 = 0u;
+const WAITING: u32 = 0xffffffffu;
 // A collider holding the root this deep inside it leaves this many times the depth of strand free of it.
 const HELD_REACH: f32 = 2.0;
 // A node this close to a collider's grown surface, m, has a contact spring in the solve (with no force
@@ -200,6 +207,8 @@ var<private> x_carried: vec3<f32>;
 var<private> start_tangent: vec3<f32>;
 var<private> normal: vec3<f32>;
 var<private> spring: f32;
+// The length of this strand's step, s: the fixed step's, or as many of them as its level of detail spans.
+var<private> step_dt: f32;
 // The air's velocity at this lane's node where it was at the step's start (`air_at`).
 var<private> node_air: vec3<f32>;
 // Whether the contact after the solve moved this lane's node this step, and the speed of the collider's
@@ -920,7 +929,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                     let d = rhs[offset + a];
                     along += vec3<f32>(grad_k1[a], grad_k2[a], grad_tw[a]) * d;
                 }
-                force += params.internal_damping / params.dt * scaled * along;
+                force += params.internal_damping / step_dt * scaled * along;
             }
             workgroupBarrier();
         }
@@ -929,7 +938,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
         }
         workgroupBarrier();
         // Vertices three apart share no unknowns: three passes, each adding a third of them.
-        let damped_scale = 1.0 + params.internal_damping / params.dt;
+        let damped_scale = 1.0 + params.internal_damping / step_dt;
         for (var colour = 0u; colour < 3u; colour++) {
             if vertex && lane % 3u == colour {
                 let offset = 4u * (lane - 1u);
@@ -1011,7 +1020,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             add_contact_springs(inertia);
             // Its edge's twist by backward Euler.
             {
-                let dt = params.dt;
+                let dt = step_dt;
                 let j = rest_at(lane, 1u).z;
                 let twist_offset = theta - theta_start;
                 let dof = 4u * lane + 3u;
@@ -1671,6 +1680,61 @@ fn reset_to_rest() {
     publish_nodes();
 }
 
+// A strand whose head is carried this fixed step: moved rigidly with its head from the head's pose at the
+// last fixed step to its pose now, its twists unchanged, its history dropped (its next step is backward
+// Euler, as after an upload). Out of sight, its velocity becomes the head's rigid motion (it comes back with
+// its head's motion); waiting for its next step at a coarser level, its velocity turns with the head and
+// is kept, so that the next step, as long as the fixed steps it spans, goes on with the hair's own motion
+// (a still head's hair then steps exactly as the CPU's does at that level). `shift` is the head's
+// translation before less after.
+fn carry_with_head(shift: vec3<f32>, keep_motion: bool) {
+    // Head-relative before (relative to the head's last translation) to head-relative now.
+    let before = head_row(4u);
+    let after = head_row(0u);
+    var moved = vec3<f32>(0.0);
+    var velocity = vec3<f32>(0.0);
+    if own_edge {
+        let p = state[state_index(node, 0u)].xyz;
+        moved = rotate(after, inverse_rotate(before, p));
+        velocity = (moved - (p + shift)) / params.dt;
+        if keep_motion {
+            velocity = rotate(after, inverse_rotate(before, state[state_index(node, 1u)].xyz));
+        }
+        shared_x[node] = vec4<f32>(moved, 0.0);
+        shared_m[node] = vec4<f32>(velocity, 0.0);
+    }
+    if lane == 0u {
+        let p = state[state_index(0u, 0u)].xyz;
+        let root = rotate(after, inverse_rotate(before, p));
+        shared_x[0] = vec4<f32>(root, 0.0);
+        var root_velocity = (root - (p + shift)) / params.dt;
+        if keep_motion {
+            root_velocity = rotate(after, inverse_rotate(before, state[state_index(0u, 1u)].xyz));
+        }
+        shared_m[0] = vec4<f32>(root_velocity, 0.0);
+    }
+    workgroupBarrier();
+    // Row `k` of node `lane` by lane `lane` (the last node's by the last lane), as at a step's end.
+    if own_edge {
+        let edge_row = state[state_index(lane, 0u)];
+        let frame = state[state_index(lane, 4u)];
+        state[state_index(lane, 0u)] = vec4<f32>(shared_x[lane].xyz, edge_row.w);
+        let rate = select(0.0, state[state_index(lane, 1u)].w, keep_motion);
+        state[state_index(lane, 1u)] = vec4<f32>(shared_m[lane].xyz, rate);
+        state[state_index(lane, 4u)] = vec4<f32>(rotate(after, inverse_rotate(before, frame.xyz)), frame.w);
+        state[state_index(node, 3u)] = vec4<f32>(velocity, 0.0);
+        if node == edge_count() {
+            state[state_index(node, 0u)] = vec4<f32>(moved, 0.0);
+            state[state_index(node, 1u)] = vec4<f32>(velocity, 0.0);
+        }
+    }
+    if lane == 0u {
+        // No history, no fault, no contact: the failed steps' count and the last one's reason are kept.
+        let before_status = status[strand];
+        status[strand] = vec4<u32>(0u, before_status.y, before_status.z, before_status.w);
+    }
+}
+
 @compute @workgroup_size(LANES)
 fn step(
     @builtin(workgroup_id) group: vec3<u32>,
@@ -1714,12 +1778,25 @@ fn step(
     if lane == 0u {
         atomicStore(&reduced, 0u);
     }
-    var flags = status[strand].x & ((1u << CONTACTS_SHIFT) - 1u);
+    var flags = status[strand].x & STATUS_FLAGS;
     if params.restart != 0u {
         flags = flags & ~HAS_HISTORY;
     }
     let shift = head_row(1u).xyz;
-    let dt = params.dt;
+    // The fixed steps this step spans (a coarser level of detail steps every `n`-th fixed step with a
+    // step `n` times as long); 0: the head is carried this fixed step, its hair with it.
+    let span = bitcast<u32>(head_row(5u).w);
+    if span == CARRIED || span == WAITING {
+        carry_with_head(shift, span == WAITING);
+        return;
+    }
+    // A step longer than the last one has no history it can use (BDF2's is for equal steps).
+    let last_span = (status[strand].x >> SPAN_SHIFT) & 0xffu;
+    if span != max(last_span, 1u) {
+        flags = flags & ~HAS_HISTORY;
+    }
+    step_dt = params.dt * f32(span);
+    let dt = step_dt;
     let two_step = params.bdf2 != 0u && (flags & HAS_HISTORY) != 0u;
     let h = select(dt, 2.0 / 3.0 * dt, two_step);
 
@@ -1796,7 +1873,10 @@ fn step(
     var fault = 0u;
     var fault_at = 0u;
     let target_tangent = normalize(root_target(1u) - root_target(0u));
-    for (var iteration = 0u; iteration < params.newton_iterations; iteration++) {
+    // A longer step (a coarser level of detail) is further from linear: one more Newton iteration for each
+    // fixed step it spans past the first, which its level still pays less for than for every fixed step.
+    let newton_iterations = params.newton_iterations + span - 1u;
+    for (var iteration = 0u; iteration < newton_iterations; iteration++) {
         let offset = from_lane_zero(root_twist_offset(target_tangent, root_target(2u)));
         if !assemble_and_factorize(iteration, h, offset) {
             fault = FAULT_NOT_DEFINITE;
@@ -1831,7 +1911,7 @@ fn step(
             root_x += fraction * vec3<f32>(rhs[0], rhs[1], rhs[2]);
         }
         work_steps.y += 1u;
-        let last = iteration + 1u == params.newton_iterations;
+        let last = iteration + 1u == newton_iterations;
         if last && lane == 0u {
             // Exactly on the root's targets.
             root_x = root_target(0u);
@@ -1963,7 +2043,7 @@ fn step(
             at = fault_at;
         }
         let reported = select(strain.x, failing_strain, fault == FAULT_OVER_STRAINED);
-        let kept = (flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault;
+        let kept = (flags & (HAS_HISTORY | CONTACT_GIVEN_UP)) | fault | (span << SPAN_SHIFT);
         status[strand] = vec4<u32>(kept | (contacts << CONTACTS_SHIFT), at, bitcast<u32>(reported), failures);
         work_steps.x = 1u;
         let row = strand * WORK_ROWS;

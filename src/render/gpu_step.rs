@@ -16,16 +16,18 @@ use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 
 use super::draw::GpuStepCount;
+use crate::detail::{HairDetail, HairDetailLevel};
 use crate::followers::{FollowerPlacement, PlaceFollowersOnCpu};
 use crate::gpu::{
-    GPU_FOLD_GAP, GpuFault, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver,
-    GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, SINGLE_PRECISION_STRAIN,
+    GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput,
+    GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, MAX_GPU_SPAN,
+    SINGLE_PRECISION_STRAIN,
 };
 use crate::rod::{StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
-    SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf,
+    SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf, write_strand_data,
 };
 use crate::wind::AirSnapshot;
 use crate::wind::{HairWind, HairWindSource};
@@ -56,10 +58,19 @@ use crate::wind::{HairWind, HairWindSource};
 /// with the CPU's rule for a collider holding a root inside it (the strand near the root is left free of
 /// it). The air is the wind ([`HairWind`], [`HairWindSource`]) sampled by the step at every node, its
 /// gusts, eddies and jets included, as on the CPU (which interpolates the eddies between nodes a quarter
-/// of their size apart; the GPU takes every node). Other forces in [`StrandForces`], levels of
-/// detail, the hair–hair grid and the followers' own collisions on the CPU are not applied to GPU strands.
-/// The style hold ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each
-/// strand's groomed pose carried with its head.
+/// of their size apart; the GPU takes every node). Other forces in [`StrandForces`], the hair–hair grid
+/// and the followers' own collisions on the CPU are not applied to GPU strands. The style hold
+/// ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each strand's
+/// groomed pose carried with its head.
+///
+/// **Levels of detail** ([`crate::detail`]): a head at [`HairDetailLevel::Stepped`]`(n)` has its hair
+/// stepped on every `n`-th fixed step (heads take turns) with a step as long, one Newton iteration more
+/// for each fixed step it spans past the first, and carried with its head in between, its own motion kept
+/// for its next step; a head at [`HairDetailLevel::Carried`] (out of sight, far away) has its hair carried
+/// rigidly with it, not simulated ([`GpuHairCadence`]). The drawn hair is the GPU's state: at a coarser
+/// level its motion relative to the head moves on at its steps, not in between (the CPU draws its own
+/// keyframes there). A strand of a head carried since it was spawned waits on the CPU's side until its
+/// head is first simulated.
 ///
 /// **The GPU's state is the truth.** The hair is drawn from it where it is, so by default nothing is read
 /// back but each strand's status every fourth step (16 bytes a strand, for the faults):
@@ -196,6 +207,8 @@ struct GpuStepQueue {
     /// The strands on the GPU, in the upload's order, and their heads.
     strands: Arc<Vec<Entity>>,
     heads: Vec<Entity>,
+    /// The step (its number among those sent) at which each head's hair was last stepped, not carried.
+    heads_stepped: Vec<u64>,
     /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
     faults: Vec<u32>,
     fault_streaks: Vec<u32>,
@@ -317,7 +330,14 @@ fn choose_gpu_strands(
     if settings.enabled {
         for (entity, strand, &StrandOf(head), _) in &strands {
             let nodes = strand.rod().node_count();
-            let rooted = strand.root_anchor().is_some() && heads.contains(head);
+            // Rooted, with its root edge clamped where the head holds it (a strand of a head carried since it
+            // was spawned has not been pinned yet: it waits for its first step on the CPU's side).
+            let constraints = strand.rod().constraints();
+            let clamped = constraints.node_targets.len() >= 2
+                && constraints.node_targets[0].is_some()
+                && constraints.node_targets[1].is_some()
+                && constraints.twist_targets.first().is_some_and(Option::is_some);
+            let rooted = strand.root_anchor().is_some() && clamped && heads.contains(head);
             if strand.preload_pending() || strand.rod().unusable_state().is_some() {
                 // Looked over again until the preload is done, or until the CPU's step has put the
                 // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
@@ -397,6 +417,7 @@ fn choose_gpu_strands(
         }
     };
     queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
+    queue.heads_stepped = vec![queue.steps_sent; queue.heads.len()];
     queue.faults = vec![0; on_gpu.len()];
     queue.fault_streaks = vec![0; on_gpu.len()];
     queue.read_back_step = None;
@@ -430,7 +451,7 @@ fn order_gpu_step(
     mut queue: ResMut<GpuStepQueue>,
     mut status: ResMut<HairGpuStatus>,
     mut count: ResMut<GpuStepCount>,
-    heads: Query<&HeadMotion>,
+    heads: Query<(&HeadMotion, Option<&HairDetail>)>,
     colliders: StrandColliders,
     wind: Option<Res<HairWind>>,
     sources: Query<(&HairWindSource, &GlobalTransform)>,
@@ -446,10 +467,24 @@ fn order_gpu_step(
     // Valid whenever the checked parameters are (invalid settings hold the hair until fixed).
     let hold = hair_settings.style_hold;
     let mut steps = Vec::with_capacity(queue.heads.len());
-    for &head in &queue.heads {
-        let Ok(motion) = heads.get(head) else {
+    let step = queue.steps_sent + 1;
+    for (index, &head) in queue.heads.iter().enumerate() {
+        let Ok((motion, detail)) = heads.get(head) else {
             steps.push(GpuHeadStep::default());
             continue;
+        };
+        // At a coarser level of detail, stepped every `n`-th fixed step (heads taking turns, so that every
+        // fixed step steps about as many) with a step as long as the fixed steps since its last, at most
+        // `n` (back from being carried, a step of one), carried with its own motion kept in between; out
+        // of sight, carried.
+        let cadence = match detail.map_or(HairDetailLevel::FULL, HairDetail::level) {
+            HairDetailLevel::Stepped(interval) if (step + index as u64).is_multiple_of(u64::from(interval.max(1))) => {
+                let since = step.saturating_sub(queue.heads_stepped[index]).clamp(1, u64::from(interval.max(1)));
+                queue.heads_stepped[index] = step;
+                GpuHairCadence::Step(since.min(u64::from(MAX_GPU_SPAN)) as u32)
+            }
+            HairDetailLevel::Stepped(_) => GpuHairCadence::Waiting,
+            HairDetailLevel::Carried => GpuHairCadence::Carried,
         };
         let pose = motion.current;
         let met = colliders.of(Some(&StrandOf(head))).to_vec();
@@ -458,6 +493,7 @@ fn order_gpu_step(
             translation: pose.translation,
             colliders: met,
             air_velocity: DVec3::ZERO,
+            cadence,
             hold_rate: f64::from(hold.rate),
             hold_reach: f64::from(hold.reach),
         });
@@ -547,7 +583,9 @@ fn apply_read_backs(
                 if let Some(snapshot) = states.take_snapshot(index)
                     && strand.rod_mut().restore(&snapshot).is_ok()
                 {
-                    strand.write_components(Some(1), &mut nodes, &mut frames);
+                    // The GPU's state as it is: the GPU carries a coarser level's hair with its head itself,
+                    // where the CPU would draw its own keyframes.
+                    write_strand_data(&mut strand, &mut nodes, &mut frames);
                 }
             }
             let report = states.status[index];

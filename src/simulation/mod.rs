@@ -114,11 +114,11 @@ pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
 pub(crate) use step::CheckedSettings;
 #[cfg(feature = "gpu")]
 pub(crate) use step::FaultLog;
-pub(crate) use strand::StepOutcome;
 pub use strand::{
     FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
     SteppedElsewhere, StrandFault, StrandForces, StrandHealth, StrandRejected, StrandSpawnError,
 };
+pub(crate) use strand::{StepOutcome, write_strand_data};
 
 use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
 

@@ -10,6 +10,7 @@ use bevy::render::RenderApp;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hair_sim::collision::MeshColliderSettings;
 use bevy_hair_sim::debug::{HairDiagnostics, HairDiagnosticsPlugin};
+use bevy_hair_sim::detail::{HairDetail, HairDetailLevel};
 use bevy_hair_sim::gpu::MAX_GPU_NODES;
 use bevy_hair_sim::prelude::*;
 use bevy_hair_sim::render::GuideLayout;
@@ -478,4 +479,51 @@ fn the_gpu_meets_a_box_and_a_mesh_collider_in_the_app_as_the_cpu_does() {
     let rms = (squares.iter().sum::<f32>() / squares.len() as f32).sqrt();
     println!("GPU against CPU after {SHAKING_STEPS} steps: RMS {rms:.2e} m");
     assert!(rms < PLUGIN_RMS_BOUND, "RMS {rms} m from the CPU");
+}
+
+/// Levels of detail on the GPU in the app: a head fixed at every fourth step has its hair stepped (it falls
+/// onto the skull and swings) and a carried head's hair keeps its shape in its head's frame however the head
+/// moves, both with their roots on their heads and no fault.
+#[test]
+fn the_gpu_steps_a_coarse_head_and_carries_a_hidden_one_in_the_app() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let mut app = app(true);
+    let heads = [spawn_head(&mut app), spawn_head(&mut app)];
+    let mut pose_all = |app: &mut App, number: usize| {
+        for &(head, skull) in &heads {
+            for entity in [head, skull] {
+                *app.world_mut().get_mut::<Transform>(entity).unwrap() = head_pose(number);
+            }
+        }
+        app.update();
+    };
+    // Ten steps at full detail (every strand pinned to its head and on the GPU), then the levels.
+    for number in 1..=10 {
+        pose_all(&mut app, number);
+    }
+    for ((head, _), level) in heads.iter().zip([HairDetailLevel::Stepped(4), HairDetailLevel::Carried]) {
+        app.world_mut().entity_mut(*head).insert(HairDetail::fixed(level));
+    }
+    pose_all(&mut app, 11);
+    // The hair in each head's frame, read back.
+    let in_head_frame = |app: &App, head: Entity, pose: Transform| -> Vec<Vec3> {
+        guide_nodes(app, head).into_iter().flatten().map(|p| pose.rotation.inverse() * (p - pose.translation)).collect()
+    };
+    app.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(&mut app);
+    let first = heads.map(|(head, _)| in_head_frame(&app, head, head_pose(11)));
+    app.world_mut().resource_mut::<HairPause>().paused = false;
+    for number in 12..=SHAKING_STEPS {
+        pose_all(&mut app, number);
+    }
+    app.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(&mut app);
+    let status = app.world().resource::<HairGpuStatus>().clone();
+    assert_eq!((status.error.as_deref(), status.faults, status.strands), (None, 0, 128), "{status:?}");
+    let last = heads.map(|(head, _)| in_head_frame(&app, head, head_pose(SHAKING_STEPS)));
+    let moved = |k: usize| first[k].iter().zip(&last[k]).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+    println!("in their heads' frames: every fourth step moved {:.2e} m, carried {:.2e} m", moved(0), moved(1));
+    assert!(moved(0) > 0.01, "the coarse head's hair was not simulated");
+    // Carried rigidly, to `f32` rounding of positions near 1.6 m over two seconds of carrying.
+    assert!(moved(1) < 1e-5, "the carried hair moved {} m in its head's frame", moved(1));
 }

@@ -11,8 +11,8 @@ use std::sync::MutexGuard;
 
 use bevy::math::{DQuat, DVec3};
 use bevy_hair_sim::gpu::{
-    GPU_CONTACT_ROUNDS, GPU_NEWTON_ITERATIONS, GpuFault, GpuHeadStep, GpuStepError, GpuStrandInput, GpuStrandSolver,
-    GpuStrandWork, headless_device,
+    GPU_CONTACT_ROUNDS, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuStepError, GpuStrandInput,
+    GpuStrandSolver, GpuStrandWork, headless_device,
 };
 use bevy_hair_sim::rod::{
     Anchor, ColliderShape, Contacts, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams,
@@ -233,6 +233,136 @@ fn released_pendulum_swings_as_on_the_cpu() {
     assert!(gpu_rms <= 2.0 * cpu_rms + single_precision, "GPU {gpu_rms:e} m vs CPU {cpu_rms:e} m from converged");
     // The swing is real: the tip travelled past the root's vertical.
     assert!(converged.positions()[edges].y < root.y - 0.15);
+}
+
+/// A head at a coarser level of detail: the released hair stepped every second and every fourth fixed step
+/// with a step that long (waiting, carried with its still head, in between) stays near the CPU's converged
+/// steps of that length: within twice as far as at full detail from the CPU's converged steps of one. Its
+/// steps follow waiting ones, so they are backward Euler's (BDF2's history is for equal steps), as the
+/// CPU's here.
+#[test]
+fn a_head_stepped_every_second_and_fourth_step_swings_as_on_the_cpu() {
+    let (_turn, device, queue) = device();
+    let root = DVec3::new(-0.4, 1.7, 0.25);
+    let (length, edges) = (0.2, 16);
+    let mut full_detail = 0.0;
+    for interval in [1_u32, 2, 4] {
+        let mut rod = cantilever(root, length, edges, RodMaterial::human_hair());
+        let mut converged = rod.clone();
+        let params = StepParams::default();
+        let longer = match interval {
+            1 => params,
+            _ => StepParams {
+                dt: params.dt * f64::from(interval),
+                integrator: bevy_hair_sim::rod::Integrator::BackwardEuler,
+                ..params
+            },
+        };
+        let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..longer };
+        let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None };
+        let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, root)]).unwrap();
+        let (mut workspace, mut tight_workspace) = (RodWorkspace::default(), RodWorkspace::default());
+        let (mut gpu_squares, mut cpu_squares, mut count) = (0.0, 0.0, 0);
+        for fixed_step in 1..=60 {
+            let due = fixed_step % interval == 0;
+            let cadence = if due { GpuHairCadence::Step(interval) } else { GpuHairCadence::Waiting };
+            gpu.step(&device, &queue, &params, &[GpuHeadStep { cadence, ..still_head(root) }]).unwrap();
+            if !due {
+                continue;
+            }
+            rod.step(&longer, None, &mut workspace).unwrap();
+            converged.step(&tight, None, &mut tight_workspace).unwrap();
+            let states = gpu.read_back(&device, &queue);
+            assert!(states.status[0].fault.is_none(), "step {fixed_step}: {:?}", states.status[0]);
+            for ((gpu, cpu), exact) in states.positions[0].iter().zip(rod.positions()).zip(converged.positions()) {
+                gpu_squares += (*gpu - *exact).length_squared();
+                cpu_squares += (*cpu - *exact).length_squared();
+                count += 1;
+            }
+        }
+        let (gpu_rms, cpu_rms) = ((gpu_squares / count as f64).sqrt(), (cpu_squares / count as f64).sqrt());
+        println!(
+            "every {interval} steps, over 1 s, RMS node distance from the converged CPU steps: GPU {gpu_rms:e} m, CPU {cpu_rms:e} m"
+        );
+        assert!(converged.positions()[edges].y < root.y - 0.15, "the hair swung down");
+        // The GPU takes one Newton iteration more for each fixed step a step spans past the first (three
+        // every second step, five every fourth: fewer per fixed step than at full detail), each within the
+        // trust region of `max_rotation`, which a longer step's larger turns reach: measured 0.4 and 1.5
+        // times the full-detail distance from converged (where `released_pendulum_swings_as_on_the_cpu`
+        // holds the GPU to the CPU's own). Held within twice it.
+        if interval == 1 {
+            full_detail = gpu_rms;
+        }
+        let single_precision = 60.0 * EPSILON * length;
+        assert!(
+            gpu_rms <= 2.0 * full_detail + single_precision,
+            "every {interval}: GPU {gpu_rms:e} m, at full detail {full_detail:e} m"
+        );
+    }
+}
+
+/// A carried head (out of sight): its hair moves rigidly with the head, as fast as the head moves it, and
+/// is simulated again from there when it comes back.
+#[test]
+fn hair_on_a_carried_head_moves_rigidly_with_it_and_steps_again_after() {
+    let (_turn, device, queue) = device();
+    let mut rods = strands_out_of_the_skull(0.2, 16, shaking_head(0.0));
+    rods.truncate(8);
+    let inputs: Vec<GpuStrandInput> =
+        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
+    let params = StepParams::default();
+    let mut gpu = GpuStrandSolver::new(&device, &inputs, &[shaking_head(0.0)]).unwrap();
+    let head_at = |step: usize, cadence| {
+        let (rotation, translation) = shaking_head(step as f64 * params.dt);
+        GpuHeadStep { rotation, translation, cadence, ..Default::default() }
+    };
+    // Ten steps simulated, then ten carried.
+    for step in 1..=10 {
+        gpu.step(&device, &queue, &params, &[head_at(step, GpuHairCadence::Step(1))]).unwrap();
+    }
+    let local = |states: &bevy_hair_sim::gpu::GpuStrandStates, step: usize| -> Vec<Vec<DVec3>> {
+        let (rotation, translation) = shaking_head(step as f64 * params.dt);
+        states
+            .positions
+            .iter()
+            .map(|nodes| nodes.iter().map(|p| rotation.inverse() * (*p - translation)).collect())
+            .collect()
+    };
+    let before = local(&gpu.read_back(&device, &queue), 10);
+    for step in 11..=20 {
+        gpu.step(&device, &queue, &params, &[head_at(step, GpuHairCadence::Carried)]).unwrap();
+    }
+    let states = gpu.read_back(&device, &queue);
+    let after = local(&states, 20);
+    let drift = before.iter().flatten().zip(after.iter().flatten()).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+    // The head's rigid velocity over the last fixed step at each node.
+    let (last_rotation, last_translation) = shaking_head(19.0 * params.dt);
+    let (rotation, translation) = shaking_head(20.0 * params.dt);
+    let mut velocity_error = 0.0_f64;
+    for (nodes, velocities) in states.positions.iter().zip(&states.velocities) {
+        for (p, v) in nodes.iter().zip(velocities) {
+            let was = last_translation + last_rotation * (rotation.inverse() * (*p - translation));
+            velocity_error = velocity_error.max((*v - (*p - was) / params.dt).length());
+        }
+    }
+    println!(
+        "carried 10 steps: nodes moved {drift:e} m in the head's frame; velocity off the head's by {velocity_error:e} m/s"
+    );
+    // Rigid to single precision: positions rounded to ε |x| (≤ 0.4 m from the head) at each of 10 steps.
+    assert!(drift < 10.0 * 4.0 * EPSILON * 0.4, "the carried hair moved {drift} m in its head's frame");
+    // The head's motion: 0.6 m/s at most, rounded positions over a step of 1/60 s.
+    assert!(velocity_error < 4.0 * EPSILON * 2.0 / params.dt, "velocities off the head's motion by {velocity_error}");
+    assert!(states.status.iter().all(|status| status.faults == 0 && status.fault.is_none()));
+    // Back at full detail, it is simulated again (it falls relative to its head) without a fault.
+    for step in 21..=40 {
+        gpu.step(&device, &queue, &params, &[head_at(step, GpuHairCadence::Step(1))]).unwrap();
+    }
+    let states = gpu.read_back(&device, &queue);
+    let resumed = local(&states, 40);
+    let moved = after.iter().flatten().zip(resumed.iter().flatten()).map(|(a, b)| a.distance(*b)).fold(0.0, f64::max);
+    println!("back at full detail for 20 steps: moved {moved:e} m in the head's frame");
+    assert!(moved > 1e-3, "the hair did not move once simulated again");
+    assert!(states.status.iter().all(|status| status.faults == 0), "{:?}", states.status);
 }
 
 /// Steps (of 1/60 s) over which the GPU's shaken hair is held to the CPU's closely, before the paths part.
