@@ -12,10 +12,9 @@ use super::gather::{GATHER_WORKGROUP, Gather, GpuGatherTarget};
 use super::pipelines::{bind_whole_buffers, compute_layout, pipeline_of_module};
 
 use crate::rod::{
-    ColliderShape, DistanceField, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState, StepHistory,
-    StepParams,
+    AirSnapshot, ColliderShape, DistanceField, MovingCollider, Rod, RodError, RodFrames, RodSnapshot, RodState,
+    StepHistory, StepParams,
 };
-use crate::wind::AirSnapshot;
 
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;

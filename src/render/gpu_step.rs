@@ -23,13 +23,12 @@ use crate::gpu::{
     GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, MAX_GPU_SPAN,
     SINGLE_PRECISION_STRAIN,
 };
-use crate::rod::{StepError, StepParams};
+use crate::rod::{AirSnapshot, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
     SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf, write_strand_data,
 };
-use crate::wind::AirSnapshot;
 use crate::wind::{HairWind, HairWindSource};
 
 /// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one

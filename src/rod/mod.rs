@@ -23,6 +23,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod air;
 mod banded;
 mod collider;
 mod contact;
@@ -51,6 +52,7 @@ pub(crate) fn copy_into<T: Copy>(destination: &mut Vec<T>, source: &[T]) {
     destination.extend_from_slice(source);
 }
 
+pub use air::{AirJet, AirMode, AirSnapshot};
 pub use banded::{BandedMatrix, NotPositiveDefinite};
 pub use collider::{ColliderShape, MovingCollider, RigidPose, SurfacePoint};
 pub(crate) use contact::held_reach;

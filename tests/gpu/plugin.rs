@@ -489,7 +489,7 @@ fn the_gpu_steps_a_coarse_head_and_carries_a_hidden_one_in_the_app() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
     let mut app = app(true);
     let heads = [spawn_head(&mut app), spawn_head(&mut app)];
-    let mut pose_all = |app: &mut App, number: usize| {
+    let pose_all = |app: &mut App, number: usize| {
         for &(head, skull) in &heads {
             for entity in [head, skull] {
                 *app.world_mut().get_mut::<Transform>(entity).unwrap() = head_pose(number);

@@ -5,8 +5,7 @@ use bevy::math::{DQuat, DVec3};
 use bevy::prelude::{GlobalTransform, Transform, Vec3};
 use bevy_hair_sim::gpu::{GpuHeadStep, GpuStrandInput, GpuStrandSolver};
 use bevy_hair_sim::prelude::{HairWind, HairWindSource};
-use bevy_hair_sim::rod::{Contacts, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams};
-use bevy_hair_sim::wind::AirSnapshot;
+use bevy_hair_sim::rod::{AirSnapshot, Contacts, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams};
 use hair_sim_support::straight_nodes;
 
 use crate::step::device;
