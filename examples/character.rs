@@ -11,7 +11,8 @@
 //! ```
 //!
 //! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at 0.3 of its size),
-//! `--animate sway|still`, `--view front|back`, and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
+//! `--animate sway|still`, `--view front|back`, `--gpu on` (the guides stepped on the GPU, its
+//! colliders met there, the face's mesh included), and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
 //! then a PNG, then exit). Press C to show the colliders.
 
 use std::f32::consts::{FRAC_PI_2, TAU};
@@ -40,7 +41,9 @@ fn main() {
             .set(WindowPlugin { primary_window: Some(window), ..default() })
             .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
         HairPlugins::default(),
+        HairGpuPlugin::default(),
     ))
+    .insert_resource(HairGpuSettings { enabled: options.gpu, ..default() })
     .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
     // The style held near the roots and hair meeting hair.
     .insert_resource(HairSettings::styled())
@@ -62,6 +65,8 @@ struct Options {
     front: bool,
     screenshot: Option<String>,
     frames: u32,
+    /// Whether the GPU steps the guides (`HairGpuPlugin`).
+    gpu: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -72,10 +77,11 @@ enum Groom {
 }
 
 impl Options {
-    const USAGE: &str = "usage: character [--groom straight|curly|ratboy] [--animate sway|still] [--view front|back] [--screenshot PATH] [--frames N]";
+    const USAGE: &str = "usage: character [--groom straight|curly|ratboy] [--animate sway|still] [--view front|back] [--gpu on|off] [--screenshot PATH] [--frames N]";
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
-        let mut options = Self { groom: Groom::Straight, animate: true, front: true, screenshot: None, frames: 240 };
+        let mut options =
+            Self { groom: Groom::Straight, animate: true, front: true, screenshot: None, frames: 240, gpu: false };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             match (flag.as_str(), value.as_str()) {
@@ -86,6 +92,8 @@ impl Options {
                 ("--animate", "still") => options.animate = false,
                 ("--view", "front") => options.front = true,
                 ("--view", "back") => options.front = false,
+                ("--gpu", "on") => options.gpu = true,
+                ("--gpu", "off") => options.gpu = false,
                 ("--screenshot", path) => options.screenshot = Some(path.to_owned()),
                 ("--frames", count) => {
                     options.frames = count.parse().map_err(|_| format!("--frames needs a count, got {count}"))?
@@ -318,6 +326,7 @@ fn take_picture(
     options: Res<Options>,
     mut frames: Local<u32>,
     mut hair_meshes: Query<&mut Visibility, With<HairMesh>>,
+    gpu: Option<Res<HairGpuStatus>>,
 ) {
     *frames += 1;
     let drawn = *frames <= DRAWN_PICTURE_FRAMES || *frames + DRAWN_PICTURE_FRAMES >= options.frames;
@@ -331,6 +340,12 @@ fn take_picture(
     let Some(path) = options.screenshot.clone() else {
         return;
     };
+    if let Some(gpu) = gpu {
+        info!(
+            "on the GPU: {} strands, {} faults, {} nodes in contact, largest strain {:.1e}",
+            gpu.strands, gpu.faults, gpu.contacts, gpu.max_strain
+        );
+    }
     commands.spawn(Screenshot::primary_window()).observe(save_to_disk(path)).observe(
         |_: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
             exit.write(AppExit::Success);
