@@ -887,11 +887,12 @@ impl GpuStrandSolver {
         Ok(())
     }
 
-    /// Records one step of `params.dt` of every strand into `encoder`, with each head moving to its pose in
-    /// `heads` (one per head given to [`GpuStrandSolver::new`], in order), after writing the step's
-    /// parameters, heads and colliders into the queue. Submit the encoder before recording the next step.
-    /// Rejects invalid parameters, heads with a non-finite pose, air or collider, and colliders the GPU
-    /// does not meet; nothing changes then.
+    /// Records one fixed step of `params.dt` of every strand into `encoder`, with each head moving to its
+    /// pose in `heads` (one per head given to [`GpuStrandSolver::new`], in order) and its hair stepped or
+    /// carried as its [`GpuHeadStep::cadence`] says, after writing the step's parameters, heads and
+    /// colliders into the queue. Submit the encoder before recording the next step. Rejects invalid
+    /// parameters, heads with a non-finite pose, air or collider or a cadence out of range, and colliders
+    /// with mesh fields too large for one buffer of the device; nothing changes then.
     pub fn record_step(
         &mut self,
         device: &wgpu::Device,
