@@ -1128,8 +1128,9 @@ fn solve() {
 }
 
 // Where a point meets a collider grown by the strand's thickness: the signed distance (negative inside),
-// the closest surface point and the outward normal there. Exact within `CONTACT_GAP` of the surface;
-// further out the distance is a lower bound (`distance_bound`) and the point and normal are not used.
+// the closest surface point and the outward normal there. Exact within the `gap` asked for (of
+// `touch_local`); further out the distance is a lower bound (`distance_bound`) and the point and normal
+// are not to be used.
 struct Touch {
     distance: f32,
     surface: vec3<f32>,

@@ -114,13 +114,13 @@ pub use snapshot::{StrandSnapshot, StrandSnapshotData, StrandSnapshotDataItem};
 pub(crate) use step::CheckedSettings;
 #[cfg(feature = "gpu")]
 pub(crate) use step::FaultLog;
+pub(crate) use strand::StepOutcome;
+#[cfg(feature = "gpu")]
+pub(crate) use strand::write_strand_data;
 pub use strand::{
     FIRST_QUARANTINE, HairStrand, MAX_QUARANTINE, PRELOAD_SUPPORT_DISTANCE, QUARANTINE_WINDOW, SimulatedStrand,
     SteppedElsewhere, StrandFault, StrandForces, StrandHealth, StrandRejected, StrandSpawnError,
 };
-pub(crate) use strand::StepOutcome;
-#[cfg(feature = "gpu")]
-pub(crate) use strand::write_strand_data;
 
 use crate::schedule::{HairDrawSystems, HairPinSystems, HairPrepareSystems, HairStepSystems, HairSystems};
 

@@ -76,3 +76,34 @@ pub fn sphere_cap(centre: bevy::math::Vec3, radius: f32, rings: u32, segments: u
         .with_inserted_attribute(bevy::prelude::Mesh::ATTRIBUTE_POSITION, positions)
         .with_inserted_indices(Indices::U32(indices))
 }
+
+/// A closed mesh star-shaped around the origin: a UV sphere of `rings` rings and `2 rings` segments whose
+/// vertex in direction `d` lies `radius(d)` m out, as positions and triangles (anticlockwise seen from
+/// outside), the poles on ±Y.
+pub fn star_shaped(radius: impl Fn(DVec3) -> f64, rings: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let segments = 2 * rings;
+    let mut positions = vec![DVec3::Y * radius(DVec3::Y)];
+    for ring in 1..rings {
+        let polar = std::f64::consts::PI * f64::from(ring) / f64::from(rings);
+        for segment in 0..segments {
+            let azimuth = std::f64::consts::TAU * f64::from(segment) / f64::from(segments);
+            let direction = DVec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
+            positions.push(direction * radius(direction));
+        }
+    }
+    positions.push(DVec3::NEG_Y * radius(DVec3::NEG_Y));
+    let bottom = positions.len() as u32 - 1;
+    let at = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
+    let mut triangles = Vec::new();
+    for segment in 0..segments {
+        triangles.push([0, at(1, segment + 1), at(1, segment)]);
+        triangles.push([bottom, at(rings - 1, segment), at(rings - 1, segment + 1)]);
+        for ring in 1..rings - 1 {
+            let (a, b, c, d) =
+                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
+            triangles.push([a, b, d]);
+            triangles.push([a, d, c]);
+        }
+    }
+    (positions, triangles)
+}

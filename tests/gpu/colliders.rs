@@ -8,7 +8,7 @@ use bevy_hair_sim::gpu::{GpuHeadStep, GpuStrandInput, GpuStrandSolver};
 use bevy_hair_sim::rod::{
     ColliderShape, Contacts, DistanceField, MovingCollider, RigidPose, Rod, RodMaterial, RodWorkspace, StepParams,
 };
-use hair_sim_support::straight_nodes;
+use hair_sim_support::{star_shaped, straight_nodes};
 
 use crate::step::device;
 
@@ -68,40 +68,16 @@ fn deepest(collider: &MovingCollider, nodes: &[DVec3]) -> f64 {
     along_strand(nodes).map(|p| depth(collider, p)).fold(0.0, f64::max)
 }
 
-/// A closed ball of `radius` m with a groove around its equator (10 % deep) and a bump on top, as a
-/// triangle mesh of `rings` × `2 rings` quads: not convex, so its contact is the baked field's.
+/// A ball of `radius` m with a groove around its equator (10 % deep) and a bump on top, as a closed
+/// triangle mesh of `rings` rings: not convex, so its contact is the baked field's.
 fn grooved_ball(radius: f64, rings: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-    let segments = 2 * rings;
-    let surface = |polar: f64, azimuth: f64| {
-        let direction = DVec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
+    let shape = |direction: DVec3| {
+        let polar = direction.y.clamp(-1.0, 1.0).acos();
         let groove = 0.1 * (-((polar - std::f64::consts::FRAC_PI_2) / 0.25).powi(2)).exp();
         let bump = 0.15 * (-(polar / 0.4).powi(2)).exp();
-        direction * radius * (1.0 - groove + bump)
+        radius * (1.0 - groove + bump)
     };
-    let mut positions = vec![surface(0.0, 0.0)];
-    for ring in 1..rings {
-        let polar = std::f64::consts::PI * ring as f64 / rings as f64;
-        for segment in 0..segments {
-            positions.push(surface(polar, std::f64::consts::TAU * segment as f64 / segments as f64));
-        }
-    }
-    positions.push(surface(std::f64::consts::PI, 0.0));
-    let bottom = positions.len() as u32 - 1;
-    let at = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
-    let mut triangles = Vec::new();
-    for segment in 0..segments {
-        triangles.push([0, at(1, segment + 1), at(1, segment)]);
-        triangles.push([bottom, at(rings - 1, segment), at(rings - 1, segment + 1)]);
-    }
-    for ring in 1..rings - 1 {
-        for segment in 0..segments {
-            let (a, b, c, d) =
-                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
-            triangles.push([a, b, d]);
-            triangles.push([a, d, c]);
-        }
-    }
-    (positions, triangles)
+    star_shaped(shape, rings)
 }
 
 /// What a scene's hair does after `STEPS`.

@@ -25,29 +25,9 @@ fn head_with_ears(rings: u32) -> Mesh {
             + 0.03 * (-(d - Vec3::X).length_squared() / 0.02).exp()
             + 0.03 * (-(d + Vec3::X).length_squared() / 0.02).exp()
     };
-    let segments = 2 * rings;
-    let mut positions = vec![Vec3::Y * radius(Vec3::Y)];
-    for ring in 1..rings {
-        let polar = std::f32::consts::PI * ring as f32 / rings as f32;
-        for segment in 0..segments {
-            let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
-            let direction = Vec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
-            positions.push(direction * radius(direction));
-        }
-    }
-    positions.push(Vec3::NEG_Y * radius(Vec3::NEG_Y));
-    let bottom = positions.len() as u32 - 1;
-    let at = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
-    let mut indices = Vec::new();
-    for segment in 0..segments {
-        indices.extend([0, at(1, segment + 1), at(1, segment)]);
-        indices.extend([bottom, at(rings - 1, segment), at(rings - 1, segment + 1)]);
-        for ring in 1..rings - 1 {
-            let (a, b, c, d) =
-                (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
-            indices.extend([a, b, d, a, d, c]);
-        }
-    }
+    let (positions, triangles) = hair_sim_support::star_shaped(|d| f64::from(radius(d.as_vec3())), rings);
+    let positions: Vec<Vec3> = positions.iter().map(|p| p.as_vec3()).collect();
+    let indices: Vec<u32> = triangles.into_iter().flatten().collect();
     Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
         .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
         .with_inserted_indices(Indices::U32(indices))
