@@ -5,6 +5,7 @@
 
 mod colliders;
 mod followers;
+mod fuzz;
 mod gltf_character;
 mod plugin;
 mod render_layout;
