@@ -841,8 +841,13 @@ fn gauss_seidel_sweep() {
 // strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not
 // torn trying to be outside.
 fn meets(c: u32, thickness: f32) -> bool {
-    let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness, 0.0).distance, 0.0);
-    return own_edge && node >= 2u && arc > reach;
+    return own_edge && node >= 2u && arc > held_reach(c, thickness);
+}
+
+// How far along the strand from its root collider `c` leaves the strand free of it: `HELD_REACH` times the
+// root's depth inside it (0 where the root is outside).
+fn held_reach(c: u32, thickness: f32) -> f32 {
+    return HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness, 0.0).distance, 0.0);
 }
 
 // Contact inside the solve, as on the CPU (`rod/contact.rs`): this lane's node, within `CONTACT_GAP` of a
@@ -1508,12 +1513,16 @@ fn edge_push(c: u32, start_in: vec3<f32>, end_in: vec3<f32>, thickness: f32) -> 
     return vec4<f32>(rotate(rotation, met.surface - point), fraction);
 }
 
-// The velocity of collider `c`'s body at the point that was at `p` (head-relative) at the step's start,
-// over the step: where its start pose carried to its end pose takes it.
-fn collider_velocity(c: u32, p: vec3<f32>) -> vec3<f32> {
+// Where collider `c`'s body carries the point that was at `p` (head-relative) at the step's start: from
+// its start pose to its end pose.
+fn carried_by(c: u32, p: vec3<f32>) -> vec3<f32> {
     let local = inverse_rotate(collider_row(c, 1u), p - collider_row(c, 0u).xyz);
-    let carried = collider_row(c, 2u).xyz + rotate(collider_row(c, 3u), local);
-    return (carried - p) / params.dt;
+    return collider_row(c, 2u).xyz + rotate(collider_row(c, 3u), local);
+}
+
+// The velocity of collider `c`'s body over the step at the point that was at `p` at its start.
+fn collider_velocity(c: u32, p: vec3<f32>) -> vec3<f32> {
+    return (carried_by(c, p) - p) / params.dt;
 }
 
 // This lane's node, where inside a collider, put on its surface; with `friction`, its slip over the step
@@ -1538,9 +1547,7 @@ fn push_out(friction: bool) -> bool {
         if friction {
             let mu = collider_row(c, 2u).w;
             // Where the node started, carried with the collider to its end pose.
-            let start_local = inverse_rotate(collider_row(c, 1u), x_start - collider_row(c, 0u).xyz);
-            let carried = collider_row(c, 2u).xyz + rotate(collider_row(c, 3u), start_local);
-            let slip = goal - carried;
+            let slip = goal - carried_by(c, x_start);
             let tangential = slip - dot(slip, contact.normal) * contact.normal;
             // The normal push this step: the spring's force in the solve (as a displacement over the
             // step, `k d h² / m = CONTACT_RATIO d`) and the push-out itself.
@@ -1600,10 +1607,9 @@ fn push_edges(thickness: f32) -> bool {
         let end_weight = node_inverse_mass(node);
         for (var k = 0u; k < count; k++) {
             let c = first_collider + k;
-            let reach = HELD_REACH * max(-touch(c, shared_x[0].xyz, thickness, 0.0).distance, 0.0);
             let shortest = 8.0 * collider_row(c, 5u).w * thickness;
             let d = end - start;
-            if start_arc <= reach || dot(d, d) <= shortest {
+            if start_arc <= held_reach(c, thickness) || dot(d, d) <= shortest {
                 continue;
             }
             let found = edge_push(c, start + start_push, end + end_push, thickness);
@@ -1681,6 +1687,11 @@ fn reset_to_rest() {
     publish_nodes();
 }
 
+// `v` (head-relative, at the head's last pose) turned with the head to its pose now.
+fn turned_with_head(v: vec3<f32>) -> vec3<f32> {
+    return rotate(head_row(0u), inverse_rotate(head_row(4u), v));
+}
+
 // A strand whose head is carried this fixed step: moved rigidly with its head from the head's pose at the
 // last fixed step to its pose now, its twists unchanged, its history dropped (its next step is backward
 // Euler, as after an upload). Out of sight, its velocity becomes the head's rigid motion (it comes back with
@@ -1689,28 +1700,25 @@ fn reset_to_rest() {
 // (a still head's hair then steps exactly as the CPU's does at that level). `shift` is the head's
 // translation before less after.
 fn carry_with_head(shift: vec3<f32>, keep_motion: bool) {
-    // Head-relative before (relative to the head's last translation) to head-relative now.
-    let before = head_row(4u);
-    let after = head_row(0u);
     var moved = vec3<f32>(0.0);
     var velocity = vec3<f32>(0.0);
     if own_edge {
         let p = state[state_index(node, 0u)].xyz;
-        moved = rotate(after, inverse_rotate(before, p));
+        moved = turned_with_head(p);
         velocity = (moved - (p + shift)) / params.dt;
         if keep_motion {
-            velocity = rotate(after, inverse_rotate(before, state[state_index(node, 1u)].xyz));
+            velocity = turned_with_head(state[state_index(node, 1u)].xyz);
         }
         shared_x[node] = vec4<f32>(moved, 0.0);
         shared_m[node] = vec4<f32>(velocity, 0.0);
     }
     if lane == 0u {
         let p = state[state_index(0u, 0u)].xyz;
-        let root = rotate(after, inverse_rotate(before, p));
+        let root = turned_with_head(p);
         shared_x[0] = vec4<f32>(root, 0.0);
         var root_velocity = (root - (p + shift)) / params.dt;
         if keep_motion {
-            root_velocity = rotate(after, inverse_rotate(before, state[state_index(0u, 1u)].xyz));
+            root_velocity = turned_with_head(state[state_index(0u, 1u)].xyz);
         }
         shared_m[0] = vec4<f32>(root_velocity, 0.0);
     }
@@ -1722,7 +1730,7 @@ fn carry_with_head(shift: vec3<f32>, keep_motion: bool) {
         state[state_index(lane, 0u)] = vec4<f32>(shared_x[lane].xyz, edge_row.w);
         let rate = select(0.0, state[state_index(lane, 1u)].w, keep_motion);
         state[state_index(lane, 1u)] = vec4<f32>(shared_m[lane].xyz, rate);
-        state[state_index(lane, 4u)] = vec4<f32>(rotate(after, inverse_rotate(before, frame.xyz)), frame.w);
+        state[state_index(lane, 4u)] = vec4<f32>(turned_with_head(frame.xyz), frame.w);
         state[state_index(node, 3u)] = vec4<f32>(velocity, 0.0);
         if node == edge_count() {
             state[state_index(node, 0u)] = vec4<f32>(moved, 0.0);

@@ -473,34 +473,9 @@ pub(crate) mod tests {
         star_shaped(|_| radius, rings)
     }
 
-    /// A closed UV-sphere mesh whose surface in direction `d` lies at `radius(d)` m from the origin.
-    pub(crate) fn star_shaped(radius: impl Fn(DVec3) -> f64, rings: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
-        let segments = 2 * rings;
-        let mut positions = vec![DVec3::Y * radius(DVec3::Y)];
-        for ring in 1..rings {
-            let polar = std::f64::consts::PI * f64::from(ring) / f64::from(rings);
-            for segment in 0..segments {
-                let azimuth = std::f64::consts::TAU * f64::from(segment) / f64::from(segments);
-                let direction = DVec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
-                positions.push(direction * radius(direction));
-            }
-        }
-        positions.push(DVec3::NEG_Y * radius(DVec3::NEG_Y));
-        let bottom = positions.len() as u32 - 1;
-        let at = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
-        let mut triangles = Vec::new();
-        for segment in 0..segments {
-            triangles.push([0, at(1, segment + 1), at(1, segment)]);
-            triangles.push([bottom, at(rings - 1, segment), at(rings - 1, segment + 1)]);
-            for ring in 1..rings - 1 {
-                let (a, b, c, d) =
-                    (at(ring, segment), at(ring, segment + 1), at(ring + 1, segment), at(ring + 1, segment + 1));
-                triangles.push([a, b, d]);
-                triangles.push([a, d, c]);
-            }
-        }
-        (positions, triangles)
-    }
+    /// A closed UV-sphere mesh whose surface in direction `d` lies at `radius(d)` m from the origin: the
+    /// support crate's, which the integration tests bake too.
+    pub(crate) use hair_sim_support::star_shaped;
 
     /// A head with ears: a 9 × 11 × 10 cm ellipsoid with a 3 cm bump on either side (not convex).
     pub(crate) fn head_with_ears(rings: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {

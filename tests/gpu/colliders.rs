@@ -159,7 +159,7 @@ const INSIDE: f64 = 1e-3;
 const APART: f64 = 5e-3;
 
 /// RMS and largest distance between the GPU's and the CPU's nodes, m.
-fn apart(gpu: &[Vec<DVec3>], cpu: &[Vec<DVec3>]) -> (f64, f64) {
+pub(crate) fn apart(gpu: &[Vec<DVec3>], cpu: &[Vec<DVec3>]) -> (f64, f64) {
     let distances: Vec<f64> = gpu.iter().flatten().zip(cpu.iter().flatten()).map(|(a, b)| a.distance(*b)).collect();
     let rms = (distances.iter().map(|d| d * d).sum::<f64>() / distances.len() as f64).sqrt();
     (rms, distances.iter().copied().fold(0.0, f64::max))

@@ -8,6 +8,7 @@ use bevy_hair_sim::prelude::{HairWind, HairWindSource};
 use bevy_hair_sim::rod::{AirSnapshot, Contacts, Rod, RodMaterial, RodWorkspace, StepLoads, StepParams};
 use hair_sim_support::straight_nodes;
 
+use crate::colliders::apart;
 use crate::step::device;
 
 /// The head the strands hang from, away from the origin.
@@ -30,8 +31,7 @@ fn strands() -> Vec<Rod> {
 
 /// RMS distance between two sets of strands' nodes, m.
 fn rms(a: &[Vec<DVec3>], b: &[Vec<DVec3>]) -> f64 {
-    let squares: Vec<f64> = a.iter().flatten().zip(b.iter().flatten()).map(|(p, q)| p.distance_squared(*q)).collect();
-    (squares.iter().sum::<f64>() / squares.len() as f64).sqrt()
+    apart(a, b).0
 }
 
 /// Hair in a gusting, turbulent wind with a hair dryer blowing across it (eddies of 15 cm, smaller than the
