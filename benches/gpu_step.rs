@@ -41,8 +41,17 @@ fn main() {
     println!("{:>8} {:>6} {:>12} {:>14}", "guides", "edges", "ms/step", "µs/strand");
     for (count, steps) in [(2_000, 20), (10_000, 5)] {
         let rods = groom(count, head);
-        let inputs: Vec<GpuStrandInput> =
-            rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
+        let inputs: Vec<GpuStrandInput> = rods
+            .iter()
+            .map(|rod| GpuStrandInput {
+                rod,
+                head: 0,
+                thickness: 1e-4,
+                groomed: None,
+                hairs: 1.0,
+                groomed_fractions: None,
+            })
+            .collect();
         let mut solver = GpuStrandSolver::new(&device, &inputs, &[(DQuat::IDENTITY, head)]).unwrap();
         // The first step compiles the pipeline on some drivers: not timed.
         solver.step(&device, &queue, &params, std::slice::from_ref(&step)).unwrap();

@@ -414,7 +414,14 @@ mod gpu {
                 .map(|&strand| {
                     let simulated = world.get::<SimulatedStrand>(strand).expect("built");
                     let thickness = f64::from(simulated.collision_thickness(margin));
-                    GpuStrandInput { rod: simulated.rod(), head: 0, thickness, groomed: None }
+                    GpuStrandInput {
+                        rod: simulated.rod(),
+                        head: 0,
+                        thickness,
+                        groomed: None,
+                        hairs: 1.0,
+                        groomed_fractions: None,
+                    }
                 })
                 .collect();
             let (translation, rotation) = Scene::head_pose(WARM_UP_STEPS);

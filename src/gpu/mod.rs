@@ -66,10 +66,12 @@
 //! the CPU.
 
 mod gather;
+mod grid;
 mod pipelines;
 mod step;
 
 pub use gather::{GATHER_SHADER, GpuGatherTarget};
+pub use grid::{GPU_GRID_POINTS, GRID_SHADER, GpuGridFields, GpuGridPoint, GpuVolume};
 pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,

@@ -9,6 +9,7 @@ use bevy::math::{DQuat, DVec2, DVec3};
 use wgpu::util::DeviceExt;
 
 use super::gather::{GATHER_WORKGROUP, Gather, GpuGatherTarget};
+use super::grid::{GpuGrid, GpuGridFields, GpuVolume, GridPipelines, GridStep};
 use super::pipelines::{bind_whole_buffers, compute_layout, pipeline_of_module};
 
 use crate::rod::{
@@ -27,7 +28,7 @@ const STEP_LANES: [usize; 2] = [32, 64];
 pub const MAX_GPU_NODES: usize = 65;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
-const STATE_ROWS: usize = 5;
+const STATE_ROWS: usize = 6;
 const HEAD_ROWS: usize = 6;
 const COLLIDER_ROWS: usize = 8;
 const STRAND_FLOATS: usize = 4;
@@ -128,6 +129,17 @@ pub enum GpuStepError {
         /// The head's index.
         head: usize,
     },
+    /// A strand whose hairs on the grid ([`GpuStrandInput::hairs`]) are negative or not finite, or whose
+    /// groomed fractions are not one finite, non-negative value per node.
+    #[error("strand {strand}'s hairs on the grid or groomed fractions are not finite and non-negative (one per node)")]
+    GridInput {
+        /// The strand's index in the input.
+        strand: usize,
+    },
+    /// The hair–hair grid's parameters given to [`GpuStrandSolver::set_volume`] are out of range
+    /// ([`GpuVolume::is_valid`]).
+    #[error("the hair–hair grid's parameters are out of range")]
+    InvalidVolume,
     /// The step's parameters are not valid.
     #[error(transparent)]
     InvalidParameters(#[from] RodError),
@@ -149,6 +161,13 @@ pub struct GpuStrandInput<'a> {
     /// `x̄` the place carried with the head, as [`crate::rod::Anchor`] on the CPU, with `√k = c/2` from the
     /// head's [`GpuHeadStep::hold_rate`] and [`GpuHeadStep::hold_reach`].
     pub groomed: Option<&'a [DVec3]>,
+    /// How many real hairs the strand stands for on the hair–hair grid ([`GpuStrandSolver::set_volume`]):
+    /// its keratin volume and mass there are multiplied by it (as `RepresentedHairs` on the CPU; 0 leaves it
+    /// out of the grid, though it still feels the others). Finite, not negative.
+    pub hairs: f64,
+    /// The hair volume fraction where each node lay in its groom (one per node), against which the grid's
+    /// pressure measures packing where it is larger ([`GpuVolume::keep_groomed`]); `None`: 0 (not known).
+    pub groomed_fractions: Option<&'a [f64]>,
 }
 
 /// A head's motion over one step: its pose at the step's end, its colliders (poses at the step's start
@@ -438,6 +457,13 @@ pub struct GpuStrandSolver {
     staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
     /// Time spent in wgpu's submissions and polls since [`GpuStrandSolver::take_driver_seconds`], s.
     driver_seconds: f64,
+    /// The hair–hair grid's parameters ([`GpuStrandSolver::set_volume`]), its buffers once made, and whether
+    /// the state's force rows may hold its pressure (cleared when it is turned off).
+    volume: Option<GpuVolume>,
+    grid: Option<GpuGrid>,
+    forces_written: bool,
+    /// Scratch: each head's translation before the step and its step's length, for the grid.
+    grid_heads: Vec<(DVec3, f64)>,
 }
 
 /// The step's and the gather's pipelines on one device, built once ([`GpuStepPipelines::new`] compiles the
@@ -449,6 +475,7 @@ pub struct GpuStepPipelines {
     /// The step with 32 lanes a workgroup and with 64 ([`STEP_LANES`]).
     steps: [wgpu::ComputePipeline; 2],
     gather: Gather,
+    grid: GridPipelines,
 }
 
 impl GpuStepPipelines {
@@ -469,7 +496,7 @@ impl GpuStepPipelines {
                 wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
             pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
         });
-        Arc::new(Self { layout, steps, gather: Gather::new(device) })
+        Arc::new(Self { layout, steps, gather: Gather::new(device), grid: GridPipelines::new(device) })
     }
 }
 
@@ -495,6 +522,8 @@ struct StrandLayout {
     /// Strands stepped by each pipeline of [`STEP_LANES`] (listed in that order).
     list_lengths: [usize; 2],
     strand_heads: Vec<usize>,
+    /// The hair–hair grid's fixed-point units of mass (kg) and volume (m³).
+    grid_units: (f64, f64),
 }
 
 /// A collider shape's rows in the step's collider buffer after its poses (its kind and sizes, and for a
@@ -549,6 +578,12 @@ impl GpuStrandUpload {
             {
                 return Err(GpuStepError::Groomed { strand: index });
             }
+            let fractions_usable = strand.groomed_fractions.is_none_or(|fractions| {
+                fractions.len() == nodes && fractions.iter().all(|f| f.is_finite() && *f >= 0.0)
+            });
+            if !(strand.hairs.is_finite() && strand.hairs >= 0.0 && fractions_usable) {
+                return Err(GpuStepError::GridInput { strand: index });
+            }
         }
         // Row planes of node-contiguous strands, none padded: row `k` of node `i` of strand `s` at
         // `k * total + first[s] + i`.
@@ -573,6 +608,9 @@ impl GpuStrandUpload {
         let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
         let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
         let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
+        // The grid's fixed-point units: the heaviest node's mass and volume on the grid (so that every
+        // node's share is resolved to 2⁻³² of it), 1 where there is none.
+        let mut grid_units = (0.0_f64, 0.0_f64);
         for (s, strand) in strands.iter().enumerate() {
             let rod = strand.rod;
             let (rotation, translation) = head_poses[strand.head];
@@ -590,8 +628,9 @@ impl GpuStrandUpload {
                 stiffness.twisting as f32,
             ];
             floats[s * STRAND_FLOATS + 1] = vec4(local(constraints.node_targets[0].unwrap()), strand.thickness);
-            floats[s * STRAND_FLOATS + 2] = vec4(local(constraints.node_targets[1].unwrap()), 0.0);
-            floats[s * STRAND_FLOATS + 3] = vec4(inverse * constraints.twist_targets[0].unwrap(), 0.0);
+            floats[s * STRAND_FLOATS + 2] = vec4(local(constraints.node_targets[1].unwrap()), strand.hairs);
+            let per_kilogram = 1.0 / rod.material().density;
+            floats[s * STRAND_FLOATS + 3] = vec4(inverse * constraints.twist_targets[0].unwrap(), per_kilogram);
             let rod_state = rod.state();
             let frames = rod.frames();
             let shape = rod.rest_shape();
@@ -615,8 +654,10 @@ impl GpuStrandUpload {
                     shape.twists.get(node).copied().unwrap_or(0.0) as f32,
                     inertia.masses[node] as f32,
                     if edge { inertia.twist_inertias[node] as f32 } else { 0.0 },
-                    0.0,
+                    strand.groomed_fractions.and_then(|fractions| fractions.get(node)).copied().unwrap_or(0.0) as f32,
                 ];
+                grid_units.0 = grid_units.0.max(strand.hairs * inertia.masses[node]);
+                grid_units.1 = grid_units.1.max(strand.hairs * inertia.masses[node] * per_kilogram);
                 let twist = if edge { rod_state.twist[node] } else { 0.0 };
                 let director = if edge { inverse * frames.reference_directors[node] } else { DVec3::X };
                 let reference_twist = frames.reference_twist.get(node).copied().unwrap_or(0.0);
@@ -645,6 +686,10 @@ impl GpuStrandUpload {
                 total_nodes: total,
                 list_lengths: [narrow_count, strand_count - narrow_count],
                 strand_heads: strands.iter().map(|s| s.head).collect(),
+                grid_units: (
+                    if grid_units.0 > 0.0 { grid_units.0 } else { 1.0 },
+                    if grid_units.1 > 0.0 { grid_units.1 } else { 1.0 },
+                ),
             }),
             head_poses: head_poses.to_vec(),
         })
@@ -735,6 +780,10 @@ impl GpuStrandSolver {
             step_fields: Vec::new(),
             staging: Arc::default(),
             driver_seconds: 0.0,
+            volume: None,
+            grid: None,
+            forces_written: false,
+            grid_heads: Vec::new(),
         }
     }
 
@@ -812,6 +861,25 @@ impl GpuStrandSolver {
             self.air_rows.push([jet.radius as f32, 0.0, 0.0, 0.0]);
         }
         Ok(())
+    }
+
+    /// Hair–hair interaction through a grid from the next step on (`None`, the default: none): each
+    /// stepped head's hair splatted to its own grid, and every free node given the grid's velocity
+    /// smoothing and volume pressure before the step, as [`crate::volume`] does on the CPU (the module
+    /// `gpu::grid`'s documentation says how it is laid out). Each strand stands on the grid for its
+    /// [`GpuStrandInput::hairs`]. Refuses parameters out of range (and keeps those it had).
+    pub fn set_volume(&mut self, volume: Option<GpuVolume>) -> Result<(), GpuStepError> {
+        if volume.is_some_and(|volume| !volume.is_valid()) {
+            return Err(GpuStepError::InvalidVolume);
+        }
+        self.volume = volume;
+        Ok(())
+    }
+
+    /// Each head's grid as the last step left it (empty before the first step with a grid), waiting for
+    /// the GPU: for tests and debugging views.
+    pub fn read_grid(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Vec<GpuGridFields> {
+        self.grid.as_ref().map(|grid| grid.read(device, queue)).unwrap_or_default()
     }
 
     /// Writes the colliders of `heads` into the collider buffer (their poses relative to their heads' new
@@ -948,6 +1016,15 @@ impl GpuStrandSolver {
             ]);
             first += count;
         }
+        // The grid is built where the hair was at the step's start: around each head's translation then.
+        self.grid_heads.clear();
+        for (head, before) in heads.iter().zip(&self.head_poses) {
+            let span = match head.cadence {
+                GpuHairCadence::Step(span) => f64::from(span),
+                GpuHairCadence::Carried | GpuHairCadence::Waiting => 0.0,
+            };
+            self.grid_heads.push((before.1, span * params.dt));
+        }
         for (pose, head) in self.head_poses.iter_mut().zip(heads) {
             *pose = (head.rotation, head.translation);
         }
@@ -991,6 +1068,25 @@ impl GpuStrandSolver {
             0,
             0,
         ];
+        // The grid's velocity changes and forces, before the step reads them.
+        if let Some(volume) = self.volume.as_ref() {
+            let grid = self.grid.get_or_insert_with(|| {
+                let buffers = [&self.strand_words, &self.strand_floats, &self.rest, &self.state];
+                GpuGrid::new(device, &self.pipelines.grid, self.head_poses.len(), buffers)
+            });
+            let step = GridStep {
+                volume,
+                heads: &self.grid_heads,
+                strands: self.strand_count,
+                total_nodes: self.strands.total_nodes,
+                units: self.strands.grid_units,
+            };
+            grid.record(queue, encoder, &self.pipelines.grid, &step);
+            self.forces_written = true;
+        } else if std::mem::take(&mut self.forces_written) {
+            let plane = 16 * self.strands.total_nodes as u64;
+            encoder.clear_buffer(&self.state, 5 * plane, Some(plane));
+        }
         // One workgroup per strand, in one pass: the strands of each pipeline's list.
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
@@ -1217,7 +1313,7 @@ fn step_bind_groups(
 
 /// The workgroups of `size` invocations of a dispatch over `invocations`: along X up to the limit, then rows
 /// along Y.
-fn workgroups(invocations: u32, size: u32) -> (u32, u32) {
+pub(super) fn workgroups(invocations: u32, size: u32) -> (u32, u32) {
     let groups = invocations.div_ceil(size).max(1);
     if groups > MAX_GROUPS { (MAX_GROUPS, groups.div_ceil(MAX_GROUPS)) } else { (groups, 1) }
 }

@@ -76,15 +76,16 @@ struct Params {
 // Per strand words: node count, head, its first node in the row planes; and, not the strand's, the `k`th
 // strand of the dispatch lists (`list_start`).
 const STRAND_WORDS: u32 = 1u;
-// Per strand floats: (EA, EI₁, EI₂, GJ); (root node 0 head-local, thickness); (root node 1, 0);
-// (root material direction, 0).
+// Per strand floats: (EA, EI₁, EI₂, GJ); (root node 0 head-local, thickness); (root node 1, the hairs it
+// stands for on the hair–hair grid); (root material direction, its keratin's volume per kilogram 1/ρ, m³/kg).
 const STRAND_FLOATS: u32 = 4u;
 // Rest rows per node: (rest length of edge i, Voronoi length of vertex i, κ̄₁, κ̄₂), (τ̄, mass, twist
-// inertia of edge i, 0), (rest pose node, θ), (rest pose reference director, reference twist), (the node's
+// inertia of edge i, the hair volume fraction where the node lay in its groom, for the grid), (rest pose node, θ), (rest pose reference director, reference twist), (the node's
 // groomed place for the style hold, head-local; its arc length from the root over the strand's, past 1
 // where the strand is not held).
 // State rows per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
-// back, 0), (reference director of edge i, reference twist at vertex i).
+// back, 0), (reference director of edge i, reference twist at vertex i), (force on the node from outside
+// the step, N, written by the hair–hair grid's `respond` in `grid.wgsl`; 0).
 // Per head, after the air's rows (`air_at`): (rotation at the step's end), (shift of the origin:
 // translation before − after, 0), (the head's own air velocity, 0), (first collider, colliders as bits, the
 // style hold's rate in 1/s and its reach), (rotation at the step's start), (translation at the step's end,
@@ -211,6 +212,8 @@ var<private> spring: f32;
 var<private> step_dt: f32;
 // The air's velocity at this lane's node where it was at the step's start (`air_at`).
 var<private> node_air: vec3<f32>;
+// The force on this lane's node from outside the step (the hair–hair grid's pressure, `grid.wgsl`), N.
+var<private> node_force: vec3<f32>;
 // Whether the contact after the solve moved this lane's node this step, and the speed of the collider's
 // surface there along `normal` (m/s), for the velocity's inelastic contact.
 var<private> pushed: bool;
@@ -998,7 +1001,7 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             let gamma = mass * params.air_damping;
             let along = 1.0 - params.axial_drag_ratio;
             let drag_force = gamma * (relative - along * dot(t, relative) * t);
-            var residual = mass / (h * h) * (offset - h * v_hat) + drag_force - mass * gravity;
+            var residual = mass / (h * h) * (offset - h * v_hat) + drag_force - mass * gravity - node_force;
             var diagonal = mass / (h * h) + gamma / h;
             // The style hold: `m k (x − x̄) + m c (v − v̄)` towards the groomed place carried with the head
             // (`Anchor` on the CPU); the root edge is prescribed.
@@ -1838,6 +1841,7 @@ fn step(
         }
         v_start = v.xyz;
         node_air = air_at(x_start);
+        node_force = state[state_index(node, 5u)].xyz;
         // The arc length of rest lengths from the root to this node.
         arc = 0.0;
         for (var e = 0u; e < node; e++) {

@@ -17,10 +17,10 @@ use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems}
 
 use super::draw::GpuStepCount;
 use crate::detail::{HairDetail, HairDetailLevel};
-use crate::followers::{FollowerPlacement, PlaceFollowersOnCpu};
+use crate::followers::{FollowerPlacement, HairFollowers, PlaceFollowersOnCpu};
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput,
-    GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, MAX_GPU_NODES, MAX_GPU_SPAN,
+    GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuVolume, MAX_GPU_NODES, MAX_GPU_SPAN,
     SINGLE_PRECISION_STRAIN,
 };
 use crate::rod::{AirSnapshot, StepError, StepParams};
@@ -29,6 +29,7 @@ use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
     SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf, write_strand_data,
 };
+use crate::volume::{RepresentedHairs, groomed_fractions as groomed_fractions_of, represented_hairs};
 use crate::wind::{HairWind, HairWindSource};
 
 /// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
@@ -186,6 +187,8 @@ struct GpuStepOrder {
     heads: Vec<GpuHeadStep>,
     /// The wind and its sources at the step's middle, sampled at every node by the step.
     air: AirSnapshot,
+    /// The hair–hair grid's parameters, when it is on.
+    volume: Option<GpuVolume>,
     /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
     read_back: bool,
     /// Its number among the steps sent.
@@ -317,6 +320,7 @@ fn choose_gpu_strands(
     strands: Query<(Entity, &SimulatedStrand, &StrandOf, Has<SteppedElsewhere>)>,
     heads: Query<&HeadMotion, With<HairHead>>,
     head_strands: Query<&HeadStrands>,
+    grid_hairs: Query<(Option<&RepresentedHairs>, Option<&HairFollowers>)>,
 ) {
     let queue = &mut *queue;
     queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
@@ -379,14 +383,34 @@ fn choose_gpu_strands(
         .collect();
     let margin = f64::from(hair_settings.collision_margin);
     let groomed: Vec<Option<Vec<DVec3>>> = chosen.iter().map(|&(.., strand)| strand.groomed_in_head()).collect();
+    // The hairs each strand stands for on the GPU's grid, and where each node lay in its groom (measured
+    // head by head, whether or not the grid is on now, so that turning it on needs no new upload).
+    let hairs: Vec<f64> = chosen
+        .iter()
+        .map(|&(_, entity, _)| {
+            grid_hairs.get(entity).map_or(1.0, |(represented, followers)| represented_hairs(represented, followers))
+        })
+        .collect();
+    let volume_params = hair_settings.volume.params(1.0 / 60.0);
+    let mut groomed_fractions: Vec<Vec<f64>> = Vec::with_capacity(chosen.len());
+    let mut start = 0;
+    for run in chosen.chunk_by(|a, b| a.0 == b.0) {
+        let rods: Vec<_> =
+            run.iter().zip(&hairs[start..]).map(|(&(.., strand), &hairs)| (strand.rod(), hairs)).collect();
+        groomed_fractions.extend(groomed_fractions_of(&rods, &volume_params));
+        start += run.len();
+    }
     let inputs: Vec<GpuStrandInput> = chosen
         .iter()
         .zip(&groomed)
-        .map(|(&(head, _, strand), groomed)| GpuStrandInput {
+        .zip(hairs.iter().zip(&groomed_fractions))
+        .map(|((&(head, _, strand), groomed), (&hairs, fractions))| GpuStrandInput {
             rod: strand.rod(),
             head: head_list.binary_search(&head).unwrap_or(0),
             thickness: strand.contact_thickness(margin),
             groomed: groomed.as_deref(),
+            hairs,
+            groomed_fractions: Some(fractions),
         })
         .collect();
     let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
@@ -528,7 +552,14 @@ fn order_gpu_step(
     status.steps = queue.steps_sent;
     status.read_back_age = queue.read_back_step.map(|step| queue.steps_sent - step);
     count.steps = queue.steps_sent;
-    queue.steps.push(GpuStepOrder { params, heads: steps, air, read_back, step: queue.steps_sent });
+    let volume = hair_settings.volume.enabled.then(|| GpuVolume {
+        cell_size: f64::from(hair_settings.volume.cell_size),
+        smoothing_rate: f64::from(hair_settings.volume.velocity_smoothing),
+        target_fraction: f64::from(hair_settings.volume.target_volume_fraction),
+        stiffness: f64::from(hair_settings.volume.stiffness),
+        keep_groomed: hair_settings.volume.keep_groomed_volume,
+    });
+    queue.steps.push(GpuStepOrder { params, heads: steps, air, volume, read_back, step: queue.steps_sent });
 }
 
 /// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
@@ -724,6 +755,9 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         let (mut read_back, mut status_only) = (None, None);
         for order in render.orders.drain(..) {
             if let Err(error) = solver.set_air(&order.air) {
+                send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
+            }
+            if let Err(error) = solver.set_volume(order.volume) {
                 send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
             }
             match solver.step(device, queue, &order.params, &order.heads) {

@@ -72,6 +72,7 @@ use bevy::tasks::ComputeTaskPool;
 
 use crate::followers::HairFollowers;
 use crate::parallel::run_in_parallel;
+use crate::rod::Rod;
 use crate::schedule::HairSystems;
 pub use crate::simulation::HairVolume;
 use crate::simulation::{
@@ -330,11 +331,9 @@ pub(crate) fn interact_through_grid(
     statistics.max_volume_fraction = max_fraction;
 }
 
-/// Measures the groomed volume fraction at every node of the strands of `group` that have none yet: in a
-/// grid of the group's strands as they were made ([`crate::rod::Rod::initial_positions`], the groom; all
-/// of a head's strands are made together), the densest of the grid points around the node (the fraction
-/// interpolated there would leave the groom's densest points pressed beyond their nodes' average).
-/// Forgets the strands gone from the group once they outnumber those in it.
+/// Measures the groomed volume fraction at every node of the strands of `group` that have none yet
+/// ([`groomed_fractions`]; all of a head's strands are made together). Forgets the strands gone from the
+/// group once they outnumber those in it.
 fn measure_groomed_fractions<'a>(
     group: &mut HeadGrid,
     strand_of: impl Fn(Entity) -> Option<(&'a SimulatedStrand, f64)>,
@@ -343,10 +342,30 @@ fn measure_groomed_fractions<'a>(
     if group.strands.iter().all(|(entity, _)| group.groomed.contains_key(entity)) {
         return;
     }
-    let mut groomed = Vec::with_capacity(group.nodes);
-    for &(entity, _) in &group.strands {
-        let Some((strand, hairs)) = strand_of(entity) else { continue };
-        let rod = strand.rod();
+    let strands: Vec<(Entity, &Rod, f64)> = group
+        .strands
+        .iter()
+        .filter_map(|&(entity, _)| strand_of(entity).map(|(strand, hairs)| (entity, strand.rod(), hairs)))
+        .collect();
+    let rods: Vec<(&Rod, f64)> = strands.iter().map(|&(_, rod, hairs)| (rod, hairs)).collect();
+    for ((entity, ..), fractions) in strands.iter().zip(groomed_fractions(&rods, params)) {
+        group.groomed.entry(*entity).or_insert(fractions);
+    }
+    if group.groomed.len() > 2 * group.strands.len() {
+        let present: bevy::platform::collections::HashSet<Entity> =
+            group.strands.iter().map(|(entity, _)| *entity).collect();
+        group.groomed.retain(|entity, _| present.contains(entity));
+    }
+}
+
+/// The groomed volume fraction at every node of `strands` (all of one head, each with the hairs it stands
+/// for on the grid): in a grid of the strands as they were made ([`crate::rod::Rod::initial_positions`],
+/// the groom), the densest of the grid points around the node (the fraction interpolated there would
+/// leave the groom's densest points pressed beyond their nodes' average). The GPU's grid is given them
+/// at upload.
+pub(crate) fn groomed_fractions(strands: &[(&Rod, f64)], params: &VolumeParams) -> Vec<Vec<f64>> {
+    let mut groomed = Vec::with_capacity(strands.iter().map(|(rod, _)| rod.node_count()).sum());
+    for &(rod, hairs) in strands {
         let density = rod.material().density;
         groomed.extend(rod.initial_positions().iter().zip(rod.masses()).map(|(&position, &mass)| GridParticle {
             position,
@@ -356,18 +375,10 @@ fn measure_groomed_fractions<'a>(
     }
     let mut grid = VolumeGrid::default();
     grid.build(&groomed, &VolumeParams { stiffness: 0.0, smoothing_rate: 0.0, ..*params });
-    for &(entity, _) in &group.strands {
-        let Some((strand, _)) = strand_of(entity) else { continue };
-        if !group.groomed.contains_key(&entity) {
-            let fractions = strand.rod().initial_positions().iter().map(|&node| grid.densest_fraction_around(node));
-            group.groomed.insert(entity, fractions.collect());
-        }
-    }
-    if group.groomed.len() > 2 * group.strands.len() {
-        let present: bevy::platform::collections::HashSet<Entity> =
-            group.strands.iter().map(|(entity, _)| *entity).collect();
-        group.groomed.retain(|entity, _| present.contains(entity));
-    }
+    strands
+        .iter()
+        .map(|(rod, _)| rod.initial_positions().iter().map(|&node| grid.densest_fraction_around(node)).collect())
+        .collect()
 }
 
 /// How many hairs a strand stands for on the grid at this fixed step: its [`represented_hairs`] for each
@@ -383,7 +394,7 @@ fn hairs_on_the_grid(
 }
 
 /// How many hairs a strand stands for: its [`RepresentedHairs`], or itself and its followers.
-fn represented_hairs(represented: Option<&RepresentedHairs>, followers: Option<&HairFollowers>) -> f64 {
+pub(crate) fn represented_hairs(represented: Option<&RepresentedHairs>, followers: Option<&HairFollowers>) -> f64 {
     match represented {
         Some(hairs) => f64::from(hairs.0),
         None => 1.0 + followers.map_or(0, |followers| followers.curves.len()) as f64,

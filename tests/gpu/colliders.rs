@@ -100,8 +100,17 @@ fn drop_on(name: &str, shape: ColliderShape, rotation: DQuat, offset: DVec3, out
     let collider = MovingCollider { shape, friction: 0.0, start: at, end: at };
     let mut rods = strands();
     let params = StepParams { dt: 1.0 / 60.0, air_damping: 5.0, ..Default::default() };
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: THICKNESS, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput {
+            rod,
+            head: 0,
+            thickness: THICKNESS,
+            groomed: None,
+            hairs: 1.0,
+            groomed_fractions: None,
+        })
+        .collect();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[(DQuat::IDENTITY, HEAD)]).unwrap();
     let head = GpuHeadStep { translation: HEAD, colliders: vec![collider.clone()], ..Default::default() };
     let contacts = Contacts { colliders: std::slice::from_ref(&collider), thickness: THICKNESS };

@@ -90,7 +90,14 @@ fn the_gpu_step_fed_at_random_stays_finite_and_rooted() {
             .collect();
         let inputs: Vec<GpuStrandInput> = rods
             .iter()
-            .map(|(rod, head)| GpuStrandInput { rod, head: *head, thickness: 1e-4 * rng.f64(), groomed: None })
+            .map(|(rod, head)| GpuStrandInput {
+                rod,
+                head: *head,
+                thickness: 1e-4 * rng.f64(),
+                groomed: None,
+                hairs: 1.0,
+                groomed_fractions: None,
+            })
             .collect();
         let mut gpu = GpuStrandSolver::new(&device, &inputs, &poses).unwrap();
         // Each head's colliders, placed relative to it.

@@ -7,6 +7,7 @@ mod colliders;
 mod followers;
 mod fuzz;
 mod gltf_character;
+mod grid;
 mod plugin;
 mod render_layout;
 mod render_shader;

@@ -68,8 +68,10 @@ fn settle_beside_the_cpu(edges: &[usize]) {
     let mut rods: Vec<Rod> =
         edges.iter().map(|&n| cantilever(root, length, n, hair_sim_support::stiff_rod_material())).collect();
     let params = StepParams { dt: 1.0 / 60.0, air_damping: 5.0, ..Default::default() };
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 0.0, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 0.0, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[(DQuat::IDENTITY, root)]).unwrap();
     let mut workspace = RodWorkspace::default();
     for _ in 0..600 {
@@ -119,7 +121,14 @@ fn a_held_strand_follows_its_moving_head_as_on_the_cpu() {
     // The CPU's step iterated to convergence, held by the anchors `HairStyleHold` writes, and unheld.
     let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
     let (mut held, mut unheld) = (rod.clone(), rod.clone());
-    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: Some(&groomed) };
+    let input = GpuStrandInput {
+        rod: &rod,
+        head: 0,
+        thickness: 0.0,
+        groomed: Some(&groomed),
+        hairs: 1.0,
+        groomed_fractions: None,
+    };
     let mut gpu = GpuStrandSolver::new(&device, &[input], &[(rotation, translation)]).unwrap();
     let unheld_input = GpuStrandInput { groomed: None, ..input };
     let mut gpu_unheld = GpuStrandSolver::new(&device, &[unheld_input], &[(rotation, translation)]).unwrap();
@@ -198,7 +207,8 @@ fn released_pendulum_swings_as_on_the_cpu() {
     let params = StepParams::default();
     // The CPU's step iterated to convergence: the equations both steps solve, solved (nearly) exactly.
     let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
-    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None };
+    let input =
+        GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None, hairs: 1.0, groomed_fractions: None };
     let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, root)]).unwrap();
     let (mut workspace, mut tight_workspace) = (RodWorkspace::default(), RodWorkspace::default());
     let (mut gpu_squares, mut cpu_squares, mut count) = (0.0, 0.0, 0);
@@ -259,7 +269,8 @@ fn a_head_stepped_every_second_and_fourth_step_swings_as_on_the_cpu() {
             },
         };
         let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..longer };
-        let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None };
+        let input =
+            GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None, hairs: 1.0, groomed_fractions: None };
         let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, root)]).unwrap();
         let (mut workspace, mut tight_workspace) = (RodWorkspace::default(), RodWorkspace::default());
         let (mut gpu_squares, mut cpu_squares, mut count) = (0.0, 0.0, 0);
@@ -308,8 +319,10 @@ fn hair_on_a_carried_head_moves_rigidly_with_it_and_steps_again_after() {
     let (_turn, device, queue) = device();
     let mut rods = strands_out_of_the_skull(0.2, 16, shaking_head(0.0));
     rods.truncate(8);
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
     let params = StepParams::default();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[shaking_head(0.0)]).unwrap();
     let head_at = |step: usize, cadence| {
@@ -435,8 +448,10 @@ fn strands_on_a_shaking_head_follow_the_cpu() {
             copy
         })
         .collect();
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[(rotation, translation)]).unwrap();
     // The same strands on the GPU without friction, for the first 0.3 s: how far a change of the physics
     // moves them, against how far the GPU is from the CPU.
@@ -594,8 +609,10 @@ fn a_shaken_groom_of_32_edges_projects_to_single_precision_and_no_further() {
     // 64 strands of 25 cm in 32 edges (a game's guides: 8 mm edges, up to 35 cm from the head's origin),
     // rooted over the skull and growing out along its normal, for 1 s on the shaking head.
     let rods = strands_out_of_the_skull(0.25, 32, (rotation, translation));
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &[(rotation, translation)]).unwrap();
     let mut previous = (rotation, translation);
     let steps = 60;
@@ -647,7 +664,14 @@ fn a_strand_that_fails_on_the_gpu_is_reset_and_reported_and_the_others_go_on() {
     let inputs: Vec<GpuStrandInput> = rods
         .iter()
         .enumerate()
-        .map(|(index, rod)| GpuStrandInput { rod, head: index / 4, thickness: 0.0, groomed: None })
+        .map(|(index, rod)| GpuStrandInput {
+            rod,
+            head: index / 4,
+            thickness: 0.0,
+            groomed: None,
+            hairs: 1.0,
+            groomed_fractions: None,
+        })
         .collect();
     let poses = heads.map(|translation| (DQuat::IDENTITY, translation));
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &poses).unwrap();
@@ -709,7 +733,8 @@ fn a_strand_deep_inside_a_collider_holding_its_root_stays_whole() {
     let nodes: Vec<DVec3> = straight_nodes(0.2, 20, -DVec3::X).into_iter().map(|p| p + root).collect();
     let mut rod = Rod::new(&nodes, DVec3::Y, Default::default()).unwrap();
     rod.clamp_root_in_place();
-    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None };
+    let input =
+        GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None };
     let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, centre)]).unwrap();
     let at = RigidPose { rotation: DQuat::IDENTITY, translation: centre };
     let ball = MovingCollider { shape: ColliderShape::Sphere { radius: 0.05 }, friction: 0.3, start: at, end: at };
@@ -740,7 +765,8 @@ fn a_collider_holding_the_root_leaves_the_strand_near_it_free() {
     let nodes: Vec<DVec3> = straight_nodes(0.2, 32, DVec3::X).into_iter().map(|p| p + root).collect();
     let mut rod = Rod::new(&nodes, DVec3::Y, Default::default()).unwrap();
     rod.clamp_root_in_place();
-    let input = GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None };
+    let input =
+        GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None };
     let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, centre)]).unwrap();
     let at = RigidPose { rotation: DQuat::IDENTITY, translation: centre };
     let ball = MovingCollider { shape: ColliderShape::Sphere { radius: 0.3 }, friction: 0.3, start: at, end: at };
@@ -790,7 +816,8 @@ fn a_strand_turned_as_sharply_as_the_gpu_takes_steps_as_on_the_cpu() {
         assert_eq!(turn.0, 8);
         assert!((turn.1 - (std::f64::consts::PI - gap)).abs() < 1e-9, "{turn:?}");
         let start = rod.positions().to_vec();
-        let input = GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None };
+        let input =
+            GpuStrandInput { rod: &rod, head: 0, thickness: 0.0, groomed: None, hairs: 1.0, groomed_fractions: None };
         let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, root)]).unwrap();
         let mut workspace = RodWorkspace::default();
         for _ in 0..30 {

@@ -58,8 +58,10 @@ fn hair_in_gusts_eddies_and_a_jet_moves_as_on_the_cpu() {
     // solve, against which the GPU's two Newton iterations show.
     let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
     let mut rods = strands();
-    let inputs: Vec<GpuStrandInput> =
-        rods.iter().map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None }).collect();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
     let pose = [(DQuat::IDENTITY, HEAD)];
     let mut gpu = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
     let mut per_head = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
