@@ -307,7 +307,7 @@ mod gpu {
             // Built with the examples' window, the app still has none (and needs no display).
             #[cfg(feature = "examples")]
             let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
-            app.add_plugins((plugins, HairPlugins::default(), HairGpuPlugin::default()));
+            app.add_plugins((plugins, HairPlugins::default()));
             app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
                 .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
                 .insert_resource(HairGpuSettings { read_back, ..default() });

@@ -11,8 +11,8 @@
 //! ```
 //!
 //! Options: `--groom straight|curly|ratboy` (Ratboy: TressFX's mohawk at 0.3 of its size),
-//! `--animate sway|still`, `--view front|back`, `--gpu on` (the guides stepped on the GPU, its
-//! colliders met there, the face's mesh included), and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
+//! `--animate sway|still`, `--view front|back`, `--gpu off` (the guides stepped on the CPU; by
+//! default the GPU steps them where the adapter can, its colliders met there, the face's mesh included), and picture mode `--screenshot PATH --frames N` (N frames of exactly 1/60 s,
 //! then a PNG, then exit). Press C to show the colliders.
 
 use std::f32::consts::{FRAC_PI_2, TAU};
@@ -41,7 +41,6 @@ fn main() {
             .set(WindowPlugin { primary_window: Some(window), ..default() })
             .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
         HairPlugins::default(),
-        HairGpuPlugin::default(),
     ))
     .insert_resource(HairGpuSettings { enabled: options.gpu, ..default() })
     .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
@@ -81,7 +80,7 @@ impl Options {
 
     fn from_args(mut args: impl Iterator<Item = String>) -> Result<Self, String> {
         let mut options =
-            Self { groom: Groom::Straight, animate: true, front: true, screenshot: None, frames: 240, gpu: false };
+            Self { groom: Groom::Straight, animate: true, front: true, screenshot: None, frames: 240, gpu: true };
         while let Some(flag) = args.next() {
             let value = args.next().ok_or_else(|| format!("{flag} needs a value"))?;
             match (flag.as_str(), value.as_str()) {

@@ -9,8 +9,9 @@
 //! turn it, Space cycles the head's animation (still, nod, shake, turn, sway, flick), 1 to 5 pick the hair style, K
 //! combs it along the scalp or grows it straight out, C shows the colliders the hair rests on (skull,
 //! face, neck, shoulders, torso), V turns a gusty, turbulent breeze on and off (tune it in the panel), L
-//! switches between rendered hair, gizmo lines and both. `--gpu on` (or the Scene panel's switch) steps
-//! the strands on the GPU (`HairGpuPlugin`), with the followers placed and the hair drawn from there.
+//! switches between rendered hair, gizmo lines and both. The strands step on the GPU where the adapter
+//! can (`HairGpuPlugin`, part of `HairPlugins`), with the followers placed and the hair drawn from there;
+//! `--gpu off` (or the Scene panel's switch) steps them on the CPU.
 //!
 //! Picture mode, for machines without a display (under `xvfb-run` with Mesa's software Vulkan driver,
 //! `mesa-vulkan-drivers` on Debian and Ubuntu, with `xvfb`): render a number of frames
@@ -52,7 +53,6 @@ fn main() {
             .set(WindowPlugin { primary_window: Some(window), ..default() })
             .set(TaskPoolPlugin { task_pool_options: HairPlugins::task_pool_options() }),
         HairPlugins::default(),
-        HairGpuPlugin::default(),
     ));
     app.insert_resource(Time::<Fixed>::from_hz(60.0))
         .insert_resource(HairGpuSettings { enabled: options.gpu, ..default() })
@@ -218,7 +218,7 @@ impl Options {
             appearance: HairAppearance::default(),
             detail: None,
             budget: None,
-            gpu: false,
+            gpu: true,
             highlight_filtering: None,
             motion_blur: false,
             taa: false,

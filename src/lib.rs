@@ -376,6 +376,8 @@ impl PluginGroup for HairPlugins {
             .add(HairGizmoPlugin);
         #[cfg(feature = "render")]
         let group = group.add(render::HairRenderPlugin);
+        #[cfg(feature = "gpu")]
+        let group = group.add(render::HairGpuPlugin { schedule });
         group
     }
 }

@@ -76,5 +76,6 @@ pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeli
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
     GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, headless_device,
+    GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_step_support,
+    headless_device,
 };

@@ -78,6 +78,9 @@ pub enum GpuStepError {
     /// No adapter or device (no GPU, no software Vulkan).
     #[error("no GPU adapter or device: {0}")]
     NoDevice(String),
+    /// The device cannot run the step (WebGL2, say): what it lacks ([`gpu_step_support`]).
+    #[error("the GPU cannot run the strand step: it lacks {0}")]
+    Unsupported(String),
     /// A strand with more nodes than a workgroup has lanes ([`MAX_GPU_NODES`]), or fewer than three.
     #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
     NodeCount {
@@ -385,6 +388,30 @@ impl GpuStrandStates {
             status: self.status.get(strand).copied().into_iter().collect(),
         })
     }
+}
+
+/// Whether a device with `limits` on an adapter with `downlevel` capabilities can run the step: compute
+/// shaders, 8 storage buffers a stage, 16 kB of workgroup memory (the 64-lane pipeline's band takes
+/// 15.5 kB) and workgroups of 64 invocations, as WebGPU guarantees and WebGL2 does not. The error names
+/// what is missing ([`GpuStepError::Unsupported`]).
+pub fn gpu_step_support(limits: &wgpu::Limits, downlevel: &wgpu::DownlevelCapabilities) -> Result<(), GpuStepError> {
+    let mut missing = Vec::new();
+    if !downlevel.flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
+        missing.push("compute shaders".to_string());
+    }
+    let needs = [
+        ("storage buffers a shader stage", limits.max_storage_buffers_per_shader_stage, 8),
+        ("bytes of workgroup memory", limits.max_compute_workgroup_storage_size, 16_384),
+        ("invocations a workgroup", limits.max_compute_invocations_per_workgroup, STEP_LANES[1] as u32),
+        ("invocations along X", limits.max_compute_workgroup_size_x, STEP_LANES[1] as u32),
+        ("workgroups a dimension", limits.max_compute_workgroups_per_dimension, MAX_GROUPS),
+    ];
+    for (what, has, needed) in needs {
+        if has < needed {
+            missing.push(format!("{needed} {what} (it has {has})"));
+        }
+    }
+    if missing.is_empty() { Ok(()) } else { Err(GpuStepError::Unsupported(missing.join(", "))) }
 }
 
 /// A device and queue of their own, headless, on whatever adapter wgpu finds (a discrete GPU, or Mesa's

@@ -12,7 +12,7 @@ use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::math::{DQuat, DVec3};
 use bevy::prelude::*;
-use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::renderer::{RenderAdapter, RenderDevice, RenderQueue};
 use bevy::render::{ExtractSchedule, MainWorld, Render, RenderApp, RenderSystems};
 
 use super::draw::GpuStepCount;
@@ -21,7 +21,7 @@ use crate::followers::{FollowerPlacement, HairFollowers, PlaceFollowersOnCpu};
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput,
     GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuVolume, MAX_GPU_NODES, MAX_GPU_SPAN,
-    SINGLE_PRECISION_STRAIN,
+    SINGLE_PRECISION_STRAIN, gpu_step_support,
 };
 use crate::rod::{AirSnapshot, StepError, StepParams};
 use crate::schedule::HairStepSystems;
@@ -225,6 +225,9 @@ struct GpuStepQueue {
     read_back_step: Option<u64>,
     /// Whether the set of strands must be looked over at the next step.
     dirty: bool,
+    /// Whether this app cannot step on the GPU (no renderer, or a device that cannot run the step): then
+    /// nothing is uploaded, whatever [`HairGpuSettings::enabled`] says.
+    unavailable: bool,
     /// A new set of strands waits for the read-back of this step, so that the strands staying on the GPU
     /// are uploaded from their state there.
     upload_waits_for: Option<u64>,
@@ -277,9 +280,7 @@ impl Plugin for HairGpuPlugin {
                     .in_set(HairStepSystems::Integrate),
             );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
-            warn!("HairGpuPlugin: there is no renderer (add DefaultPlugins first), so the CPU steps the hair");
-            app.world_mut().resource_mut::<HairGpuStatus>().error = Some("no renderer".into());
-            app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
+            fall_back_to_the_cpu(app, "there is no renderer (add Bevy's DefaultPlugins before HairPlugins)");
             return;
         };
         render_app
@@ -290,6 +291,35 @@ impl Plugin for HairGpuPlugin {
                 step_on_gpu.in_set(RenderSystems::PrepareResources).before(super::followers::prepare_gpu_followers),
             );
     }
+
+    fn finish(&self, app: &mut App) {
+        Self::check_device(app);
+    }
+}
+
+impl HairGpuPlugin {
+    /// Once the renderer has its device: falls back to the CPU if the device cannot run the step.
+    fn check_device(app: &mut App) {
+        let Some(render_app) = app.get_sub_app(RenderApp) else { return };
+        let world = render_app.world();
+        let (Some(device), Some(adapter)) =
+            (world.get_resource::<RenderDevice>(), world.get_resource::<RenderAdapter>())
+        else {
+            fall_back_to_the_cpu(app, "the renderer has no device");
+            return;
+        };
+        if let Err(error) = gpu_step_support(&device.limits(), &adapter.get_downlevel_capabilities()) {
+            fall_back_to_the_cpu(app, &error.to_string());
+        }
+    }
+}
+
+/// Turns the GPU's stepping off for good in this app, saying why once: the CPU steps every strand.
+fn fall_back_to_the_cpu(app: &mut App, why: &str) {
+    info!("HairGpuPlugin: {why}; the CPU steps the hair");
+    app.world_mut().resource_mut::<GpuStepQueue>().unavailable = true;
+    app.world_mut().resource_mut::<HairGpuStatus>().error = Some(why.to_string());
+    app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
 }
 
 /// Starts the clock of the plugin's systems in the fixed schedule ([`HairGpuStatus::main_thread_seconds`]).
@@ -330,7 +360,7 @@ fn choose_gpu_strands(
     }
     queue.dirty = false;
     let mut chosen: Vec<(Entity, Entity, &SimulatedStrand)> = Vec::new();
-    if settings.enabled {
+    if settings.enabled && !queue.unavailable {
         for (entity, strand, &StrandOf(head), _) in &strands {
             let nodes = strand.rod().node_count();
             // Rooted, with its root edge clamped where the head holds it (a strand of a head carried since it
@@ -842,7 +872,7 @@ mod tests {
         use bevy::ecs::system::RunSystemOnce;
         // The main world's half alone (no renderer): read-backs arrive through a channel the test holds.
         let mut app = App::new();
-        app.add_plugins((MinimalPlugins, crate::HairPlugins::default(), HairGpuPlugin::default()));
+        app.add_plugins((MinimalPlugins, crate::HairPlugins::default()));
         let head = app.world_mut().spawn((HairHead, Transform::from_xyz(0.0, 1.6, 0.0))).id();
         let strand = app
             .world_mut()

@@ -35,7 +35,9 @@ struct ReadBack(Arc<Mutex<Option<Vec<f32>>>>);
 /// per update.
 fn rendering_app() -> App {
     let mut app = App::new();
+    // The CPU's step (the GPU's is on by default where the adapter can run it).
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
+        .insert_resource(HairGpuSettings { enabled: false, ..default() })
         .insert_resource(Time::<Fixed>::from_seconds(DT))
         .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
     crate::finish_adding_plugins(&mut app);

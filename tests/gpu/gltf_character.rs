@@ -22,7 +22,9 @@ const ROOT_TOLERANCE: f32 = 1e-5;
 fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
     let mut app = App::new();
+    // The CPU's step (the GPU's is on by default where the adapter can run it).
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
+        .insert_resource(HairGpuSettings { enabled: false, ..default() })
         .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
         .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
     crate::finish_adding_plugins(&mut app);

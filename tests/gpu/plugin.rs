@@ -46,12 +46,8 @@ const DRAWN_TOLERANCE: f32 = 1e-5;
 fn app(gpu: bool) -> App {
     let mut app = App::new();
     if gpu {
-        app.add_plugins((
-            crate::headless_renderer(),
-            HairPlugins::default(),
-            HairGpuPlugin::default(),
-            HairDiagnosticsPlugin,
-        ));
+        // The GPU's stepping is part of `HairPlugins`, on by default where the adapter can run it.
+        app.add_plugins((crate::headless_renderer(), HairPlugins::default(), HairDiagnosticsPlugin));
     } else {
         app.add_plugins((MinimalPlugins, HairPlugins::default()));
     }

@@ -35,10 +35,9 @@ fn app(path: DrawPath) -> App {
         app.insert_resource(FollowerPlacement::Cpu);
     }
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()));
-    if matches!(path, DrawPath::GpuStep) {
-        app.add_plugins(HairGpuPlugin::default())
-            .insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..default() });
-    }
+    // The GPU steps the hair by default: the CPU's paths turn it off.
+    let enabled = matches!(path, DrawPath::GpuStep);
+    app.insert_resource(HairGpuSettings { enabled, read_back: GpuReadBackRate::EveryStep, ..default() });
     app.insert_resource(Time::<Fixed>::from_seconds(DT)).insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
     crate::finish_adding_plugins(&mut app);
     app.update();

@@ -12,6 +12,7 @@ mod fault_log;
 mod followers;
 mod fuzz;
 mod fuzz_regressions;
+mod gpu_fallback;
 mod groom_file;
 mod layout;
 mod lifecycle;
