@@ -10,7 +10,8 @@
 //! `bare`, `hold`, `scene`, `budget`, `styles`; all by default), `--quick` to measure fewer steps, `--threads N` for the
 //! compute threads (one per core by default), `--style NAME` to measure one style in `styles`,
 //! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`, `--air-damping G` the air's
-//! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default, `--budget MS` a CPU budget
+//! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default, `--gpu` the `coverage`
+//! runs stepped on the GPU (Bevy's renderer on whatever adapter wgpu finds), `--budget MS` a CPU budget
 //! (`HairCpuBudget`) in `coverage` and `styles`, `--guides N` the example's 22 000 hairs grown from `N`
 //! guides instead of 2 000 in `coverage`, `styles`, `scene` and `budget`. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
@@ -157,7 +158,9 @@ fn main() {
     if wanted("coverage") {
         let value = |flag: &str| args.iter().position(|arg| arg == flag).and_then(|position| args.get(position + 1));
         let air_damping = value("--air-damping").map(|value| value.parse::<f32>().expect("--air-damping needs 1/s"));
-        coverage(threads, if quick { 1.0 } else { 4.0 }, value("--motion").map(String::as_str), air_damping, budget);
+        let on_gpu = args.iter().any(|arg| arg == "--gpu");
+        let seconds = if quick { 1.0 } else { 4.0 };
+        coverage(threads, seconds, value("--motion").map(String::as_str), air_damping, budget, on_gpu);
     }
     if wanted("bare") {
         bare_regions(threads, if quick { 1.0 } else { 4.0 });
@@ -282,6 +285,42 @@ mod gpu {
         );
     }
 
+    /// A headless app with Bevy's renderer on whatever adapter wgpu finds (no window, the render world in
+    /// the app's update), the hair plugins (the GPU stepping the hair), `threads` compute threads (`None`:
+    /// Bevy's default), one fixed step of 1/60 s per update, its plugins finished.
+    pub fn rendered_app(threads: Option<usize>) -> bevy::prelude::App {
+        use bevy::app::PluginsState;
+        use bevy::prelude::*;
+        use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
+        use bevy::time::TimeUpdateStrategy;
+        use bevy::window::ExitCondition;
+        let mut app = App::new();
+        let mut plugins = DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: None,
+                exit_condition: ExitCondition::DontExit,
+                close_when_requested: false,
+                ..default()
+            })
+            .disable::<PipelinedRenderingPlugin>();
+        if let Some(threads) = threads {
+            let task_pool_options = HairPlugins::task_pool_options_with_threads(threads);
+            plugins = plugins.set(TaskPoolPlugin { task_pool_options });
+        }
+        // Built with the examples' window, the app still has none (and needs no display).
+        #[cfg(feature = "examples")]
+        let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
+        app.add_plugins((plugins, HairPlugins::default()));
+        app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+            .insert_resource(TimeUpdateStrategy::FixedTimesteps(1));
+        while app.plugins_state() == PluginsState::Adding {
+            bevy::tasks::tick_global_task_pools_on_main_thread();
+        }
+        app.finish();
+        app.cleanup();
+        app
+    }
+
     /// The plugin's CPU time per fixed step with the GPU stepping 2 000 guides × 32 edges with 10 followers
     /// each on the skull, in a headless app with Bevy's renderer: the main world's systems and the render
     /// world's (`HairGpuStatus::main_thread_seconds`, `render_thread_seconds`), with the components read
@@ -289,33 +328,10 @@ mod gpu {
     /// queue is drained, so that a software adapter (lavapipe runs the shader on the CPU's cores) does not
     /// compete with the plugin's own work for the cores, as a GPU would not.
     pub fn plugin_cpu_cost(steps: usize) {
-        use bevy::app::PluginsState;
         use bevy::prelude::*;
-        use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
-        use bevy::time::TimeUpdateStrategy;
-        use bevy::window::ExitCondition;
         let app = |read_back: GpuReadBackRate| {
-            let mut app = App::new();
-            let plugins = DefaultPlugins
-                .set(WindowPlugin {
-                    primary_window: None,
-                    exit_condition: ExitCondition::DontExit,
-                    close_when_requested: false,
-                    ..default()
-                })
-                .disable::<PipelinedRenderingPlugin>();
-            // Built with the examples' window, the app still has none (and needs no display).
-            #[cfg(feature = "examples")]
-            let plugins = plugins.disable::<bevy::winit::WinitPlugin>();
-            app.add_plugins((plugins, HairPlugins::default()));
-            app.insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
-                .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
-                .insert_resource(HairGpuSettings { read_back, ..default() });
-            while app.plugins_state() == PluginsState::Adding {
-                bevy::tasks::tick_global_task_pools_on_main_thread();
-            }
-            app.finish();
-            app.cleanup();
+            let mut app = rendered_app(None);
+            app.insert_resource(HairGpuSettings { read_back, ..default() });
             let groom = HairGroom { strand_count: 2_000, followers_per_guide: 10, segments: 32, ..default() };
             let head = app.world_mut().spawn((HairHead, groom, Transform::from_xyz(0.0, 1.6, 0.0))).id();
             app.world_mut().spawn((
@@ -729,6 +745,47 @@ fn example_app_within(
     (app, head)
 }
 
+/// How many steps old the hair's components are: 0 on the CPU, [`HairGpuStatus::read_back_age`] on the
+/// GPU.
+#[cfg(feature = "gpu")]
+fn read_back_age(app: &bevy::prelude::App) -> usize {
+    app.world().get_resource::<HairGpuStatus>().and_then(|status| status.read_back_age).unwrap_or(0) as usize
+}
+
+#[cfg(not(feature = "gpu"))]
+fn read_back_age(_: &bevy::prelude::App) -> usize {
+    0
+}
+
+/// [`example_app_within`] on the GPU, without a budget: a headless app with Bevy's renderer on whatever
+/// adapter wgpu finds, the guides stepped on the GPU (the grid's there too) and read back after every step,
+/// the followers placed on the CPU from them (so that the figures read the drawn hair from the
+/// components), after a still second.
+#[cfg(feature = "gpu")]
+fn example_app_on_gpu(threads: usize, (hold, pressure): (f32, f32)) -> (bevy::prelude::App, bevy::prelude::Entity) {
+    use bevy_hair_sim::followers::FollowerPlacement;
+    let mut app = gpu::rendered_app(Some(threads));
+    app.insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..Default::default() })
+        .insert_resource(FollowerPlacement::Cpu);
+    {
+        let mut settings = app.world_mut().resource_mut::<HairSettings>();
+        settings.volume = HairVolume { enabled: true, stiffness: pressure, ..HairVolume::default() };
+        settings.style_hold = HairStyleHold { rate: hold, ..HairStyleHold::default() };
+    }
+    let head = example_head(&mut app, HairStyle::Straight);
+    for _ in 0..60 {
+        app.update();
+    }
+    let status = app.world().resource::<HairGpuStatus>();
+    assert!(status.strands > 0, "the GPU steps the guides: {:?}", status.error);
+    (app, head)
+}
+
+#[cfg(not(feature = "gpu"))]
+fn example_app_on_gpu(_: usize, _: (f32, f32)) -> (bevy::prelude::App, bevy::prelude::Entity) {
+    panic!("`coverage --gpu` needs the `gpu` feature");
+}
+
 /// The head shaken as the example shakes it, `t` s in: ±0.7 rad about the vertical at 1.8 Hz.
 fn shaken(t: f32) -> bevy::prelude::Quat {
     bevy::prelude::Quat::from_rotation_y(0.7 * (std::f32::consts::TAU * 1.8 * t).sin())
@@ -775,7 +832,14 @@ fn in_the_hairline_fade(point: Vec3) -> bool {
 /// after the still second relative to the mean tip of the 6 guides rooted nearest), the largest over the
 /// run (every 0.1 s) and at its end; each motion with the style unheld and held near the roots
 /// ([`HairStyleHold`] at 200/s).
-fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Option<f32>, budget: Option<f32>) {
+fn coverage(
+    threads: usize,
+    seconds: f32,
+    only: Option<&str>,
+    air_damping: Option<f32>,
+    budget: Option<f32>,
+    on_gpu: bool,
+) {
     use bevy::prelude::{Quat, Transform};
     use bevy_hair_sim::debug::coverage::{self, StrayCheck};
     let scalp = example_scene::SCALP;
@@ -794,7 +858,8 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     const BEHIND: Vec3 = Vec3::new(0.0, 0.3, 1.0);
     let air = air_damping.unwrap_or(HairSettings::default().air_damping);
     println!(
-        "The example's scene moving, {seconds} s each, air drag {air}/s, {} after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
+        "The example's scene moving, {seconds} s each, stepped on the {}, air drag {air}/s, {} after the still second: scalp seen from behind (2 mm pixels the hair in front covers less than), scalp exposure (hair within 3 mm hiding less than the 3 mm disc), over the whole haired scalp and past the hairline's fade ({} mm in, where the groom thins its hair on purpose), and strays (tips 5 cm off their 6 neighbours'):",
+        if on_gpu { "GPU (read back every step; the followers placed on the CPU)" } else { "CPU" },
         budget_words(budget),
         1e3 * HairGroom::default().hairline_fade
     );
@@ -808,7 +873,11 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
     let motions = motions.into_iter().filter(|(name, _)| only.is_none_or(|only| only == *name));
     let runs = motions.flat_map(|motion| settings.iter().map(move |&setting| (motion, setting)));
     for ((name, rotation), (hold, pressure)) in runs {
-        let (mut app, head) = example_app_within(threads, HairStyle::Straight, (hold, pressure), 60, budget);
+        let (mut app, head) = if on_gpu {
+            example_app_on_gpu(threads, (hold, pressure))
+        } else {
+            example_app_within(threads, HairStyle::Straight, (hold, pressure), 60, budget)
+        };
         if let Some(air_damping) = air_damping {
             app.world_mut().resource_mut::<HairSettings>().air_damping = air_damping;
         }
@@ -829,20 +898,27 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
             .collect();
         let strays = StrayCheck::new(&roots, 6, &head_pose(&app), &rest_tips);
         let width = drawn_width(app.world(), strands[0]);
-        let measure = |app: &bevy::prelude::App| {
+        // The hair as last read back from the GPU is that many steps old: measured against the head's pose
+        // at that step (which the figures on the CPU's hair need not: it is current).
+        let measure = |app: &bevy::prelude::App, step: usize| {
+            let pose = |app: &bevy::prelude::App| {
+                let current = head_pose(app);
+                let then = step.saturating_sub(read_back_age(app)) as f32 / 60.0;
+                bevy::math::Affine3A::from_rotation_translation(rotation(then), current.translation.into())
+            };
             let world = app.world();
             let hairs = drawn_hairs(world, &strands);
             let tips: Vec<Vec3> = strands
                 .iter()
                 .map(|&strand| *world.get::<StrandNodes>(strand).expect("a strand").positions.last().expect("nodes"))
                 .collect();
-            let bare = coverage::bare_scalp(&scalp, &head_pose(app), hairs.iter().copied(), 2000, (0.003, width))
+            let bare = coverage::bare_scalp(&scalp, &pose(app), hairs.iter().copied(), 2000, (0.003, width))
                 .expect("the scalp");
             let past_the_fade = bare.points.iter().filter(|root| !in_the_hairline_fade(root.position)).count();
             let share = |count: usize| count as f32 / bare.judged as f32;
             let seen =
-                coverage::scalp_seen(&scalp, &head_pose(app), hairs, 2000, BEHIND, (0.002, width)).expect("the scalp");
-            let strays = strays.stray_fraction(&head_pose(app), &tips, 0.05);
+                coverage::scalp_seen(&scalp, &pose(app), hairs, 2000, BEHIND, (0.002, width)).expect("the scalp");
+            let strays = strays.stray_fraction(&pose(app), &tips, 0.05);
             [seen, share(bare.points.len()), share(past_the_fade), strays]
         };
         let (mut largest, mut last) = ([0.0_f32; 4], [0.0_f32; 4]);
@@ -852,7 +928,7 @@ fn coverage(threads: usize, seconds: f32, only: Option<&str>, air_damping: Optio
                 rotation(step as f32 / 60.0);
             app.update();
             if step % 6 == 0 || step == steps {
-                last = measure(&app);
+                last = measure(&app, step);
                 largest = std::array::from_fn(|figure| largest[figure].max(last[figure]));
             }
         }

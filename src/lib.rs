@@ -143,7 +143,7 @@
 //! | [`HairGroomPlugin`] | procedural grooms and groom files (`.tfx`, `.hair`; needs Bevy's `AssetPlugin`) | grooms ignored |
 //! | [`HairGizmoPlugin`] | strands and colliders as gizmo lines (needs Bevy's `GizmoPlugin`; off under the renderer until asked for) | no lines |
 //! | `HairRenderPlugin` (`render` feature) | hair drawn in Bevy's PBR pipeline (needs Bevy's `PbrPlugin`) | lines only |
-//! | `HairGpuPlugin` (`gpu` feature; not in the group) | the strands stepped on the GPU, followers placed and hair drawn from there, read back into the components | the CPU steps every strand |
+//! | `HairGpuPlugin` (`gpu` feature) | the strands stepped on the GPU where the app can (else the CPU, said once in `HairGpuStatus::error`), followers placed and hair drawn from there, read back into the components | the CPU steps every strand |
 //! | `HairPanelPlugin` (`egui` feature; not in the group) | a live panel of settings and statistics | – |
 //! | [`HairDiagnosticsPlugin`](debug::HairDiagnosticsPlugin) (not in the group) | the hair's statistics in Bevy's `DiagnosticsStore` ([`HairDiagnostics`](debug::HairDiagnostics)) | – |
 //!
@@ -172,7 +172,7 @@
 //! | feature | what it adds | default |
 //! |---|---|---|
 //! | `render` | the hair renderer, `HairRenderPlugin`, with the followers placed and drawn on the GPU (Bevy's `bevy_render`, `bevy_core_pipeline`, `bevy_pbr`; no window, platform or image format) | **on** |
-//! | `gpu` | `render` and the strand step in a compute shader ([`gpu`]), checked against the CPU's step, run in the app by `HairGpuPlugin` (added by the game) | **on** |
+//! | `gpu` | `render` and the strand step in a compute shader ([`gpu`]), checked against the CPU's step, run in the app by `HairGpuPlugin` (in the group: the GPU steps the hair by default) | **on** |
 //! | `egui` | `render` and `HairPanelPlugin`, the live panel (bevy_egui) | off |
 //! | `examples` | `render` and what the examples need besides: a window (winit, X11), gizmo lines drawn, tonemapping tables, PNG screenshots | off |
 //! | `avian` | avian3d's colliders as hair colliders: `AvianHairCollider` beside a `Collider` (`collision::avian`) | off |

@@ -14,7 +14,7 @@
 //      `max(φ, φ₀)`, in place of the sums;
 //   6. `respond`: each free node's velocity change `Σ w α (u − v)` added to its velocity (and to its
 //      velocity a step back, as the CPU's `change_velocities`), and the pressure's force
-//      `−V Σ w ∇p / max(φ, φ₀)` (central differences) written to its force row, which the step adds.
+//      `−V Σ w ∇p / max(φ, φ₀)` (central differences) added to its force row, which the step consumes.
 // Positions are the state's: world-oriented, relative to the head's translation at the last step's end.
 
 struct Params {
@@ -400,8 +400,6 @@ fn respond(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
     let pressed = head_word(head, 19u) != 0u;
     let per_kilogram = strand_floats[strand * STRAND_FLOATS + 3u].w;
     for (var node = lane; node < words.x; node += WORKGROUP) {
-        let force_at = 5u * params.total_nodes + words.z + node;
-        state[force_at] = vec4<f32>(0.0);
         if node < 2u {
             continue;
         }
@@ -438,8 +436,9 @@ fn respond(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_in
         let before_at = 3u * params.total_nodes + words.z + node;
         let before = state[before_at];
         state[before_at] = vec4<f32>(before.xyz + change, before.w);
-        // The node's keratin volume times the push.
+        // The node's keratin volume times the push, added to the forces the step reads (and consumes).
         let volume = rest[params.total_nodes + words.z + node].y * per_kilogram;
-        state[force_at] = vec4<f32>(-volume * push, 0.0);
+        let force_at = 5u * params.total_nodes + words.z + node;
+        state[force_at] = vec4<f32>(state[force_at].xyz - volume * push, 0.0);
     }
 }

@@ -8,8 +8,10 @@
 //! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
 //! inextensibility, contact with the head's colliders of every shape with Coulomb friction (spheres,
 //! capsules, ellipsoids at their closest point, planes, boxes sharp or rounded, and meshes through their
-//! baked distance fields, uploaded once and sampled trilinearly), and the style hold (springs towards each strand's groomed places carried with its head,
-//! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU).
+//! baked distance fields, uploaded once and sampled trilinearly), the style hold (springs towards each strand's groomed places carried with its head,
+//! [`GpuStrandInput::groomed`], as [`crate::rod::Anchor`] on the CPU), and hair–hair interaction through
+//! a grid per head ([`GpuStrandSolver::set_volume`]: the velocity smoothing and volume pressure of
+//! [`crate::volume`], splatted, computed and given back in six passes before the step, in `grid.wgsl`).
 //!
 //! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns edge `i` and the node
 //! at its end (lane 0 the root node too), their state in its registers: strands of up to 32 edges (a

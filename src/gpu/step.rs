@@ -139,6 +139,13 @@ pub enum GpuStepError {
         /// The strand's index in the input.
         strand: usize,
     },
+    /// Forces given to [`GpuStrandSolver::add_forces`] for a strand that is not uploaded, not one per node,
+    /// or not finite.
+    #[error("the forces for strand {strand} are not one finite force per node of an uploaded strand")]
+    InvalidForces {
+        /// The strand's index.
+        strand: usize,
+    },
     /// The hair–hair grid's parameters given to [`GpuStrandSolver::set_volume`] are out of range
     /// ([`GpuVolume::is_valid`]).
     #[error("the hair–hair grid's parameters are out of range")]
@@ -484,11 +491,11 @@ pub struct GpuStrandSolver {
     staging: Arc<Mutex<Vec<wgpu::Buffer>>>,
     /// Time spent in wgpu's submissions and polls since [`GpuStrandSolver::take_driver_seconds`], s.
     driver_seconds: f64,
-    /// The hair–hair grid's parameters ([`GpuStrandSolver::set_volume`]), its buffers once made, and whether
-    /// the state's force rows may hold its pressure (cleared when it is turned off).
+    /// The hair–hair grid's parameters ([`GpuStrandSolver::set_volume`]) and its buffers once made.
     volume: Option<GpuVolume>,
     grid: Option<GpuGrid>,
-    forces_written: bool,
+    /// Scratch for [`GpuStrandSolver::add_forces`].
+    force_rows: Vec<[f32; 4]>,
     /// Scratch: each head's translation before the step and its step's length, for the grid.
     grid_heads: Vec<(DVec3, f64)>,
 }
@@ -809,7 +816,7 @@ impl GpuStrandSolver {
             driver_seconds: 0.0,
             volume: None,
             grid: None,
-            forces_written: false,
+            force_rows: Vec::new(),
             grid_heads: Vec::new(),
         }
     }
@@ -900,6 +907,23 @@ impl GpuStrandSolver {
             return Err(GpuStepError::InvalidVolume);
         }
         self.volume = volume;
+        Ok(())
+    }
+
+    /// Forces on strand `strand`'s nodes for its next step (one per node, N, world space): a game's loads
+    /// (`StrandForces` on the CPU), besides gravity, drag and the grid's pressure. Written into the queue
+    /// now, so they take effect in the next step recorded after this call in which the strand's head is
+    /// stepped, and are used up by it. Refuses a strand out of range, a wrong count or a force that is not
+    /// finite (and writes nothing).
+    pub fn add_forces(&mut self, queue: &wgpu::Queue, strand: usize, forces: &[DVec3]) -> Result<(), GpuStepError> {
+        let nodes = self.node_count(strand);
+        if nodes == 0 || forces.len() != nodes || !forces.iter().all(|force| force.is_finite()) {
+            return Err(GpuStepError::InvalidForces { strand });
+        }
+        self.force_rows.clear();
+        self.force_rows.extend(forces.iter().map(|&force| vec4(force, 0.0)));
+        let row = 5 * self.strands.total_nodes + self.strands.first_nodes[strand];
+        queue.write_buffer(&self.state, 16 * row as u64, bytemuck::cast_slice(&self.force_rows));
         Ok(())
     }
 
@@ -1109,10 +1133,6 @@ impl GpuStrandSolver {
                 units: self.strands.grid_units,
             };
             grid.record(queue, encoder, &self.pipelines.grid, &step);
-            self.forces_written = true;
-        } else if std::mem::take(&mut self.forces_written) {
-            let plane = 16 * self.strands.total_nodes as u64;
-            encoder.clear_buffer(&self.state, 5 * plane, Some(plane));
         }
         // One workgroup per strand, in one pass: the strands of each pipeline's list.
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {

@@ -27,19 +27,33 @@ use crate::rod::{AirSnapshot, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
-    SteppedElsewhere, StrandColliders, StrandFault, StrandFrames, StrandNodes, StrandOf, write_strand_data,
+    SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
+    write_strand_data,
 };
 use crate::volume::{RepresentedHairs, groomed_fractions as groomed_fractions_of, represented_hairs};
 use crate::wind::{HairWind, HairWindSource};
 
 /// Steps the hair on the GPU ([`crate::gpu`]: the same discrete elastic rods in single precision, one
-/// workgroup per strand), on the device of Bevy's renderer. Add it after [`crate::HairPlugins`],
-/// with Bevy's renderer, in the same schedule (`FixedUpdate` by default):
+/// workgroup per strand), on the device of Bevy's renderer; part of [`crate::HairPlugins`] with the `gpu`
+/// feature (on by default), so a game with Bevy's renderer steps its hair on the GPU with nothing more:
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
 /// # use bevy_hair_sim::prelude::*;
-/// App::new().add_plugins((DefaultPlugins, HairPlugins::default(), HairGpuPlugin::default()));
+/// App::new().add_plugins((DefaultPlugins, HairPlugins::default()));
+/// ```
+///
+/// **Where it cannot run**, the CPU steps every strand, and [`HairGpuStatus::error`] says why (logged once,
+/// at start): an app without Bevy's renderer (`MinimalPlugins`, a server), or a device that cannot run the
+/// step ([`crate::gpu::gpu_step_support`]: WebGL2, a device without compute shaders or with fewer than 8
+/// storage buffers a stage). [`HairGpuSettings::enabled`] chooses the CPU in an app that could:
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hair_sim::prelude::*;
+/// App::new()
+///     .add_plugins((DefaultPlugins, HairPlugins::default()))
+///     .insert_resource(HairGpuSettings { enabled: false, ..default() });
 /// ```
 ///
 /// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
@@ -58,8 +72,11 @@ use crate::wind::{HairWind, HairWindSource};
 /// with the CPU's rule for a collider holding a root inside it (the strand near the root is left free of
 /// it). The air is the wind ([`HairWind`], [`HairWindSource`]) sampled by the step at every node, its
 /// gusts, eddies and jets included, as on the CPU (which interpolates the eddies between nodes a quarter
-/// of their size apart; the GPU takes every node). Other forces in [`StrandForces`], the hair–hair grid
-/// and the followers' own collisions on the CPU are not applied to GPU strands. The style hold
+/// of their size apart; the GPU takes every node). The hair–hair grid ([`HairSettings::volume`]) is the
+/// GPU's own, each head's hair splatted and smoothed and pressed there as on the CPU (`gpu::grid`); a head
+/// with strands on both sides has one grid on each, so those on the CPU and those on the GPU do not meet.
+/// Other forces in [`StrandForces`] and the followers' own collisions on the CPU are not applied to GPU
+/// strands. The style hold
 /// ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each strand's
 /// groomed pose carried with its head.
 ///
@@ -95,10 +112,6 @@ use crate::wind::{HairWind, HairWindSource};
 /// A strand that cannot be put outside its colliders with its lengths kept keeps its
 /// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
 ///
-/// **Without an adapter** (no renderer) nothing is uploaded: the CPU steps everything, and
-/// [`HairGpuStatus::error`] says why.
-///
-/// [`StrandForces`]: crate::simulation::StrandForces
 /// [`FollowerPlacement::Cpu`]: crate::followers::FollowerPlacement::Cpu
 /// [`PlaceFollowersOnCpu`]: crate::followers::PlaceFollowersOnCpu
 #[derive(Debug, Clone)]
@@ -189,6 +202,9 @@ struct GpuStepOrder {
     air: AirSnapshot,
     /// The hair–hair grid's parameters, when it is on.
     volume: Option<GpuVolume>,
+    /// The forces games added to strands stepped now ([`StrandForces`]): each strand's index and its
+    /// nodes' forces, N.
+    forces: Vec<(usize, Vec<DVec3>)>,
     /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
     read_back: bool,
     /// Its number among the steps sent.
@@ -209,6 +225,8 @@ struct GpuStepQueue {
     /// The strands on the GPU, in the upload's order, and their heads.
     strands: Arc<Vec<Entity>>,
     heads: Vec<Entity>,
+    /// Each strand on the GPU's index in the upload and its head's index.
+    strand_index: EntityHashMap<(usize, usize)>,
     /// The step (its number among those sent) at which each head's hair was last stepped, not carried.
     heads_stepped: Vec<u64>,
     /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
@@ -469,6 +487,11 @@ fn choose_gpu_strands(
             Vec::new()
         }
     };
+    queue.strand_index = if on_gpu.is_empty() {
+        EntityHashMap::default()
+    } else {
+        inputs.iter().zip(&chosen).enumerate().map(|(index, (input, chosen))| (chosen.1, (index, input.head))).collect()
+    };
     queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
     queue.heads_stepped = vec![queue.steps_sent; queue.heads.len()];
     queue.faults = vec![0; on_gpu.len()];
@@ -510,6 +533,7 @@ fn order_gpu_step(
     sources: Query<(&HairWindSource, &GlobalTransform)>,
     placement: Option<Res<FollowerPlacement>>,
     followers_on_cpu: Query<(), With<PlaceFollowersOnCpu>>,
+    mut strand_forces: Query<(Entity, &mut StrandForces), With<SteppedElsewhere>>,
 ) {
     let Some(params) = checked.params else { return };
     if queue.strands.is_empty() {
@@ -589,7 +613,19 @@ fn order_gpu_step(
         stiffness: f64::from(hair_settings.volume.stiffness),
         keep_groomed: hair_settings.volume.keep_groomed_volume,
     });
-    queue.steps.push(GpuStepOrder { params, heads: steps, air, volume, read_back, step: queue.steps_sent });
+    // The forces games added (`StrandForces`), for the strands stepped now; all are used up by this step,
+    // as on the CPU.
+    let mut forces = Vec::new();
+    for (entity, mut strand_forces) in &mut strand_forces {
+        if let Some(active) = strand_forces.active_forces()
+            && let Some(&(index, head)) = queue.strand_index.get(&entity)
+            && matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_)))
+        {
+            forces.push((index, active.to_vec()));
+        }
+        strand_forces.clear();
+    }
+    queue.steps.push(GpuStepOrder { params, heads: steps, air, volume, forces, read_back, step: queue.steps_sent });
 }
 
 /// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
@@ -789,6 +825,11 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
             }
             if let Err(error) = solver.set_volume(order.volume) {
                 send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
+            }
+            for (strand, forces) in &order.forces {
+                if let Err(error) = solver.add_forces(queue, *strand, forces) {
+                    send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
+                }
             }
             match solver.step(device, queue, &order.params, &order.heads) {
                 Ok(_) if order.read_back => read_back = Some(order.step),

@@ -782,6 +782,11 @@ impl StrandForces {
         self.forces.active |= with_forces && !self.forces.values.is_empty();
     }
 
+    /// The forces added since the last step (N), if any: for a step elsewhere (the GPU's).
+    pub(crate) fn active_forces(&self) -> Option<&[DVec3]> {
+        self.forces.active()
+    }
+
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
     pub(crate) fn add_air_velocities(&mut self, mut velocity_at: impl FnMut(usize) -> DVec3) {
         for (node, slot) in self.air_velocities.values.iter_mut().enumerate() {

@@ -15,7 +15,9 @@
 //! velocities it reads are those it changes), which conserves momentum exactly and is stable at any
 //! rate, while an implicit drag towards the grid's velocity would not conserve momentum once gravity
 //! changes it within the step; the pressure, as a force, is resisted implicitly by the strands'
-//! elasticity and contact, like every other load. The grid's equations are in [`grid`].
+//! elasticity and contact, like every other load. The grid's equations are in [`grid`]. Strands stepped
+//! on the GPU meet each other through the GPU's own grid, the same equations in six compute passes
+//! (`gpu::grid`).
 //!
 //! **Guides stand for more hair.** The grid counts each simulated strand as the hairs it stands for
 //! ([`RepresentedHairs`]; by default itself and its followers, and a [`crate::groom::HairGroom`] gives
@@ -208,8 +210,8 @@ type GridItem = (
 );
 
 /// Splats every head's hair to its grid, then gives each strand's free nodes the grid's velocity change
-/// and pressure force, in parallel. Strands [`SteppedElsewhere`] (on the GPU) are left out: the GPU step
-/// has no grid, and their components are only as fresh as their last read-back.
+/// and pressure force, in parallel. Strands [`SteppedElsewhere`] (on the GPU) are left out: the GPU has a
+/// grid of its own (`gpu::grid`), and their components are only as fresh as their last read-back.
 pub(crate) fn interact_through_grid(
     time: Res<Time>,
     settings: Res<HairSettings>,

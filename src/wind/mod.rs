@@ -52,7 +52,7 @@ use bevy::prelude::*;
 
 use crate::rod::{AirJet, AirMode, AirSnapshot};
 use crate::schedule::HairSystems;
-use crate::simulation::{SimulatedStrand, StrandForces, StrandNodes};
+use crate::simulation::{SimulatedStrand, SteppedElsewhere, StrandForces, StrandNodes};
 
 /// Sinusoidal modes summed for the turbulence (Kraichnan 1970): enough for a field without visible
 /// repetition, few enough to stay cheap.
@@ -349,13 +349,14 @@ impl SplitMix64 {
 /// nodes (in [`StrandForces`]), at their positions at the start of the step and the step's simulated
 /// time; in parallel over strands. A calm wind and no sources add nothing. An invalid [`HairWind`], or
 /// an invalid [`HairWindSource`] (or one whose transform is not finite), is reported once, by name, and
-/// blows no air until it is fixed.
+/// blows no air until it is fixed. Strands [`SteppedElsewhere`] are left out: the GPU samples the air
+/// itself (`GpuStrandSolver::set_air`).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn add_wind(
     time: Res<Time>,
     wind: Res<HairWind>,
     sources: Query<(Entity, &HairWindSource, &GlobalTransform)>,
-    mut strands: Query<(&SimulatedStrand, &StrandNodes, &mut StrandForces)>,
+    mut strands: Query<(&SimulatedStrand, &StrandNodes, &mut StrandForces), Without<SteppedElsewhere>>,
     mut reported: Local<Option<String>>,
     mut reported_sources: Local<EntityHashMap<String>>,
     mut active_sources: Local<Vec<(HairWindSource, GlobalTransform)>>,

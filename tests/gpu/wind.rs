@@ -106,3 +106,66 @@ fn hair_in_gusts_eddies_and_a_jet_moves_as_on_the_cpu() {
     assert!(worst < 5e-3, "the GPU's hair is {worst} m RMS from the CPU's");
     assert!(worst * 3.0 < worst_per_head, "per node {worst:e} m, per head {worst_per_head:e} m");
 }
+
+/// A game's forces on the GPU (`GpuStrandSolver::add_forces`, what `HairGpuPlugin` hands over from
+/// `StrandForces`): the eight hairs pushed sideways by a force on every node that swells and fades
+/// (up to twice their weight, along X then Z), for 1.5 s, against the CPU's converged steps given the
+/// same forces. The forces move the hair by centimetres; the GPU follows the CPU within what its two
+/// Newton iterations leave (a few millimetres, as in the wind above), and the forces are used up by each
+/// step (a step with none leaves the hair hanging as it would).
+#[test]
+fn forces_on_the_gpu_move_the_hair_as_on_the_cpu() {
+    let (_turn, device, queue) = device();
+    let params = StepParams { dt: 1.0 / 60.0, ..Default::default() };
+    let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
+    let mut rods = strands();
+    let inputs: Vec<GpuStrandInput> = rods
+        .iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect();
+    let pose = [(DQuat::IDENTITY, HEAD)];
+    let mut gpu = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
+    let mut unforced = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
+    let head = [GpuHeadStep { translation: HEAD, ..Default::default() }];
+    let mut workspace = RodWorkspace::default();
+    let (mut worst, mut effect) = (0.0_f64, 0.0_f64);
+    for step in 1..=STEPS {
+        let t = step as f64 * params.dt;
+        let push = DVec3::new((3.0 * t).sin().max(0.0), 0.0, (2.0 * t).cos() * 0.5);
+        for (index, rod) in rods.iter_mut().enumerate() {
+            let forces: Vec<DVec3> = rod.masses().iter().map(|&m| 2.0 * 9.81 * m * push).collect();
+            gpu.add_forces(&queue, index, &forces).unwrap();
+            let loads = StepLoads { forces: Some(&forces), ..Default::default() };
+            rod.step_with_loads(&tight, &loads, &Contacts::NONE, &mut workspace).unwrap();
+        }
+        gpu.step(&device, &queue, &params, &head).unwrap();
+        unforced.step(&device, &queue, &params, &head).unwrap();
+        if step % 10 == 0 {
+            let cpu: Vec<Vec<DVec3>> = rods.iter().map(|rod| rod.positions().to_vec()).collect();
+            let (forced, still) = (gpu.read_back(&device, &queue), unforced.read_back(&device, &queue));
+            assert!(forced.status.iter().all(|s| s.faults == 0), "{:?}", forced.status);
+            let (apart, moved) = (rms(&forced.positions, &cpu), rms(&still.positions, &cpu));
+            println!("t = {t:.2} s: GPU − CPU {apart:.2e} m RMS; the forces moved the hair {moved:.2e} m");
+            worst = worst.max(apart);
+            effect = effect.max(moved);
+        }
+    }
+    assert!(effect > 0.03, "the forces moved the hair only {effect} m");
+    assert!(worst < 5e-3 && worst * 10.0 < effect, "the GPU's hair is {worst} m RMS from the CPU's");
+    // Used up: the forced hair, left without forces, is stepped as the unforced one would be from there
+    // (a forced step again would move it by centimetres).
+    let before = gpu.read_back(&device, &queue).positions;
+    gpu.step(&device, &queue, &params, &head).unwrap();
+    let after = gpu.read_back(&device, &queue).positions;
+    let mut reference = rods.clone();
+    for rod in &mut reference {
+        rod.step(&tight, None, &mut workspace).unwrap();
+    }
+    let cpu_moved = rms(
+        &reference.iter().map(|rod| rod.positions().to_vec()).collect::<Vec<_>>(),
+        &rods.iter().map(|rod| rod.positions().to_vec()).collect::<Vec<_>>(),
+    );
+    let gpu_moved = rms(&after, &before);
+    println!("one step without forces: the GPU's hair moves {gpu_moved:.2e} m, the CPU's {cpu_moved:.2e} m");
+    assert!((gpu_moved - cpu_moved).abs() < 0.25 * cpu_moved + 1e-4, "{gpu_moved} vs {cpu_moved}");
+}
