@@ -262,8 +262,9 @@
 //! need the digits `f32` does not have. The components a game reads are `f32`.
 //!
 //! **How fast is it?** Linear in strands and edges: 9–12 ms per step for 2 000 strands × 32 edges on
-//! two cores at full detail, 4.5 ms for 1 000 × 16; stepped on the GPU (`HairGpuPlugin`)
-//! the CPU's share is a fraction of a millisecond. Build in release, give the compute pool every core
+//! two cores at full detail, 4.5 ms for 1 000 × 16 on the CPU; stepped on the GPU (`HairGpuPlugin`, the
+//! default where the app has Bevy's renderer and a device with compute) the CPU's share is a fraction of a
+//! millisecond. Build in release, give the compute pool every core
 //! ([`HairPlugins::task_pool_options`]), use followers for density and let levels of detail step far heads
 //! less often and carry hidden ones ([`detail`]). The figures and their history are in
 //! `docs/performance.md` in the repository.

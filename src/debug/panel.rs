@@ -296,6 +296,7 @@ fn gpu_grid(ui: &mut egui::Ui, gpu: &crate::render::HairGpuStatus) {
         );
         row("GPU largest strain", format!("{:.1e}", gpu.max_strain));
         row("GPU nodes in contact", gpu.contacts.to_string());
+        row("GPU hair–hair grid", format!("densest {:.2}", gpu.max_volume_fraction));
         row("GPU faults / given up", format!("{} / {}", gpu.faults, gpu.contact_given_up));
     });
 }

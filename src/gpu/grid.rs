@@ -237,6 +237,16 @@ impl GpuGrid {
         }
     }
 
+    /// The buffer of the heads' words (read back with the strands' status).
+    pub(super) fn heads_buffer(&self) -> &wgpu::Buffer {
+        &self.heads
+    }
+
+    /// The largest volume fraction in the heads' words `words` (as [`GpuGrid::heads_buffer`] holds them).
+    pub(super) fn densest(words: &[u32]) -> f32 {
+        words.chunks_exact(HEAD_WORDS).map(|head| f32::from_bits(head[20])).fold(0.0, f32::max)
+    }
+
     /// Each head's grid as the last recorded step left it, waiting for the GPU.
     pub(super) fn read(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> Vec<GpuGridFields> {
         let heads: Vec<u32> = read_words(device, queue, &self.heads);

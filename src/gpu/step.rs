@@ -340,6 +340,9 @@ pub struct GpuStrandStates {
     pub reference_twists: Vec<Vec<f64>>,
     /// Per strand, its last step's report.
     pub status: Vec<GpuStrandStatus>,
+    /// The largest hair volume fraction at a point of any head's hair–hair grid in the last step that
+    /// built one ([`GpuStrandSolver::set_volume`]; 0 without a grid).
+    pub max_volume_fraction: f32,
 }
 
 impl GpuStrandStates {
@@ -393,6 +396,7 @@ impl GpuStrandStates {
             reference_directors: vec![self.reference_directors[strand].clone()],
             reference_twists: vec![self.reference_twists[strand].clone()],
             status: self.status.get(strand).copied().into_iter().collect(),
+            max_volume_fraction: self.max_volume_fraction,
         })
     }
 }
@@ -1197,7 +1201,9 @@ impl GpuStrandSolver {
     pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
         let state_bytes = self.read_back_state_bytes(state);
         let status_bytes = self.status.size();
-        let size = state_bytes + status_bytes;
+        // Then the grid's heads, for its densest point.
+        let grid_bytes = self.grid.as_ref().map_or(0, |grid| grid.heads_buffer().size());
+        let size = state_bytes + status_bytes + grid_bytes;
         let reused = self.staging.lock().ok().and_then(|mut pool| {
             let found = pool.iter().position(|buffer| buffer.size() == size)?;
             Some(pool.swap_remove(found))
@@ -1219,6 +1225,9 @@ impl GpuStrandSolver {
             encoder.copy_buffer_to_buffer(&self.state, 4 * plane, &staging, 2 * plane, plane);
         }
         encoder.copy_buffer_to_buffer(&self.status, 0, &staging, state_bytes, status_bytes);
+        if let Some(grid) = &self.grid {
+            encoder.copy_buffer_to_buffer(grid.heads_buffer(), 0, &staging, state_bytes + status_bytes, grid_bytes);
+        }
         queue.submit([encoder.finish()]);
         let mapped = Arc::new(AtomicU8::new(MAP_PENDING));
         let signal = mapped.clone();
@@ -1229,6 +1238,7 @@ impl GpuStrandSolver {
             staging: Some(staging),
             pool: self.staging.clone(),
             state_bytes,
+            status_bytes,
             mapped,
             strands: self.strands.clone(),
             translations: self.strands.strand_heads.iter().map(|&head| self.head_poses[head].1).collect(),
@@ -1377,6 +1387,7 @@ pub struct GpuReadBack {
     /// Where the buffer goes when its states were taken, for the next read-back.
     pool: Arc<Mutex<Vec<wgpu::Buffer>>>,
     state_bytes: u64,
+    status_bytes: u64,
     /// Set by the mapping's callback.
     mapped: Arc<AtomicU8>,
     strands: Arc<StrandLayout>,
@@ -1396,7 +1407,9 @@ impl GpuReadBack {
         let data = staging.slice(..).get_mapped_range();
         let state_bytes = self.state_bytes as usize;
         let state = (state_bytes > 0).then(|| bytemuck::cast_slice(&data[..state_bytes]));
-        let states = self.unpack(state, bytemuck::cast_slice(&data[state_bytes..]));
+        let status_end = state_bytes + self.status_bytes as usize;
+        let mut states = self.unpack(state, bytemuck::cast_slice(&data[state_bytes..status_end]));
+        states.max_volume_fraction = GpuGrid::densest(bytemuck::cast_slice(&data[status_end..]));
         drop(data);
         staging.unmap();
         if let Ok(mut pool) = self.pool.lock() {

@@ -75,8 +75,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// of their size apart; the GPU takes every node). The hair–hair grid ([`HairSettings::volume`]) is the
 /// GPU's own, each head's hair splatted and smoothed and pressed there as on the CPU (`gpu::grid`); a head
 /// with strands on both sides has one grid on each, so those on the CPU and those on the GPU do not meet.
-/// Other forces in [`StrandForces`] and the followers' own collisions on the CPU are not applied to GPU
-/// strands. The style hold
+/// A game's forces ([`StrandForces::add`]) act on GPU strands in their next step, as on the CPU; the air
+/// velocities and velocity changes a game adds there, and the followers' own collisions on the CPU, do not.
+/// The style hold
 /// ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each strand's
 /// groomed pose carried with its head.
 ///
@@ -176,6 +177,9 @@ pub struct HairGpuStatus {
     /// The largest edge strain of any strand after the last step read back, dimensionless (the GPU's
     /// [`HairStatistics::max_strain`]).
     pub max_strain: f32,
+    /// The largest hair volume fraction at a point of the GPU's hair–hair grid in the last step read back
+    /// (the GPU's [`HairStatistics::max_volume_fraction`]; 0 with the grid off).
+    pub max_volume_fraction: f32,
     /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
     pub error: Option<String>,
     /// Sets of strands uploaded to the GPU (at the start, and each time the strands it steps change).
@@ -720,6 +724,7 @@ fn apply_read_backs(
         status.contact_given_up = states.status.iter().filter(|report| report.contact_given_up).count();
         status.contacts = states.status.iter().map(|report| report.contacts as usize).sum();
         status.max_strain = states.status.iter().map(|report| report.max_strain).fold(0.0, f32::max);
+        status.max_volume_fraction = states.max_volume_fraction;
         if full {
             status.read_backs += 1;
             queue.read_back_step = Some(step);
