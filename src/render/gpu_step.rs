@@ -23,7 +23,7 @@ use crate::gpu::{
     GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuVolume, MAX_GPU_NODES, MAX_GPU_SPAN,
     SINGLE_PRECISION_STRAIN, gpu_step_support,
 };
-use crate::rod::{AirSnapshot, StepError, StepParams};
+use crate::rod::{AirSnapshot, RodError, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
@@ -538,6 +538,7 @@ fn order_gpu_step(
     placement: Option<Res<FollowerPlacement>>,
     followers_on_cpu: Query<(), With<PlaceFollowersOnCpu>>,
     mut strand_forces: Query<(Entity, &mut StrandForces), With<SteppedElsewhere>>,
+    (mut faults, mut commands, mut fault_log): (MessageWriter<StrandFault>, Commands, Local<FaultLog>),
 ) {
     let Some(params) = checked.params else { return };
     if queue.strands.is_empty() {
@@ -618,17 +619,31 @@ fn order_gpu_step(
         keep_groomed: hair_settings.volume.keep_groomed_volume,
     });
     // The forces games added (`StrandForces`), for the strands stepped now; all are used up by this step,
-    // as on the CPU.
+    // as on the CPU. A force that is not finite is reported as the CPU reports it, and left out (the
+    // strand steps on without it, where the CPU skips its step).
     let mut forces = Vec::new();
     for (entity, mut strand_forces) in &mut strand_forces {
         if let Some(active) = strand_forces.active_forces()
             && let Some(&(index, head)) = queue.strand_index.get(&entity)
             && matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_)))
         {
-            forces.push((index, active.to_vec()));
+            match active.iter().position(|force| !force.is_finite()) {
+                None => forces.push((index, active.to_vec())),
+                Some(node) => {
+                    let error = StepError::InvalidInput(RodError::NonFiniteForce { node, force: active[node] });
+                    if fault_log.admit(true, false) {
+                        warn!("hair strand {entity} failed a step on the GPU, its forces were left out: {error}");
+                    }
+                    status.faults += 1;
+                    let fault = StrandFault { strand: entity, error };
+                    commands.trigger(fault.clone());
+                    faults.write(fault);
+                }
+            }
         }
         strand_forces.clear();
     }
+    fault_log.summarise(now);
     queue.steps.push(GpuStepOrder { params, heads: steps, air, volume, forces, read_back, step: queue.steps_sent });
 }
 

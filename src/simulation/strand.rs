@@ -783,6 +783,7 @@ impl StrandForces {
     }
 
     /// The forces added since the last step (N), if any: for a step elsewhere (the GPU's).
+    #[cfg(feature = "gpu")]
     pub(crate) fn active_forces(&self) -> Option<&[DVec3]> {
         self.forces.active()
     }

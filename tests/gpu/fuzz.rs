@@ -204,3 +204,151 @@ fn the_gpu_step_fed_at_random_stays_finite_and_rooted() {
     );
     assert!(carried > 0 && meshes > 0, "the cases reach carrying and mesh colliders");
 }
+
+/// The plugin with the GPU stepping (its default) fed at random, as `tests/plugin/fuzz.rs` feeds the CPU's:
+/// six seeded scenarios of one or two heads with grooms of every style (followers, combing, preload),
+/// colliders of every shape moving and jumping, heads that move, turn, jump a few metres or lose their
+/// scale, levels of detail changing, the hair–hair grid on, off and with a cell of 0 (invalid settings),
+/// wind, and forces added to strands now and then, some not finite. The components are read back after
+/// every step. Whatever happens: every strand's nodes and frames stay finite, the GPU keeps stepping
+/// (no error), each fault is reported (a `StrandFault`), no strand fails more than three read-backs
+/// running (after which it is handed to the CPU), and non-finite forces are reported, not applied. (The
+/// inputs are seeded; when a read-back arrives is not, so the faults counted vary a little from run to run.)
+#[test]
+fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
+    use bevy::prelude::*;
+    use bevy::time::TimeUpdateStrategy;
+    use bevy_hair_sim::prelude::*;
+    use bevy_hair_sim::simulation::{SimulatedStrand, SteppedElsewhere, StrandFault, StrandForces};
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let (mut faults_seen, mut forces_rejected, mut on_gpu_steps) = (0_usize, 0_usize, 0_usize);
+    let mut kinds: std::collections::BTreeMap<String, usize> = Default::default();
+    for seed in 0..6_u64 {
+        let mut rng = fastrand::Rng::with_seed(seed);
+        let mut app = App::new();
+        app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
+            .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
+            .insert_resource(TimeUpdateStrategy::FixedTimesteps(1))
+            .insert_resource(HairGpuSettings { read_back: GpuReadBackRate::EveryStep, ..default() });
+        crate::finish_adding_plugins(&mut app);
+        app.update();
+        let heads: Vec<Entity> = (0..rng.usize(1..=2))
+            .map(|index| {
+                let style = *rng.choice(&HairStyle::ALL).unwrap();
+                let groom = HairGroom {
+                    strand_count: rng.usize(8..=40),
+                    segments: rng.usize(4..=32),
+                    style,
+                    seed: rng.u64(..),
+                    followers_per_guide: rng.usize(0..=3),
+                    gravity_preload: rng.f32(),
+                    ..default()
+                };
+                app.world_mut().spawn((HairHead, groom, Transform::from_xyz(index as f32, 1.6, 0.0))).id()
+            })
+            .collect();
+        let mut colliders = Vec::new();
+        for _ in 0..rng.usize(0..=3) {
+            let size = 0.03 + 0.1 * rng.f32();
+            let collider = match rng.usize(0..5) {
+                0 => HairCollider::sphere(size),
+                1 => HairCollider::capsule(size, size),
+                2 => HairCollider::ellipsoid(Vec3::splat(size)),
+                3 => HairCollider::cuboid(Vec3::new(size, 0.5 * size, size)),
+                _ => HairCollider::plane(),
+            };
+            let head = *rng.choice(&heads).unwrap();
+            let at = Transform::from_xyz(0.0, 1.6 - 0.3 * rng.f32(), 0.0);
+            colliders.push(app.world_mut().spawn((collider, at, HairColliderOf(head))).id());
+        }
+        {
+            let mut settings = app.world_mut().resource_mut::<HairSettings>();
+            *settings = HairSettings::styled();
+            settings.volume.enabled = rng.bool();
+        }
+        if rng.bool() {
+            *app.world_mut().resource_mut::<HairWind>() =
+                HairWind { velocity: Vec3::new(2.0, 0.0, 1.0), gusts: 1.0, turbulence: 1.0, ..default() };
+        }
+        let mut runs: std::collections::BTreeMap<Entity, u32> = Default::default();
+        for _ in 0..40 {
+            for &head in &heads {
+                let event = rng.f64();
+                let mut transform = app.world_mut().get_mut::<Transform>(head).unwrap();
+                if event < 0.03 {
+                    transform.translation += Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5) * 6.0;
+                } else if event < 0.04 {
+                    transform.scale = Vec3::ZERO;
+                } else {
+                    if transform.scale == Vec3::ZERO {
+                        transform.scale = Vec3::ONE;
+                    }
+                    transform.translation.x += 0.02 * (rng.f32() - 0.5);
+                    transform.rotate_y(0.2 * (rng.f32() - 0.5));
+                }
+                if rng.f64() < 0.05 {
+                    let level = *rng
+                        .choice(&[
+                            HairDetailLevel::FULL,
+                            HairDetailLevel::Stepped(2),
+                            HairDetailLevel::Stepped(4),
+                            HairDetailLevel::Carried,
+                        ])
+                        .unwrap();
+                    app.world_mut().entity_mut(head).insert(HairDetail::fixed(level));
+                }
+            }
+            for &collider in &colliders {
+                let jump = rng.f64() < 0.05;
+                let mut transform = app.world_mut().get_mut::<Transform>(collider).unwrap();
+                transform.translation.y += if jump { 0.3 } else { 0.01 * (rng.f32() - 0.5) };
+            }
+            let event = rng.f64();
+            if event < 0.05 {
+                app.world_mut().resource_mut::<HairSettings>().volume.cell_size = 0.0;
+            } else if event < 0.2 {
+                let mut settings = app.world_mut().resource_mut::<HairSettings>();
+                settings.volume = HairSettings::styled().volume;
+                settings.volume.enabled = rng.bool();
+                settings.volume.stiffness = 100.0 * rng.f32();
+            }
+            let strands: Vec<Entity> =
+                app.world_mut().query_filtered::<Entity, With<SteppedElsewhere>>().iter(app.world()).collect();
+            on_gpu_steps += strands.len();
+            for &strand in &strands {
+                let event = rng.f64();
+                let mut forces = app.world_mut().get_mut::<StrandForces>(strand).unwrap();
+                if event < 0.05 {
+                    forces.add_to_all(Vec3::new(rng.f32() - 0.5, 0.0, rng.f32() - 0.5) * 1e-5);
+                } else if event < 0.06 {
+                    forces.add_to_all(Vec3::new(1e6, f32::NAN, 0.0));
+                }
+            }
+            app.update();
+            let faults: Vec<StrandFault> = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().collect();
+            runs.retain(|strand, _| faults.iter().any(|fault| fault.strand == *strand));
+            for fault in &faults {
+                faults_seen += 1;
+                let kind = format!("{:?}", fault.error);
+                forces_rejected += usize::from(kind.contains("NonFiniteForce"));
+                *kinds.entry(kind.split([' ', '(', '{']).next().unwrap_or_default().to_string()).or_default() += 1;
+                let run = runs.entry(fault.strand).or_default();
+                *run += 1;
+                assert!(*run <= 4, "seed {seed}: strand {} failed {run} updates running", fault.strand);
+            }
+            let mut strands = app.world_mut().query::<(Entity, &SimulatedStrand, &StrandNodes, &StrandFrames)>();
+            for (entity, strand, nodes, frames) in strands.iter(app.world()) {
+                let finite = nodes.positions.iter().all(|p| p.is_finite())
+                    && (0..nodes.positions.len().saturating_sub(1))
+                        .all(|edge| frames.material_frame(edge).is_none_or(|frame| frame.m1.is_finite()));
+                assert!(finite, "seed {seed}: strand {entity} reads non-finite ({:?})", strand.health());
+            }
+            let status = app.world().resource::<HairGpuStatus>();
+            assert!(status.error.is_none(), "seed {seed}: {:?}", status.error);
+        }
+    }
+    println!(
+        "{on_gpu_steps} strand-updates on the GPU, {faults_seen} faults reported ({kinds:?}), {forces_rejected} of them forces that were not finite"
+    );
+    assert!(on_gpu_steps > 1000 && forces_rejected > 0, "the scenarios reach the GPU and the bad forces");
+}
