@@ -191,22 +191,24 @@ fn load(word: u32) -> f32 {
     return bitcast<f32>(atomicLoad(&grid[word]));
 }
 
-// The strand a workgroup works on (one per strand, lanes over its nodes), or past the last.
-fn workgroup_strand(group: vec3<u32>) -> u32 {
-    return group.x + group.y * MAX_GROUPS;
+// The strand a workgroup works on (one per strand, lanes over its nodes): its node count, head and first
+// node (`strand_words`), and its index; no nodes past the last strand or when its head is not stepped now.
+fn grid_strand(group: vec3<u32>) -> vec4<u32> {
+    let strand = group.x + group.y * MAX_GROUPS;
+    if strand >= params.strands {
+        return vec4<u32>(0u);
+    }
+    let words = strand_words[strand];
+    if head_dt(words.y) <= 0.0 {
+        return vec4<u32>(0u);
+    }
+    return vec4<u32>(words.xyz, strand);
 }
 
 @compute @workgroup_size(64)
 fn bounds(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let strand = workgroup_strand(group);
-    if strand >= params.strands {
-        return;
-    }
-    let words = strand_words[strand];
+    let words = grid_strand(group);
     let head = words.y;
-    if head_dt(head) <= 0.0 {
-        return;
-    }
     for (var node = lane; node < words.x; node += WORKGROUP) {
         let x = state[words.z + node].xyz;
         let v = state[params.total_nodes + words.z + node].xyz;
@@ -289,13 +291,10 @@ fn clear(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
 
 @compute @workgroup_size(64)
 fn splat(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let strand = workgroup_strand(group);
-    if strand >= params.strands {
-        return;
-    }
-    let words = strand_words[strand];
+    let words = grid_strand(group);
+    let strand = words.w;
     let head = words.y;
-    if head_dt(head) <= 0.0 {
+    if words.x == 0u {
         return;
     }
     let p = placement(head);
@@ -387,13 +386,10 @@ fn pressure_beside(p: Placement, c: vec3<u32>, axis: u32, step: i32) -> f32 {
 
 @compute @workgroup_size(64)
 fn respond(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let strand = workgroup_strand(group);
-    if strand >= params.strands {
-        return;
-    }
-    let words = strand_words[strand];
+    let words = grid_strand(group);
+    let strand = words.w;
     let head = words.y;
-    if head_dt(head) <= 0.0 {
+    if words.x == 0u {
         return;
     }
     let p = placement(head);

@@ -29,6 +29,13 @@ fn strands() -> Vec<Rod> {
         .collect()
 }
 
+/// The strands as the GPU takes them: on the one head, 0.1 mm thick, each standing for itself.
+fn inputs(rods: &[Rod]) -> Vec<GpuStrandInput<'_>> {
+    rods.iter()
+        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
+        .collect()
+}
+
 /// RMS distance between two sets of strands' nodes, m.
 fn rms(a: &[Vec<DVec3>], b: &[Vec<DVec3>]) -> f64 {
     apart(a, b).0
@@ -58,13 +65,9 @@ fn hair_in_gusts_eddies_and_a_jet_moves_as_on_the_cpu() {
     // solve, against which the GPU's two Newton iterations show.
     let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
     let mut rods = strands();
-    let inputs: Vec<GpuStrandInput> = rods
-        .iter()
-        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
-        .collect();
     let pose = [(DQuat::IDENTITY, HEAD)];
-    let mut gpu = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
-    let mut per_head = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
+    let mut gpu = GpuStrandSolver::new(&device, &inputs(&rods), &pose).unwrap();
+    let mut per_head = GpuStrandSolver::new(&device, &inputs(&rods), &pose).unwrap();
     let mut workspace = RodWorkspace::default();
     let mut air = AirSnapshot::default();
     let mut node_air = Vec::new();
@@ -119,13 +122,9 @@ fn forces_on_the_gpu_move_the_hair_as_on_the_cpu() {
     let params = StepParams { dt: 1.0 / 60.0, ..Default::default() };
     let tight = StepParams { newton_strain_tolerance: 1e-6, max_newton_iterations: 16, ..params };
     let mut rods = strands();
-    let inputs: Vec<GpuStrandInput> = rods
-        .iter()
-        .map(|rod| GpuStrandInput { rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None })
-        .collect();
     let pose = [(DQuat::IDENTITY, HEAD)];
-    let mut gpu = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
-    let mut unforced = GpuStrandSolver::new(&device, &inputs, &pose).unwrap();
+    let mut gpu = GpuStrandSolver::new(&device, &inputs(&rods), &pose).unwrap();
+    let mut unforced = GpuStrandSolver::new(&device, &inputs(&rods), &pose).unwrap();
     let head = [GpuHeadStep { translation: HEAD, ..Default::default() }];
     let mut workspace = RodWorkspace::default();
     let (mut worst, mut effect) = (0.0_f64, 0.0_f64);
