@@ -23,7 +23,7 @@ use crate::gpu::{
     GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuVolume, MAX_GPU_NODES, MAX_GPU_SPAN,
     SINGLE_PRECISION_STRAIN, gpu_step_support,
 };
-use crate::rod::{AirSnapshot, RodError, StepError, StepParams};
+use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
@@ -75,8 +75,10 @@ use crate::wind::{HairWind, HairWindSource};
 /// of their size apart; the GPU takes every node). The hair–hair grid ([`HairSettings::volume`]) is the
 /// GPU's own, each head's hair splatted and smoothed and pressed there as on the CPU (`gpu::grid`); a head
 /// with strands on both sides has one grid on each, so those on the CPU and those on the GPU do not meet.
-/// A game's forces ([`StrandForces::add`]) act on GPU strands in their next step, as on the CPU; the air
-/// velocities and velocity changes a game adds there, and the followers' own collisions on the CPU, do not.
+/// A game's forces and velocity changes ([`StrandForces::add`], [`StrandForces::add_velocity_change`]) act
+/// on GPU strands in their next step, as on the CPU (a velocity change as the force `m Δv / h` the implicit
+/// step sees it as, exact but on a step that restarts BDF2); the air velocities a game adds there, and
+/// the followers' own collisions on the CPU, do not.
 /// The style hold
 /// ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each strand's
 /// groomed pose carried with its head.
@@ -537,7 +539,7 @@ fn order_gpu_step(
     sources: Query<(&HairWindSource, &GlobalTransform)>,
     placement: Option<Res<FollowerPlacement>>,
     followers_on_cpu: Query<(), With<PlaceFollowersOnCpu>>,
-    mut strand_forces: Query<(Entity, &mut StrandForces), With<SteppedElsewhere>>,
+    mut strand_forces: Query<(Entity, &mut StrandForces, &SimulatedStrand), With<SteppedElsewhere>>,
     (mut faults, mut commands, mut fault_log): (MessageWriter<StrandFault>, Commands, Local<FaultLog>),
 ) {
     let Some(params) = checked.params else { return };
@@ -622,15 +624,36 @@ fn order_gpu_step(
     // as on the CPU. A force that is not finite is reported as the CPU reports it, and left out (the
     // strand steps on without it, where the CPU skips its step).
     let mut forces = Vec::new();
-    for (entity, mut strand_forces) in &mut strand_forces {
-        if let Some(active) = strand_forces.active_forces()
+    for (entity, mut strand_forces, strand) in &mut strand_forces {
+        let loads = (strand_forces.active_forces(), strand_forces.active_velocity_changes());
+        if loads != (None, None)
             && let Some(&(index, head)) = queue.strand_index.get(&entity)
-            && matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_)))
+            && let Some(GpuHairCadence::Step(span)) = steps.get(head).map(|step| step.cadence)
         {
-            match active.iter().position(|force| !force.is_finite()) {
-                None => forces.push((index, active.to_vec())),
+            // A velocity change `Δv` at the step's start is, to the implicit step, the force `m Δv / h` (the
+            // inertia `M (x − x̂ − h v̂)/h²` with `v̂` moved by `Δv`), `h` the scheme's step: exact but for a
+            // step that restarts BDF2 (after a change of the step's length), which takes `h = Δt`.
+            let dt = params.dt * f64::from(span);
+            let h = if params.integrator == Integrator::Bdf2 { 2.0 / 3.0 * dt } else { dt };
+            let masses = strand.rod().masses();
+            let mut total = loads.0.map_or_else(|| vec![DVec3::ZERO; masses.len()], <[DVec3]>::to_vec);
+            if let Some(changes) = loads.1 {
+                for ((force, change), mass) in total.iter_mut().zip(changes).zip(masses) {
+                    *force += mass * *change / h;
+                }
+            }
+            let all = total.len() == masses.len();
+            match total.iter().position(|force| !force.is_finite()) {
+                None if all => forces.push((index, total)),
+                None => {}
                 Some(node) => {
-                    let error = StepError::InvalidInput(RodError::NonFiniteForce { node, force: active[node] });
+                    let error = StepError::InvalidInput(match (loads.0, loads.1) {
+                        (Some(forces), _) if !forces[node].is_finite() => {
+                            RodError::NonFiniteForce { node, force: forces[node] }
+                        }
+                        (_, Some(changes)) => RodError::NonFiniteVelocityChange { node, change: changes[node] },
+                        _ => RodError::NonFiniteForce { node, force: total[node] },
+                    });
                     if fault_log.admit(true, false) {
                         warn!("hair strand {entity} failed a step on the GPU, its forces were left out: {error}");
                     }

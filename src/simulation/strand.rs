@@ -788,6 +788,12 @@ impl StrandForces {
         self.forces.active()
     }
 
+    /// The velocity changes added since the last step (m/s), if any: for a step elsewhere (the GPU's).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn active_velocity_changes(&self) -> Option<&[DVec3]> {
+        self.velocity_changes.active()
+    }
+
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
     pub(crate) fn add_air_velocities(&mut self, mut velocity_at: impl FnMut(usize) -> DVec3) {
         for (node, slot) in self.air_velocities.values.iter_mut().enumerate() {

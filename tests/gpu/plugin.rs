@@ -439,6 +439,59 @@ fn the_gpu_meets_hair_with_hair_in_the_app_as_the_cpu_does() {
     assert!(with <= 1.5 * without, "the GPU's grid adds {with} m to the paths' {without} m");
 }
 
+/// A game's loads on the hair (`StrandForces`: a force on every node and a velocity change at every tip,
+/// added in `HairSystems::ExternalForces` each step) act on the GPU's strands as on the CPU's: over the
+/// first 10 steps of the groom falling onto the shaking skull, the loads move the GPU's hair as far as the
+/// CPU's (within a quarter), and the two paths part by no more than a tenth of that beyond what they part
+/// without the loads.
+#[test]
+fn a_games_forces_and_velocity_changes_act_on_the_gpu_as_on_the_cpu() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    fn push(mut strands: Query<(&SimulatedStrand, &mut StrandForces)>) {
+        for (strand, mut forces) in &mut strands {
+            let tip = strand.rod().node_count() - 1;
+            // A fifth of a node's weight on each node, backwards; the tip flicked sideways by 2 cm/s a step.
+            let node_weight = strand.rod().masses().iter().sum::<f64>() as f32 * 9.81 / (tip + 1) as f32;
+            forces.add_to_all(Vec3::new(0.0, 0.0, 0.2 * node_weight));
+            forces.add_velocity_change(tip, Vec3::new(0.02, 0.0, 0.0)).unwrap();
+        }
+    }
+    let run = |gpu: bool, loads: bool| {
+        let mut app = app(gpu);
+        if loads {
+            app.add_systems(FixedUpdate, push.in_set(HairSystems::ExternalForces));
+        }
+        let head = spawn_head(&mut app);
+        for number in 1..=10 {
+            step(&mut app, head, number);
+        }
+        if gpu {
+            app.world_mut().resource_mut::<HairPause>().paused = true;
+            wait_for_read_back(&mut app);
+            let status = app.world().resource::<HairGpuStatus>();
+            assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 64, 0), "{status:?}");
+        }
+        guide_nodes(&app, head.0)
+    };
+    let rms = |a: &[Vec<Vec3>], b: &[Vec<Vec3>]| {
+        let pairs = a.iter().flatten().zip(b.iter().flatten());
+        (pairs.map(|(p, q)| p.distance_squared(*q)).sum::<f32>() / (64.0 * 17.0)).sqrt()
+    };
+    let (gpu_loaded, cpu_loaded) = (run(true, true), run(false, true));
+    let (gpu_free, cpu_free) = (run(true, false), run(false, false));
+    let (with, without) = (rms(&gpu_loaded, &cpu_loaded), rms(&gpu_free, &cpu_free));
+    let (effect, gpu_effect) = (rms(&cpu_loaded, &cpu_free), rms(&gpu_loaded, &gpu_free));
+    println!(
+        "10 steps: GPU − CPU {with:.2e} m RMS with the loads, {without:.2e} m without; the loads moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
+    );
+    assert!(effect > 1e-3, "the loads move the hair: {effect} m");
+    assert!(
+        (gpu_effect - effect).abs() <= 0.25 * effect,
+        "the loads move the GPU's hair {gpu_effect} m, the CPU's {effect} m"
+    );
+    assert!(with <= without + 0.1 * effect, "the loads add {with} m to the paths' {without} m");
+}
+
 /// The shapes the GPU step met last: a box across the shoulders and a mesh collider baked from a ball at
 /// the nape (moving with the head), met by the GPU in the app on the shaking head as by the CPU: every
 /// guide on the GPU, no fault, no node or point of an edge more than 1 mm inside either (the issue's
