@@ -445,7 +445,10 @@ fn choose_gpu_strands(
             grid_hairs.get(entity).map_or(1.0, |(represented, followers)| represented_hairs(represented, followers))
         })
         .collect();
-    let volume_params = hair_settings.volume.params(1.0 / 60.0);
+    // (Settings that are not valid now are reported by the CPU's check; the groom is measured on the
+    // default cells then, as a cell of 0 would never place a grid.)
+    let volume = if hair_settings.volume.validate().is_ok() { hair_settings.volume } else { default() };
+    let volume_params = volume.params(1.0 / 60.0);
     let mut groomed_fractions: Vec<Vec<f64>> = Vec::with_capacity(chosen.len());
     let mut start = 0;
     for run in chosen.chunk_by(|a, b| a.0 == b.0) {
