@@ -152,7 +152,8 @@ pub struct VolumeGrid {
 
 impl VolumeGrid {
     /// Rebuilds the grid around `particles` and computes its fields with `params`. Particles with a
-    /// non-finite position or velocity are left out (the mechanics never produce them).
+    /// non-finite position or velocity are left out (the mechanics never produce them); a cell that is not
+    /// a positive length places an empty grid.
     pub fn build(&mut self, particles: &[GridParticle], params: &VolumeParams) {
         let usable = particles.iter().filter(|particle| usable(particle.position, particle.velocity));
         let bounds =
@@ -162,9 +163,15 @@ impl VolumeGrid {
 
     /// [`VolumeGrid::build`], with the box around the usable particles (finite position and velocity)
     /// known: its lowest and highest corner (an empty box, lowest above highest, when there are none).
+    /// A cell that is not a positive length places an empty grid (its fields 0 everywhere): coarsening
+    /// it would never fit the hair (`HairVolume::validate` refuses such a cell before).
     pub(crate) fn build_within(&mut self, particles: &[GridParticle], bounds: (DVec3, DVec3), params: &VolumeParams) {
-        self.place(bounds, params.cell_size);
-        self.splat(particles);
+        if params.cell_size.is_finite() && params.cell_size > 0.0 {
+            self.place(bounds, params.cell_size);
+            self.splat(particles);
+        } else {
+            self.place(EMPTY_BOX, 1.0);
+        }
         self.compute_fields(params);
     }
 

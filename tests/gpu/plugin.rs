@@ -492,6 +492,41 @@ fn a_games_forces_and_velocity_changes_act_on_the_gpu_as_on_the_cpu() {
     assert!(with <= without + 0.1 * effect, "the loads add {with} m to the paths' {without} m");
 }
 
+/// The grid's settings invalid (a cell of 0) when the strands are uploaded: the GPU turned off, the
+/// settings broken, the GPU turned on again. The upload measures the groom's packing on the default cells
+/// (a cell of 0 never places a grid: the measure would never end), the CPU's check reports the settings
+/// and holds the hair, and once they are fixed the GPU steps it.
+#[test]
+fn invalid_grid_settings_at_upload_hold_the_hair_until_fixed() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let mut app = app(true);
+    app.insert_resource(HairSettings::styled());
+    let head = spawn_groom(&mut app, HairGroom { strand_count: 16, segments: 8, ..default() });
+    let mut number = 0;
+    let mut run = |app: &mut App, steps: usize| {
+        for _ in 0..steps {
+            number += 1;
+            step(app, head, number);
+        }
+    };
+    run(&mut app, 5);
+    app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
+    run(&mut app, 5);
+    assert_eq!(app.world().resource::<HairGpuStatus>().strands, 0, "back on the CPU");
+    app.world_mut().resource_mut::<HairSettings>().volume.cell_size = 0.0;
+    app.world_mut().resource_mut::<HairGpuSettings>().enabled = true;
+    run(&mut app, 3);
+    let status = app.world().resource::<HairGpuStatus>().clone();
+    assert!(app.world().resource::<HairStatistics>().settings_error.is_some(), "the settings are reported");
+    assert_eq!((status.uploads, status.strands), (2, 16), "uploaded while the settings are invalid: {status:?}");
+    let steps = status.steps;
+    app.world_mut().resource_mut::<HairSettings>().volume.cell_size = 0.005;
+    run(&mut app, 5);
+    let status = app.world().resource::<HairGpuStatus>().clone();
+    assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 16, 0), "{status:?}");
+    assert_eq!(status.steps, steps + 5, "held while invalid, stepped on the GPU once fixed: {status:?}");
+}
+
 /// The shapes the GPU step met last: a box across the shoulders and a mesh collider baked from a ball at
 /// the nape (moving with the head), met by the GPU in the app on the shaking head as by the CPU: every
 /// guide on the GPU, no fault, no node or point of an edge more than 1 mm inside either (the issue's

@@ -37,6 +37,19 @@ fn smoothing_changes(particles: &[GridParticle]) -> Vec<DVec3> {
     particles.iter().map(|particle| grid.response(particle.position, particle.velocity, 0.0).0).collect()
 }
 
+/// A cell that is not a positive length (0, NaN) places an empty grid and ends: coarsening it would never
+/// fit the hair.
+#[test]
+fn a_cell_that_is_not_a_length_places_an_empty_grid() {
+    let particles = cloud(500, DVec3::ZERO, 0.5);
+    for cell_size in [0.0, -0.005, f64::NAN, f64::INFINITY] {
+        let mut grid = VolumeGrid::default();
+        grid.build(&particles, &VolumeParams { cell_size, ..params() });
+        let (change, force) = grid.response(particles[1].position, particles[1].velocity, 1e-9);
+        assert_eq!((grid.max_volume_fraction(), change, force), (0.0, DVec3::ZERO, DVec3::ZERO), "cell {cell_size}");
+    }
+}
+
 #[test]
 fn velocity_smoothing_conserves_momentum_and_narrows_the_velocities_within_cells() {
     let particles = cloud(5000, DVec3::new(0.4, -0.2, 0.1), 0.5);
