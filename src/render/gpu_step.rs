@@ -446,7 +446,7 @@ fn choose_gpu_strands(
         })
         .collect();
     // (Settings that are not valid now are reported by the CPU's check; the groom is measured on the
-    // default cells then, as a cell of 0 would never place a grid.)
+    // default cells then: on a cell that is not a length the grid is empty and would measure no packing.)
     let volume = if hair_settings.volume.validate().is_ok() { hair_settings.volume } else { default() };
     let volume_params = volume.params(1.0 / 60.0);
     let mut groomed_fractions: Vec<Vec<f64>> = Vec::with_capacity(chosen.len());
