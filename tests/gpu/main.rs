@@ -3,6 +3,7 @@
 //! against the CPU's, the follower placement and drawing against the CPU's, the GPU step in the plugin;
 //! and what the renderer computes on the CPU and the shader it compiles. `cargo test --test gpu`.
 
+mod character;
 mod colliders;
 mod followers;
 mod fuzz;
