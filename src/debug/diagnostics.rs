@@ -52,6 +52,19 @@ impl HairDiagnostics {
     /// ([`HairGpuStatus::max_strain`](crate::render::HairGpuStatus::max_strain); `gpu` feature).
     #[cfg(feature = "gpu")]
     pub const GPU_MAX_STRAIN: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_max_strain");
+    /// Mean Newton iterations per strand-step on the GPU between its last two read-backs
+    /// ([`HairGpuStatus::mean_newton_iterations`](crate::render::HairGpuStatus::mean_newton_iterations);
+    /// `gpu` feature).
+    #[cfg(feature = "gpu")]
+    pub const GPU_NEWTON_ITERATIONS: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_newton_iterations");
+    /// The GPU's own time in the strands' step and in the hair–hair grid, in the last step read back, ms
+    /// ([`HairGpuStatus::timings`](crate::render::HairGpuStatus::timings), from timestamp queries: not
+    /// measured where the device has none; `gpu` feature).
+    #[cfg(feature = "gpu")]
+    pub const GPU_STEP_TIME: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_step_time");
+    #[cfg(feature = "gpu")]
+    /// The hair–hair grid's part of it, ms (see [`HairDiagnostics::GPU_STEP_TIME`]).
+    pub const GPU_GRID_TIME: DiagnosticPath = DiagnosticPath::const_new("hair/gpu_grid_time");
     /// The render thread's time stepping the hair on the GPU in the last frame, ms
     /// ([`HairGpuStatus::render_thread_seconds`](crate::render::HairGpuStatus::render_thread_seconds);
     /// `gpu` feature).
@@ -60,8 +73,14 @@ impl HairDiagnostics {
 
     /// The GPU's paths, with their suffixes.
     #[cfg(feature = "gpu")]
-    const GPU: [(DiagnosticPath, &'static str); 3] =
-        [(Self::GPU_CONTACTS, ""), (Self::GPU_MAX_STRAIN, ""), (Self::GPU_RENDER_THREAD_TIME, "ms")];
+    const GPU: [(DiagnosticPath, &'static str); 6] = [
+        (Self::GPU_CONTACTS, ""),
+        (Self::GPU_MAX_STRAIN, ""),
+        (Self::GPU_NEWTON_ITERATIONS, ""),
+        (Self::GPU_STEP_TIME, "ms"),
+        (Self::GPU_GRID_TIME, "ms"),
+        (Self::GPU_RENDER_THREAD_TIME, "ms"),
+    ];
 
     /// Every path, with the suffix its values are logged with.
     const ALL: [(DiagnosticPath, &'static str); 9] = [
@@ -119,5 +138,10 @@ fn measure_gpu(status: Option<Res<crate::render::HairGpuStatus>>, mut diagnostic
     let Some(status) = status else { return };
     diagnostics.add_measurement(&HairDiagnostics::GPU_CONTACTS, || status.contacts as f64);
     diagnostics.add_measurement(&HairDiagnostics::GPU_MAX_STRAIN, || f64::from(status.max_strain));
+    diagnostics.add_measurement(&HairDiagnostics::GPU_NEWTON_ITERATIONS, || status.mean_newton_iterations);
+    if let Some(timings) = status.timings {
+        diagnostics.add_measurement(&HairDiagnostics::GPU_STEP_TIME, || timings.step_seconds * 1e3);
+        diagnostics.add_measurement(&HairDiagnostics::GPU_GRID_TIME, || timings.grid_seconds * 1e3);
+    }
     diagnostics.add_measurement(&HairDiagnostics::GPU_RENDER_THREAD_TIME, || status.render_thread_seconds * 1e3);
 }

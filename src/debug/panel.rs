@@ -294,6 +294,11 @@ fn gpu_grid(ui: &mut egui::Ui, gpu: &crate::render::HairGpuStatus) {
             "GPU render thread",
             format!("{:.2} ms (driver {:.2} ms)", 1e3 * gpu.render_thread_seconds, 1e3 * gpu.render_driver_seconds),
         );
+        if let Some(timings) = gpu.timings {
+            let time = format!("{:.2} ms (grid {:.2} ms)", 1e3 * timings.step_seconds, 1e3 * timings.grid_seconds);
+            row("GPU time a step", time);
+        }
+        row("GPU Newton iterations", format!("{:.2} per strand", gpu.mean_newton_iterations));
         row("GPU largest strain", format!("{:.1e}", gpu.max_strain));
         row("GPU nodes in contact", gpu.contacts.to_string());
         row("GPU hair–hair grid", format!("densest {:.2}", gpu.max_volume_fraction));

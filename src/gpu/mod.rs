@@ -77,7 +77,7 @@ pub use grid::{GPU_GRID_POINTS, GRID_SHADER, GpuGridFields, GpuGridPoint, GpuVol
 pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
-    GpuStepError, GpuStepPipelines, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload,
-    GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_step_support,
-    headless_device,
+    GpuStepError, GpuStepPipelines, GpuStepTimings, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
+    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO,
+    gpu_step_support, headless_device,
 };

@@ -276,6 +276,41 @@ pub struct GpuStrandWork {
 }
 
 impl GpuStrandWork {
+    /// The first `strands` strands' counters from the work buffer's rows ([`WORK_ROWS`] a strand).
+    fn unpack(rows: &[[u32; 4]], strands: usize) -> Vec<GpuStrandWork> {
+        (0..strands)
+            .map(|s| {
+                let [steps, newton_iterations, projection_iterations, projection_sweeps] = rows[WORK_ROWS * s];
+                let [contact_rounds, factorisation_retries, projection_stalls, projections] = rows[WORK_ROWS * s + 1];
+                GpuStrandWork {
+                    steps,
+                    newton_iterations,
+                    projection_iterations,
+                    projection_sweeps,
+                    projection_stalls,
+                    projections,
+                    contact_rounds,
+                    factorisation_retries,
+                }
+            })
+            .collect()
+    }
+
+    /// The work done between `earlier` (the same strands' counters read before) and `self`, the counters'
+    /// wrapping undone.
+    pub fn since(&self, earlier: &GpuStrandWork) -> GpuStrandWork {
+        GpuStrandWork {
+            steps: self.steps.wrapping_sub(earlier.steps),
+            newton_iterations: self.newton_iterations.wrapping_sub(earlier.newton_iterations),
+            projection_iterations: self.projection_iterations.wrapping_sub(earlier.projection_iterations),
+            projection_sweeps: self.projection_sweeps.wrapping_sub(earlier.projection_sweeps),
+            projection_stalls: self.projection_stalls.wrapping_sub(earlier.projection_stalls),
+            projections: self.projections.wrapping_sub(earlier.projections),
+            contact_rounds: self.contact_rounds.wrapping_sub(earlier.contact_rounds),
+            factorisation_retries: self.factorisation_retries.wrapping_sub(earlier.factorisation_retries),
+        }
+    }
+
     /// The work of every strand summed.
     pub fn total(work: &[GpuStrandWork]) -> GpuStrandWork {
         work.iter().fold(GpuStrandWork::default(), |sum, w| GpuStrandWork {
@@ -343,6 +378,21 @@ pub struct GpuStrandStates {
     /// The largest hair volume fraction at a point of any head's hair–hair grid in the last step that
     /// built one ([`GpuStrandSolver::set_volume`]; 0 without a grid).
     pub max_volume_fraction: f32,
+    /// Every strand's work since the upload, summed ([`GpuStrandWork::total`]; wrapping, so compare two
+    /// read-backs with [`GpuStrandWork::since`]).
+    pub work: GpuStrandWork,
+    /// The GPU's time in the last step, from timestamp queries; `None` where the device has none
+    /// (`wgpu::Features::TIMESTAMP_QUERY`).
+    pub timings: Option<GpuStepTimings>,
+}
+
+/// The GPU's time in one step, measured by timestamp queries on the GPU itself.
+#[derive(Debug, Clone, Copy, PartialEq, Default, bevy::reflect::Reflect)]
+pub struct GpuStepTimings {
+    /// The hair–hair grid's passes (0 without the grid), s.
+    pub grid_seconds: f64,
+    /// The strands' step, s.
+    pub step_seconds: f64,
 }
 
 impl GpuStrandStates {
@@ -397,6 +447,8 @@ impl GpuStrandStates {
             reference_twists: vec![self.reference_twists[strand].clone()],
             status: self.status.get(strand).copied().into_iter().collect(),
             max_volume_fraction: self.max_volume_fraction,
+            work: self.work,
+            timings: self.timings,
         })
     }
 }
@@ -502,7 +554,14 @@ pub struct GpuStrandSolver {
     force_rows: Vec<[f32; 4]>,
     /// Scratch: each head's translation before the step and its step's length, for the grid.
     grid_heads: Vec<(DVec3, f64)>,
+    /// Where the device has timestamp queries: the step's three timestamps (before the grid, before the
+    /// strands' step, after it) and the buffer they are resolved into after every step.
+    timestamps: Option<(wgpu::QuerySet, wgpu::Buffer)>,
 }
+
+/// Timestamps a step writes ([`GpuStrandSolver`]'s `timestamps`): before the grid's passes, before the
+/// strands' step, after it.
+const STEP_TIMESTAMPS: u32 = 3;
 
 /// The step's and the gather's pipelines on one device, built once ([`GpuStepPipelines::new`] compiles the
 /// step's shader, a few hundred milliseconds on a driver: a hitch if it happened in play) and shared by every
@@ -822,6 +881,36 @@ impl GpuStrandSolver {
             grid: None,
             force_rows: Vec::new(),
             grid_heads: Vec::new(),
+            timestamps: device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
+                let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("hair step timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: STEP_TIMESTAMPS,
+                });
+                let resolved = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("hair step timestamps"),
+                    size: 8 * u64::from(STEP_TIMESTAMPS),
+                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                (queries, resolved)
+            }),
+        }
+    }
+
+    /// Writes timestamp `index` of the step into `encoder` (an empty pass that writes it as it begins),
+    /// where the device has timestamp queries.
+    fn mark_time(&self, encoder: &mut wgpu::CommandEncoder, index: u32) {
+        if let Some((queries, _)) = &self.timestamps {
+            let writes = wgpu::ComputePassTimestampWrites {
+                query_set: queries,
+                beginning_of_pass_write_index: Some(index),
+                end_of_pass_write_index: None,
+            };
+            drop(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("hair step timestamp"),
+                timestamp_writes: Some(writes),
+            }));
         }
     }
 
@@ -1124,6 +1213,7 @@ impl GpuStrandSolver {
             0,
         ];
         // The grid's velocity changes and forces, before the step reads them.
+        self.mark_time(encoder, 0);
         if let Some(volume) = self.volume.as_ref() {
             let grid = self.grid.get_or_insert_with(|| {
                 let buffers = [&self.strand_words, &self.strand_floats, &self.rest, &self.state];
@@ -1138,10 +1228,16 @@ impl GpuStrandSolver {
             };
             grid.record(queue, encoder, &self.pipelines.grid, &step);
         }
+        self.mark_time(encoder, 1);
         // One workgroup per strand, in one pass: the strands of each pipeline's list.
+        let writes = self.timestamps.as_ref().map(|(queries, _)| wgpu::ComputePassTimestampWrites {
+            query_set: queries,
+            beginning_of_pass_write_index: None,
+            end_of_pass_write_index: Some(2),
+        });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("hair strand step"),
-            timestamp_writes: None,
+            timestamp_writes: writes,
         });
         let mut start = 0;
         for (class, &length) in self.strands.list_lengths.iter().enumerate() {
@@ -1156,6 +1252,10 @@ impl GpuStrandSolver {
             pass.set_pipeline(&self.pipelines.steps[class]);
             pass.set_bind_group(0, &self.bind_groups[class], &[]);
             pass.dispatch_workgroups(x, y, 1);
+        }
+        drop(pass);
+        if let Some((queries, resolved)) = &self.timestamps {
+            encoder.resolve_query_set(queries, 0..STEP_TIMESTAMPS, resolved, 0);
         }
         Ok(())
     }
@@ -1201,9 +1301,11 @@ impl GpuStrandSolver {
     pub fn request_read_back(&self, device: &wgpu::Device, queue: &wgpu::Queue, state: bool) -> GpuReadBack {
         let state_bytes = self.read_back_state_bytes(state);
         let status_bytes = self.status.size();
-        // Then the grid's heads, for its densest point.
+        // Then the grid's heads, for its densest point; the work counters; the last step's timestamps.
         let grid_bytes = self.grid.as_ref().map_or(0, |grid| grid.heads_buffer().size());
-        let size = state_bytes + status_bytes + grid_bytes;
+        let work_bytes = self.work.size();
+        let timestamp_bytes = self.timestamps.as_ref().map_or(0, |(_, resolved)| resolved.size());
+        let size = state_bytes + status_bytes + grid_bytes + work_bytes + timestamp_bytes;
         let reused = self.staging.lock().ok().and_then(|mut pool| {
             let found = pool.iter().position(|buffer| buffer.size() == size)?;
             Some(pool.swap_remove(found))
@@ -1228,6 +1330,11 @@ impl GpuStrandSolver {
         if let Some(grid) = &self.grid {
             encoder.copy_buffer_to_buffer(grid.heads_buffer(), 0, &staging, state_bytes + status_bytes, grid_bytes);
         }
+        let work_at = state_bytes + status_bytes + grid_bytes;
+        encoder.copy_buffer_to_buffer(&self.work, 0, &staging, work_at, work_bytes);
+        if let Some((_, resolved)) = &self.timestamps {
+            encoder.copy_buffer_to_buffer(resolved, 0, &staging, work_at + work_bytes, timestamp_bytes);
+        }
         queue.submit([encoder.finish()]);
         let mapped = Arc::new(AtomicU8::new(MAP_PENDING));
         let signal = mapped.clone();
@@ -1239,6 +1346,9 @@ impl GpuStrandSolver {
             pool: self.staging.clone(),
             state_bytes,
             status_bytes,
+            grid_bytes,
+            work_bytes,
+            timestamp_period: self.timestamps.is_some().then(|| f64::from(queue.get_timestamp_period()) * 1e-9),
             mapped,
             strands: self.strands.clone(),
             translations: self.strands.strand_heads.iter().map(|&head| self.head_poses[head].1).collect(),
@@ -1278,23 +1388,7 @@ impl GpuStrandSolver {
         staging.slice(..).map_async(wgpu::MapMode::Read, |_| {});
         let _ = device.poll(wgpu::PollType::wait_indefinitely());
         let data = staging.slice(..).get_mapped_range();
-        let rows: &[[u32; 4]] = bytemuck::cast_slice(&data);
-        (0..self.strand_count)
-            .map(|s| {
-                let [steps, newton_iterations, projection_iterations, projection_sweeps] = rows[WORK_ROWS * s];
-                let [contact_rounds, factorisation_retries, projection_stalls, projections] = rows[WORK_ROWS * s + 1];
-                GpuStrandWork {
-                    steps,
-                    newton_iterations,
-                    projection_iterations,
-                    projection_sweeps,
-                    projection_stalls,
-                    projections,
-                    contact_rounds,
-                    factorisation_retries,
-                }
-            })
-            .collect()
+        GpuStrandWork::unpack(bytemuck::cast_slice(&data), self.strand_count)
     }
 
     /// The buffers [`GpuStrandSolver::gather_target`] binds, for a caller that wants them itself: each
@@ -1388,6 +1482,10 @@ pub struct GpuReadBack {
     pool: Arc<Mutex<Vec<wgpu::Buffer>>>,
     state_bytes: u64,
     status_bytes: u64,
+    grid_bytes: u64,
+    work_bytes: u64,
+    /// Seconds per timestamp tick, where the read-back carries the last step's timestamps.
+    timestamp_period: Option<f64>,
     /// Set by the mapping's callback.
     mapped: Arc<AtomicU8>,
     strands: Arc<StrandLayout>,
@@ -1408,8 +1506,19 @@ impl GpuReadBack {
         let state_bytes = self.state_bytes as usize;
         let state = (state_bytes > 0).then(|| bytemuck::cast_slice(&data[..state_bytes]));
         let status_end = state_bytes + self.status_bytes as usize;
+        let grid_end = status_end + self.grid_bytes as usize;
+        let work_end = grid_end + self.work_bytes as usize;
         let mut states = self.unpack(state, bytemuck::cast_slice(&data[state_bytes..status_end]));
-        states.max_volume_fraction = GpuGrid::densest(bytemuck::cast_slice(&data[status_end..]));
+        states.max_volume_fraction = GpuGrid::densest(bytemuck::cast_slice(&data[status_end..grid_end]));
+        states.work = GpuStrandWork::total(&GpuStrandWork::unpack(
+            bytemuck::cast_slice(&data[grid_end..work_end]),
+            self.strands.node_counts.len(),
+        ));
+        if let Some(period) = self.timestamp_period {
+            let ticks: &[u64] = bytemuck::cast_slice(&data[work_end..]);
+            let seconds = |from: usize| ticks[from + 1].saturating_sub(ticks[from]) as f64 * period;
+            states.timings = Some(GpuStepTimings { grid_seconds: seconds(0), step_seconds: seconds(1) });
+        }
         drop(data);
         staging.unmap();
         if let Ok(mut pool) = self.pool.lock() {

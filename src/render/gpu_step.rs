@@ -19,9 +19,9 @@ use super::draw::GpuStepCount;
 use crate::detail::{HairDetail, HairDetailLevel};
 use crate::followers::{FollowerPlacement, HairFollowers, PlaceFollowersOnCpu};
 use crate::gpu::{
-    GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStrandInput,
-    GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuVolume, MAX_GPU_NODES, MAX_GPU_SPAN,
-    SINGLE_PRECISION_STRAIN, gpu_step_support,
+    GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStepTimings,
+    GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuStrandWork, GpuVolume,
+    MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_step_support,
 };
 use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
 use crate::schedule::HairStepSystems;
@@ -182,6 +182,16 @@ pub struct HairGpuStatus {
     /// The largest hair volume fraction at a point of the GPU's hair–hair grid in the last step read back
     /// (the GPU's [`HairStatistics::max_volume_fraction`]; 0 with the grid off).
     pub max_volume_fraction: f32,
+    /// Mean Newton iterations per strand-step on the GPU between the last two read-backs (the GPU's
+    /// [`HairStatistics::mean_newton_iterations`]: [`crate::gpu::GPU_NEWTON_ITERATIONS`] a fixed step,
+    /// one more for each further fixed step a coarser level of detail's step spans; 0 before two
+    /// read-backs of one upload).
+    pub mean_newton_iterations: f64,
+    /// The GPU's own time in the last step read back, from timestamp queries on the GPU: the strands'
+    /// step and the hair–hair grid's passes (the GPU's [`HairStatistics::step_seconds`] and
+    /// [`HairStatistics::volume_seconds`]); `None` where the device has no timestamp queries
+    /// (`wgpu::Features::TIMESTAMP_QUERY`, which Bevy asks for where the adapter has it).
+    pub timings: Option<GpuStepTimings>,
     /// Why the GPU does not step the hair, when it does not (no adapter, strands it rejected).
     pub error: Option<String>,
     /// Sets of strands uploaded to the GPU (at the start, and each time the strands it steps change).
@@ -235,6 +245,8 @@ struct GpuStepQueue {
     strand_index: EntityHashMap<(usize, usize)>,
     /// The step (its number among those sent) at which each head's hair was last stepped, not carried.
     heads_stepped: Vec<u64>,
+    /// The strands' work counters summed, as last read back from this upload (`None` before).
+    work: Option<GpuStrandWork>,
     /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
     faults: Vec<u32>,
     fault_streaks: Vec<u32>,
@@ -266,7 +278,7 @@ enum GpuMessage {
     ReadBack {
         step: u64,
         strands: Arc<Vec<Entity>>,
-        states: GpuStrandStates,
+        states: Box<GpuStrandStates>,
         full: bool,
     },
     Error(String),
@@ -482,6 +494,7 @@ fn choose_gpu_strands(
             queue.upload = Some(GpuUploadOrder { upload, strands: entities.clone() });
             status.uploads += 1;
             queue.strands = entities;
+            queue.work = None;
             status.error = None;
             queue.strands.to_vec()
         }
@@ -716,7 +729,7 @@ fn apply_read_backs(
         if !Arc::ptr_eq(&entities, &queue.strands) {
             continue;
         }
-        let mut states = states;
+        let mut states = *states;
         for (index, &entity) in entities.iter().enumerate() {
             // The state, where it was read back (the status alone, 16 bytes a strand, touches no component).
             if full {
@@ -766,6 +779,13 @@ fn apply_read_backs(
         status.contacts = states.status.iter().map(|report| report.contacts as usize).sum();
         status.max_strain = states.status.iter().map(|report| report.max_strain).fold(0.0, f32::max);
         status.max_volume_fraction = states.max_volume_fraction;
+        status.timings = states.timings;
+        if let Some(earlier) = queue.work.replace(states.work) {
+            let work = states.work.since(&earlier);
+            if work.steps > 0 {
+                status.mean_newton_iterations = work.per_step()[0];
+            }
+        }
         if full {
             status.read_backs += 1;
             queue.read_back_step = Some(step);
@@ -904,7 +924,12 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
         let sender = &render.sender;
         render.read_backs.retain_mut(|(step, strands, read_back, full)| {
             if let Some(states) = read_back.try_take() {
-                let message = GpuMessage::ReadBack { step: *step, strands: strands.clone(), states, full: *full };
+                let message = GpuMessage::ReadBack {
+                    step: *step,
+                    strands: strands.clone(),
+                    states: Box::new(states),
+                    full: *full,
+                };
                 send(sender, message);
             }
             !read_back.is_finished()
@@ -984,7 +1009,9 @@ mod tests {
             let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
             // No positions: nothing to restore, only the report.
             let states = GpuStrandStates { status: vec![report], ..default() };
-            sender.send(GpuMessage::ReadBack { step, strands: strands.clone(), states, full: false }).unwrap();
+            sender
+                .send(GpuMessage::ReadBack { step, strands: strands.clone(), states: Box::new(states), full: false })
+                .unwrap();
             app.world_mut().run_system_once(apply_read_backs).unwrap();
             let messages = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().count();
             (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))

@@ -658,3 +658,53 @@ fn the_gpu_steps_a_coarse_head_and_carries_a_hidden_one_in_the_app() {
     // Carried rigidly, to `f32` rounding of positions near 1.6 m over two seconds of carrying.
     assert!(moved(1) < 1e-5, "the carried hair moved {} m in its head's frame", moved(1));
 }
+
+/// The GPU's own figures in the app: the Newton iterations the shader counted per strand-step (exactly
+/// `GPU_NEWTON_ITERATIONS` at every fixed step; one more for each further fixed step a coarser level's step
+/// spans), and the GPU's time in the strands' step and in the grid from timestamp queries where the
+/// device has them (none where it has not), in `HairGpuStatus` and in Bevy's diagnostics.
+#[test]
+fn the_gpu_reports_its_newton_iterations_and_its_time() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let mut app = app(true);
+    app.insert_resource(HairSettings::styled());
+    let (head, skull) = spawn_groom(&mut app, HairGroom { strand_count: 16, segments: 12, ..default() });
+    let run = |app: &mut App, from: usize, steps: usize| {
+        app.world_mut().resource_mut::<HairPause>().paused = false;
+        for number in from..from + steps {
+            step(app, (head, skull), number);
+        }
+        app.world_mut().resource_mut::<HairPause>().paused = true;
+        wait_for_read_back(app);
+        app.world().resource::<HairGpuStatus>().clone()
+    };
+    let status = run(&mut app, 1, 12);
+    assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 16, 0), "{status:?}");
+    println!(
+        "every fixed step: {:.3} Newton iterations a strand-step; GPU time {:?}",
+        status.mean_newton_iterations, status.timings
+    );
+    assert_eq!(status.mean_newton_iterations, f64::from(bevy_hair_sim::gpu::GPU_NEWTON_ITERATIONS));
+    let timestamps = {
+        let device = app.get_sub_app(RenderApp).unwrap().world().resource::<bevy::render::renderer::RenderDevice>();
+        device.features().contains(bevy::render::render_resource::WgpuFeatures::TIMESTAMP_QUERY)
+    };
+    assert_eq!(status.timings.is_some(), timestamps, "timings where the device has timestamp queries");
+    let store = app.world().resource::<DiagnosticsStore>();
+    let measured = |path: DiagnosticPath| store.get(&path).and_then(|diagnostic| diagnostic.value());
+    assert_eq!(measured(HairDiagnostics::GPU_NEWTON_ITERATIONS), Some(status.mean_newton_iterations));
+    if let Some(timings) = status.timings {
+        // The step of 16 strands and the grid's six passes take some time, and less than the frame that
+        // waited for them.
+        assert!(timings.step_seconds > 0.0 && timings.grid_seconds > 0.0, "{timings:?}");
+        assert!(timings.step_seconds + timings.grid_seconds < 10.0, "{timings:?}");
+        assert_eq!(measured(HairDiagnostics::GPU_STEP_TIME), Some(timings.step_seconds * 1e3));
+        assert_eq!(measured(HairDiagnostics::GPU_GRID_TIME), Some(timings.grid_seconds * 1e3));
+    }
+
+    // Every second fixed step, a step twice as long with one Newton iteration more.
+    app.world_mut().entity_mut(head).insert(HairDetail::fixed(HairDetailLevel::Stepped(2)));
+    let status = run(&mut app, 13, 16);
+    println!("every second fixed step: {:.3} Newton iterations a strand-step", status.mean_newton_iterations);
+    assert_eq!(status.mean_newton_iterations, f64::from(bevy_hair_sim::gpu::GPU_NEWTON_ITERATIONS + 1));
+}
