@@ -16,10 +16,11 @@
 //! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns edge `i` and the node
 //! at its end (lane 0 the root node too), their state in its registers: strands of up to 32 edges (a
 //! game's guides) are stepped by workgroups of 32 lanes, one warp, longer ones (up to 64 edges,
-//! [`MAX_GPU_NODES`] nodes) by workgroups of 64; the two pipelines are built from one shader (its `LANES`
-//! constant) and dispatched in one pass. The banded Newton system (half-bandwidth 10, up to 259
-//! unknowns) lives in workgroup memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU
-//! guarantees): each lane assembles its vertex's bending and twisting (three passes, so that vertices
+//! [`MAX_GPU_NODES`] nodes) by workgroups of 64, and where the device has the workgroup memory (desktop
+//! GPUs do) strands of up to 128 edges ([`MAX_WIDE_GPU_NODES`]) by workgroups of 128 ([`gpu_max_nodes`]);
+//! the pipelines are built from one shader (its `LANES` constant) and dispatched in one pass. The banded
+//! Newton system (half-bandwidth 10, up to 259 unknowns at 64 lanes, 515 at 128) lives in workgroup
+//! memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU guarantees; 30.7 kB at 128): each lane assembles its vertex's bending and twisting (three passes, so that vertices
 //! sharing unknowns never add at once) and its node's inertia, drag, stretching, hold and contact rows;
 //! the `L D Lᵀ` factorisation goes column by column, the 55 entries of each column's trailing update made by
 //! as many lanes, and the substitutions (chains of dependent steps) are one lane's. The projection's
@@ -78,6 +79,6 @@ pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeli
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
     GpuStepError, GpuStepPipelines, GpuStepTimings, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
-    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO,
-    gpu_step_support, headless_device,
+    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, MAX_WIDE_GPU_NODES, SINGLE_PRECISION_STRAIN,
+    STEP_SHADER, STRETCH_RATIO, gpu_max_nodes, gpu_step_support, headless_device,
 };

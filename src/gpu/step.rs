@@ -19,13 +19,19 @@ use crate::rod::{
 
 /// Most workgroups along one dimension of a dispatch (WebGPU's limit).
 const MAX_GROUPS: u32 = 65_535;
-/// Lanes of the step's two pipelines (`LANES` in `step.wgsl`): one workgroup steps a strand, lane `i` owning
-/// edge `i`; strands of up to 32 edges (a game's guides) go to workgroups of 32 lanes, one warp, the others
-/// to workgroups of 64.
-const STEP_LANES: [usize; 2] = [32, 64];
-/// The most nodes a strand stepped on the GPU may have: 64 edges, one per lane of the wider pipeline, the
-/// band of up to 259 unknowns in 15.5 kB of workgroup memory (WebGPU guarantees 16 kB).
+/// Lanes of the step's pipelines (`LANES` in `step.wgsl`): one workgroup steps a strand, lane `i` owning
+/// edge `i`; strands of up to 32 edges (a game's guides) go to workgroups of 32 lanes, one warp, those of
+/// up to 64 to workgroups of 64, longer ones to workgroups of 128 where the device has the workgroup
+/// memory for them ([`gpu_max_nodes`]).
+const STEP_LANES: [usize; 3] = [32, 64, 128];
+/// The most nodes a strand stepped on the GPU may have on every device that can run the step: 64 edges,
+/// one per lane of the 64-lane pipeline, the band of up to 259 unknowns in 15.5 kB of workgroup memory
+/// (WebGPU guarantees 16 kB).
 pub const MAX_GPU_NODES: usize = 65;
+/// The most nodes a strand stepped on the GPU may have on a device with 30.7 kB of workgroup memory and
+/// 128 invocations a workgroup (desktop and console GPUs have 32 kB or more): 128 edges, one per lane of
+/// the 128-lane pipeline ([`gpu_max_nodes`]).
+pub const MAX_WIDE_GPU_NODES: usize = 129;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 6;
@@ -81,13 +87,16 @@ pub enum GpuStepError {
     /// The device cannot run the step (WebGL2, say): what it lacks ([`gpu_step_support`]).
     #[error("the GPU cannot run the strand step: it lacks {0}")]
     Unsupported(String),
-    /// A strand with more nodes than a workgroup has lanes ([`MAX_GPU_NODES`]), or fewer than three.
-    #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {MAX_GPU_NODES}")]
+    /// A strand with more nodes than the device's widest workgroup has lanes ([`gpu_max_nodes`]: at
+    /// least [`MAX_GPU_NODES`], at most [`MAX_WIDE_GPU_NODES`]), or fewer than three.
+    #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {most} on this device")]
     NodeCount {
         /// The strand's index in the input.
         strand: usize,
         /// Its node count.
         nodes: usize,
+        /// The most the device takes.
+        most: usize,
     },
     /// A strand whose root edge is not clamped (the GPU step roots every strand on its head).
     #[error("strand {strand}'s root edge is not clamped: the GPU step needs every strand rooted")]
@@ -489,6 +498,10 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
     let info = adapter.get_info();
     let mut limits = wgpu::Limits::default();
     limits.max_storage_buffers_per_shader_stage = limits.max_storage_buffers_per_shader_stage.max(8);
+    // The adapter's workgroup memory, for the 128-lane pipeline where it has room (as Bevy asks for the
+    // adapter's limits).
+    limits.max_compute_workgroup_storage_size =
+        limits.max_compute_workgroup_storage_size.max(adapter.limits().max_compute_workgroup_storage_size);
     let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
     let (device, queue) = bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("hair strand step"),
@@ -507,9 +520,10 @@ pub const STEP_SHADER: &str = include_str!("step.wgsl");
 /// their heads), the step's pipelines, and the heads' poses the strands were last stepped to.
 pub struct GpuStrandSolver {
     pipelines: Arc<GpuStepPipelines>,
-    /// Per pipeline of [`STEP_LANES`]: its bind group, and its parameters (which list it steps).
-    bind_groups: [wgpu::BindGroup; 2],
-    params: [wgpu::Buffer; 2],
+    /// Per pipeline of [`STEP_LANES`] the device has: its bind group, and its parameters (which list it
+    /// steps).
+    bind_groups: Vec<wgpu::BindGroup>,
+    params: Vec<wgpu::Buffer>,
     state: wgpu::Buffer,
     status: wgpu::Buffer,
     heads: wgpu::Buffer,
@@ -569,8 +583,9 @@ const STEP_TIMESTAMPS: u32 = 3;
 /// its first upload and never again.
 pub struct GpuStepPipelines {
     layout: wgpu::BindGroupLayout,
-    /// The step with 32 lanes a workgroup and with 64 ([`STEP_LANES`]).
-    steps: [wgpu::ComputePipeline; 2],
+    /// The step with 32 lanes a workgroup, with 64, and with 128 where the device can ([`STEP_LANES`],
+    /// [`gpu_max_nodes`]).
+    steps: Vec<wgpu::ComputePipeline>,
     gather: Gather,
     grid: GridPipelines,
 }
@@ -586,15 +601,46 @@ impl GpuStepPipelines {
             label: Some("hair strand step"),
             source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
         });
-        let steps = STEP_LANES.map(|lanes| {
-            let constants = [("LANES", lanes as f64)];
-            // The step writes every workgroup value before it reads it.
-            let options =
-                wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
-            pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
-        });
+        let limits = device.limits();
+        let steps = STEP_LANES
+            .iter()
+            .filter(|&&lanes| lanes_fit(&limits, lanes))
+            .map(|&lanes| {
+                let constants = [("LANES", lanes as f64)];
+                // The step writes every workgroup value before it reads it.
+                let options =
+                    wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
+                pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
+            })
+            .collect();
         Arc::new(Self { layout, steps, gather: Gather::new(device), grid: GridPipelines::new(device) })
     }
+
+    /// The most nodes a strand stepped with these pipelines may have ([`gpu_max_nodes`] of their device).
+    pub fn max_nodes(&self) -> usize {
+        STEP_LANES[self.steps.len().max(1) - 1] + 1
+    }
+}
+
+/// The workgroup memory the step's pipeline of `lanes` lanes uses, bytes: the band and right-hand side of
+/// up to `4 lanes + 3` unknowns, 11 floats wide, and four arrays over the nodes (`step.wgsl`).
+const fn step_workgroup_bytes(lanes: usize) -> usize {
+    let unknowns = 4 * lanes + 3;
+    4 * (unknowns * 11 + unknowns) + (lanes + 1) * (16 + 4 + 16 + 16) + 8
+}
+
+/// Whether a device with `limits` can run the step's pipeline of `lanes` lanes.
+fn lanes_fit(limits: &wgpu::Limits, lanes: usize) -> bool {
+    step_workgroup_bytes(lanes) <= limits.max_compute_workgroup_storage_size as usize
+        && lanes <= limits.max_compute_invocations_per_workgroup as usize
+        && lanes <= limits.max_compute_workgroup_size_x as usize
+}
+
+/// The most nodes a strand stepped on the GPU may have on a device with `limits` (that can run the step,
+/// [`gpu_step_support`]): [`MAX_WIDE_GPU_NODES`] where the device has the workgroup memory and invocations
+/// for workgroups of 128 lanes (30.7 kB, as desktop GPUs have), [`MAX_GPU_NODES`] otherwise.
+pub fn gpu_max_nodes(limits: &wgpu::Limits) -> usize {
+    STEP_LANES.iter().filter(|&&lanes| lanes_fit(limits, lanes)).max().map_or(MAX_GPU_NODES, |&lanes| lanes + 1)
 }
 
 /// The strands as packed for [`GpuStrandSolver::from_upload`]: made from the rods on the CPU (in the main
@@ -617,7 +663,7 @@ struct StrandLayout {
     first_nodes: Vec<usize>,
     total_nodes: usize,
     /// Strands stepped by each pipeline of [`STEP_LANES`] (listed in that order).
-    list_lengths: [usize; 2],
+    list_lengths: [usize; STEP_LANES.len()],
     strand_heads: Vec<usize>,
     /// The hair–hair grid's fixed-point units of mass (kg) and volume (m³).
     grid_units: (f64, f64),
@@ -659,8 +705,8 @@ impl GpuStrandUpload {
         let strand_count = strands.len();
         for (index, strand) in strands.iter().enumerate() {
             let nodes = strand.rod.node_count();
-            if !(3..=MAX_GPU_NODES).contains(&nodes) {
-                return Err(GpuStepError::NodeCount { strand: index, nodes });
+            if !(3..=MAX_WIDE_GPU_NODES).contains(&nodes) {
+                return Err(GpuStepError::NodeCount { strand: index, nodes, most: MAX_WIDE_GPU_NODES });
             }
             if strand.head >= head_poses.len() {
                 return Err(GpuStepError::NoSuchHead { strand: index, head: strand.head, heads: head_poses.len() });
@@ -695,13 +741,15 @@ impl GpuStrandUpload {
         let total = strands.iter().map(|s| s.rod.node_count()).sum::<usize>().max(1);
         let padded = strand_count.max(1);
         let mut words = vec![[0_u32; 4]; padded];
-        // The dispatch lists (`w` of the words): the strands that fit the narrower workgroups, then the rest.
-        let narrow = |strand: &GpuStrandInput| strand.rod.node_count() <= STEP_LANES[0] + 1;
-        let lists: Vec<usize> = (0..strand_count)
-            .filter(|&s| narrow(&strands[s]))
-            .chain((0..strand_count).filter(|&s| !narrow(&strands[s])))
-            .collect();
-        let narrow_count = strands.iter().filter(|strand| narrow(strand)).count();
+        // The dispatch lists (`w` of the words): the strands by the narrowest pipeline they fit, narrowest
+        // first.
+        let class = |strand: &GpuStrandInput| {
+            STEP_LANES.iter().position(|&lanes| strand.rod.node_count() <= lanes + 1).unwrap_or(STEP_LANES.len() - 1)
+        };
+        let mut list_lengths = [0; STEP_LANES.len()];
+        strands.iter().for_each(|strand| list_lengths[class(strand)] += 1);
+        let lists: Vec<usize> =
+            (0..STEP_LANES.len()).flat_map(|k| (0..strand_count).filter(move |&s| class(&strands[s]) == k)).collect();
         let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
         let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
         let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
@@ -781,7 +829,7 @@ impl GpuStrandUpload {
                 node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
                 first_nodes,
                 total_nodes: total,
-                list_lengths: [narrow_count, strand_count - narrow_count],
+                list_lengths,
                 strand_heads: strands.iter().map(|s| s.head).collect(),
                 grid_units: (
                     if grid_units.0 > 0.0 { grid_units.0 } else { 1.0 },
@@ -808,12 +856,21 @@ impl GpuStrandSolver {
         strands: &[GpuStrandInput],
         head_poses: &[(DQuat, DVec3)],
     ) -> Result<Self, GpuStepError> {
-        Ok(Self::from_upload(device, &GpuStepPipelines::new(device), GpuStrandUpload::new(strands, head_poses)?))
+        Self::from_upload(device, &GpuStepPipelines::new(device), GpuStrandUpload::new(strands, head_poses)?)
     }
 
     /// Builds the buffers of `upload` on `device`, stepped with `pipelines` (built on the same device).
-    pub fn from_upload(device: &wgpu::Device, pipelines: &Arc<GpuStepPipelines>, upload: GpuStrandUpload) -> Self {
+    /// Refuses strands longer than the device's pipelines take ([`GpuStepPipelines::max_nodes`]).
+    pub fn from_upload(
+        device: &wgpu::Device,
+        pipelines: &Arc<GpuStepPipelines>,
+        upload: GpuStrandUpload,
+    ) -> Result<Self, GpuStepError> {
         let GpuStrandUpload { words, floats, rest, state, layout: strands, head_poses } = upload;
+        let most = pipelines.max_nodes();
+        if let Some((strand, &nodes)) = strands.node_counts.iter().enumerate().find(|(_, nodes)| **nodes > most) {
+            return Err(GpuStepError::NodeCount { strand, nodes, most });
+        }
         let strand_count = strands.node_counts.len();
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -837,21 +894,23 @@ impl GpuStrandSolver {
             &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity],
             wgpu::BufferUsages::COPY_DST,
         );
-        let params = [(); 2].map(|_| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("hair step parameters"),
-                size: PARAMS_BYTES,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
+        let params: Vec<wgpu::Buffer> = (0..pipelines.steps.len())
+            .map(|_| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("hair step parameters"),
+                    size: PARAMS_BYTES,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
             })
-        });
+            .collect();
         let bind_groups = step_bind_groups(
             device,
             pipelines,
             &params,
             [&strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
         );
-        Self {
+        Ok(Self {
             pipelines: pipelines.clone(),
             bind_groups,
             params,
@@ -895,7 +954,7 @@ impl GpuStrandSolver {
                 });
                 (queries, resolved)
             }),
-        }
+        })
     }
 
     /// Writes timestamp `index` of the step into `encoder` (an empty pass that writes it as it begins),
@@ -1240,7 +1299,8 @@ impl GpuStrandSolver {
             timestamp_writes: writes,
         });
         let mut start = 0;
-        for (class, &length) in self.strands.list_lengths.iter().enumerate() {
+        // (A list past the device's pipelines is empty: `from_upload` refused strands that would be in it.)
+        for (class, &length) in self.strands.list_lengths.iter().enumerate().take(self.params.len()) {
             words[18] = start as u32;
             words[19] = length as u32;
             queue.write_buffer(&self.params[class], 0, bytemuck::cast_slice(&words));
@@ -1453,13 +1513,16 @@ impl GpuStrandSolver {
 fn step_bind_groups(
     device: &wgpu::Device,
     pipelines: &GpuStepPipelines,
-    params: &[wgpu::Buffer; 2],
+    params: &[wgpu::Buffer],
     buffers: [&wgpu::Buffer; 8],
-) -> [wgpu::BindGroup; 2] {
-    params.each_ref().map(|params| {
-        let all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
-        bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all)
-    })
+) -> Vec<wgpu::BindGroup> {
+    params
+        .iter()
+        .map(|params| {
+            let all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
+            bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all)
+        })
+        .collect()
 }
 
 /// The workgroups of `size` invocations of a dispatch over `invocations`: along X up to the limit, then rows

@@ -100,9 +100,10 @@ const HEAD_ROWS: u32 = 6u;
 // (its samples along X, Y, Z, as bits; 0). Mesh fields' samples follow the colliders, four a row.
 const COLLIDER_ROWS: u32 = 8u;
 
-// Lanes per workgroup, one strand each, and so the most edges a strand may have: 32 or 64, set when the
-// pipeline is built (`STEP_LANES` in `step.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
-// lanes share, fills 15.5 kB of WebGPU's 16 kB of workgroup memory; at 32, 8 kB.
+// Lanes per workgroup, one strand each, and so the most edges a strand may have: 32, 64 or 128, set when
+// the pipeline is built (`STEP_LANES` in `step.rs`). At 64 the band of 259 unknowns, 11 wide, with what the
+// lanes share, fills 15.5 kB of WebGPU's 16 kB of workgroup memory; at 32, 8 kB; at 128, 30.7 kB (built
+// where the device has it).
 override LANES: u32 = 64u;
 const BAND: u32 = 10u;
 const WIDTH: u32 = 11u;
@@ -657,13 +658,13 @@ fn share_mobility() {
 }
 
 // The projection's tridiagonal system in the band's place: lower, diagonal, upper and right-hand side of
-// equation `e` at `band[e]`, `band[MAX_NODES + e]`, … (the band is not needed between solves).
+// equation `e` at `band[e]`, `band[LANES + e]`, … (the band is not needed between solves).
 const TRI_LOWER: u32 = 0u;
-const TRI_DIAGONAL: u32 = 64u;
-const TRI_UPPER: u32 = 128u;
-const TRI_RHS: u32 = 192u;
+override TRI_DIAGONAL: u32 = LANES;
+override TRI_UPPER: u32 = 2u * LANES;
+override TRI_RHS: u32 = 3u * LANES;
 // Each edge's impulse in the projection, `band[IMPULSE + 4e ..]`.
-const IMPULSE: u32 = 256u;
+override IMPULSE: u32 = 4u * LANES;
 
 // Solves the tridiagonal system held in the band's place (one equation per edge's lane, in its
 // registers: `a`, `b`, `c`, `d`) by parallel cyclic reduction (Hockney 1965): each round eliminates the

@@ -21,7 +21,7 @@ use crate::followers::{FollowerPlacement, HairFollowers, PlaceFollowersOnCpu};
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStepTimings,
     GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuStrandWork, GpuVolume,
-    MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_step_support,
+    MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_max_nodes, gpu_step_support,
 };
 use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
 use crate::schedule::HairStepSystems;
@@ -56,7 +56,9 @@ use crate::wind::{HairWind, HairWindSource};
 ///     .insert_resource(HairGpuSettings { enabled: false, ..default() });
 /// ```
 ///
-/// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`MAX_GPU_NODES`] nodes, once
+/// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`gpu_max_nodes`] nodes
+/// ([`MAX_GPU_NODES`], 65, on every device; [`MAX_WIDE_GPU_NODES`](crate::gpu::MAX_WIDE_GPU_NODES), 129, where the device has the
+/// workgroup memory, as desktop GPUs do), once
 /// its gravity preload is done and its state is one a step can start from, without two edges folded
 /// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
 /// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands, folded
@@ -264,6 +266,9 @@ struct GpuStepQueue {
     /// Whether this app cannot step on the GPU (no renderer, or a device that cannot run the step): then
     /// nothing is uploaded, whatever [`HairGpuSettings::enabled`] says.
     unavailable: bool,
+    /// The most nodes a strand on this device's GPU may have ([`gpu_max_nodes`]; [`MAX_GPU_NODES`] until
+    /// the device is known).
+    max_nodes: usize,
     /// A new set of strands waits for the read-back of this step, so that the strands staying on the GPU
     /// are uploaded from their state there.
     upload_waits_for: Option<u64>,
@@ -344,8 +349,11 @@ impl HairGpuPlugin {
             fall_back_to_the_cpu(app, "the renderer has no device");
             return;
         };
-        if let Err(error) = gpu_step_support(&device.limits(), &adapter.get_downlevel_capabilities()) {
+        let limits = device.limits();
+        if let Err(error) = gpu_step_support(&limits, &adapter.get_downlevel_capabilities()) {
             fall_back_to_the_cpu(app, &error.to_string());
+        } else {
+            app.world_mut().resource_mut::<GpuStepQueue>().max_nodes = gpu_max_nodes(&limits);
         }
     }
 }
@@ -371,7 +379,7 @@ fn stop_clock(mut clock: ResMut<GpuSystemsClock>, mut status: ResMut<HairGpuStat
 }
 
 /// Looks the strands over when they may have changed and uploads the set the GPU can step: rooted, 3 to
-/// [`MAX_GPU_NODES`] nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat, not handed back after
+/// [`gpu_max_nodes`] nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat, not handed back after
 /// failing on the GPU. Marks them [`SteppedElsewhere`], and unmarks the others.
 #[allow(clippy::too_many_arguments)]
 fn choose_gpu_strands(
@@ -413,7 +421,7 @@ fn choose_gpu_strands(
                 // it was uploaded in, so that must be one a step can start from).
                 queue.dirty = true;
             } else if rooted
-                && (3..=MAX_GPU_NODES).contains(&nodes)
+                && (3..=queue.max_nodes.max(MAX_GPU_NODES)).contains(&nodes)
                 && !strand.is_quarantined()
                 && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
                 && !queue.handed_back.contains(&entity)
@@ -872,7 +880,10 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
             send(&render.sender, GpuMessage::PipelinesBuilt);
         }
         let pipelines = render.pipelines.as_ref().expect("built above");
-        render.solver = Some(GpuStrandSolver::from_upload(device, pipelines, upload));
+        // (The main world chose strands the device takes, `GpuStepQueue::max_nodes`.)
+        render.solver = GpuStrandSolver::from_upload(device, pipelines, upload)
+            .map_err(|error| send(&render.sender, GpuMessage::Error(gpu_step_error(&error))))
+            .ok();
         render.index = strands.iter().enumerate().map(|(index, &entity)| (entity, index as u32)).collect();
         render.strand_heads = render.solver.as_ref().map(|s| s.strand_heads().to_vec()).unwrap_or_default();
         render.strands = strands;

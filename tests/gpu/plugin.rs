@@ -218,23 +218,41 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     );
     assert!(largest <= DRAWN_TOLERANCE, "drawn node {node} is {largest} m from where the read-back hair puts it");
 
-    // A strand of 49 nodes (past the 40 a GPU strand had before its workgroup's lanes carried it) goes to
-    // the GPU; one longer than a workgroup's 64 lanes stays on the CPU, on its own head, and is stepped.
+    // Strands of 49 nodes (past the 40 a GPU strand had before its workgroup's lanes carried it) and, where
+    // the device has the 128-lane pipeline, of 129 go to the GPU; one longer than the device's widest
+    // workgroup stays on the CPU, on its own head, and is stepped.
     gpu.world_mut().resource_mut::<HairPause>().paused = false;
+    let most = {
+        let device = gpu.get_sub_app(RenderApp).unwrap().world().resource::<bevy::render::renderer::RenderDevice>();
+        bevy_hair_sim::gpu::gpu_max_nodes(&device.limits())
+    };
+    println!("the device takes strands of up to {most} nodes");
+    assert!(most >= MAX_GPU_NODES);
     let other = gpu.world_mut().spawn((HairHead, Transform::from_xyz(1.0, 1.6, 0.0))).id();
     let longer = gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.3, 48), StrandOf(other))).id();
+    let longest =
+        gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::Z, 0.6, most - 1), StrandOf(other))).id();
     // (On a head of its own: a head with strands on both sides has its components read back every step.)
     let third = gpu.world_mut().spawn((HairHead, Transform::from_xyz(-1.0, 1.6, 0.0))).id();
-    let too_long = MAX_GPU_NODES;
+    let too_long = most;
     let long =
         gpu.world_mut().spawn((HairStrand::straight(Vec3::Y * 0.1, Vec3::X, 0.3, too_long), StrandOf(third))).id();
     for number in SHAKING_STEPS + 2..SHAKING_STEPS + 12 {
         step(&mut gpu, gpu_head, number);
     }
     assert!(gpu.world().get::<SteppedElsewhere>(longer).is_some(), "49 nodes are the GPU's");
+    assert!(gpu.world().get::<SteppedElsewhere>(longest).is_some(), "{most} nodes are the GPU's");
     assert!(gpu.world().get::<SteppedElsewhere>(long).is_none(), "{} nodes are the CPU's", too_long + 1);
     assert!(gpu.world().get::<StrandNodes>(long).unwrap().positions[too_long].y < 1.69, "the long strand sags");
-    assert_eq!(gpu.world().resource::<HairGpuStatus>().strands, 65);
+    let status = gpu.world().resource::<HairGpuStatus>().clone();
+    assert_eq!((status.strands, status.faults, status.error), (66, 0, None));
+    // The longest strand, read back, has fallen from the horizontal, its nodes finite.
+    gpu.world_mut().resource_mut::<HairPause>().paused = true;
+    wait_for_read_back(&mut gpu);
+    let nodes = &gpu.world().get::<StrandNodes>(longest).unwrap().positions;
+    assert_eq!(nodes.len(), most);
+    assert!(nodes.iter().all(|p| p.is_finite()) && nodes[most - 1].y < 1.69, "the longest strand sags: {nodes:?}");
+    gpu.world_mut().resource_mut::<HairPause>().paused = false;
 
     // Turned off, every strand is the CPU's again, from its last read-back state, and steps on.
     gpu.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
@@ -268,8 +286,8 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     assert!(gpu.world().get::<SteppedElsewhere>(folded).is_none(), "the folded guide went to the GPU");
     assert_eq!(
         gpu.world().resource::<HairGpuStatus>().strands,
-        64,
-        "the other guides and the strand of 49 nodes are on the GPU"
+        65,
+        "the other guides and the strands of 49 and of the most nodes are on the GPU"
     );
 
     // Settings changed in play, after four uploads (64 guides, 65 strands, none, 64): the step's pipelines were built
