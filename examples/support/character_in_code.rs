@@ -141,7 +141,7 @@ fn ellipsoid(centre: Vec3, semi_axes: Vec3, segments: u32, rings: u32) -> Mesh {
 }
 
 /// The top of the ellipsoid `semi_axes` about `centre`, down to 115° from the crown at the back and 60° at
-/// the face, its edge arching up to 62° over the ears as a hairline does (`rings` rings), its triangles
+/// the face, its edge arching up to 70° over the ears as a hairline does (`rings` rings), its triangles
 /// facing out. (Down to 115° at the sides too, it ran through the ears: hair grew out of them.)
 fn scalp_cap(centre: Vec3, semi_axes: Vec3, rings: u32) -> Mesh {
     let segments = 2 * rings;
@@ -152,12 +152,12 @@ fn scalp_cap(centre: Vec3, semi_axes: Vec3, rings: u32) -> Mesh {
             // Lower at the back (+z) than over the face (−z).
             let facing_front = (-azimuth.sin()).max(0.0);
             let below_crown = 115.0 - 55.0 * facing_front * facing_front;
-            // The ears stand at the sides (±x, azimuth 0 and π), 2 cm either way of them along z: the
-            // hairline arches over them, across 40° of azimuth either side.
+            // The ears stand at the sides (±x, azimuth 0 and π), 2 cm either way of them along z (15° of
+            // azimuth), their tops 74° from the crown: the hairline arches just over them.
             let from_ear = azimuth.cos().abs().acos().to_degrees();
-            let over_ear = 1.0 - ((from_ear - 20.0) / 20.0).clamp(0.0, 1.0);
+            let over_ear = 1.0 - ((from_ear - 14.0) / 14.0).clamp(0.0, 1.0);
             let over_ear = over_ear * over_ear * (3.0 - 2.0 * over_ear);
-            let lowest = (below_crown + (62.0 - below_crown) * over_ear).to_radians();
+            let lowest = (below_crown + (70.0 - below_crown) * over_ear).to_radians();
             let polar = lowest * ring as f32 / rings as f32;
             let unit = Vec3::new(polar.sin() * azimuth.cos(), polar.cos(), polar.sin() * azimuth.sin());
             positions.push(centre + unit * semi_axes);

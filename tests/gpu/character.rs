@@ -23,8 +23,7 @@ const DT: f64 = 1.0 / 60.0;
 /// a collider.
 const DEEPEST: f64 = 1e-3;
 /// Steps of swaying before the first look at the hair: the groom is grown along the skull's ellipsoid,
-/// through the edges of the ears, and the first steps put it outside them (half a second in, a node was
-/// 1.8 mm inside an ear; a second in, 0.8 mm).
+/// through the tops of the ears, and the first steps put it outside them.
 const SETTLING_STEPS: usize = 60;
 /// Steps of swaying between looks at the hair, and how many looks (3 s in all).
 const STEPS_BETWEEN_LOOKS: usize = 30;
