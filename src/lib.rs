@@ -61,7 +61,8 @@
 //! **On a glTF character**, put [`HairOnCharacter`](scalp::HairOnCharacter) on the scene's root: once the
 //! scene has spawned it finds the head joint by name (and a scalp mesh and face, if named), fits the
 //! groom's skull to the joint's skinned vertices and grows the groom there, turned onto the joint's own
-//! axes and sized in metres whatever the character's scale (`examples/gltf_character.rs`; the fit takes
+//! axes (read off its bind pose: glTF models stand `+Y` up facing `+Z`) and sized in metres whatever the
+//! character's scale (`examples/gltf_character.rs`; the fit takes
 //! in whatever the head joint skins, so an animal's snout and ears make it a size too large):
 //!
 //! ```no_run
@@ -72,9 +73,8 @@
 //!     commands.spawn((
 //!         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("models/Fox.glb"))),
 //!         Transform::from_scale(Vec3::splat(0.01)), // modelled in centimetres
-//!         // The head joint's +X runs down the snout, its +Y up through the crown.
 //!         HairOnCharacter::new("b_Head_05", CharacterHair::Groom(mane))
-//!             .with_head_axes(Vec3::X, Vec3::Y)
+//!             .with_gltf_head_axes()
 //!             .with_scalp_fitted_to_head(),
 //!     ));
 //! }

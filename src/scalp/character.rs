@@ -23,8 +23,9 @@ use crate::simulation::HairHead;
 /// `<mesh name>.<material name>`; the first primitive is taken). Until every name is found, the search is
 /// tried again each frame; [`HairOnCharacterStatus`] says how it stands.
 ///
-/// A rig's head joint has axes of its own: give them with [`HairOnCharacter::with_head_axes`] and a
-/// procedural groom turns onto them. The groom's lengths are metres whatever the character's scale (a
+/// A rig's head joint has axes of its own: a procedural groom turns onto them, read off the rig's bind
+/// pose by glTF's convention that a model stands `+Y` up and faces `+Z`
+/// ([`HairOnCharacter::with_gltf_head_axes`]), or given by hand ([`HairOnCharacter::with_head_axes`]). The groom's lengths are metres whatever the character's scale (a
 /// character modelled in centimetres and spawned at 0.01 wears the same hair as one modelled in metres).
 ///
 /// A skinned collider mesh is baked in the head joint's space (through the joint's inverse bind pose)
@@ -39,7 +40,7 @@ use crate::simulation::HairHead;
 ///     WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("character.glb"))),
 ///     Transform::from_scale(Vec3::splat(0.01)), // modelled in centimetres
 ///     HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
-///         .with_head_axes(Vec3::X, Vec3::Y) // the joint's face and crown directions
+///         .with_gltf_head_axes() // the joint's face and crown from its bind pose
 ///         .with_scalp_mesh("Scalp")
 ///         .with_collider_meshes(["Face"]),
 /// ));
@@ -67,6 +68,12 @@ pub struct HairOnCharacter {
     /// Whether the scalp mesh grows hair where the head joint skins it ([`ScalpWhereHeadSkins`]) rather than
     /// by its painted density: for a character that is one skinned mesh. Default `false`.
     pub scalp_where_head_skins: bool,
+    /// Whether a procedural groom's [`HeadAxes`] are read off the head joint's bind pose (its inverse bind
+    /// matrix in a skin of the character's): the face along the model's `+Z` and the crown along its `+Y`,
+    /// glTF's convention for how a model stands (`HairOnCharacter::with_gltf_head_axes`). Default
+    /// `false`: the groom's own axes. A model made facing another way (Bevy's `−Z`, as a character built in
+    /// code may be) gives its axes by hand instead ([`HairOnCharacter::with_head_axes`]).
+    pub gltf_head_axes: bool,
 }
 
 /// The hair [`HairOnCharacter`] puts on a character's head joint.
@@ -109,6 +116,7 @@ impl HairOnCharacter {
             hair,
             fit_scalp: false,
             scalp_where_head_skins: false,
+            gltf_head_axes: false,
         }
     }
 
@@ -125,6 +133,13 @@ impl HairOnCharacter {
         if let CharacterHair::Groom(groom) = &mut self.hair {
             groom.head_axes = HeadAxes::new(forward, up);
         }
+        self
+    }
+
+    /// The head joint's axes read off its bind pose by glTF's convention, the model standing `+Y` up and
+    /// facing `+Z` ([`HairOnCharacter::gltf_head_axes`]): no numbers to find for a glTF character.
+    pub fn with_gltf_head_axes(mut self) -> Self {
+        self.gltf_head_axes = true;
         self
     }
 
@@ -198,14 +213,24 @@ pub(crate) fn attach_hair_to_characters(
             .filter(|(_, found)| found.is_none())
             .map(|(name, _)| name.to_owned())
             .collect();
-        // The head's skinned vertices, to fit the skull to, once their meshes have loaded.
-        let fitting = character.fit_scalp && matches!(character.hair, CharacterHair::Groom(_));
-        let fit_to = head.filter(|_| fitting).and_then(|head| {
-            let skins = children.iter_descendants(root).filter_map(|entity| match meshes.get(entity) {
+        let skins = || {
+            children.iter_descendants(root).filter_map(|entity| match meshes.get(entity) {
                 Ok((mesh, Some(skin))) => Some((mesh, skin)),
                 _ => None,
-            });
-            let vertices = head_vertices(head, skins, mesh_assets.as_deref(), bindposes.as_deref());
+            })
+        };
+        let groom = matches!(character.hair, CharacterHair::Groom(_));
+        // The head joint's axes from its bind pose, once a skin's bind poses have loaded.
+        let axes = head.filter(|_| groom && character.gltf_head_axes).and_then(|head| {
+            let axes = skins().find_map(|(_, skin)| bind_pose_axes(head, skin, bindposes.as_deref()?));
+            if axes.is_none() {
+                missing.push(format!("{} (its bind pose, loading)", character.head_joint));
+            }
+            axes
+        });
+        // The head's skinned vertices, to fit the skull to, once their meshes have loaded.
+        let fit_to = head.filter(|_| groom && character.fit_scalp).and_then(|head| {
+            let vertices = head_vertices(head, skins(), mesh_assets.as_deref(), bindposes.as_deref());
             if vertices.is_none() {
                 missing.push(format!("{} (its skinned meshes, loading)", character.head_joint));
             }
@@ -229,6 +254,13 @@ pub(crate) fn attach_hair_to_characters(
             continue;
         };
         let mut hair = character.hair.clone();
+        if let (Some(axes), CharacterHair::Groom(groom)) = (axes, &mut hair) {
+            info!(
+                "hair on character {root}: the head joint faces {} and its crown is {} (its bind pose, glTF's +Z front and +Y up)",
+                axes.forward, axes.up
+            );
+            groom.head_axes = axes;
+        }
         if let (Some(vertices), CharacterHair::Groom(groom)) = (fit_to, &mut hair) {
             // In metres along the groom's axes (the joint's scale as it is now, propagated or not).
             let frame = GroomFrame {
@@ -298,6 +330,22 @@ pub(crate) fn attach_hair_to_characters(
         }
         commands.entity(root).insert(HairOnCharacterStatus::Attached { head });
     }
+}
+
+/// The joint `head`'s axes in `skin`'s bind pose: the model's `+Z` (glTF's front) and `+Y` (its up) in the
+/// joint's local space, through the joint's inverse bind matrix; `None` if the skin does not have the
+/// joint, or its matrix is degenerate.
+fn bind_pose_axes(
+    head: Entity,
+    skin: &SkinnedMesh,
+    bindposes: &Assets<SkinnedMeshInverseBindposes>,
+) -> Option<HeadAxes> {
+    let index = skin.joints.iter().position(|&joint| joint == head)?;
+    let to_joint = bindposes.get(&skin.inverse_bindposes)?.get(index)?;
+    let forward = to_joint.transform_vector3(Vec3::Z).try_normalize()?;
+    let up = to_joint.transform_vector3(Vec3::Y).try_normalize()?;
+    let axes = HeadAxes::new(forward, up);
+    axes.rotation().is_ok().then_some(axes)
 }
 
 /// The vertices of the skinned meshes `skins` that the joint `head` weighs at least half, in the joint's

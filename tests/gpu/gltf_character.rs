@@ -40,7 +40,7 @@ fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
             WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(FOX))),
             Transform::from_scale(Vec3::splat(0.01)),
             HairOnCharacter::new("b_Head_05", CharacterHair::Groom(groom))
-                .with_head_axes(Vec3::X, Vec3::Y)
+                .with_gltf_head_axes()
                 .with_scalp_fitted_to_head(),
         ))
         .id();
@@ -64,6 +64,12 @@ fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
     // The skull fitted to the fox's head vertices (the head 25 cm across the ears, 31 cm tall to their
     // tips, 29 cm from the back of the skull to the snout; the fit takes in ears and snout, 24 × 34 × 32
     // cm): of the head's size, in metres (in the rig's centimetres it would be a hundred times larger).
+    let axes = app.world().get::<HairGroom>(head).unwrap().head_axes;
+    println!("the fox's head axes from its bind pose: face {}, crown {}", axes.forward, axes.up);
+    // Near the joint's +X down the snout and +Y through the crown, as read off the model by eye (the
+    // example's axes): the bind pose has the head pitched up 13° from them.
+    let degrees = |a: Vec3, b: Vec3| a.angle_between(b).to_degrees();
+    assert!(degrees(axes.forward, Vec3::X) < 15.0 && degrees(axes.up, Vec3::Y) < 15.0, "{axes:?}");
     let scalp = app.world().get::<HairGroom>(head).unwrap().scalp;
     println!("the fox's fitted skull: centre {} m, semi-axes {} m", scalp.centre, scalp.semi_axes);
     assert!(scalp.semi_axes.min_element() > 0.03 && scalp.semi_axes.max_element() < 0.2, "{}", scalp.semi_axes);

@@ -409,6 +409,27 @@ fn a_character_s_skull_is_fitted_to_its_head_vertices_in_metres_along_its_own_ax
     assert!(roots.iter().all(|on_skull| (on_skull - 1.0).abs() < 1e-3), "{roots:?}");
 }
 
+/// glTF's convention read off the rig: the model's front `+Z` and up `+Y` in the head joint's space, through
+/// the joint's inverse bind pose (the centimetre rig's head joint is turned 0.4 rad about y at its bind
+/// pose: the model's `+Z` is `(−sin 0.4, 0, cos 0.4)` in it; the neck's joint, or the bind pose read the
+/// wrong way round, would give `+Z` or `(sin 0.4, 0, cos 0.4)`).
+#[test]
+fn a_character_s_head_axes_are_read_off_its_bind_pose() {
+    let mut app = app_with_assets();
+    let groom = HairGroom { strand_count: 30, ..default() };
+    let character = HairOnCharacter::new("Head", CharacterHair::Groom(groom)).with_gltf_head_axes();
+    let (root, head) = centimetre_rig(&mut app, character);
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(app.world().get::<HairOnCharacterStatus>(root), Some(&HairOnCharacterStatus::Attached { head }));
+    let axes = app.world().get::<HairGroom>(head).expect("the groom on the head joint").head_axes;
+    let expected = Vec3::new(-0.4_f32.sin(), 0.0, 0.4_f32.cos());
+    println!("head axes from the bind pose: face {}, crown {}", axes.forward, axes.up);
+    assert!(axes.forward.distance(expected) < 1e-6 && axes.up.distance(Vec3::Y) < 1e-6, "{axes:?}");
+    assert_eq!(app.world().get::<HeadStrands>(head).map(|strands| strands.strands().len()), Some(30));
+}
+
 #[test]
 fn a_character_of_one_skinned_mesh_grows_hair_where_its_head_joint_skins_it() {
     let mut app = app_with_assets();
