@@ -726,3 +726,61 @@ fn the_gpu_reports_its_newton_iterations_and_its_time() {
     println!("every second fixed step: {:.3} Newton iterations a strand-step", status.mean_newton_iterations);
     assert_eq!(status.mean_newton_iterations, f64::from(bevy_hair_sim::gpu::GPU_NEWTON_ITERATIONS + 1));
 }
+
+/// A strand stiffened to hold its shape steps stiffened on the GPU (its stiffening is in its rod's
+/// material, which the upload takes): two 20 cm strands standing straight up from the crown of the shaking
+/// head, both preloaded against gravity, one stiffened to hold (`HairStrand::stiffen_to_hold`). Past the
+/// 9.5 cm a hair holds upright, the unstiffened one buckles and falls at the first disturbance (its tip
+/// 10 cm below its root after 2 s); the stiffened one (×15.9) stands, leaning with the head (its tip 15 cm
+/// above its root), on the GPU as on the CPU (within a millimetre).
+#[test]
+fn a_strand_stiffened_to_hold_stands_on_the_gpu_as_on_the_cpu() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let tips = |gpu: bool| {
+        let mut app = app(gpu);
+        let head = app.world_mut().spawn((HairHead, head_pose(0))).id();
+        let skull = app.world_mut().spawn((HairCollider::sphere(SKULL), HairColliderOf(head), head_pose(0))).id();
+        let standing = |stiffen_to_hold: bool| HairStrand {
+            gravity_preload: 1.0,
+            stiffen_to_hold,
+            ..HairStrand::straight(Vec3::Y * SKULL, Vec3::Y, 0.2, 20)
+        };
+        let strands = [true, false].map(|stiffen| app.world_mut().spawn((standing(stiffen), StrandOf(head))).id());
+        for number in 1..=SHAKING_STEPS {
+            step(&mut app, (head, skull), number);
+        }
+        app.world_mut().resource_mut::<HairPause>().paused = true;
+        if gpu {
+            wait_for_read_back(&mut app);
+            let status = app.world().resource::<HairGpuStatus>().clone();
+            assert_eq!((status.strands, status.faults, status.error.as_deref()), (2, 0, None), "{status:?}");
+        }
+        let stiffening = app.world().get::<SimulatedStrand>(strands[0]).unwrap().stiffening();
+        let pose = head_pose(SHAKING_STEPS);
+        // Each tip's height above the root in the head's frame, m (0.2 standing).
+        let heights = strands.map(|strand| {
+            let tip = *app.world().get::<StrandNodes>(strand).unwrap().positions.last().unwrap();
+            (pose.rotation.inverse() * (tip - pose.translation)).y - SKULL
+        });
+        (heights, stiffening)
+    };
+    let results = [true, false].map(|gpu| (gpu, tips(gpu)));
+    for (gpu, ([stiffened, unstiffened], stiffening)) in results {
+        let path = if gpu { "GPU" } else { "CPU" };
+        println!(
+            "{path}: after 2 s shaking, the stiffened tip (×{stiffening:.1}) {stiffened:.3} m above its root, the other {unstiffened:.3} m"
+        );
+    }
+    for (gpu, ([stiffened, unstiffened], stiffening)) in results {
+        let path = if gpu { "GPU" } else { "CPU" };
+        assert!(stiffening > 1.0, "{path}: the strand was stiffened");
+        // Standing, leaning with the shaking head: its tip above half its length; fallen: below its root.
+        assert!(stiffened > 0.1, "{path}: the stiffened strand stands: its tip {stiffened} m up");
+        assert!(unstiffened < 0.0, "{path}: the unstiffened strand falls: its tip {unstiffened} m up");
+    }
+    // The GPU's tips where the CPU's are, within the app's bound for the two paths.
+    let ((gpu, _), (cpu, _)) = (results[0].1, results[1].1);
+    for (g, c) in gpu.iter().zip(cpu) {
+        assert!((g - c).abs() < PLUGIN_RMS_BOUND, "GPU tip {g} m up, CPU's {c} m");
+    }
+}
