@@ -212,6 +212,10 @@ pub struct GpuHeadStep {
     /// falls off as `hold_rate (1 − smoothstep(s/(reach·L)))` and is 0 beyond, as
     /// `HairStyleHold::angular_frequency` on the CPU.
     pub hold_reach: f64,
+    /// Whether its hair meets other hair on a grid of the caller's rather than on the GPU's
+    /// ([`GpuStrandSolver::set_volume`]): the head is left off the GPU's grid (the plugin's heads with
+    /// strands on the CPU too meet on the CPU's grid, its response sent as forces). Default `false`.
+    pub meets_hair_elsewhere: bool,
 }
 
 /// What a head's hair does in a fixed step on the GPU ([`GpuHeadStep::cadence`]): its level of detail.
@@ -1222,7 +1226,9 @@ impl GpuStrandSolver {
         // The grid is built where the hair was at the step's start: around each head's translation then.
         self.grid_heads.clear();
         for (head, before) in heads.iter().zip(&self.head_poses) {
+            // (A head with no step's length this fixed step is off the grid.)
             let span = match head.cadence {
+                _ if head.meets_hair_elsewhere => 0.0,
                 GpuHairCadence::Step(span) => f64::from(span),
                 GpuHairCadence::Carried | GpuHairCadence::Waiting => 0.0,
             };

@@ -76,7 +76,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// gusts, eddies and jets included, as on the CPU (which interpolates the eddies between nodes a quarter
 /// of their size apart; the GPU takes every node). The hair–hair grid ([`HairSettings::volume`]) is the
 /// GPU's own, each head's hair splatted and smoothed and pressed there as on the CPU (`gpu::grid`); a head
-/// with strands on both sides has one grid on each, so those on the CPU and those on the GPU do not meet.
+/// with strands on both sides meets on the CPU's grid alone, its GPU strands splatted there as last read
+/// back (a step or two late: such a head is read back every step) and the grid's response sent to them as
+/// forces, the head left off the GPU's grid.
 /// A game's forces and velocity changes ([`StrandForces::add`], [`StrandForces::add_velocity_change`]) act
 /// on GPU strands in their next step, as on the CPU (a velocity change as the force `m Δv / h` the implicit
 /// step sees it as, exact but on a step that restarts BDF2); the air velocities a game adds there, and
@@ -275,6 +277,8 @@ struct GpuStepQueue {
     /// Whether something on the CPU reads the GPU strands' components every step (a head with strands on
     /// the CPU too is drawn from its components).
     components_read: bool,
+    /// Per head of `heads`: whether it has strands on the CPU too (its hair meets on the CPU's grid).
+    mixed_heads: Vec<bool>,
 }
 
 /// What the render world sends back.
@@ -491,10 +495,13 @@ fn choose_gpu_strands(
         })
         .collect();
     let upload = if chosen.is_empty() { None } else { Some(GpuStrandUpload::new(&inputs, &poses)) };
-    // A head with strands left on the CPU is drawn from its components (`chosen` runs head by head).
-    queue.components_read = chosen
+    // A head with strands left on the CPU is drawn from its components, and its hair meets on the CPU's
+    // grid (`chosen` runs head by head, as `head_list`).
+    queue.mixed_heads = chosen
         .chunk_by(|a, b| a.0 == b.0)
-        .any(|run| head_strands.get(run[0].0).is_ok_and(|strands| strands.strands().len() > run.len()));
+        .map(|run| head_strands.get(run[0].0).is_ok_and(|strands| strands.strands().len() > run.len()))
+        .collect();
+    queue.components_read = queue.mixed_heads.contains(&true);
     let on_gpu: Vec<Entity> = match upload {
         Some(Ok(upload)) => {
             let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
@@ -604,6 +611,7 @@ fn order_gpu_step(
             cadence,
             hold_rate: f64::from(hold.rate),
             hold_reach: f64::from(hold.reach),
+            meets_hair_elsewhere: queue.mixed_heads.get(index).copied().unwrap_or(false),
         });
     }
     // As `HairWindPlugin` blows it on the CPU (which reports an invalid wind or source): at the step's

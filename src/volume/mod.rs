@@ -65,6 +65,7 @@
 //! ```
 pub mod grid;
 
+use bevy::ecs::entity::EntityHashSet;
 use bevy::ecs::schedule::InternedScheduleLabel;
 use bevy::math::DVec3;
 use bevy::platform::collections::HashMap;
@@ -210,15 +211,20 @@ type GridItem = (
 );
 
 /// Splats every head's hair to its grid, then gives each strand's free nodes the grid's velocity change
-/// and pressure force, in parallel. Strands [`SteppedElsewhere`] (on the GPU) are left out: the GPU has a
-/// grid of its own (`gpu::grid`), and their components are only as fresh as their last read-back.
+/// and pressure force, in parallel. Strands [`SteppedElsewhere`] (on the GPU) are left out where all of
+/// their head's strands are: the GPU has a grid of its own (`gpu::grid`). A head with strands on both
+/// sides meets on this grid alone: its strands on the GPU are splatted as last read back (their head's
+/// are read back every step, so a step or two late), and their response goes to the GPU through their
+/// [`StrandForces`] (the GPU leaves such a head off its grid).
 pub(crate) fn interact_through_grid(
     time: Res<Time>,
     settings: Res<HairSettings>,
     checked: Res<CheckedSettings>,
     mut grids: ResMut<HairVolumeGrids>,
     mut statistics: ResMut<HairStatistics>,
-    mut strands: Query<GridItem, Without<SteppedElsewhere>>,
+    mut strands: Query<GridItem>,
+    elsewhere: Query<(), With<SteppedElsewhere>>,
+    mut heads_with_cpu_strands: Local<EntityHashSet>,
 ) {
     let dt = time.delta_secs_f64();
     // Invalid settings are reported once, by `check_settings`, and hold the hair until they are fixed.
@@ -230,13 +236,24 @@ pub(crate) fn interact_through_grid(
     }
     let started = Instant::now();
     let params = settings.volume.params(dt);
+    // The heads with strands on the CPU: their strands on the GPU meet here too.
+    heads_with_cpu_strands.clear();
+    for (_, _, strand_of, _, _, entity) in &strands {
+        if let (Some(&StrandOf(head)), false) = (strand_of, elsewhere.contains(entity)) {
+            heads_with_cpu_strands.insert(head);
+        }
+    }
+    let heads_with_cpu_strands = &*heads_with_cpu_strands;
+    let on_this_grid = |entity: Entity, strand_of: Option<&StrandOf>| {
+        !elsewhere.contains(entity) || strand_of.is_some_and(|of| heads_with_cpu_strands.contains(&of.0))
+    };
     grids.begin();
     // Where each strand's nodes go in its head's particles, in query order (so the sums are the same
     // from run to run), then the nodes copied there in parallel.
     for (strand, _, strand_of, _, _, entity) in &strands {
         // Only the hair stepped now meets other hair; at a coarser level of detail that is the share of
         // the head's strands whose turn it is, and carried hair never (see `crate::detail`).
-        if !strand.steps_now() {
+        if !strand.steps_now() || !on_this_grid(entity, strand_of) {
             continue;
         }
         let group = grids.group(strand_of.map(|of| of.0));
@@ -256,7 +273,7 @@ pub(crate) fn interact_through_grid(
         for group in &mut grids.groups {
             let strand_of = |entity: Entity| {
                 let (strand, _, _, represented, followers, _) = readonly.get(entity).ok()?;
-                Some((strand, hairs_on_the_grid(strand, represented, followers)))
+                Some((strand, hairs_on_the_grid(strand, represented, followers, elsewhere.contains(entity))))
             };
             measure_groomed_fractions(group, strand_of, &params);
         }
@@ -281,7 +298,7 @@ pub(crate) fn interact_through_grid(
             *bounds = grid::EMPTY_BOX;
             for &(entity, offset) in strands_of_piece {
                 let Ok((strand, _, _, represented, followers, _)) = readonly.get(entity) else { continue };
-                let hairs = hairs_on_the_grid(strand, represented, followers);
+                let hairs = hairs_on_the_grid(strand, represented, followers, elsewhere.contains(entity));
                 let rod = strand.rod();
                 let moving = if strand.is_quarantined() { 0.0 } else { hairs };
                 let density = rod.material().density;
@@ -314,9 +331,9 @@ pub(crate) fn interact_through_grid(
     }
 
     let grids = &*grids;
-    strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, ..)| {
+    strands.par_iter_mut().for_each(|(strand, mut forces, strand_of, _, _, entity)| {
         let Some(grid) = grids.grid(strand_of.map(|of| of.0)) else { return };
-        if strand.is_quarantined() || !strand.steps_now() {
+        if strand.is_quarantined() || !strand.steps_now() || !on_this_grid(entity, strand_of) {
             return;
         }
         let rod = strand.rod();
@@ -391,8 +408,13 @@ fn hairs_on_the_grid(
     strand: &SimulatedStrand,
     represented: Option<&RepresentedHairs>,
     followers: Option<&HairFollowers>,
+    stepped_elsewhere: bool,
 ) -> f64 {
-    represented_hairs(represented, followers) * f64::from(strand.step_length())
+    // A strand stepped on the GPU is never stepped here (its step length would count the fixed steps since
+    // it left the CPU): it spans its level's interval, as the GPU steps it.
+    let span =
+        if stepped_elsewhere { strand.detail_level().step_interval().unwrap_or(1) } else { strand.step_length() };
+    represented_hairs(represented, followers) * f64::from(span)
 }
 
 /// How many hairs a strand stands for: its [`RepresentedHairs`], or itself and its followers.

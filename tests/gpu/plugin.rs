@@ -784,3 +784,92 @@ fn a_strand_stiffened_to_hold_stands_on_the_gpu_as_on_the_cpu() {
         assert!((g - c).abs() < PLUGIN_RMS_BOUND, "GPU tip {g} m up, CPU's {c} m");
     }
 }
+
+/// A head with strands on both sides meets on one grid, the CPU's: the groom's 64 guides on the GPU and
+/// eight strands too long for any device's GPU step (140 edges) on the CPU, laid out sideways from the
+/// crown to fall through the groom's hair for 20 steps. The GPU leaves the head off its own grid (its
+/// densest point 0); the CPU's grid takes the GPU's strands as last read back (a step late or none, as the
+/// read-back arrives) and sends them its response as forces. The groom's hair on the GPU moves the long
+/// strands as far as it does all on the CPU (within half; measured 9.7 to 10.2 mm against 10.0 mm, where
+/// with the two sides on grids of their own it would not move them at all), each strand counted once on
+/// the grid (its densest point 0.99 against the CPU's 0.85: a GPU strand counted for every fixed step since
+/// it left the CPU had it at 19.8), and the guides within the app's bound of the CPU's (8.7 mm). Where the
+/// long strands end is chaotic at this scale: 4.3 to 10.7 mm from the all-CPU run's over runs, with the
+/// read-back a step late or not.
+#[test]
+fn a_head_with_strands_on_both_sides_meets_on_one_grid() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    const STEPS: usize = 20;
+    let long_edges = bevy_hair_sim::gpu::MAX_WIDE_GPU_NODES + 10;
+    // (nodes of the long strands, of the guides; the CPU's and the GPU's densest volume fractions)
+    let run = |gpu: bool, with_groom: bool| {
+        let mut app = app(gpu);
+        let mut settings = HairSettings::styled();
+        // Unheld, so that the hair moves through itself.
+        settings.style_hold.rate = 0.0;
+        app.insert_resource(settings);
+        let groom = HairGroom { strand_count: if with_groom { 64 } else { 0 }, segments: 16, ..default() };
+        let (head, skull) = spawn_groom(&mut app, groom);
+        let long: Vec<Entity> = (0..8)
+            .map(|k| {
+                let angle = k as f32 * std::f32::consts::TAU / 8.0;
+                let root = Quat::from_rotation_y(angle) * Vec3::new(0.02, SKULL - 0.001, 0.0);
+                let strand = HairStrand::straight(root, Quat::from_rotation_y(angle) * Vec3::X, 0.25, long_edges);
+                app.world_mut().spawn((strand, StrandOf(head))).id()
+            })
+            .collect();
+        for number in 1..=STEPS {
+            step(&mut app, (head, skull), number);
+        }
+        app.world_mut().resource_mut::<HairPause>().paused = true;
+        // (Without the groom every strand is the CPU's: nothing to read back.)
+        if gpu && with_groom {
+            wait_for_read_back(&mut app);
+            let status = app.world().resource::<HairGpuStatus>().clone();
+            assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 64, 0), "{status:?}");
+        }
+        assert!(long.iter().all(|&strand| app.world().get::<SteppedElsewhere>(strand).is_none()));
+        let nodes = |strands: &[Entity]| -> Vec<Vec<Vec3>> {
+            strands.iter().map(|&s| app.world().get::<StrandNodes>(s).unwrap().positions.clone()).collect()
+        };
+        let guides: Vec<Entity> = app
+            .world()
+            .get::<HeadStrands>(head)
+            .unwrap()
+            .strands()
+            .iter()
+            .copied()
+            .filter(|strand| !long.contains(strand))
+            .collect();
+        let densest = (
+            app.world().resource::<HairStatistics>().max_volume_fraction,
+            app.world().get_resource::<HairGpuStatus>().map_or(0.0, |status| status.max_volume_fraction),
+        );
+        (nodes(&long), nodes(&guides), densest)
+    };
+    let (reference, cpu_guides, reference_densest) = run(false, true);
+    let (shared, gpu_guides, (cpu_densest, gpu_densest)) = run(true, true);
+    let (alone, _, _) = run(true, false);
+    // How far the groom's hair moved the long strands on the grid: on the CPU, and from the GPU on the
+    // shared grid (where it would not move them at all if the two sides did not meet).
+    let (effect, shared_effect) = (rms_apart(&reference, &alone), rms_apart(&shared, &alone));
+    let (apart, guides_apart) = (rms_apart(&shared, &reference), rms_apart(&gpu_guides, &cpu_guides));
+    println!(
+        "after {STEPS} steps: the groom's hair moved the long strands {effect:.2e} m RMS all on the CPU, {shared_effect:.2e} m from the GPU on the shared grid; the long strands {apart:.2e} m from the all-CPU run's, the guides {guides_apart:.2e} m from the CPU's; densest point on the CPU's grid {cpu_densest:.3} (all on the CPU {:.3}), on the GPU's {gpu_densest:.3}",
+        reference_densest.0
+    );
+    assert_eq!(gpu_densest, 0.0, "the head is off the GPU's grid");
+    // Each strand counted once, as the hairs it stands for (counted by the fixed steps since the CPU last
+    // stepped it, a GPU strand's grew step after step: 19.8 after 20 steps).
+    let reference_densest = reference_densest.0;
+    assert!(
+        (cpu_densest - reference_densest).abs() < 0.5 * reference_densest,
+        "the CPU's grid holds the hair: densest {cpu_densest}, all on the CPU {reference_densest}"
+    );
+    assert!(effect > 1e-3, "the groom's hair moves the long strands on the CPU: {effect} m");
+    assert!(
+        (shared_effect - effect).abs() <= 0.5 * effect,
+        "the GPU's hair moved the long strands {shared_effect} m on the shared grid, the CPU's {effect} m"
+    );
+    assert!(guides_apart < PLUGIN_RMS_BOUND, "the guides {guides_apart} m from the CPU's");
+}
