@@ -223,8 +223,7 @@ pub(crate) fn interact_through_grid(
     mut grids: ResMut<HairVolumeGrids>,
     mut statistics: ResMut<HairStatistics>,
     mut strands: Query<GridItem>,
-    elsewhere: Query<(), With<SteppedElsewhere>>,
-    mut heads_with_cpu_strands: Local<EntityHashSet>,
+    (elsewhere, mut heads_with_cpu_strands): (Query<(), With<SteppedElsewhere>>, Local<EntityHashSet>),
 ) {
     let dt = time.delta_secs_f64();
     // Invalid settings are reported once, by `check_settings`, and hold the hair until they are fixed.
