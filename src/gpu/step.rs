@@ -34,7 +34,7 @@ pub const MAX_GPU_NODES: usize = 65;
 pub const MAX_WIDE_GPU_NODES: usize = 129;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
-const STATE_ROWS: usize = 6;
+const STATE_ROWS: usize = 7;
 const HEAD_ROWS: usize = 6;
 const COLLIDER_ROWS: usize = 8;
 const STRAND_FLOATS: usize = 4;
@@ -148,9 +148,12 @@ pub enum GpuStepError {
         /// The strand's index in the input.
         strand: usize,
     },
-    /// Forces given to [`GpuStrandSolver::add_forces`] for a strand that is not uploaded, not one per node,
-    /// or not finite.
-    #[error("the forces for strand {strand} are not one finite force per node of an uploaded strand")]
+    /// Forces given to [`GpuStrandSolver::add_forces`] (or air velocities to
+    /// [`GpuStrandSolver::add_air_velocities`]) for a strand that is not uploaded, not one per node, or not
+    /// finite.
+    #[error(
+        "the forces (or air velocities) for strand {strand} are not one finite vector per node of an uploaded strand"
+    )]
     InvalidForces {
         /// The strand's index.
         strand: usize,
@@ -1072,14 +1075,39 @@ impl GpuStrandSolver {
     /// stepped, and are used up by it. Refuses a strand out of range, a wrong count or a force that is not
     /// finite (and writes nothing).
     pub fn add_forces(&mut self, queue: &wgpu::Queue, strand: usize, forces: &[DVec3]) -> Result<(), GpuStepError> {
+        self.write_node_row(queue, strand, 5, forces)
+    }
+
+    /// Adds `velocities` (m/s, one per node of `strand`) to the air's velocity at the strand's nodes in the
+    /// next step (the drag acts on the velocity relative to it, as `StrandForces::add_air_velocity` on the
+    /// CPU), besides the wind of [`GpuStrandSolver::set_air`]; used up by that step. Written with `queue`
+    /// before the step is submitted.
+    pub fn add_air_velocities(
+        &mut self,
+        queue: &wgpu::Queue,
+        strand: usize,
+        velocities: &[DVec3],
+    ) -> Result<(), GpuStepError> {
+        self.write_node_row(queue, strand, 6, velocities)
+    }
+
+    /// Writes one finite vector per node of `strand` into state row `row`, which the next step reads and
+    /// clears.
+    fn write_node_row(
+        &mut self,
+        queue: &wgpu::Queue,
+        strand: usize,
+        row: usize,
+        values: &[DVec3],
+    ) -> Result<(), GpuStepError> {
         let nodes = self.node_count(strand);
-        if nodes == 0 || forces.len() != nodes || !forces.iter().all(|force| force.is_finite()) {
+        if nodes == 0 || values.len() != nodes || !values.iter().all(|value| value.is_finite()) {
             return Err(GpuStepError::InvalidForces { strand });
         }
         self.force_rows.clear();
-        self.force_rows.extend(forces.iter().map(|&force| vec4(force, 0.0)));
-        let row = 5 * self.strands.total_nodes + self.strands.first_nodes[strand];
-        queue.write_buffer(&self.state, 16 * row as u64, bytemuck::cast_slice(&self.force_rows));
+        self.force_rows.extend(values.iter().map(|&value| vec4(value, 0.0)));
+        let at = row * self.strands.total_nodes + self.strands.first_nodes[strand];
+        queue.write_buffer(&self.state, 16 * at as u64, bytemuck::cast_slice(&self.force_rows));
         Ok(())
     }
 

@@ -86,7 +86,8 @@ const STRAND_FLOATS: u32 = 4u;
 // State rows per node: (position, θ of edge i), (velocity, θ̇), (position a step back, 0), (velocity a step
 // back, 0), (reference director of edge i, reference twist at vertex i), (force on the node from outside
 // the step, N: the game's (`GpuStrandSolver::add_forces`) and the hair–hair grid's pressure (added by
-// `respond` in `grid.wgsl`), 0 after the step reads it; 0).
+// `respond` in `grid.wgsl`), 0 after the step reads it; 0), (the air velocity a game adds at the node,
+// m/s (`GpuStrandSolver::add_air_velocities`), 0 after the step reads it; 0).
 // Per head, after the air's rows (`air_at`): (rotation at the step's end), (shift of the origin:
 // translation before − after, 0), (the head's own air velocity, 0), (first collider, colliders as bits, the
 // style hold's rate in 1/s and its reach), (rotation at the step's start), (translation at the step's end,
@@ -1842,8 +1843,9 @@ fn step(
             v_hat = v.xyz;
         }
         v_start = v.xyz;
-        node_air = air_at(x_start);
-        // Consumed: each step's forces are written for it.
+        // Consumed: each step's forces and added air velocities are written for it.
+        node_air = air_at(x_start) + state[state_index(node, 6u)].xyz;
+        state[state_index(node, 6u)] = vec4<f32>(0.0);
         node_force = state[state_index(node, 5u)].xyz;
         state[state_index(node, 5u)] = vec4<f32>(0.0);
         // The arc length of rest lengths from the root to this node.

@@ -79,10 +79,11 @@ use crate::wind::{HairWind, HairWindSource};
 /// with strands on both sides meets on the CPU's grid alone, its GPU strands splatted there as last read
 /// back (a step or two late: such a head is read back every step) and the grid's response sent to them as
 /// forces, the head left off the GPU's grid.
-/// A game's forces and velocity changes ([`StrandForces::add`], [`StrandForces::add_velocity_change`]) act
-/// on GPU strands in their next step, as on the CPU (a velocity change as the force `m Δv / h` the implicit
-/// step sees it as, exact but on a step that restarts BDF2); the air velocities a game adds there, and
-/// the followers' own collisions on the CPU, do not.
+/// A game's forces, velocity changes and air velocities ([`StrandForces::add`],
+/// [`StrandForces::add_velocity_change`], [`StrandForces::add_air_velocity`]) act on GPU strands in their
+/// next step, as on the CPU (a velocity change as the force `m Δv / h` the implicit step sees it as, exact
+/// but on a step that restarts BDF2; an air velocity added to the wind the GPU samples at the node); the
+/// followers' own collisions on the CPU do not.
 /// The style hold
 /// ([`HairSettings::style_hold`]) is: the same springs inside the GPU's solve, towards each strand's
 /// groomed pose carried with its head.
@@ -225,6 +226,9 @@ struct GpuStepOrder {
     /// The forces games added to strands stepped now ([`StrandForces`]): each strand's index and its
     /// nodes' forces, N.
     forces: Vec<(usize, Vec<DVec3>)>,
+    /// The air velocities games added to strands stepped now ([`StrandForces::add_air_velocity`]): each
+    /// strand's index and its nodes' air velocities, m/s.
+    air_velocities: Vec<(usize, Vec<DVec3>)>,
     /// Whether to read the state back after it (otherwise the status alone, every `STATUS_STEPS` steps).
     read_back: bool,
     /// Its number among the steps sent.
@@ -655,11 +659,34 @@ fn order_gpu_step(
     // The forces games added (`StrandForces`), for the strands stepped now; all are used up by this step,
     // as on the CPU. A force that is not finite is reported as the CPU reports it, and left out (the
     // strand steps on without it, where the CPU skips its step).
-    let mut forces = Vec::new();
+    let (mut forces, mut air_velocities) = (Vec::new(), Vec::new());
     for (entity, mut strand_forces, strand) in &mut strand_forces {
         let loads = (strand_forces.active_forces(), strand_forces.active_velocity_changes());
+        let stepped = queue
+            .strand_index
+            .get(&entity)
+            .filter(|&&(_, head)| matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_))));
+        // The air velocities a game added: with the wind the GPU samples at each node. One that is not
+        // finite is reported as the CPU reports it, and the strand's are left out.
+        if let (Some(air), Some(&(index, _))) = (strand_forces.active_air_velocities(), stepped) {
+            match air.iter().position(|velocity| !velocity.is_finite()) {
+                None => air_velocities.push((index, air.to_vec())),
+                Some(node) => {
+                    let error = StepError::InvalidInput(RodError::NonFiniteAirVelocity { node, velocity: air[node] });
+                    if fault_log.admit(true, false) {
+                        warn!(
+                            "hair strand {entity} failed a step on the GPU, its air velocities were left out: {error}"
+                        );
+                    }
+                    status.faults += 1;
+                    let fault = StrandFault { strand: entity, error };
+                    commands.trigger(fault.clone());
+                    faults.write(fault);
+                }
+            }
+        }
         if loads != (None, None)
-            && let Some(&(index, head)) = queue.strand_index.get(&entity)
+            && let Some(&(index, head)) = stepped
             && let Some(GpuHairCadence::Step(span)) = steps.get(head).map(|step| step.cadence)
         {
             // A velocity change `Δv` at the step's start is, to the implicit step, the force `m Δv / h` (the
@@ -699,7 +726,16 @@ fn order_gpu_step(
         strand_forces.clear();
     }
     fault_log.summarise(now);
-    queue.steps.push(GpuStepOrder { params, heads: steps, air, volume, forces, read_back, step: queue.steps_sent });
+    queue.steps.push(GpuStepOrder {
+        params,
+        heads: steps,
+        air,
+        volume,
+        forces,
+        air_velocities,
+        read_back,
+        step: queue.steps_sent,
+    });
 }
 
 /// Writes the read-backs that arrived into the strands' rods and components, and reports the faults the
@@ -913,6 +949,11 @@ fn step_on_gpu(mut render: ResMut<GpuHairRender>, device: Res<RenderDevice>, que
             }
             for (strand, forces) in &order.forces {
                 if let Err(error) = solver.add_forces(queue, *strand, forces) {
+                    send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
+                }
+            }
+            for (strand, velocities) in &order.air_velocities {
+                if let Err(error) = solver.add_air_velocities(queue, *strand, velocities) {
                     send(&render.sender, GpuMessage::Error(gpu_step_error(&error)));
                 }
             }

@@ -794,6 +794,12 @@ impl StrandForces {
         self.velocity_changes.active()
     }
 
+    /// The air velocities added since the last step (m/s), if any: for a step elsewhere (the GPU's).
+    #[cfg(feature = "gpu")]
+    pub(crate) fn active_air_velocities(&self) -> Option<&[DVec3]> {
+        self.air_velocities.active()
+    }
+
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
     pub(crate) fn add_air_velocities(&mut self, mut velocity_at: impl FnMut(usize) -> DVec3) {
         for (node, slot) in self.air_velocities.values.iter_mut().enumerate() {

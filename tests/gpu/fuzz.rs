@@ -209,10 +209,11 @@ fn the_gpu_step_fed_at_random_stays_finite_and_rooted() {
 /// six seeded scenarios of one or two heads with grooms of every style (followers, combing, preload),
 /// colliders of every shape moving and jumping, heads that move, turn, jump a few metres or lose their
 /// scale, levels of detail changing, the hair–hair grid on, off and with a cell of 0 (invalid settings),
-/// wind, and forces added to strands now and then, some not finite. The components are read back after
+/// wind, and forces and air velocities added to strands now and then, some not finite. The components are read back after
 /// every step. Whatever happens: every strand's nodes and frames stay finite, the GPU keeps stepping
 /// (no error), each fault is reported (a `StrandFault`), no strand fails more than three read-backs
-/// running (after which it is handed to the CPU), and non-finite forces are reported, not applied. (The
+/// running (after which it is handed to the CPU), and non-finite forces and air velocities are reported,
+/// not applied. (The
 /// inputs are seeded; when a read-back arrives is not, so the faults counted vary a little from run to run.)
 #[test]
 fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
@@ -221,7 +222,8 @@ fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
     use bevy_hair_sim::prelude::*;
     use bevy_hair_sim::simulation::{SimulatedStrand, SteppedElsewhere, StrandFault, StrandForces};
     let _renderer = hair_sim_support::renderer::one_at_a_time();
-    let (mut faults_seen, mut forces_rejected, mut on_gpu_steps) = (0_usize, 0_usize, 0_usize);
+    let (mut faults_seen, mut forces_rejected, mut air_rejected, mut on_gpu_steps) =
+        (0_usize, 0_usize, 0_usize, 0_usize);
     let mut kinds: std::collections::BTreeMap<String, usize> = Default::default();
     for seed in 0..6_u64 {
         let mut rng = fastrand::Rng::with_seed(seed);
@@ -322,6 +324,10 @@ fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
                     forces.add_to_all(Vec3::new(rng.f32() - 0.5, 0.0, rng.f32() - 0.5) * 1e-5);
                 } else if event < 0.06 {
                     forces.add_to_all(Vec3::new(1e6, f32::NAN, 0.0));
+                } else if event < 0.1 {
+                    forces.add_air_velocity_to_all(Vec3::new(rng.f32() - 0.5, 0.0, rng.f32() - 0.5) * 4.0);
+                } else if event < 0.11 {
+                    forces.add_air_velocity_to_all(Vec3::new(f32::INFINITY, 0.0, 0.0));
                 }
             }
             app.update();
@@ -331,6 +337,7 @@ fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
                 faults_seen += 1;
                 let kind = format!("{:?}", fault.error);
                 forces_rejected += usize::from(kind.contains("NonFiniteForce"));
+                air_rejected += usize::from(kind.contains("NonFiniteAirVelocity"));
                 *kinds.entry(kind.split([' ', '(', '{']).next().unwrap_or_default().to_string()).or_default() += 1;
                 let run = runs.entry(fault.strand).or_default();
                 *run += 1;
@@ -348,7 +355,8 @@ fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
         }
     }
     println!(
-        "{on_gpu_steps} strand-updates on the GPU, {faults_seen} faults reported ({kinds:?}), {forces_rejected} of them forces that were not finite"
+        "{on_gpu_steps} strand-updates on the GPU, {faults_seen} faults reported ({kinds:?}), {forces_rejected} of them forces that were not finite, {air_rejected} air velocities"
     );
     assert!(on_gpu_steps > 1000 && forces_rejected > 0, "the scenarios reach the GPU and the bad forces");
+    assert!(air_rejected > 0, "the scenarios reach the bad air velocities");
 }
