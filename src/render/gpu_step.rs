@@ -283,6 +283,8 @@ struct GpuStepQueue {
     components_read: bool,
     /// Per head of `heads`: whether it has strands on the CPU too (its hair meets on the CPU's grid).
     mixed_heads: Vec<bool>,
+    /// The strands that came to the GPU at this fixed step (empty at the others).
+    arrived: EntityHashSet,
 }
 
 /// What the render world sends back.
@@ -405,6 +407,7 @@ fn choose_gpu_strands(
     grid_hairs: Query<(Option<&RepresentedHairs>, Option<&HairFollowers>)>,
 ) {
     let queue = &mut *queue;
+    queue.arrived.clear();
     queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
     queue.dirty |= removed.read().count() > 0;
     if !queue.dirty {
@@ -548,6 +551,7 @@ fn choose_gpu_strands(
         match (wanted, marked) {
             (true, false) => {
                 commands.entity(entity).insert(SteppedElsewhere);
+                queue.arrived.insert(entity);
             }
             (false, true) => {
                 commands.entity(entity).remove::<SteppedElsewhere>();
@@ -668,7 +672,10 @@ fn order_gpu_step(
             .filter(|&&(_, head)| matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_))));
         // The air velocities a game added: with the wind the GPU samples at each node. One that is not
         // finite is reported as the CPU reports it, and the strand's are left out.
-        if let (Some(air), Some(&(index, _))) = (strand_forces.active_air_velocities(), stepped) {
+        // (A strand that came to the GPU at this step has the CPU's wind sampled into its air velocities,
+        // for a CPU step it does not take: the GPU samples the wind itself, and they are left out.)
+        let air = strand_forces.active_air_velocities().filter(|_| !queue.arrived.contains(&entity));
+        if let (Some(air), Some(&(index, _))) = (air, stepped) {
             match air.iter().position(|velocity| !velocity.is_finite()) {
                 None => air_velocities.push((index, air.to_vec())),
                 Some(node) => {

@@ -875,20 +875,27 @@ fn a_head_with_strands_on_both_sides_meets_on_one_grid() {
 }
 
 /// The air velocities a game adds (`StrandForces::add_air_velocity`, added to the wind's each step) act on
-/// the GPU's strands as on the CPU's: a 2 m/s draught from the front at every node, over the first 10 steps
-/// of the groom falling onto the shaking skull in the app's wind, moves the GPU's hair as far as the CPU's
-/// (within a quarter), and the two paths part by no more than a tenth of that beyond what they part
-/// without it. (Before the GPU took them, it ignored them: the GPU's hair did not move at all.)
+/// the GPU's strands as on the CPU's: a 2 m/s draught from the front at every node from the sixth of 15
+/// steps of the groom falling onto the shaking skull in the app's wind moves the GPU's hair as far as the
+/// CPU's (within a quarter; measured 3.41 and 3.47 cm), and the two paths part by no more than a tenth of
+/// that beyond what they part without it (8.1 mm against 5.8). Before the GPU took them, it ignored them.
 #[test]
 fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
-    fn draught(mut strands: Query<&mut StrandForces>) {
+    // From the sixth fixed step, when the GPU's strands have been there for some steps (at the step a
+    // strand comes to the GPU, the air velocities added to it are left out: they hold the CPU's sample of
+    // the wind, which the GPU takes itself).
+    fn draught(mut strands: Query<&mut StrandForces>, mut steps: Local<u32>) {
+        *steps += 1;
+        if *steps <= 5 {
+            return;
+        }
         for mut forces in &mut strands {
             forces.add_air_velocity_to_all(Vec3::new(0.0, 0.0, 2.0));
         }
     }
     let run = |gpu: bool, air: bool| {
-        guides_after(gpu, 10, |app| {
+        guides_after(gpu, 15, |app| {
             if air {
                 app.add_systems(FixedUpdate, draught.in_set(HairSystems::ExternalForces));
             }
@@ -900,7 +907,7 @@ fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
     let (with, without) = (rms_apart(&gpu_blown, &cpu_blown), rms_apart(&gpu_still, &cpu_still));
     let (effect, gpu_effect) = (rms_apart(&cpu_blown, &cpu_still), rms_apart(&gpu_blown, &gpu_still));
     println!(
-        "10 steps: GPU − CPU {with:.2e} m RMS with the draught, {without:.2e} m without; the draught moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
+        "15 steps: GPU − CPU {with:.2e} m RMS with the draught, {without:.2e} m without; the draught moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
     );
     assert!(effect > 1e-3, "the draught moves the hair: {effect} m");
     assert!(
