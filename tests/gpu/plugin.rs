@@ -152,6 +152,36 @@ fn guides_after(gpu: bool, steps: usize, prepare: impl FnOnce(&mut App) -> (Enti
     guide_nodes(&app, head.0)
 }
 
+/// How a game's loads (`loads`, a system adding to `StrandForces` each fixed step) move the 64-guide head's
+/// hair over `steps` steps of shaking on the GPU and on the CPU ([`guides_after`], four runs).
+struct LoadEffects {
+    /// RMS distance between the GPU's and the CPU's guides with the loads and without, m.
+    with: f32,
+    without: f32,
+    /// RMS distance the loads moved the CPU's hair and the GPU's, m.
+    effect: f32,
+    gpu_effect: f32,
+}
+
+fn load_effects<M>(steps: usize, loads: impl IntoSystem<(), (), M> + Copy) -> LoadEffects {
+    let run = |gpu: bool, loaded: bool| {
+        guides_after(gpu, steps, |app| {
+            if loaded {
+                app.add_systems(FixedUpdate, loads.in_set(HairSystems::ExternalForces));
+            }
+            spawn_head(app)
+        })
+    };
+    let (gpu_loaded, cpu_loaded) = (run(true, true), run(false, true));
+    let (gpu_free, cpu_free) = (run(true, false), run(false, false));
+    LoadEffects {
+        with: rms_apart(&gpu_loaded, &cpu_loaded),
+        without: rms_apart(&gpu_free, &cpu_free),
+        effect: rms_apart(&cpu_loaded, &cpu_free),
+        gpu_effect: rms_apart(&gpu_loaded, &gpu_free),
+    }
+}
+
 #[test]
 fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
@@ -483,18 +513,7 @@ fn a_games_forces_and_velocity_changes_act_on_the_gpu_as_on_the_cpu() {
             forces.add_velocity_change(tip, Vec3::new(0.02, 0.0, 0.0)).unwrap();
         }
     }
-    let run = |gpu: bool, loads: bool| {
-        guides_after(gpu, 10, |app| {
-            if loads {
-                app.add_systems(FixedUpdate, push.in_set(HairSystems::ExternalForces));
-            }
-            spawn_head(app)
-        })
-    };
-    let (gpu_loaded, cpu_loaded) = (run(true, true), run(false, true));
-    let (gpu_free, cpu_free) = (run(true, false), run(false, false));
-    let (with, without) = (rms_apart(&gpu_loaded, &cpu_loaded), rms_apart(&gpu_free, &cpu_free));
-    let (effect, gpu_effect) = (rms_apart(&cpu_loaded, &cpu_free), rms_apart(&gpu_loaded, &gpu_free));
+    let LoadEffects { with, without, effect, gpu_effect } = load_effects(10, push);
     println!(
         "10 steps: GPU − CPU {with:.2e} m RMS with the loads, {without:.2e} m without; the loads moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
     );
@@ -894,18 +913,7 @@ fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
             forces.add_air_velocity_to_all(Vec3::new(0.0, 0.0, 2.0));
         }
     }
-    let run = |gpu: bool, air: bool| {
-        guides_after(gpu, 15, |app| {
-            if air {
-                app.add_systems(FixedUpdate, draught.in_set(HairSystems::ExternalForces));
-            }
-            spawn_head(app)
-        })
-    };
-    let (gpu_blown, cpu_blown) = (run(true, true), run(false, true));
-    let (gpu_still, cpu_still) = (run(true, false), run(false, false));
-    let (with, without) = (rms_apart(&gpu_blown, &cpu_blown), rms_apart(&gpu_still, &cpu_still));
-    let (effect, gpu_effect) = (rms_apart(&cpu_blown, &cpu_still), rms_apart(&gpu_blown, &gpu_still));
+    let LoadEffects { with, without, effect, gpu_effect } = load_effects(15, draught);
     println!(
         "15 steps: GPU − CPU {with:.2e} m RMS with the draught, {without:.2e} m without; the draught moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
     );
