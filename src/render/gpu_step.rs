@@ -319,7 +319,7 @@ impl Plugin for HairGpuPlugin {
             .register_type::<HairGpuStatus>()
             .init_resource::<HairGpuSettings>()
             .init_resource::<HairGpuStatus>()
-            .init_resource::<GpuStepQueue>()
+            .insert_resource(GpuStepQueue { max_nodes: MAX_GPU_NODES, ..default() })
             .init_resource::<GpuStepCount>()
             .init_resource::<GpuSystemsClock>()
             .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
@@ -432,7 +432,7 @@ fn choose_gpu_strands(
                 // it was uploaded in, so that must be one a step can start from).
                 queue.dirty = true;
             } else if rooted
-                && (3..=queue.max_nodes.max(MAX_GPU_NODES)).contains(&nodes)
+                && (3..=queue.max_nodes).contains(&nodes)
                 && !strand.is_quarantined()
                 && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
                 && !queue.handed_back.contains(&entity)

@@ -154,6 +154,7 @@ fn guides_after(gpu: bool, steps: usize, prepare: impl FnOnce(&mut App) -> (Enti
 
 /// How a game's loads (`loads`, a system adding to `StrandForces` each fixed step) move the 64-guide head's
 /// hair over `steps` steps of shaking on the GPU and on the CPU ([`guides_after`], four runs).
+#[derive(Clone, Copy)]
 struct LoadEffects {
     /// RMS distance between the GPU's and the CPU's guides with the loads and without, m.
     with: f32,
@@ -161,6 +162,23 @@ struct LoadEffects {
     /// RMS distance the loads moved the CPU's hair and the GPU's, m.
     effect: f32,
     gpu_effect: f32,
+}
+
+impl LoadEffects {
+    /// Asserts that the loads (`what`) move the hair, the GPU's as far as the CPU's (within a quarter),
+    /// and that the two paths part by no more than a tenth of that beyond what they part without them.
+    fn assert_alike(&self, what: &str) {
+        let Self { with, without, effect, gpu_effect } = *self;
+        println!(
+            "GPU − CPU {with:.2e} m RMS with {what}, {without:.2e} m without; {what} moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
+        );
+        assert!(effect > 1e-3, "{what} move the hair: {effect} m");
+        assert!(
+            (gpu_effect - effect).abs() <= 0.25 * effect,
+            "{what} move the GPU's hair {gpu_effect} m, the CPU's {effect} m"
+        );
+        assert!(with <= without + 0.1 * effect, "{what} add {with} m to the paths' {without} m");
+    }
 }
 
 fn load_effects<M>(steps: usize, loads: impl IntoSystem<(), (), M> + Copy) -> LoadEffects {
@@ -513,16 +531,7 @@ fn a_games_forces_and_velocity_changes_act_on_the_gpu_as_on_the_cpu() {
             forces.add_velocity_change(tip, Vec3::new(0.02, 0.0, 0.0)).unwrap();
         }
     }
-    let LoadEffects { with, without, effect, gpu_effect } = load_effects(10, push);
-    println!(
-        "10 steps: GPU − CPU {with:.2e} m RMS with the loads, {without:.2e} m without; the loads moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
-    );
-    assert!(effect > 1e-3, "the loads move the hair: {effect} m");
-    assert!(
-        (gpu_effect - effect).abs() <= 0.25 * effect,
-        "the loads move the GPU's hair {gpu_effect} m, the CPU's {effect} m"
-    );
-    assert!(with <= without + 0.1 * effect, "the loads add {with} m to the paths' {without} m");
+    load_effects(10, push).assert_alike("the loads");
 }
 
 /// The grid's settings invalid (a cell of 0) when the strands are uploaded: the GPU turned off, the
@@ -913,14 +922,5 @@ fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
             forces.add_air_velocity_to_all(Vec3::new(0.0, 0.0, 2.0));
         }
     }
-    let LoadEffects { with, without, effect, gpu_effect } = load_effects(15, draught);
-    println!(
-        "15 steps: GPU − CPU {with:.2e} m RMS with the draught, {without:.2e} m without; the draught moved the CPU's hair {effect:.2e} m, the GPU's {gpu_effect:.2e} m"
-    );
-    assert!(effect > 1e-3, "the draught moves the hair: {effect} m");
-    assert!(
-        (gpu_effect - effect).abs() <= 0.25 * effect,
-        "the draught moves the GPU's hair {gpu_effect} m, the CPU's {effect} m"
-    );
-    assert!(with <= without + 0.1 * effect, "the draught adds {with} m to the paths' {without} m");
+    load_effects(15, draught).assert_alike("the draught");
 }
