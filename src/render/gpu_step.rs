@@ -116,7 +116,8 @@ use crate::wind::{HairWind, HairWindSource};
 /// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
 /// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
 /// strands go on. A strand that fails in three read-backs running (the pose it is reset to fails again) is
-/// handed back to the CPU for good, where its faults are held, retried and quarantined as any strand's.
+/// handed back to the CPU for good, in quarantine there (held at its rest pose, retried later), as a strand
+/// of the CPU's that fails again soon after a failure; the read-backs still on their way say nothing more.
 /// A strand that cannot be put outside its colliders with its lengths kept keeps its
 /// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
 ///
@@ -791,7 +792,7 @@ fn apply_read_backs(
         let mut states = *states;
         for (index, &entity) in entities.iter().enumerate() {
             // The state, where it was read back (the status alone, 16 bytes a strand, touches no component).
-            if full {
+            if full && !queue.handed_back.contains(&entity) {
                 let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
                 if let Some(snapshot) = states.take_snapshot(index)
                     && strand.rod_mut().restore(&snapshot).is_ok()
@@ -802,13 +803,14 @@ fn apply_read_backs(
                 }
             }
             let report = states.status[index];
-            if report.faults <= queue.faults[index] {
+            // A strand already handed back is leaving the GPU: read-backs of steps sent before the new upload
+            // say nothing the CPU's quarantine has not taken over.
+            if report.faults <= queue.faults[index] || queue.handed_back.contains(&entity) {
+                queue.faults[index] = queue.faults[index].max(report.faults);
                 queue.fault_streaks[index] = 0;
                 continue;
             }
-            if !strands.contains(entity) {
-                continue;
-            }
+            let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
             queue.faults[index] = report.faults;
             queue.fault_streaks[index] += 1;
             status.faults += 1;
@@ -817,17 +819,25 @@ fn apply_read_backs(
             let error = step_error(&report, bound);
             let streak = queue.fault_streaks[index];
             let handed_back = streak >= GPU_FAULT_STREAK;
-            if fault_log.admit(streak == 1 || handed_back, false) {
-                let consequence = if handed_back {
-                    "it failed every read-back since it was reset on the GPU and is stepped on the CPU from now on"
-                } else {
-                    "it was reset to its rest pose"
-                };
-                warn!("hair strand {entity} failed a step on the GPU, {consequence}: {error}");
-            }
-            if handed_back {
+            let quarantine = if handed_back {
+                // It failed again at once after each reset: the CPU takes it in quarantine, as it does a strand
+                // of its own that fails again soon after a failure.
                 queue.handed_back.insert(entity);
                 queue.dirty = true;
+                let seconds = strand.take_back_in_quarantine(now);
+                write_strand_data(&mut strand, &mut nodes, &mut frames);
+                Some(seconds)
+            } else {
+                None
+            };
+            if fault_log.admit(streak == 1 || handed_back, quarantine.is_some()) {
+                let consequence = match quarantine {
+                    Some(seconds) => format!(
+                        "it failed every read-back since it was reset on the GPU, is stepped on the CPU from now on, and is quarantined there for {seconds} s"
+                    ),
+                    None => "it was reset to its rest pose".to_string(),
+                };
+                warn!("hair strand {entity} failed a step on the GPU, {consequence}: {error}");
             }
             let fault = StrandFault { strand: entity, error };
             commands.trigger(fault.clone());
@@ -1072,7 +1082,7 @@ mod tests {
             queue.fault_streaks = vec![0];
         }
         let indefinite = Some(GpuFault::NotPositiveDefinite);
-        let mut read_back = |step: u64, faults: u32| {
+        let read_back = |app: &mut App, step: u64, faults: u32| {
             let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
             // No positions: nothing to restore, only the report.
             let states = GpuStrandStates { status: vec![report], ..default() };
@@ -1084,12 +1094,18 @@ mod tests {
             (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))
         };
         // Failing, then not (the same count), then failing twice: never three read-backs running.
-        assert_eq!(read_back(1, 1), (1, false));
-        assert_eq!(read_back(2, 1), (0, false));
-        assert_eq!(read_back(3, 2), (1, false));
-        assert_eq!(read_back(4, 3), (1, false));
+        assert_eq!(read_back(&mut app, 1, 1), (1, false));
+        assert_eq!(read_back(&mut app, 2, 1), (0, false));
+        assert_eq!(read_back(&mut app, 3, 2), (1, false));
+        assert_eq!(read_back(&mut app, 4, 3), (1, false));
         // The third running: handed back (`choose_gpu_strands` leaves it out from now on).
-        assert_eq!(read_back(5, 5), (1, true));
+        assert_eq!(read_back(&mut app, 5, 5), (1, true));
+        assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
+        // Held in quarantine on the CPU; the read-backs of steps sent before it left the GPU say nothing more.
+        let health = app.world().get::<SimulatedStrand>(strand).unwrap().health();
+        assert!(health.quarantined_until.is_some_and(|until| until > 0.0), "{health:?}");
+        assert_eq!(read_back(&mut app, 6, 6), (0, true));
+        assert_eq!(read_back(&mut app, 7, 7), (0, true));
         assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
     }
 }

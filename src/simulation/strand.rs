@@ -198,6 +198,17 @@ pub struct StrandHealth {
     pub quarantined_until: Option<f64>,
 }
 
+impl StrandHealth {
+    /// Starts the episode's next quarantine at `now` (s), each twice the last up to [`MAX_QUARANTINE`];
+    /// returns its length, s.
+    fn quarantine(&mut self, now: f64) -> f64 {
+        let seconds = (FIRST_QUARANTINE * 2f64.powi(self.quarantines_in_episode as i32)).min(MAX_QUARANTINE);
+        self.quarantines_in_episode += 1;
+        self.quarantined_until = Some(now + seconds);
+        seconds
+    }
+}
+
 /// What a strand's step needs from its start to its end ([`SimulatedStrand::begin_advance`]): the
 /// head pose the step brings the rod to, and whether this is the retry after a quarantine.
 #[derive(Debug, Clone, Copy)]
@@ -614,6 +625,19 @@ impl SimulatedStrand {
         Some(self.fail(StepError::UnusableState { node, reason }, now, false))
     }
 
+    /// Takes back a strand that failed read-back after read-back on the GPU (each fault there resets it, and
+    /// its reset pose failed again): held in quarantine at its rest pose, as a strand of the CPU's own that
+    /// fails again soon after a failure, so that it is retried once, later, and not failed again at once.
+    /// Returns the quarantine's length, s.
+    pub(crate) fn take_back_in_quarantine(&mut self, now: f64) -> f64 {
+        let health = &mut self.health;
+        health.faults_in_episode = health.faults_in_episode.max(1);
+        health.last_fault = now;
+        let seconds = health.quarantine(now);
+        self.reset_to_rest();
+        seconds
+    }
+
     /// Records a fault at `now` (s): starts or continues the episode, quarantines the strand if it failed
     /// again soon (or on a retry after quarantine, `retried`), and puts it back in its rest pose unless
     /// the step was only skipped for invalid input.
@@ -623,12 +647,7 @@ impl SimulatedStrand {
         let again = retried || (!first_of_episode && now - health.last_fault <= QUARANTINE_WINDOW);
         health.faults_in_episode += 1;
         health.last_fault = now;
-        let quarantine = again.then(|| {
-            let seconds = (FIRST_QUARANTINE * 2f64.powi(health.quarantines_in_episode as i32)).min(MAX_QUARANTINE);
-            health.quarantines_in_episode += 1;
-            health.quarantined_until = Some(now + seconds);
-            seconds
-        });
+        let quarantine = again.then(|| health.quarantine(now));
         if quarantine.is_some() || !matches!(error, StepError::InvalidInput(_)) {
             self.reset_to_rest();
         }

@@ -212,7 +212,7 @@ fn the_gpu_step_fed_at_random_stays_finite_and_rooted() {
 /// wind, and forces and air velocities added to strands now and then, some not finite. The components are read back after
 /// every step. Whatever happens: every strand's nodes and frames stay finite, the GPU keeps stepping
 /// (no error), each fault is reported (a `StrandFault`), no strand fails more than three read-backs
-/// running (after which it is handed to the CPU), and non-finite forces and air velocities are reported,
+/// running (after which it is handed to the CPU, in quarantine), and non-finite forces and air velocities are reported,
 /// not applied. (The
 /// inputs are seeded; when a read-back arrives is not, so the faults counted vary a little from run to run.)
 #[test]
@@ -332,16 +332,29 @@ fn the_plugin_on_the_gpu_fed_at_random_stays_finite() {
             }
             app.update();
             let faults: Vec<StrandFault> = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().collect();
-            runs.retain(|strand, _| faults.iter().any(|fault| fault.strand == *strand));
+            // A game's bad input is refused each time it is sent; failed steps make the runs.
+            let refused_input = |fault: &StrandFault| {
+                let kind = format!("{:?}", fault.error);
+                kind.contains("NonFiniteForce") || kind.contains("NonFiniteAirVelocity")
+            };
+            runs.retain(|strand, _| faults.iter().any(|fault| fault.strand == *strand && !refused_input(fault)));
             for fault in &faults {
                 faults_seen += 1;
                 let kind = format!("{:?}", fault.error);
                 forces_rejected += usize::from(kind.contains("NonFiniteForce"));
                 air_rejected += usize::from(kind.contains("NonFiniteAirVelocity"));
                 *kinds.entry(kind.split([' ', '(', '{']).next().unwrap_or_default().to_string()).or_default() += 1;
+                if refused_input(fault) {
+                    continue;
+                }
                 let run = runs.entry(fault.strand).or_default();
                 *run += 1;
-                assert!(*run <= 4, "seed {seed}: strand {} failed {run} updates running", fault.strand);
+                assert!(
+                    *run <= 3,
+                    "seed {seed}: strand {} failed {run} updates running, the last {:?}",
+                    fault.strand,
+                    fault.error
+                );
             }
             let mut strands = app.world_mut().query::<(Entity, &SimulatedStrand, &StrandNodes, &StrandFrames)>();
             for (entity, strand, nodes, frames) in strands.iter(app.world()) {
