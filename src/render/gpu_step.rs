@@ -26,8 +26,8 @@ use crate::gpu::{
 use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
 use crate::schedule::HairStepSystems;
 use crate::simulation::{
-    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, SimulatedStrand,
-    SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
+    CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, QUARANTINE_WINDOW,
+    SimulatedStrand, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
     write_strand_data,
 };
 use crate::volume::{RepresentedHairs, groomed_fractions as groomed_fractions_of, represented_hairs};
@@ -115,8 +115,8 @@ use crate::wind::{HairWind, HairWindSource};
 /// **Faults** found on the GPU (a non-finite value, an edge strained past the bound, a system that does not
 /// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
 /// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
-/// strands go on. A strand that fails in three read-backs running (the pose it is reset to fails again) is
-/// handed back to the CPU for good, in quarantine there (held at its rest pose, retried later), as a strand
+/// strands go on. A strand that fails three times, each read back within [`QUARANTINE_WINDOW`] of the one
+/// before (the pose it is reset to fails again soon), is handed back to the CPU for good, in quarantine there (held at its rest pose, retried later), as a strand
 /// of the CPU's that fails again soon after a failure; the read-backs still on their way say nothing more.
 /// A strand that cannot be put outside its colliders with its lengths kept keeps its
 /// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
@@ -256,10 +256,11 @@ struct GpuStepQueue {
     heads_stepped: Vec<u64>,
     /// The strands' work counters summed, as last read back from this upload (`None` before).
     work: Option<GpuStrandWork>,
-    /// Faults each strand has had on the GPU, as last read back, and in how many read-backs running.
+    /// Faults each strand has had on the GPU, as last read back; and its streak: how many of them came each
+    /// within [`QUARANTINE_WINDOW`] of the one before, and when the last was read back (s).
     faults: Vec<u32>,
-    fault_streaks: Vec<u32>,
-    /// Strands that failed [`GPU_FAULT_STREAK`] read-backs running: stepped on the CPU from then on.
+    fault_streaks: Vec<(u32, f64)>,
+    /// Strands that failed [`GPU_FAULT_STREAK`] times in a streak: stepped on the CPU from then on.
     handed_back: EntityHashSet,
     /// Bumped at each upload (the renderer lays its heads out again).
     generation: u32,
@@ -540,7 +541,7 @@ fn choose_gpu_strands(
     queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
     queue.heads_stepped = vec![queue.steps_sent; queue.heads.len()];
     queue.faults = vec![0; on_gpu.len()];
-    queue.fault_streaks = vec![0; on_gpu.len()];
+    queue.fault_streaks = vec![(0, 0.0); on_gpu.len()];
     queue.read_back_step = None;
     queue.steps.clear();
     queue.generation = queue.generation.wrapping_add(1);
@@ -807,17 +808,18 @@ fn apply_read_backs(
             // say nothing the CPU's quarantine has not taken over.
             if report.faults <= queue.faults[index] || queue.handed_back.contains(&entity) {
                 queue.faults[index] = queue.faults[index].max(report.faults);
-                queue.fault_streaks[index] = 0;
                 continue;
             }
             let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
             queue.faults[index] = report.faults;
-            queue.fault_streaks[index] += 1;
+            let (streak, last) = &mut queue.fault_streaks[index];
+            *streak = if *streak > 0 && now - *last <= QUARANTINE_WINDOW { *streak + 1 } else { 1 };
+            *last = now;
+            let streak = *streak;
             status.faults += 1;
             statistics.faults += 1;
             let bound = checked.params.as_ref().map_or(0.0, StepParams::strain_bound);
             let error = step_error(&report, bound);
-            let streak = queue.fault_streaks[index];
             let handed_back = streak >= GPU_FAULT_STREAK;
             let quarantine = if handed_back {
                 // It failed again at once after each reset: the CPU takes it in quarantine, as it does a strand
@@ -833,7 +835,7 @@ fn apply_read_backs(
             if fault_log.admit(streak == 1 || handed_back, quarantine.is_some()) {
                 let consequence = match quarantine {
                     Some(seconds) => format!(
-                        "it failed every read-back since it was reset on the GPU, is stepped on the CPU from now on, and is quarantined there for {seconds} s"
+                        "it failed again soon after each reset on the GPU, is stepped on the CPU from now on, and is quarantined there for {seconds} s"
                     ),
                     None => "it was reset to its rest pose".to_string(),
                 };
@@ -873,9 +875,9 @@ const STATUS_STEPS: u64 = 4;
 /// the components as they are): a GPU that stopped answering does not hold the hair's changes forever.
 const UPLOAD_WAIT_STEPS: u64 = 30;
 
-/// Read-backs running in which a strand failed on the GPU after which it is handed back to the CPU for
-/// good: the pose it is reset to on the GPU fails again, and the CPU's fault handling (held, retried,
-/// quarantined) takes over.
+/// Faults on the GPU, each read back within [`QUARANTINE_WINDOW`] of the one before, after which a strand is
+/// handed back to the CPU for good: the pose it is reset to on the GPU fails again soon, and the CPU's fault
+/// handling (quarantined, retried) takes over.
 const GPU_FAULT_STREAK: u32 = 3;
 
 /// The CPU's name for the last fault the GPU found on a strand (`strain_bound`: the step's, without the
@@ -1057,7 +1059,7 @@ mod tests {
     }
 
     #[test]
-    fn a_strand_failing_read_back_after_read_back_is_handed_back_to_the_cpu() {
+    fn a_strand_failing_again_soon_on_the_gpu_is_handed_back_to_the_cpu_in_quarantine() {
         use bevy::ecs::system::RunSystemOnce;
         // The main world's half alone (no renderer): read-backs arrive through a channel the test holds.
         let mut app = App::new();
@@ -1079,7 +1081,7 @@ mod tests {
             let mut queue = app.world_mut().resource_mut::<GpuStepQueue>();
             queue.strands = strands.clone();
             queue.faults = vec![0];
-            queue.fault_streaks = vec![0];
+            queue.fault_streaks = vec![(0, 0.0)];
         }
         let indefinite = Some(GpuFault::NotPositiveDefinite);
         let read_back = |app: &mut App, step: u64, faults: u32| {
@@ -1093,19 +1095,29 @@ mod tests {
             let messages = app.world_mut().resource_mut::<Messages<StrandFault>>().drain().count();
             (messages, app.world().resource::<GpuStepQueue>().handed_back.contains(&strand))
         };
-        // Failing, then not (the same count), then failing twice: never three read-backs running.
+        let wait = |app: &mut App, seconds: f64| {
+            app.world_mut().resource_mut::<Time>().advance_by(std::time::Duration::from_secs_f64(seconds));
+        };
+        // Failing, then not (the same count); failing again after the window: a new streak.
         assert_eq!(read_back(&mut app, 1, 1), (1, false));
         assert_eq!(read_back(&mut app, 2, 1), (0, false));
+        wait(&mut app, 1.5 * QUARANTINE_WINDOW);
         assert_eq!(read_back(&mut app, 3, 2), (1, false));
+        // The second within the window, then a read-back without a fault (which does not end the streak).
+        wait(&mut app, 0.5 * QUARANTINE_WINDOW);
         assert_eq!(read_back(&mut app, 4, 3), (1, false));
-        // The third running: handed back (`choose_gpu_strands` leaves it out from now on).
-        assert_eq!(read_back(&mut app, 5, 5), (1, true));
+        wait(&mut app, 0.5 * QUARANTINE_WINDOW);
+        assert_eq!(read_back(&mut app, 5, 3), (0, false));
+        // The third, within the window of the second (two faults in one read-back count as one): handed
+        // back (`choose_gpu_strands` leaves it out from now on).
+        wait(&mut app, 0.5 * QUARANTINE_WINDOW);
+        assert_eq!(read_back(&mut app, 6, 5), (1, true));
         assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
         // Held in quarantine on the CPU; the read-backs of steps sent before it left the GPU say nothing more.
         let health = app.world().get::<SimulatedStrand>(strand).unwrap().health();
         assert!(health.quarantined_until.is_some_and(|until| until > 0.0), "{health:?}");
-        assert_eq!(read_back(&mut app, 6, 6), (0, true));
-        assert_eq!(read_back(&mut app, 7, 7), (0, true));
+        assert_eq!(read_back(&mut app, 7, 6), (0, true));
+        assert_eq!(read_back(&mut app, 8, 7), (0, true));
         assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
     }
 }
