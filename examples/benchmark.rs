@@ -12,7 +12,9 @@
 //! `--motion NAME` one motion (`rest`, `shake`, `turn`, `flick`) in `coverage`, `--air-damping G` the air's
 //! drag (1/s, `HairSettings::air_damping`) in `coverage` instead of the default, `--gpu` the `coverage`
 //! runs stepped on the GPU (Bevy's renderer on whatever adapter wgpu finds), `--budget MS` a CPU budget
-//! (`HairCpuBudget`) in `coverage` and `styles`, `--guides N` the example's 22 000 hairs grown from `N`
+//! (`HairCpuBudget`) in `coverage` and `styles`, `--setting NAME` one row's setting in `budget` (`none`,
+//! `4`, `2`, `every-2`, `every-4`, `every-8`, `every-16`, `carried`; with `--motion still|shaken`, one row
+//! to profile), `--guides N` the example's 22 000 hairs grown from `N`
 //! guides instead of 2 000 in `coverage`, `styles`, `scene` and `budget`. Bevy's task pools are set
 //! once per process, so the parallel table runs this program again with `--threads`.
 
@@ -100,7 +102,7 @@ fn main() {
         .filter(|&(index, arg)| {
             !arg.starts_with("--")
                 && (index == 0
-                    || !["--threads", "--style", "--motion", "--air-damping", "--budget", "--guides"]
+                    || !["--threads", "--style", "--motion", "--air-damping", "--budget", "--guides", "--setting"]
                         .contains(&args[index - 1].as_str()))
         })
         .map(|(_, arg)| arg.as_str())
@@ -172,7 +174,14 @@ fn main() {
         example_scene_cost(threads, if quick { 60 } else { 240 });
     }
     if wanted("budget") {
-        budgeted_scene_cost(threads, if quick { 60 } else { 240 });
+        let setting = args.iter().position(|arg| arg == "--setting").and_then(|position| args.get(position + 1));
+        let motion = args.iter().position(|arg| arg == "--motion").and_then(|position| args.get(position + 1));
+        budgeted_scene_cost(
+            threads,
+            if quick { 60 } else { 240 },
+            setting.map(String::as_str),
+            motion.map(String::as_str),
+        );
     }
     if wanted("styles") {
         let style = args.iter().position(|arg| arg == "--style").and_then(|position| args.get(position + 1));
@@ -1176,7 +1185,7 @@ fn budget_words(budget: Option<f32>) -> String {
 /// alike. Per update, ms: the mean, the 95th percentile and the largest of the whole `app.update()`, the
 /// updates over the budget, the hair's own clock ([`HairStatistics::update_seconds`], mean) and its parts,
 /// and the step intervals the budget used.
-fn budgeted_scene_cost(threads: usize, steps: usize) {
+fn budgeted_scene_cost(threads: usize, steps: usize, only_setting: Option<&str>, only_motion: Option<&str>) {
     use bevy::prelude::Transform;
     use bevy_hair_sim::followers::FollowerPlacement;
     println!();
@@ -1215,9 +1224,17 @@ fn budgeted_scene_cost(threads: usize, steps: usize) {
         intervals: std::collections::BTreeSet<u32>,
         iterations: f64,
     }
+    let setting_name = |setting: Setting| match setting {
+        Setting::Budget(None) => "none".to_owned(),
+        Setting::Budget(Some(budget)) => budget.to_string(),
+        Setting::Held(HairDetailLevel::Stepped(interval)) => format!("every-{interval}"),
+        Setting::Held(HairDetailLevel::Carried) => "carried".to_owned(),
+    };
     let mut runs: Vec<Run> = motions
         .into_iter()
+        .filter(|motion| only_motion.is_none_or(|name| name == motion.0))
         .flat_map(|motion| settings.map(|setting| (motion, setting)))
+        .filter(|&(_, setting)| only_setting.is_none_or(|name| name == setting_name(setting)))
         .map(|(motion, setting)| {
             let budget = match setting {
                 Setting::Budget(budget) => budget,

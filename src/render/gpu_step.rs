@@ -285,8 +285,6 @@ struct GpuStepQueue {
     components_read: bool,
     /// Per head of `heads`: whether it has strands on the CPU too (its hair meets on the CPU's grid).
     mixed_heads: Vec<bool>,
-    /// The strands that came to the GPU at this fixed step (empty at the others).
-    arrived: EntityHashSet,
 }
 
 /// What the render world sends back.
@@ -409,7 +407,6 @@ fn choose_gpu_strands(
     grid_hairs: Query<(Option<&RepresentedHairs>, Option<&HairFollowers>)>,
 ) {
     let queue = &mut *queue;
-    queue.arrived.clear();
     queue.dirty |= settings.is_changed() || hair_settings.is_changed() || !added.is_empty();
     queue.dirty |= removed.read().count() > 0;
     if !queue.dirty {
@@ -553,7 +550,6 @@ fn choose_gpu_strands(
         match (wanted, marked) {
             (true, false) => {
                 commands.entity(entity).insert(SteppedElsewhere);
-                queue.arrived.insert(entity);
             }
             (false, true) => {
                 commands.entity(entity).remove::<SteppedElsewhere>();
@@ -676,7 +672,7 @@ fn order_gpu_step(
         // finite is reported as the CPU reports it, and the strand's are left out.
         // (A strand that came to the GPU at this step has the CPU's wind sampled into its air velocities,
         // for a CPU step it does not take: the GPU samples the wind itself, and they are left out.)
-        let air = strand_forces.active_air_velocities().filter(|_| !queue.arrived.contains(&entity));
+        let air = strand_forces.games_air_velocities();
         if let (Some(air), Some(&(index, _))) = (air, stepped) {
             match air.iter().position(|velocity| !velocity.is_finite()) {
                 None => air_velocities.push((index, air.to_vec())),
