@@ -56,6 +56,9 @@ impl Plugin for HairRenderPlugin {
             warn!("HairRenderPlugin: Bevy's PbrPlugin is missing (add DefaultPlugins first), so hair is not rendered");
             return;
         }
+        // The hair mesh is the head's child: a head with no visibility of its own would hide nothing and
+        // warn (B0004). A head spawned with its own `Visibility` keeps it.
+        app.register_required_components::<HairHead, Visibility>();
         embedded_asset!(app, "draw.wgsl");
         embedded_asset!(app, "followers.wgsl");
         // The followers are placed where they are drawn unless the app asked for the CPU.

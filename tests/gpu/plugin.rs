@@ -82,6 +82,10 @@ fn spawn_head(app: &mut App) -> (Entity, Entity) {
 /// Spawns a head with `groom` and its skull; returns the head and the skull.
 fn spawn_groom(app: &mut App, groom: HairGroom) -> (Entity, Entity) {
     let head = app.world_mut().spawn((HairHead, groom, head_pose(0))).id();
+    // The renderer gives a head its visibility (its hair mesh is its child), so Bevy does not warn (B0004).
+    if app.is_plugin_added::<bevy::pbr::PbrPlugin>() {
+        assert!(app.world().get::<InheritedVisibility>(head).is_some(), "a head is visible");
+    }
     let skull = app.world_mut().spawn((HairCollider::sphere(SKULL), HairColliderOf(head), head_pose(0))).id();
     (head, skull)
 }
@@ -355,22 +359,30 @@ fn the_gpu_steps_the_groom_in_the_app_as_the_cpu_does() {
     // read-back state, and a read-back asked for once arrives.
     assert_eq!(HairGpuSettings::default().read_back, GpuReadBackRate::OnDemand);
     gpu.world_mut().resource_mut::<HairGpuSettings>().read_back = GpuReadBackRate::OnDemand;
-    for number in SHAKING_STEPS + 26..SHAKING_STEPS + 29 {
+    // The read-backs asked for before still arrive, each when the render world gets to it (later on a busy
+    // machine): stepped until none has for three steps running.
+    let mut number = SHAKING_STEPS + 26;
+    let mut quiet = 0;
+    while quiet < 3 {
+        let read_backs = gpu.world().resource::<HairGpuStatus>().read_backs;
         step(&mut gpu, gpu_head, number);
+        number += 1;
+        quiet = if gpu.world().resource::<HairGpuStatus>().read_backs == read_backs { quiet + 1 } else { 0 };
+        assert!(number < SHAKING_STEPS + 60, "read-backs kept arriving after they were turned off");
     }
     let (read_backs, steps) = {
         let status = gpu.world().resource::<HairGpuStatus>();
         (status.read_backs, status.steps)
     };
     let before = guide_nodes(&gpu, gpu_head.0);
-    for number in SHAKING_STEPS + 29..SHAKING_STEPS + 35 {
+    for number in number..number + 6 {
         step(&mut gpu, gpu_head, number);
     }
     let status = gpu.world().resource::<HairGpuStatus>().clone();
     assert_eq!((status.read_backs, status.steps), (read_backs, steps + 6), "{status:?}");
     assert_eq!(guide_nodes(&gpu, gpu_head.0), before, "the components were not read back");
     gpu.world_mut().resource_mut::<HairGpuSettings>().read_back_now = true;
-    step(&mut gpu, gpu_head, SHAKING_STEPS + 35);
+    step(&mut gpu, gpu_head, number + 6);
     gpu.world_mut().resource_mut::<HairPause>().paused = true;
     wait_for_read_back(&mut gpu);
     assert_eq!(gpu.world().resource::<HairGpuStatus>().read_backs, read_backs + 1);
