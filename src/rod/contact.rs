@@ -39,8 +39,11 @@ use super::error::RodError;
 use super::params::StepParams;
 use super::projection::{ProjectionScratch, length_error, project_edge_lengths};
 
-/// Rounds of "project lengths, push out again" after the first push-out.
-const CONTACT_ROUNDS: u32 = 4;
+/// Rounds of "project lengths, push out again" after the first push-out, at most: they stop as soon as a
+/// push-out moves nothing. In a concave corner (an ear against the skull) each push-out and projection
+/// moves the node a little less; 4 rounds left nodes up to 3.4 mm inside the `character` example's ear,
+/// 8 up to 2.9 mm, 16 none (`tests/gpu/character.rs`).
+const CONTACT_ROUNDS: u32 = 16;
 
 /// A push smaller than this, m, does not count as moving a node (rounding on the surface).
 const MOVE_TOLERANCE: f64 = 1e-7;
