@@ -615,6 +615,7 @@ mod tests {
         assert_eq!(rest, [3, 4, 5]);
     }
 
+    #[cfg(feature = "render")]
     #[test]
     fn an_appearance_out_of_range_is_refused_by_name_and_the_shader_gets_the_lobes_widths() {
         for (name, appearance) in HairAppearance::presets() {

@@ -629,6 +629,7 @@ impl SimulatedStrand {
     /// its reset pose failed again): held in quarantine at its rest pose, as a strand of the CPU's own that
     /// fails again soon after a failure, so that it is retried once, later, and not failed again at once.
     /// Returns the quarantine's length, s.
+    #[cfg(feature = "gpu")]
     pub(crate) fn take_back_in_quarantine(&mut self, now: f64) -> f64 {
         let health = &mut self.health;
         health.faults_in_episode = health.faults_in_episode.max(1);
