@@ -116,8 +116,9 @@ use crate::wind::{HairWind, HairWindSource};
 /// factorise) put the strand back in the pose it was uploaded in, on its root, at rest, there; they arrive
 /// with the next read-back as [`StrandFault`] messages and log lines, as from the CPU's step, and the other
 /// strands go on. A strand that fails three times, each read back within [`QUARANTINE_WINDOW`] of the one
-/// before (the pose it is reset to fails again soon), is handed back to the CPU for good, in quarantine there (held at its rest pose, retried later), as a strand
-/// of the CPU's that fails again soon after a failure; the read-backs still on their way say nothing more.
+/// before (the pose it is reset to fails again soon), is handed back to the CPU for good, in quarantine
+/// there (held at its rest pose, retried later) as a strand of the CPU's that fails again soon after a
+/// failure; the read-backs still on their way say nothing more.
 /// A strand that cannot be put outside its colliders with its lengths kept keeps its
 /// solved state for that step instead of failing ([`HairGpuStatus::contact_given_up`]).
 ///
@@ -670,8 +671,8 @@ fn order_gpu_step(
             .filter(|&&(_, head)| matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_))));
         // The air velocities a game added: with the wind the GPU samples at each node. One that is not
         // finite is reported as the CPU reports it, and the strand's are left out.
-        // (A strand that came to the GPU at this step has the CPU's wind sampled into its air velocities,
-        // for a CPU step it does not take: the GPU samples the wind itself, and they are left out.)
+        // (A game's alone: a strand that came to the GPU at this step has the CPU's sample of the wind in its
+        // `StrandForces` too, which the GPU takes itself.)
         let air = strand_forces.games_air_velocities();
         if let (Some(air), Some(&(index, _))) = (air, stepped) {
             match air.iter().position(|velocity| !velocity.is_finite()) {

@@ -625,10 +625,9 @@ impl SimulatedStrand {
         Some(self.fail(StepError::UnusableState { node, reason }, now, false))
     }
 
-    /// Takes back a strand that failed read-back after read-back on the GPU (each fault there resets it, and
-    /// its reset pose failed again): held in quarantine at its rest pose, as a strand of the CPU's own that
-    /// fails again soon after a failure, so that it is retried once, later, and not failed again at once.
-    /// Returns the quarantine's length, s.
+    /// Takes back a strand that failed on the GPU again soon after each reset there: held in quarantine at
+    /// its rest pose, as a strand of the CPU's own that fails again soon after a failure, so that it is
+    /// retried once, later, and not failed again at once. Returns the quarantine's length, s.
     #[cfg(feature = "gpu")]
     pub(crate) fn take_back_in_quarantine(&mut self, now: f64) -> f64 {
         let health = &mut self.health;
