@@ -161,8 +161,6 @@ struct DrawnShape {
     keyframes: std::collections::VecDeque<Keyframe>,
     /// Keyframes no longer needed, kept for their memory.
     spare: Vec<Keyframe>,
-    /// The drawn nodes, head-local.
-    nodes: Vec<Vec3>,
     /// The edges' tangents and reference directors after the last step, head-local.
     tangents: Vec<Vec3>,
     directors: Vec<Vec3>,
@@ -192,13 +190,10 @@ impl DrawnShape {
     }
 
     /// Moves the drawn clock towards `lag` fixed steps behind the clock, by one step give or take
-    /// [`DRAWN_CLOCK_RATE_CHANGE`], never past the last keyframe nor before the first; writes the drawn
-    /// nodes there; lets go of keyframes the drawn clock has passed.
+    /// [`DRAWN_CLOCK_RATE_CHANGE`], never past the last keyframe nor before the first; lets go of keyframes
+    /// the drawn clock has passed.
     fn advance(&mut self, lag: f64) {
-        if self.keyframes.len() == 1
-            && self.drawn_time == self.keyframes[0].time
-            && self.nodes.len() == self.keyframes[0].nodes.len()
-        {
+        if self.keyframes.len() == 1 && self.drawn_time == self.keyframes[0].time {
             // Settled on the only keyframe (carried, or waiting for the next step): nothing moves.
             return;
         }
@@ -213,14 +208,21 @@ impl DrawnShape {
             let passed = self.keyframes.pop_front().expect("more than one keyframe");
             self.spare.push(passed);
         }
-        let before = &self.keyframes[0];
+    }
+
+    /// Writes the drawn nodes at the drawn clock into `out`, turned by `rotation` and moved by
+    /// `translation` (head-local to world): the keyframes either side interpolated, in one pass.
+    fn write_nodes(&self, out: &mut Vec<Vec3>, rotation: Mat3, translation: Vec3) {
+        let Some(before) = self.keyframes.front() else { return };
         match self.keyframes.get(1) {
             Some(after) => {
-                let fraction = (self.drawn_time - before.time) / (after.time - before.time);
-                self.nodes.clear();
-                self.nodes.extend(before.nodes.iter().zip(&after.nodes).map(|(a, b)| a.lerp(*b, fraction as f32)));
+                let fraction = ((self.drawn_time - before.time) / (after.time - before.time)) as f32;
+                out.clear();
+                out.extend(
+                    before.nodes.iter().zip(&after.nodes).map(|(a, b)| rotation * a.lerp(*b, fraction) + translation),
+                );
             }
-            None => self.nodes.clone_from(&before.nodes),
+            None => copy_converted(out, &before.nodes, |node| rotation * node + translation),
         }
     }
 
@@ -281,7 +283,7 @@ impl StrandDetail {
 
         let (rotation, translation) = (Mat3::from_quat(self.head.rotation.as_quat()), self.head.translation.as_vec3());
         std::mem::swap(&mut nodes.previous_positions, &mut nodes.positions);
-        copy_converted(&mut nodes.positions, &drawn.nodes, |node| rotation * node + translation);
+        drawn.write_nodes(&mut nodes.positions, rotation, translation);
         snap_previous(&mut nodes.previous_positions, &nodes.positions, snap);
         copy_converted(&mut frames.tangents, &drawn.tangents, |t| rotation * t);
         copy_converted(&mut frames.reference_directors, &drawn.directors, |u| rotation * u);
