@@ -257,10 +257,12 @@ struct GpuStepQueue {
     heads_stepped: Vec<u64>,
     /// The strands' work counters summed, as last read back from this upload (`None` before).
     work: Option<GpuStrandWork>,
-    /// Faults each strand has had on the GPU, as last read back; and its streak: how many of them came each
-    /// within [`QUARANTINE_WINDOW`] of the one before, and when the last was read back (s).
+    /// Faults each strand has had on the GPU since the upload, as last read back.
     faults: Vec<u32>,
-    fault_streaks: Vec<(u32, f64)>,
+    /// Each strand's streak of faults: how many came each within [`QUARANTINE_WINDOW`] of the one before,
+    /// and when the last was read back (s). Kept across uploads (another strand leaving the GPU uploads
+    /// the set again, and a strand failing again and again must not start afresh each time).
+    fault_streaks: EntityHashMap<(u32, f64)>,
     /// Strands that failed [`GPU_FAULT_STREAK`] times in a streak: stepped on the CPU from then on.
     handed_back: EntityHashSet,
     /// Bumped at each upload (the renderer lays its heads out again).
@@ -539,7 +541,8 @@ fn choose_gpu_strands(
     queue.heads = if on_gpu.is_empty() { Vec::new() } else { head_list };
     queue.heads_stepped = vec![queue.steps_sent; queue.heads.len()];
     queue.faults = vec![0; on_gpu.len()];
-    queue.fault_streaks = vec![(0, 0.0); on_gpu.len()];
+    let strand_index = &queue.strand_index;
+    queue.fault_streaks.retain(|entity, _| strand_index.contains_key(entity));
     queue.read_back_step = None;
     queue.steps.clear();
     queue.generation = queue.generation.wrapping_add(1);
@@ -809,7 +812,7 @@ fn apply_read_backs(
             }
             let Ok((mut strand, mut nodes, mut frames)) = strands.get_mut(entity) else { continue };
             queue.faults[index] = report.faults;
-            let (streak, last) = &mut queue.fault_streaks[index];
+            let (streak, last) = queue.fault_streaks.entry(entity).or_insert((0, 0.0));
             *streak = if *streak > 0 && now - *last <= QUARANTINE_WINDOW { *streak + 1 } else { 1 };
             *last = now;
             let streak = *streak;
@@ -1078,10 +1081,9 @@ mod tests {
             let mut queue = app.world_mut().resource_mut::<GpuStepQueue>();
             queue.strands = strands.clone();
             queue.faults = vec![0];
-            queue.fault_streaks = vec![(0, 0.0)];
         }
         let indefinite = Some(GpuFault::NotPositiveDefinite);
-        let read_back = |app: &mut App, step: u64, faults: u32| {
+        let read_back = |app: &mut App, strands: &Arc<Vec<Entity>>, step: u64, faults: u32| {
             let report = GpuStrandStatus { fault: indefinite, last_fault: indefinite, faults, ..default() };
             // No positions: nothing to restore, only the report.
             let states = GpuStrandStates { status: vec![report], ..default() };
@@ -1096,25 +1098,33 @@ mod tests {
             app.world_mut().resource_mut::<Time>().advance_by(std::time::Duration::from_secs_f64(seconds));
         };
         // Failing, then not (the same count); failing again after the window: a new streak.
-        assert_eq!(read_back(&mut app, 1, 1), (1, false));
-        assert_eq!(read_back(&mut app, 2, 1), (0, false));
+        assert_eq!(read_back(&mut app, &strands, 1, 1), (1, false));
+        assert_eq!(read_back(&mut app, &strands, 2, 1), (0, false));
         wait(&mut app, 1.5 * QUARANTINE_WINDOW);
-        assert_eq!(read_back(&mut app, 3, 2), (1, false));
+        assert_eq!(read_back(&mut app, &strands, 3, 2), (1, false));
         // The second within the window, then a read-back without a fault (which does not end the streak).
         wait(&mut app, 0.5 * QUARANTINE_WINDOW);
-        assert_eq!(read_back(&mut app, 4, 3), (1, false));
+        assert_eq!(read_back(&mut app, &strands, 4, 3), (1, false));
         wait(&mut app, 0.5 * QUARANTINE_WINDOW);
-        assert_eq!(read_back(&mut app, 5, 3), (0, false));
+        assert_eq!(read_back(&mut app, &strands, 5, 3), (0, false));
+        // The set uploaded again (another strand left the GPU, say): the GPU counts its faults from 0, and
+        // the streak goes on.
+        let strands = Arc::new(vec![strand]);
+        {
+            let mut queue = app.world_mut().resource_mut::<GpuStepQueue>();
+            queue.strands = strands.clone();
+            queue.faults = vec![0];
+        }
         // The third, within the window of the second (two faults in one read-back count as one): handed
         // back (`choose_gpu_strands` leaves it out from now on).
         wait(&mut app, 0.5 * QUARANTINE_WINDOW);
-        assert_eq!(read_back(&mut app, 6, 5), (1, true));
+        assert_eq!(read_back(&mut app, &strands, 6, 2), (1, true));
         assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
         // Held in quarantine on the CPU; the read-backs of steps sent before it left the GPU say nothing more.
         let health = app.world().get::<SimulatedStrand>(strand).unwrap().health();
         assert!(health.quarantined_until.is_some_and(|until| until > 0.0), "{health:?}");
-        assert_eq!(read_back(&mut app, 7, 6), (0, true));
-        assert_eq!(read_back(&mut app, 8, 7), (0, true));
+        assert_eq!(read_back(&mut app, &strands, 7, 3), (0, true));
+        assert_eq!(read_back(&mut app, &strands, 8, 4), (0, true));
         assert_eq!(app.world().resource::<HairGpuStatus>().faults, 4);
     }
 }
