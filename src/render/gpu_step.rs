@@ -826,9 +826,9 @@ fn apply_read_backs(
                 // of its own that fails again soon after a failure.
                 queue.handed_back.insert(entity);
                 queue.dirty = true;
-                let seconds = strand.take_back_in_quarantine(now);
+                let seconds = strand.take_back_in_quarantine(error.clone(), now);
                 write_strand_data(&mut strand, &mut nodes, &mut frames);
-                Some(seconds)
+                seconds
             } else {
                 None
             };

@@ -198,17 +198,6 @@ pub struct StrandHealth {
     pub quarantined_until: Option<f64>,
 }
 
-impl StrandHealth {
-    /// Starts the episode's next quarantine at `now` (s), each twice the last up to [`MAX_QUARANTINE`];
-    /// returns its length, s.
-    fn quarantine(&mut self, now: f64) -> f64 {
-        let seconds = (FIRST_QUARANTINE * 2f64.powi(self.quarantines_in_episode as i32)).min(MAX_QUARANTINE);
-        self.quarantines_in_episode += 1;
-        self.quarantined_until = Some(now + seconds);
-        seconds
-    }
-}
-
 /// What a strand's step needs from its start to its end ([`SimulatedStrand::begin_advance`]): the
 /// head pose the step brings the rod to, and whether this is the retry after a quarantine.
 #[derive(Debug, Clone, Copy)]
@@ -625,17 +614,16 @@ impl SimulatedStrand {
         Some(self.fail(StepError::UnusableState { node, reason }, now, false))
     }
 
-    /// Takes back a strand that failed on the GPU again soon after each reset there: held in quarantine at
-    /// its rest pose, as a strand of the CPU's own that fails again soon after a failure, so that it is
-    /// retried once, later, and not failed again at once. Returns the quarantine's length, s.
+    /// Takes back a strand that failed on the GPU (`error`, the last) again soon after each reset there:
+    /// recorded as a fault that quarantines it at its rest pose, as a strand of the CPU's own failing again
+    /// soon after a failure, so that it is retried once, later, and not failed again at once. Returns the
+    /// quarantine's length, s.
     #[cfg(feature = "gpu")]
-    pub(crate) fn take_back_in_quarantine(&mut self, now: f64) -> f64 {
-        let health = &mut self.health;
-        health.faults_in_episode = health.faults_in_episode.max(1);
-        health.last_fault = now;
-        let seconds = health.quarantine(now);
-        self.reset_to_rest();
-        seconds
+    pub(crate) fn take_back_in_quarantine(&mut self, error: StepError, now: f64) -> Option<f64> {
+        match self.fail(error, now, true) {
+            StepOutcome::Faulted { quarantine, .. } => quarantine,
+            _ => None,
+        }
     }
 
     /// Records a fault at `now` (s): starts or continues the episode, quarantines the strand if it failed
@@ -647,7 +635,12 @@ impl SimulatedStrand {
         let again = retried || (!first_of_episode && now - health.last_fault <= QUARANTINE_WINDOW);
         health.faults_in_episode += 1;
         health.last_fault = now;
-        let quarantine = again.then(|| health.quarantine(now));
+        let quarantine = again.then(|| {
+            let seconds = (FIRST_QUARANTINE * 2f64.powi(health.quarantines_in_episode as i32)).min(MAX_QUARANTINE);
+            health.quarantines_in_episode += 1;
+            health.quarantined_until = Some(now + seconds);
+            seconds
+        });
         if quarantine.is_some() || !matches!(error, StepError::InvalidInput(_)) {
             self.reset_to_rest();
         }
