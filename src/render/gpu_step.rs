@@ -24,7 +24,7 @@ use crate::gpu::{
     MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_max_nodes, gpu_step_support,
 };
 use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
-use crate::schedule::HairStepSystems;
+use crate::schedule::{HairPinSystems, HairStepSystems, HairSystems};
 use crate::simulation::{
     CheckedSettings, FaultLog, HairHead, HairSettings, HairStatistics, HeadMotion, HeadStrands, QUARANTINE_WINDOW,
     SimulatedStrand, SteppedElsewhere, StrandColliders, StrandFault, StrandForces, StrandFrames, StrandNodes, StrandOf,
@@ -327,11 +327,19 @@ impl Plugin for HairGpuPlugin {
             .init_resource::<GpuSystemsClock>()
             .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
             .add_systems(PreUpdate, apply_read_backs)
+            // The strands are chosen once their roots are pinned and before anything adds to their loads, so
+            // that a strand arriving on the GPU meets the GPU's wind and grid alone from its first step there
+            // (the CPU's leave `SteppedElsewhere` strands out), and is not stepped on the CPU as well.
             .add_systems(
                 self.schedule,
-                (start_clock, choose_gpu_strands, order_gpu_step, stop_clock)
+                (start_clock, choose_gpu_strands, stop_clock)
                     .chain()
-                    .in_set(HairStepSystems::Integrate),
+                    .in_set(HairSystems::PinRoots)
+                    .after(HairPinSystems::Pin),
+            )
+            .add_systems(
+                self.schedule,
+                (start_clock, order_gpu_step, stop_clock).chain().in_set(HairStepSystems::Integrate),
             );
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else {
             fall_back_to_the_cpu(app, "there is no renderer (add Bevy's DefaultPlugins before HairPlugins)");
@@ -672,11 +680,10 @@ fn order_gpu_step(
             .strand_index
             .get(&entity)
             .filter(|&&(_, head)| matches!(steps.get(head).map(|step| step.cadence), Some(GpuHairCadence::Step(_))));
-        // The air velocities a game added: with the wind the GPU samples at each node. One that is not
-        // finite is reported as the CPU reports it, and the strand's are left out.
-        // (A game's alone: a strand that came to the GPU at this step has the CPU's sample of the wind in its
-        // `StrandForces` too, which the GPU takes itself.)
-        let air = strand_forces.games_air_velocities();
+        // The air velocities a game added (the CPU's wind leaves GPU strands out): with the wind the GPU
+        // samples at each node. One that is not finite is reported as the CPU reports it, and the strand's
+        // are left out.
+        let air = strand_forces.active_air_velocities();
         if let (Some(air), Some(&(index, _))) = (air, stepped) {
             match air.iter().position(|velocity| !velocity.is_finite()) {
                 None => air_velocities.push((index, air.to_vec())),

@@ -719,9 +719,6 @@ impl SimulatedStrand {
 pub struct StrandForces {
     forces: NodeVectors,
     air_velocities: NodeVectors,
-    /// The part of `air_velocities` games added, without the wind's sample: what a step elsewhere that
-    /// samples the wind itself (the GPU's) takes. Sized when a game first adds air.
-    added_air: NodeVectors,
     velocity_changes: NodeVectors,
 }
 
@@ -743,16 +740,12 @@ impl StrandForces {
 
     /// Adds `velocity` (m/s) to the air's velocity at `node`. Rejects a node index out of range.
     pub fn add_air_velocity(&mut self, node: usize, velocity: Vec3) -> Result<(), RodError> {
-        self.air_velocities.add(node, velocity)?;
-        self.added_air.resize_to(self.air_velocities.values.len());
-        self.added_air.add(node, velocity)
+        self.air_velocities.add(node, velocity)
     }
 
     /// Adds `velocity` (m/s) to the air's velocity at every node.
     pub fn add_air_velocity_to_all(&mut self, velocity: Vec3) {
         self.air_velocities.add_to_all(velocity);
-        self.added_air.resize_to(self.air_velocities.values.len());
-        self.added_air.add_to_all(velocity);
     }
 
     /// The air's velocity at each node for the coming step, m/s (still air: zero).
@@ -813,11 +806,11 @@ impl StrandForces {
         self.velocity_changes.active()
     }
 
-    /// The air velocities games added since the last step (m/s), if any, without the wind's sample: for a
-    /// step elsewhere that samples the wind itself (the GPU's).
+    /// The air velocities added since the last step (m/s), if any: for a step elsewhere (the GPU's, which
+    /// samples the wind itself; the wind leaves the strands stepped elsewhere out, so these are a game's).
     #[cfg(feature = "gpu")]
-    pub(crate) fn games_air_velocities(&self) -> Option<&[DVec3]> {
-        self.added_air.active()
+    pub(crate) fn active_air_velocities(&self) -> Option<&[DVec3]> {
+        self.air_velocities.active()
     }
 
     /// Sets the air's velocity at every node (m/s) from `velocity_at(node)`, for the wind.
@@ -831,14 +824,12 @@ impl StrandForces {
     pub(crate) fn clear(&mut self) {
         self.forces.clear();
         self.air_velocities.clear();
-        self.added_air.clear();
         self.velocity_changes.clear();
     }
 
     fn resize(&mut self, nodes: usize) {
         self.forces.resize(nodes);
         self.air_velocities.resize(nodes);
-        self.added_air.resize(0);
         self.velocity_changes.resize(nodes);
     }
 }
@@ -886,13 +877,6 @@ impl NodeVectors {
         self.values.clear();
         self.values.resize(nodes, DVec3::ZERO);
         self.active = false;
-    }
-
-    /// Resizes to `nodes` zeros unless it has that many already.
-    fn resize_to(&mut self, nodes: usize) {
-        if self.values.len() != nodes {
-            self.resize(nodes);
-        }
     }
 }
 
@@ -1030,25 +1014,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_games_air_velocities_are_kept_apart_from_the_winds_sample() {
+    fn air_velocities_add_up_and_are_used_up_by_the_step() {
         let mut forces = StrandForces::default();
         forces.resize(3);
-        // The wind's sample alone: in the step's air, not among a game's.
+        assert!(forces.loads().air_velocities.is_none(), "still air costs the step nothing");
+        // The wind's sample and a game's on top: the step's air is the sum.
         forces.add_air_velocities(|node| DVec3::new(node as f64, 0.0, 0.0));
-        #[cfg(feature = "gpu")]
-        assert_eq!(forces.games_air_velocities(), None);
-        // A game's on top: the step's air is the sum, a game's its own.
         forces.add_air_velocity(1, Vec3::Z).unwrap();
         forces.add_air_velocity_to_all(Vec3::Y);
         let air: Vec<Vec3> = forces.air_velocities().collect();
         assert_eq!(air, [Vec3::Y, Vec3::new(1.0, 1.0, 1.0), Vec3::new(2.0, 1.0, 0.0)]);
-        #[cfg(feature = "gpu")]
-        assert_eq!(forces.games_air_velocities(), Some(&[DVec3::Y, DVec3::new(0.0, 1.0, 1.0), DVec3::Y][..]));
         assert!(forces.add_air_velocity(3, Vec3::X).is_err(), "a node out of range is refused");
-        // Cleared after the step, both.
         forces.clear();
-        assert!(forces.loads().air_velocities.is_none());
-        #[cfg(feature = "gpu")]
-        assert_eq!(forces.games_air_velocities(), None);
+        assert!(forces.loads().air_velocities.is_none(), "cleared after the step");
+        assert!(forces.air_velocities().all(|velocity| velocity == Vec3::ZERO));
     }
 }

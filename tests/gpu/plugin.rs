@@ -917,11 +917,11 @@ fn a_head_with_strands_on_both_sides_meets_on_one_grid() {
 /// The air velocities a game adds (`StrandForces::add_air_velocity`, added to the wind's each step) act on
 /// the GPU's strands as on the CPU's: a 2 m/s draught from the front at every node at each of 15 steps of
 /// the groom falling onto the shaking skull in the app's wind, from the first (the step the strands come to
-/// the GPU, when their `StrandForces` also hold the CPU's sample of the wind, which the GPU takes itself and
-/// must not take twice), moves the GPU's hair as far as the CPU's (within a quarter), and the two paths
-/// part by no more than a tenth of that beyond what they part without it (measured 5.24 and 5.34 cm; 7.9
-/// mm apart against 5.8). Before the GPU took them, it ignored them. (The wind taken twice at the first
-/// step is what `the_gpu_meets_hair_with_hair_in_the_app_as_the_cpu_does` finds: 0.62 mm against 0.45.)
+/// the GPU, where the GPU samples the wind itself and must not be sent the CPU's sample as well), moves the
+/// GPU's hair as far as the CPU's (within a quarter), and the two paths part by no more than a tenth of that
+/// beyond what they part without it (measured 5.24 and 5.34 cm; 7.9 mm apart against 5.8). Before the GPU
+/// took them, it ignored them. (The wind taken twice at the first step is what
+/// `the_gpu_meets_hair_with_hair_in_the_app_as_the_cpu_does` finds: 0.62 mm against 0.45.)
 #[test]
 fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
@@ -931,4 +931,68 @@ fn a_games_air_velocities_act_on_the_gpu_as_on_the_cpu() {
         }
     }
     load_effects(15, draught).assert_alike("the draught");
+}
+
+/// A strand coming to the GPU meets the GPU's grid alone from its first step there. The strands are chosen
+/// before anything adds to their loads, so at the step they arrive the CPU's grid (which leaves a head whose
+/// strands are all on the GPU to the GPU's) no longer answers them as well: its velocity changes, sent on
+/// to the GPU with a game's, and the GPU's own grid acted twice on that step. Checked where the loads are
+/// read, between `HairSystems::ExternalForces` and the step, on a groom falling on the CPU for four steps
+/// before the GPU is turned on: the strands have the CPU grid's velocity changes before they arrive (the
+/// check sees them), and none at the step they arrive.
+#[test]
+fn a_strand_arriving_on_the_gpu_meets_the_gpus_grid_alone() {
+    use bevy::ecs::entity::EntityHashMap;
+    use bevy_hair_sim::schedule::HairStepSystems;
+
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    /// Each strand's loads as the step reads them: whether it had velocity changes, at each step.
+    #[derive(Resource, Default)]
+    struct LoadsSeen(EntityHashMap<Vec<bool>>);
+    fn see(mut seen: ResMut<LoadsSeen>, strands: Query<(Entity, &StrandForces)>) {
+        for (entity, forces) in &strands {
+            let changed = forces.velocity_changes().any(|change| change != Vec3::ZERO);
+            seen.0.entry(entity).or_default().push(changed);
+        }
+    }
+    /// Each strand's side after each step: whether the GPU stepped it.
+    #[derive(Resource, Default)]
+    struct SideAfter(EntityHashMap<Vec<bool>>);
+    fn side(mut after: ResMut<SideAfter>, strands: Query<(Entity, Has<SteppedElsewhere>), With<StrandForces>>) {
+        for (entity, on_gpu) in &strands {
+            after.0.entry(entity).or_default().push(on_gpu);
+        }
+    }
+    let mut app = app(true);
+    app.insert_resource(HairSettings::styled())
+        .init_resource::<LoadsSeen>()
+        .init_resource::<SideAfter>()
+        .add_systems(FixedUpdate, see.in_set(HairSystems::Step).before(HairStepSystems::Integrate))
+        .add_systems(FixedUpdate, side.in_set(HairSystems::PostStep));
+    // Falling (no preload) on the CPU for four steps, its grid smoothing their velocities; then the GPU on.
+    app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
+    let head = spawn_groom(&mut app, HairGroom { strand_count: 32, segments: 8, gravity_preload: 0.0, ..default() });
+    for number in 1..=8 {
+        app.world_mut().resource_mut::<HairGpuSettings>().enabled = number > 4;
+        step(&mut app, head, number);
+    }
+    let (seen, after) = (&app.world().resource::<LoadsSeen>().0, &app.world().resource::<SideAfter>().0);
+    assert_eq!(after.len(), 32, "every strand stepped");
+    let mut on_cpu_grid = 0;
+    for (strand, sides) in after {
+        let loads = &seen[strand];
+        assert_eq!(loads.len(), sides.len(), "both seen at every step");
+        let arrived = sides.iter().position(|&on_gpu| on_gpu).unwrap_or_else(|| panic!("{strand} came to the GPU"));
+        assert!(sides[arrived..].iter().all(|&on_gpu| on_gpu), "{strand} stays on the GPU: {sides:?}");
+        on_cpu_grid += loads[..arrived].iter().filter(|&&changed| changed).count();
+        assert!(
+            !loads[arrived],
+            "{strand} arrived on the GPU at step {} with the CPU grid's velocity changes",
+            arrived + 1
+        );
+    }
+    assert!(
+        on_cpu_grid >= 3 * 32,
+        "the CPU's grid answered the strands before they arrived: {on_cpu_grid} strand-steps"
+    );
 }
