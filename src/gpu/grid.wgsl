@@ -40,6 +40,8 @@ struct Params {
 
 // As in `step.wgsl`.
 const STRAND_FLOATS: u32 = 4u;
+// The head's index in a strand's second word (its top bit: whether the strand is free).
+const HEAD_INDEX: u32 = 0x7fffffffu;
 // Words per head in `grid_heads`: (r as f32 bits ×3, the step's length in s as bits, 0 when the head is
 // not stepped), (lowest position ×3 as sortable bits, 0), (highest ×3, 0), (the grid's first point ×3, its
 // cell, as f32 bits), (points along X, Y, Z, pressed), (largest φ as bits, 0, 0, 0).
@@ -199,10 +201,12 @@ fn grid_strand(group: vec3<u32>) -> vec4<u32> {
         return vec4<u32>(0u);
     }
     let words = strand_words[strand];
-    if head_dt(words.y) <= 0.0 {
+    // (The top bit of the head's word says whether the strand is free.)
+    let head = words.y & HEAD_INDEX;
+    if head_dt(head) <= 0.0 {
         return vec4<u32>(0u);
     }
-    return vec4<u32>(words.xyz, strand);
+    return vec4<u32>(words.x, head, words.z, strand);
 }
 
 @compute @workgroup_size(64)

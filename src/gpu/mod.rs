@@ -5,7 +5,7 @@
 //!
 //! **What it steps.** Stretching, bending and twisting with rest curvature and rest twist (curls and the
 //! gravity preload carry over from the CPU's rods), BDF2 (backward Euler on the first step), the root edge
-//! clamped to its head, gravity, air drag relative to the air's velocity, internal damping,
+//! clamped to its head (or nothing held: a free strand, [`GpuStrandInput::rod`]), gravity, air drag relative to the air's velocity, internal damping,
 //! inextensibility, contact with the head's colliders of every shape with Coulomb friction (spheres,
 //! capsules, ellipsoids at their closest point, planes, boxes sharp or rounded, and meshes through their
 //! baked distance fields, uploaded once and sampled trilinearly), the style hold (springs towards each strand's groomed places carried with its head,
@@ -14,7 +14,8 @@
 //! [`crate::volume`], splatted, computed and given back in six passes before the step, in `grid.wgsl`).
 //!
 //! **How a strand is laid out on the GPU.** Lane `i` of the strand's workgroup owns edge `i` and the node
-//! at its end (lane 0 the root node too), their state in its registers: strands of up to 32 edges (a
+//! at its end (lane 0 the root node too; a free strand's first node has the lane after the last edge's,
+//! so a free strand takes one node fewer, [`max_free_gpu_nodes`]), their state in its registers: strands of up to 32 edges (a
 //! game's guides) are stepped by workgroups of 32 lanes, one warp, longer ones (up to 64 edges,
 //! [`MAX_GPU_NODES`] nodes) by workgroups of 64, and where the device has the workgroup memory (desktop
 //! GPUs do) strands of up to 128 edges ([`MAX_WIDE_GPU_NODES`]) by workgroups of 128 ([`gpu_max_nodes`]);
@@ -77,9 +78,10 @@ mod step;
 pub use gather::{GATHER_SHADER, GpuGatherTarget};
 pub use grid::{GPU_GRID_POINTS, GRID_SHADER, GpuGridFields, GpuGridPoint, GpuVolume};
 pub use pipelines::{bind_whole_buffers, compute_layout, compute_pipeline, pipeline_of_module};
+pub(crate) use step::root_held;
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
     GpuStepError, GpuStepPipelines, GpuStepTimings, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
     GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, MAX_WIDE_GPU_NODES, SINGLE_PRECISION_STRAIN,
-    STEP_SHADER, STRETCH_RATIO, gpu_max_nodes, gpu_step_support, headless_device,
+    STEP_SHADER, STRETCH_RATIO, gpu_max_nodes, gpu_step_support, headless_device, max_free_gpu_nodes,
 };

@@ -32,6 +32,9 @@ pub const MAX_GPU_NODES: usize = 65;
 /// 128 invocations a workgroup (desktop and console GPUs have 32 kB or more): 128 edges, one per lane of
 /// the 128-lane pipeline ([`gpu_max_nodes`]).
 pub const MAX_WIDE_GPU_NODES: usize = 129;
+/// The top bit of a strand's head word (`FREE_STRAND` in `step.wgsl`): the strand is free (its root not
+/// held on its head; the head a frame it is stepped in).
+const FREE_STRAND: u32 = 0x8000_0000;
 /// Rows of `vec4` per node in the rest buffer, the state buffer; per head; per collider.
 const REST_ROWS: usize = 5;
 const STATE_ROWS: usize = 7;
@@ -98,8 +101,11 @@ pub enum GpuStepError {
         /// The most the device takes.
         most: usize,
     },
-    /// A strand whose root edge is not clamped (the GPU step roots every strand on its head).
-    #[error("strand {strand}'s root edge is not clamped: the GPU step needs every strand rooted")]
+    /// A strand held otherwise than by its whole root edge: the GPU steps strands whose root edge is clamped
+    /// (both its nodes and its twist) and free strands (nothing held), no others.
+    #[error(
+        "strand {strand} is held otherwise than by its whole root edge: the GPU steps strands with the root edge clamped, or free"
+    )]
     Unrooted {
         /// The strand's index in the input.
         strand: usize,
@@ -172,7 +178,9 @@ pub enum GpuStepError {
 #[derive(Debug, Clone, Copy)]
 pub struct GpuStrandInput<'a> {
     /// The strand, with its root edge clamped ([`Rod::clamp_edge`]) at the head's pose of
-    /// [`GpuStrandSolver::new`].
+    /// [`GpuStrandSolver::new`], or free (nothing held: every node moves, the head a frame it is stepped
+    /// in, whose colliders and air it meets; it needs one lane more than a held strand of its nodes,
+    /// [`max_free_gpu_nodes`]).
     pub rod: &'a Rod,
     /// Index of its head in the poses given to [`GpuStrandSolver::new`] and [`GpuStrandSolver::step`].
     pub head: usize,
@@ -650,6 +658,30 @@ pub fn gpu_max_nodes(limits: &wgpu::Limits) -> usize {
     STEP_LANES.iter().filter(|&&lanes| lanes_fit(limits, lanes)).max().map_or(MAX_GPU_NODES, |&lanes| lanes + 1)
 }
 
+/// The most nodes a free strand (no root held) may have where a held one may have `max_nodes`
+/// ([`gpu_max_nodes`]): one fewer, since its first node needs a lane of its own.
+pub fn max_free_gpu_nodes(max_nodes: usize) -> usize {
+    max_nodes - 1
+}
+
+/// Whether `rod` is held by its whole root edge (`Some(true)`: nodes 0 and 1 and the first twist clamped,
+/// nothing else), free (`Some(false)`: nothing held), or otherwise (`None`: the GPU cannot step it).
+pub(crate) fn root_held(rod: &Rod) -> Option<bool> {
+    let constraints = rod.constraints();
+    let (nodes, twists) = (&constraints.node_targets, &constraints.twist_targets);
+    let others_free = nodes.iter().skip(2).all(Option::is_none) && twists.iter().skip(1).all(Option::is_none);
+    match (nodes[0].is_some(), nodes[1].is_some(), twists[0].is_some()) {
+        (true, true, true) if others_free => Some(true),
+        (false, false, false) if others_free => Some(false),
+        _ => None,
+    }
+}
+
+/// The lanes a strand's step needs: one per edge, and one more for a free strand's first node.
+fn lanes_needed(nodes: usize, held: bool) -> usize {
+    if held { nodes - 1 } else { nodes }
+}
+
 /// The strands as packed for [`GpuStrandSolver::from_upload`]: made from the rods on the CPU (in the main
 /// world, say), turned into buffers where the device is.
 #[derive(Debug, Clone)]
@@ -667,6 +699,8 @@ pub struct GpuStrandUpload {
 #[derive(Debug)]
 struct StrandLayout {
     node_counts: Vec<usize>,
+    /// The lanes each strand's step needs (one per edge, one more for a free strand).
+    lanes: Vec<usize>,
     first_nodes: Vec<usize>,
     total_nodes: usize,
     /// Strands stepped by each pipeline of [`STEP_LANES`] (listed in that order).
@@ -710,18 +744,20 @@ impl GpuStrandUpload {
     /// the GPU's layout. Rejects strands the GPU cannot step ([`GpuStepError`]).
     pub fn new(strands: &[GpuStrandInput], head_poses: &[(DQuat, DVec3)]) -> Result<Self, GpuStepError> {
         let strand_count = strands.len();
+        let mut held = Vec::with_capacity(strand_count);
         for (index, strand) in strands.iter().enumerate() {
             let nodes = strand.rod.node_count();
-            if !(3..=MAX_WIDE_GPU_NODES).contains(&nodes) {
-                return Err(GpuStepError::NodeCount { strand: index, nodes, most: MAX_WIDE_GPU_NODES });
+            let Some(root_held) = root_held(strand.rod) else {
+                return Err(GpuStepError::Unrooted { strand: index });
+            };
+            let most = if root_held { MAX_WIDE_GPU_NODES } else { max_free_gpu_nodes(MAX_WIDE_GPU_NODES) };
+            if !(3..=most).contains(&nodes) {
+                return Err(GpuStepError::NodeCount { strand: index, nodes, most });
             }
             if strand.head >= head_poses.len() {
                 return Err(GpuStepError::NoSuchHead { strand: index, head: strand.head, heads: head_poses.len() });
             }
-            let targets = &strand.rod.constraints().node_targets;
-            if targets[0].is_none() || targets[1].is_none() || strand.rod.constraints().twist_targets[0].is_none() {
-                return Err(GpuStepError::Unrooted { strand: index });
-            }
+            held.push(root_held);
             if strand
                 .groomed
                 .is_some_and(|groomed| groomed.len() != nodes || !groomed.iter().all(|place| place.is_finite()))
@@ -750,13 +786,14 @@ impl GpuStrandUpload {
         let mut words = vec![[0_u32; 4]; padded];
         // The dispatch lists (`w` of the words): the strands by the narrowest pipeline they fit, narrowest
         // first.
-        let class = |strand: &GpuStrandInput| {
-            STEP_LANES.iter().position(|&lanes| strand.rod.node_count() <= lanes + 1).unwrap_or(STEP_LANES.len() - 1)
+        let class = |s: usize| {
+            let lanes = lanes_needed(strands[s].rod.node_count(), held[s]);
+            STEP_LANES.iter().position(|&pipeline| lanes <= pipeline).unwrap_or(STEP_LANES.len() - 1)
         };
         let mut list_lengths = [0; STEP_LANES.len()];
-        strands.iter().for_each(|strand| list_lengths[class(strand)] += 1);
+        (0..strand_count).for_each(|s| list_lengths[class(s)] += 1);
         let lists: Vec<usize> =
-            (0..STEP_LANES.len()).flat_map(|k| (0..strand_count).filter(move |&s| class(&strands[s]) == k)).collect();
+            (0..STEP_LANES.len()).flat_map(|k| (0..strand_count).filter(move |&s| class(s) == k)).collect();
         let mut floats = vec![[0.0_f32; 4]; padded * STRAND_FLOATS];
         let mut rest = vec![[0.0_f32; 4]; total * REST_ROWS];
         let mut state = vec![[0.0_f32; 4]; total * STATE_ROWS];
@@ -770,7 +807,8 @@ impl GpuStrandUpload {
             let local = |world: DVec3| inverse * (world - translation);
             let nodes = rod.node_count();
             let first = first_nodes[s];
-            words[s] = [nodes as u32, strand.head as u32, first as u32, lists[s] as u32];
+            let head_word = strand.head as u32 | if held[s] { 0 } else { FREE_STRAND };
+            words[s] = [nodes as u32, head_word, first as u32, lists[s] as u32];
             let stiffness = rod.stiffness();
             let constraints = rod.constraints();
             floats[s * STRAND_FLOATS] = [
@@ -779,10 +817,14 @@ impl GpuStrandUpload {
                 stiffness.bending_2 as f32,
                 stiffness.twisting as f32,
             ];
-            floats[s * STRAND_FLOATS + 1] = vec4(local(constraints.node_targets[0].unwrap()), strand.thickness);
-            floats[s * STRAND_FLOATS + 2] = vec4(local(constraints.node_targets[1].unwrap()), strand.hairs);
+            // Where the root is held (for a free strand, unused: its nodes and reference director as they are).
+            let positions = &rod.state().positions;
+            let root = [0, 1].map(|k| constraints.node_targets[k].unwrap_or(positions[k]));
+            let direction = constraints.twist_targets[0].unwrap_or(rod.frames().reference_directors[0]);
+            floats[s * STRAND_FLOATS + 1] = vec4(local(root[0]), strand.thickness);
+            floats[s * STRAND_FLOATS + 2] = vec4(local(root[1]), strand.hairs);
             let per_kilogram = 1.0 / rod.material().density;
-            floats[s * STRAND_FLOATS + 3] = vec4(inverse * constraints.twist_targets[0].unwrap(), per_kilogram);
+            floats[s * STRAND_FLOATS + 3] = vec4(inverse * direction, per_kilogram);
             let rod_state = rod.state();
             let frames = rod.frames();
             let shape = rod.rest_shape();
@@ -834,6 +876,7 @@ impl GpuStrandUpload {
             state,
             layout: Arc::new(StrandLayout {
                 node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
+                lanes: strands.iter().zip(&held).map(|(s, &held)| lanes_needed(s.rod.node_count(), held)).collect(),
                 first_nodes,
                 total_nodes: total,
                 list_lengths,
@@ -874,8 +917,11 @@ impl GpuStrandSolver {
         upload: GpuStrandUpload,
     ) -> Result<Self, GpuStepError> {
         let GpuStrandUpload { words, floats, rest, state, layout: strands, head_poses } = upload;
-        let most = pipelines.max_nodes();
-        if let Some((strand, &nodes)) = strands.node_counts.iter().enumerate().find(|(_, nodes)| **nodes > most) {
+        // (A pipeline of `n` lanes steps held strands of `n + 1` nodes, free ones of `n`.)
+        let most_lanes = pipelines.max_nodes() - 1;
+        if let Some(strand) = (0..strands.lanes.len()).find(|&s| strands.lanes[s] > most_lanes) {
+            let (nodes, held) = (strands.node_counts[strand], strands.lanes[strand] < strands.node_counts[strand]);
+            let most = if held { pipelines.max_nodes() } else { max_free_gpu_nodes(pipelines.max_nodes()) };
             return Err(GpuStepError::NodeCount { strand, nodes, most });
         }
         let strand_count = strands.node_counts.len();

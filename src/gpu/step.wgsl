@@ -4,7 +4,8 @@
 //
 // One workgroup per strand, lane `i` owning edge `i` and the node `i + 1` at its end, lane 0 the root
 // node too (the strand in the lanes' registers, what lanes share in workgroup memory): a guide of 32 edges
-// is one workgroup of 32 lanes, one warp. Buffers are row planes of node-contiguous strands:
+// is one workgroup of 32 lanes, one warp. A free strand (no head holds its root edge) has its first node
+// moved like any other, by the lane after its last edge's (so it needs a lane per node). Buffers are row planes of node-contiguous strands:
 // row `k` of node `i` of strand `s` is at `k * total_nodes + first(s) + i`, so that a workgroup's lanes
 // read neighbouring memory and no strand is padded to the longest. Positions are relative to the
 // strand's head (its translation at the end of the last step), so that single precision resolves
@@ -76,6 +77,10 @@ struct Params {
 // Per strand words: node count, head, its first node in the row planes; and, not the strand's, the `k`th
 // strand of the dispatch lists (`list_start`).
 const STRAND_WORDS: u32 = 1u;
+// The head's index in a strand's second word, and its top bit: the strand is free (no head holds its root
+// edge; its head is a frame it is stepped in).
+const HEAD_INDEX: u32 = 0x7fffffffu;
+const FREE_STRAND: u32 = 0x80000000u;
 // Per strand floats: (EA, EI₁, EI₂, GJ); (root node 0 head-local, thickness); (root node 1, the hairs it
 // stands for on the hair–hair grid); (root material direction, its keratin's volume per kilogram 1/ρ, m³/kg).
 const STRAND_FLOATS: u32 = 4u;
@@ -199,6 +204,12 @@ var<private> lane: u32;
 // Whether this lane has an edge (and a node: `node`, at the edge's end).
 var<private> own_edge: bool;
 var<private> node: u32;
+// Whether the strand is free (its root edge not prescribed); whether this lane moves a node (`node`: the
+// end of its edge, or a free strand's first node for the lane after the last edge's); whether it holds
+// the prescribed root node (`root_x`: lane 0 of a strand that is not free).
+var<private> free: bool;
+var<private> own_node: bool;
+var<private> holds_root: bool;
 // Node `node`: position now, at the step's start, the scheme's prediction, the first guess; the tangent
 // of the strand there at the step's start; its contact normal and whether it has a contact spring; the
 // arc length of rest lengths from the root to it.
@@ -228,7 +239,8 @@ var<private> lifted_before: f32;
 var<private> lifted: bool;
 var<private> lifted_by: u32;
 var<private> arc: f32;
-// The root node (lane 0's besides node 1): prescribed, only carried, loaded and stored.
+// The root node (lane 0's besides node 1, unless the strand is free): prescribed, only carried, loaded
+// and stored.
 var<private> root_x: vec3<f32>;
 var<private> root_hat: vec3<f32>;
 var<private> root_carried: vec3<f32>;
@@ -443,11 +455,13 @@ fn from_lane_zero(value: f32) -> f32 {
 // Every lane's node and θ into `shared_x` and `shared_theta`, for its neighbours (lane 0's root node too).
 fn publish_nodes() {
     workgroupBarrier();
-    if own_edge {
+    if own_node {
         shared_x[node] = vec4<f32>(x, 0.0);
+    }
+    if own_edge {
         shared_theta[lane] = theta;
     }
-    if lane == 0u {
+    if holds_root {
         shared_x[0] = vec4<f32>(root_x, 0.0);
     }
     workgroupBarrier();
@@ -456,7 +470,7 @@ fn publish_nodes() {
 // Every lane's node back from `shared_x` (after lane 0 moved them all).
 fn take_nodes() {
     workgroupBarrier();
-    if own_edge {
+    if own_node {
         x = shared_x[node].xyz;
     }
     workgroupBarrier();
@@ -539,7 +553,7 @@ fn carry_with_root() {
         let lg = vec3<f32>(dot(g, old_t), dot(g, old_m1), dot(g, old_m2));
         tangent = lg.x * t + lg.y * new_m1 + lg.z * new_m2;
     }
-    if lane == 0u {
+    if holds_root {
         root_x = p0;
     }
     publish_nodes();
@@ -593,7 +607,7 @@ fn scatter(which: u32, d_previous: vec3<f32>, d_next: vec3<f32>, d_theta: vec2<f
 }
 
 fn node_inverse_mass(i: u32) -> f32 {
-    if i < 2u {
+    if i < 2u && !free {
         return 0.0;
     }
     return 1.0 / rest_at(i, 1u).y;
@@ -649,10 +663,10 @@ fn mobility(i: u32, v: vec3<f32>) -> vec3<f32> {
 // Every node's contact normal and inverse mass into `shared_m`, for `mobility`.
 fn share_mobility() {
     workgroupBarrier();
-    if own_edge {
+    if own_node {
         shared_m[node] = vec4<f32>(normal, node_inverse_mass(node));
     }
-    if lane == 0u {
+    if holds_root {
         shared_m[0] = vec4<f32>(0.0);
     }
     workgroupBarrier();
@@ -787,9 +801,14 @@ fn project_lengths(iterations: u32) {
             band[IMPULSE + 4u * lane + 2u] = impulse.z;
         }
         workgroupBarrier();
-        // Node `node` at the end of edge `lane` and the start of edge `node` (the root does not move).
-        if own_edge {
-            var push = -vec3<f32>(band[IMPULSE + 4u * lane], band[IMPULSE + 4u * lane + 1u], band[IMPULSE + 4u * lane + 2u]);
+        // Node `node` at the end of edge `node − 1` and the start of edge `node` (a root held on its head
+        // does not move).
+        if own_node {
+            var push = vec3<f32>(0.0);
+            if node > 0u {
+                let e = node - 1u;
+                push -= vec3<f32>(band[IMPULSE + 4u * e], band[IMPULSE + 4u * e + 1u], band[IMPULSE + 4u * e + 2u]);
+            }
             if node < edges {
                 push += vec3<f32>(band[IMPULSE + 4u * node], band[IMPULSE + 4u * node + 1u], band[IMPULSE + 4u * node + 2u]);
             }
@@ -842,12 +861,12 @@ fn gauss_seidel_sweep() {
     take_nodes();
 }
 
-// Whether collider `c` meets this lane's node (from the third: the root edge is prescribed). A collider
-// holding the root inside it leaves the nodes within `HELD_REACH` times the root's depth (along the
-// strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair grows out of it, and is not
-// torn trying to be outside.
+// Whether collider `c` meets this lane's node (from the third: the root edge is prescribed; every node of
+// a free strand). A collider holding the root inside it leaves the nodes within `HELD_REACH` times the
+// root's depth (along the strand) free of it, as on the CPU (`held_reach` in `rod/contact.rs`): hair
+// grows out of it, and is not torn trying to be outside.
 fn meets(c: u32, thickness: f32) -> bool {
-    return own_edge && node >= 2u && arc > held_reach(c, thickness);
+    return own_node && (free || (node >= 2u && arc > held_reach(c, thickness)));
 }
 
 // How far along the strand from its root collider `c` leaves the strand free of it: `HELD_REACH` times the
@@ -919,14 +938,16 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             force = scaled * (strain - vec3<f32>(rest_bend.zw, rest_twist));
         }
         if iteration > 0u && params.internal_damping > 0.0 {
-            if own_edge {
+            if own_node {
                 let offset = x - x_carried;
                 rhs[4u * node] = offset.x;
                 rhs[4u * node + 1u] = offset.y;
                 rhs[4u * node + 2u] = offset.z;
+            }
+            if own_edge {
                 rhs[4u * lane + 3u] = theta - theta_carried;
             }
-            if lane == 0u {
+            if holds_root {
                 let offset = root_x - root_carried;
                 rhs[0] = offset.x;
                 rhs[1] = offset.y;
@@ -968,9 +989,9 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
         // Node `node`'s own rows: the capped stretching stiffness of its edges' first-order change of
         // length (`k t tᵀ` on both nodes' diagonal blocks, `−k t tᵀ` between them; no stretching force:
         // lengths are the projection's), inertia, drag relative to the air, gravity, the style hold,
-        // contact springs; and edge `lane`'s twist inertia. (The root node's rows are prescribed: none.)
+        // contact springs; and edge `lane`'s twist inertia. (A held root node's rows are prescribed: none.)
         let inertia = 1.0 / (h * h) + params.air_damping / h;
-        if own_edge {
+        if own_node {
             let i = node;
             let stretching = strand_floats[strand * STRAND_FLOATS].x;
             for (var side = 0u; side < 2u; side++) {
@@ -1029,7 +1050,9 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
                 }
             }
             add_contact_springs(inertia);
-            // Its edge's twist by backward Euler.
+        }
+        if own_edge {
+            // Edge `lane`'s twist by backward Euler.
             {
                 let dt = step_dt;
                 let j = rest_at(lane, 1u).z;
@@ -1046,33 +1069,35 @@ fn assemble_and_factorize(iteration: u32, h: f32, target_offset: f32) -> bool {
             }
             workgroupBarrier();
         }
-        // The root edge prescribed: its unknowns move by their remaining displacement, and the rows below
-        // them feel it.
-        let p0 = root_target(0u) - shared_x[0].xyz;
-        let p1 = root_target(1u) - shared_x[1].xyz;
-        var prescribed = array<f32, 7>(p0.x, p0.y, p0.z, target_offset, p1.x, p1.y, p1.z);
-        let coupled = min(n, 7u + BAND);
-        if lane < coupled {
-            let r = lane;
-            var coupling = 0.0;
-            for (var c = 0u; c < 7u; c++) {
-                if r >= c && r - c <= BAND {
-                    coupling += band[band_index(r, c)] * prescribed[c];
-                } else if c > r && c - r <= BAND {
-                    coupling += band[band_index(c, r)] * prescribed[c];
+        // The root edge prescribed (a strand held on its head): its unknowns move by their remaining
+        // displacement, and the rows below them feel it. (Every lane takes the same branch.)
+        if !free {
+            let p0 = root_target(0u) - shared_x[0].xyz;
+            let p1 = root_target(1u) - shared_x[1].xyz;
+            var prescribed = array<f32, 7>(p0.x, p0.y, p0.z, target_offset, p1.x, p1.y, p1.z);
+            let coupled = min(n, 7u + BAND);
+            if lane < coupled {
+                let r = lane;
+                var coupling = 0.0;
+                for (var c = 0u; c < 7u; c++) {
+                    if r >= c && r - c <= BAND {
+                        coupling += band[band_index(r, c)] * prescribed[c];
+                    } else if c > r && c - r <= BAND {
+                        coupling += band[band_index(c, r)] * prescribed[c];
+                    }
                 }
+                rhs[r] += coupling;
             }
-            rhs[r] += coupling;
-        }
-        workgroupBarrier();
-        if lane < coupled {
-            let r = lane;
-            for (var c = select(0u, r - BAND, r >= BAND); c < min(r, 7u); c++) {
-                band[band_index(r, c)] = 0.0;
-            }
-            if r < 7u {
-                band[band_index(r, r)] = 1.0;
-                rhs[r] = -prescribed[r];
+            workgroupBarrier();
+            if lane < coupled {
+                let r = lane;
+                for (var c = select(0u, r - BAND, r >= BAND); c < min(r, 7u); c++) {
+                    band[band_index(r, c)] = 0.0;
+                }
+                if r < 7u {
+                    band[band_index(r, r)] = 1.0;
+                    rhs[r] = -prescribed[r];
+                }
             }
         }
         if factorize() {
@@ -1601,12 +1626,13 @@ fn push_out(friction: bool) -> bool {
 fn push_edges(thickness: f32) -> bool {
     let first_collider = bitcast<u32>(head_row(3u).x);
     let count = bitcast<u32>(head_row(3u).y);
-    // Edge `lane` from node `lane` to node `node`; both free (not the root edge's, not held).
+    // Edge `lane` from node `lane` to node `node`; both free (not the root edge's, not held; every edge of a
+    // free strand).
     let start_arc = arc - rest_at(lane, 0u).x;
     var start_push = vec3<f32>(0.0);
     var end_push = vec3<f32>(0.0);
     var pushed_by = 0.0;
-    if own_edge && lane >= 2u {
+    if own_edge && (lane >= 2u || free) {
         let start = shared_x[lane].xyz;
         let end = x;
         let start_weight = node_inverse_mass(lane);
@@ -1615,7 +1641,7 @@ fn push_edges(thickness: f32) -> bool {
             let c = first_collider + k;
             let shortest = 8.0 * collider_row(c, 5u).w * thickness;
             let d = end - start;
-            if start_arc <= held_reach(c, thickness) || dot(d, d) <= shortest {
+            if (!free && start_arc <= held_reach(c, thickness)) || dot(d, d) <= shortest {
                 continue;
             }
             let found = edge_push(c, start + start_push, end + end_push, thickness);
@@ -1647,7 +1673,7 @@ fn push_edges(thickness: f32) -> bool {
     }
     workgroupBarrier();
     var moved = false;
-    if own_edge {
+    if own_node {
         var push = end_push;
         var pushes = select(0.0, 1.0, pushed_by > 0.0);
         var by = pushed_by;
@@ -1676,17 +1702,19 @@ fn push_edges(thickness: f32) -> bool {
 
 // This lane's node and edge back in the rest pose the strand was uploaded in, carried with its head.
 fn reset_to_rest() {
+    if own_node {
+        x = rotate(head_row(0u), rest_at(node, 2u).xyz);
+        x_hat = x;
+    }
     if own_edge {
         let pose = rest_at(lane, 2u);
         let frame = rest_at(lane, 3u);
-        x = rotate(head_row(0u), rest_at(node, 2u).xyz);
         theta = pose.w;
         director = rotate(head_row(0u), frame.xyz);
         reference_twist = frame.w;
-        x_hat = x;
         theta_start = theta;
     }
-    if lane == 0u {
+    if holds_root {
         root_x = rotate(head_row(0u), rest_at(0u, 2u).xyz);
         root_hat = root_x;
     }
@@ -1766,13 +1794,17 @@ fn step(
     strand = strand_words[params.list_start + listed].w;
     let words = strand_words[strand * STRAND_WORDS];
     nodes = words.x;
-    head = words.y;
+    head = words.y & HEAD_INDEX;
+    free = (words.y & FREE_STRAND) != 0u;
     first = words.z;
-    if nodes < 3u || nodes > MAX_NODES {
+    // (A free strand needs a lane per node, one more than a held one.)
+    if nodes < 3u || nodes > select(MAX_NODES, LANES, free) {
         return;
     }
     own_edge = lane + 1u < nodes;
-    node = lane + 1u;
+    node = select(lane + 1u, 0u, free && lane + 1u == nodes);
+    own_node = own_edge || (free && lane + 1u == nodes);
+    holds_root = lane == 0u && !free;
     // This lane's entries of the factorisation's trailing update: the `lane`th and `lane + LANES`th of the
     // triangle below a pivot, row by row.
     for (var k = 0u; k < 2u; k++) {
@@ -1825,6 +1857,8 @@ fn step(
         let frame = state[state_index(lane, 4u)];
         director = frame.xyz;
         reference_twist = frame.w;
+    }
+    if own_node {
         let p = state[state_index(node, 0u)];
         let v = state[state_index(node, 1u)];
         x = p.xyz + shift;
@@ -1854,7 +1888,7 @@ fn step(
             arc += rest_at(e, 0u).x;
         }
     }
-    if lane == 0u {
+    if holds_root {
         root_x = state[state_index(0u, 0u)].xyz + shift;
         root_hat = root_x;
         if two_step {
@@ -1865,25 +1899,33 @@ fn step(
         state[state_index(0u, 3u)] = vec4<f32>(state[state_index(0u, 1u)].xyz, 0.0);
     }
     publish_nodes();
-    if own_edge {
+    if own_node {
         // The node's tangent at the step's start (for the drag): the mean of its edges'.
         let i = node;
-        let before = normalize(x - shared_x[i - 1u].xyz);
-        if i == edge_count() {
-            start_tangent = before;
+        if i == 0u {
+            start_tangent = normalize(shared_x[1].xyz - x);
         } else {
-            let after = normalize(shared_x[i + 1u].xyz - x);
-            let sum = before + after;
-            start_tangent = select(after, normalize(sum), dot(sum, sum) > 1e-12);
+            let before = normalize(x - shared_x[i - 1u].xyz);
+            if i == edge_count() {
+                start_tangent = before;
+            } else {
+                let after = normalize(shared_x[i + 1u].xyz - x);
+                let sum = before + after;
+                start_tangent = select(after, normalize(sum), dot(sum, sum) > 1e-12);
+            }
         }
         // The history this step leaves: positions and velocities at its start.
         state[state_index(i, 2u)] = vec4<f32>(x_start, 0.0);
         state[state_index(i, 3u)] = vec4<f32>(v_start, 0.0);
-        tangent = before;
+    }
+    if own_edge {
+        tangent = normalize(x - shared_x[lane].xyz);
     }
 
-    // 2. The first guess: carried with the root.
-    carry_with_root();
+    // 2. The first guess: carried with the root (a free strand's is where it is).
+    if !free {
+        carry_with_root();
+    }
     x_carried = x;
     theta_carried = theta;
     root_carried = root_x;
@@ -1896,7 +1938,7 @@ fn step(
     // fixed step it spans past the first, which its level still pays less for than for every fixed step.
     let newton_iterations = params.newton_iterations + span - 1u;
     for (var iteration = 0u; iteration < newton_iterations; iteration++) {
-        let offset = from_lane_zero(root_twist_offset(target_tangent, root_target(2u)));
+        let offset = select(from_lane_zero(root_twist_offset(target_tangent, root_target(2u))), 0.0, free);
         if !assemble_and_factorize(iteration, h, offset) {
             fault = FAULT_NOT_DEFINITE;
             break;
@@ -1906,9 +1948,9 @@ fn step(
             rhs[k] = -rhs[k];
         }
         solve();
-        // The trust region: no edge (but the root's) turns by more than `max_rotation`.
+        // The trust region: no edge (but a held root's) turns by more than `max_rotation`.
         var turn = 0.0;
-        if lane >= 1u && own_edge {
+        if (lane >= 1u || free) && own_edge {
             let e = lane;
             let d = shared_x[e + 1u].xyz - shared_x[e].xyz;
             let change = vec3<f32>(rhs[4u * e + 4u], rhs[4u * e + 5u], rhs[4u * e + 6u])
@@ -1922,16 +1964,18 @@ fn step(
             break;
         }
         let fraction = select(1.0, params.max_rotation / largest, largest > params.max_rotation);
-        if own_edge {
+        if own_node {
             x += fraction * vec3<f32>(rhs[4u * node], rhs[4u * node + 1u], rhs[4u * node + 2u]);
+        }
+        if own_edge {
             theta += fraction * rhs[4u * lane + 3u];
         }
-        if lane == 0u {
+        if holds_root {
             root_x += fraction * vec3<f32>(rhs[0], rhs[1], rhs[2]);
         }
         work_steps.y += 1u;
         let last = iteration + 1u == newton_iterations;
-        if last && lane == 0u {
+        if last && holds_root {
             // Exactly on the root's targets.
             root_x = root_target(0u);
             x = root_target(1u);
@@ -1978,13 +2022,13 @@ fn step(
     if fault == 0u {
         // The first node whose position, or whose edge's θ, is not finite.
         var mine = 0xffffffffu;
-        if own_edge && !finite3(x) {
+        if own_node && !finite3(x) {
             mine = node;
         }
         if own_edge && !finite(theta) {
-            mine = lane;
+            mine = min(mine, lane);
         }
-        if lane == 0u && !finite3(root_x) {
+        if holds_root && !finite3(root_x) {
             mine = 0u;
         }
         let at = smallest_over_lanes(mine);
@@ -2009,7 +2053,7 @@ fn step(
 
     // The nodes touching a collider after the step: held by a contact spring in the solve or moved by the
     // contact after it (`HairStatistics::contacts` on the CPU).
-    let contacts = count_over_lanes(own_edge && fault == 0u && (spring > 0.0 || pushed));
+    let contacts = count_over_lanes(own_node && fault == 0u && (spring > 0.0 || pushed));
 
     // 6. Velocities and the state written back: each node's velocity shared (in `shared_m`), then row `k`
     // of node `lane` (its position and velocity beside edge `lane`'s θ and θ̇) by lane `lane`, the last
@@ -2026,10 +2070,10 @@ fn step(
             v -= away * normal;
         }
     }
-    if own_edge {
+    if own_node {
         shared_m[node] = vec4<f32>(v, 0.0);
     }
-    if lane == 0u {
+    if holds_root {
         shared_m[0] = vec4<f32>(select((root_x - root_hat) / h, vec3<f32>(0.0), stopped), 0.0);
     }
     workgroupBarrier();
@@ -2038,6 +2082,8 @@ fn step(
         state[state_index(lane, 0u)] = vec4<f32>(shared_x[lane].xyz, theta);
         state[state_index(lane, 1u)] = vec4<f32>(shared_m[lane].xyz, rate);
         state[state_index(lane, 4u)] = vec4<f32>(director, reference_twist);
+    }
+    if own_node {
         // The history row, with how far above the surface an edge's push left the node (for the next
         // step's springs).
         var height = 0.0;

@@ -21,7 +21,8 @@ use crate::followers::{FollowerPlacement, HairFollowers, PlaceFollowersOnCpu};
 use crate::gpu::{
     GPU_FOLD_GAP, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack, GpuStepError, GpuStepPipelines, GpuStepTimings,
     GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus, GpuStrandUpload, GpuStrandWork, GpuVolume,
-    MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_max_nodes, gpu_step_support,
+    MAX_GPU_NODES, MAX_GPU_SPAN, SINGLE_PRECISION_STRAIN, gpu_max_nodes, gpu_step_support, max_free_gpu_nodes,
+    root_held,
 };
 use crate::rod::{AirSnapshot, Integrator, RodError, StepError, StepParams};
 use crate::schedule::{HairPinSystems, HairStepSystems, HairSystems};
@@ -58,11 +59,15 @@ use crate::wind::{HairWind, HairWindSource};
 ///
 /// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`gpu_max_nodes`] nodes
 /// ([`MAX_GPU_NODES`], 65, on every device; [`MAX_WIDE_GPU_NODES`](crate::gpu::MAX_WIDE_GPU_NODES), 129, where the device has the
-/// workgroup memory, as desktop GPUs do), once
+/// workgroup memory, as desktop GPUs do), and every free strand (a [`HairStrand`](crate::simulation::HairStrand)
+/// with no [`StrandOf`]) with one node fewer ([`max_free_gpu_nodes`]), once
 /// its gravity preload is done and its state is one a step can start from, without two edges folded
 /// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
-/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, free strands, folded
-/// strands) stay on the CPU. A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
+/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, folded strands) stay on the
+/// CPU. Free strands are stepped in the world's frame (single precision resolves 0.1 µm within a metre of
+/// the origin, 60 µm at a kilometre), meet the shared colliders (those of no head) as on the CPU, are on no
+/// hair–hair grid (as on the CPU), and are read back every step while any is on the GPU (no head's mesh
+/// draws them: a game reads their components). A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
 /// state directly (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head
 /// with some on the CPU is drawn from the components. Adding or removing strands uploads the set again,
 /// each from its last read-back state; writing a GPU strand's rod or components from outside has no
@@ -387,6 +392,10 @@ fn fall_back_to_the_cpu(app: &mut App, why: &str) {
     app.world_mut().resource_mut::<HairGpuSettings>().enabled = false;
 }
 
+/// The head free strands (no [`StrandOf`]) are stepped in on the GPU: the world's frame (identity, at the
+/// origin), with the shared colliders.
+const FREE_STRANDS: Entity = Entity::PLACEHOLDER;
+
 /// Starts the clock of the plugin's systems in the fixed schedule ([`HairGpuStatus::main_thread_seconds`]).
 fn start_clock(mut clock: ResMut<GpuSystemsClock>) {
     clock.0 = Some(std::time::Instant::now());
@@ -412,7 +421,7 @@ fn choose_gpu_strands(
     mut count: ResMut<GpuStepCount>,
     added: Query<(), Added<SimulatedStrand>>,
     mut removed: RemovedComponents<SimulatedStrand>,
-    strands: Query<(Entity, &SimulatedStrand, &StrandOf, Has<SteppedElsewhere>)>,
+    strands: Query<(Entity, &SimulatedStrand, Option<&StrandOf>, Has<SteppedElsewhere>)>,
     heads: Query<&HeadMotion, With<HairHead>>,
     head_strands: Query<&HeadStrands>,
     grid_hairs: Query<(Option<&RepresentedHairs>, Option<&HairFollowers>)>,
@@ -426,23 +435,27 @@ fn choose_gpu_strands(
     queue.dirty = false;
     let mut chosen: Vec<(Entity, Entity, &SimulatedStrand)> = Vec::new();
     if settings.enabled && !queue.unavailable {
-        for (entity, strand, &StrandOf(head), _) in &strands {
+        for (entity, strand, strand_of, _) in &strands {
             let nodes = strand.rod().node_count();
             // Rooted, with its root edge clamped where the head holds it (a strand of a head carried since it
-            // was spawned has not been pinned yet: it waits for its first step on the CPU's side).
-            let constraints = strand.rod().constraints();
-            let clamped = constraints.node_targets.len() >= 2
-                && constraints.node_targets[0].is_some()
-                && constraints.node_targets[1].is_some()
-                && constraints.twist_targets.first().is_some_and(Option::is_some);
-            let rooted = strand.root_anchor().is_some() && clamped && heads.contains(head);
+            // was spawned has not been pinned yet: it waits for its first step on the CPU's side); or free,
+            // with no head and nothing held (stepped in the world's frame, `FREE_STRANDS`).
+            let held = root_held(strand.rod());
+            let (head, most) = match strand_of {
+                Some(&StrandOf(head)) => (head, queue.max_nodes),
+                None => (FREE_STRANDS, max_free_gpu_nodes(queue.max_nodes)),
+            };
+            let rooted = match strand_of {
+                Some(&StrandOf(head)) => strand.root_anchor().is_some() && held == Some(true) && heads.contains(head),
+                None => strand.root_anchor().is_none() && held == Some(false),
+            };
             if strand.preload_pending() || strand.rod().unusable_state().is_some() {
                 // Looked over again until the preload is done, or until the CPU's step has put the
                 // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
                 // it was uploaded in, so that must be one a step can start from).
                 queue.dirty = true;
             } else if rooted
-                && (3..=queue.max_nodes).contains(&nodes)
+                && (3..=most).contains(&nodes)
                 && !strand.is_quarantined()
                 && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
                 && !queue.handed_back.contains(&entity)
@@ -518,7 +531,8 @@ fn choose_gpu_strands(
         .chunk_by(|a, b| a.0 == b.0)
         .map(|run| head_strands.get(run[0].0).is_ok_and(|strands| strands.strands().len() > run.len()))
         .collect();
-    queue.components_read = queue.mixed_heads.contains(&true);
+    // Free strands are drawn by no head's mesh: what a game reads of them are their components.
+    queue.components_read = queue.mixed_heads.contains(&true) || head_list.contains(&FREE_STRANDS);
     let on_gpu: Vec<Entity> = match upload {
         Some(Ok(upload)) => {
             let entities: Arc<Vec<Entity>> = Arc::new(chosen.iter().map(|c| c.1).collect());
@@ -602,6 +616,13 @@ fn order_gpu_step(
     let mut steps = Vec::with_capacity(queue.heads.len());
     let step = queue.steps_sent + 1;
     for (index, &head) in queue.heads.iter().enumerate() {
+        if head == FREE_STRANDS {
+            // The world's frame, stepped every fixed step, the shared colliders (as on the CPU), no hold, and
+            // off the GPU's grid (the CPU's has no free strands either).
+            let met = colliders.of(None).to_vec();
+            steps.push(GpuHeadStep { colliders: met, meets_hair_elsewhere: true, ..default() });
+            continue;
+        }
         let Ok((motion, detail)) = heads.get(head) else {
             steps.push(GpuHeadStep::default());
             continue;

@@ -996,3 +996,47 @@ fn a_strand_arriving_on_the_gpu_meets_the_gpus_grid_alone() {
         "the CPU's grid answered the strands before they arrived: {on_cpu_grid} strand-steps"
     );
 }
+
+/// A free strand (a `HairStrand` with no head) is stepped on the GPU too, in the world's frame, meeting the
+/// shared colliders (those of no head) as on the CPU: dropped from 5 cm onto a floor beside a groom, it is
+/// marked `SteppedElsewhere`, read back every step (nothing draws it from the GPU), lands and rests on the
+/// floor within `PLUGIN_RMS_BOUND` of where the CPU's app puts it, no node more than a millimetre inside.
+#[test]
+fn a_free_strand_is_stepped_on_the_gpu_and_lands_as_on_the_cpu() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    const FLOOR: f32 = 0.8;
+    let run = |gpu: bool| {
+        let mut app = app(gpu);
+        app.insert_resource(HairGpuSettings { read_back: GpuReadBackRate::OnDemand, ..default() });
+        let head = spawn_groom(&mut app, HairGroom { strand_count: 16, segments: 8, ..default() });
+        app.world_mut().spawn((HairCollider::plane(), Transform::from_xyz(0.0, FLOOR, 0.0)));
+        let strand = HairStrand::straight(Vec3::new(0.3, FLOOR + 0.05, 0.1), Vec3::new(1.0, 0.1, 0.3), 0.15, 20);
+        let free = app.world_mut().spawn(strand).id();
+        for number in 1..=60 {
+            step(&mut app, head, number);
+        }
+        app.world_mut().resource_mut::<HairPause>().paused = true;
+        if gpu {
+            wait_for_read_back(&mut app);
+            let status = app.world().resource::<HairGpuStatus>().clone();
+            assert_eq!((status.error.as_deref(), status.strands, status.faults), (None, 17, 0), "{status:?}");
+            assert!(app.world().get::<SteppedElsewhere>(free).is_some(), "the free strand is on the GPU");
+        }
+        app.world().get::<StrandNodes>(free).unwrap().positions.clone()
+    };
+    let (gpu, cpu) = (run(true), run(false));
+    let apart = rms_apart(std::slice::from_ref(&gpu), std::slice::from_ref(&cpu));
+    let lowest = |nodes: &[Vec3]| nodes.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let highest = |nodes: &[Vec3]| nodes.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+    println!(
+        "after 1 s: the free strand between {:.5} and {:.5} m on the GPU, {:.5} and {:.5} m on the CPU (floor at {FLOOR}); {apart:.2e} m RMS apart",
+        lowest(&gpu),
+        highest(&gpu),
+        lowest(&cpu),
+        highest(&cpu)
+    );
+    assert!(highest(&cpu) < FLOOR + 0.002, "the CPU's strand lies on the floor");
+    assert!(lowest(&gpu) > FLOOR - 1e-3, "a node of the GPU's strand inside the floor");
+    assert!(highest(&gpu) < FLOOR + 0.002, "the GPU's strand lies on the floor");
+    assert!(apart < PLUGIN_RMS_BOUND, "the GPU's free strand {apart} m RMS from the CPU's");
+}
