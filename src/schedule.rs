@@ -61,7 +61,7 @@ pub enum HairPrepareSystems {
 }
 
 /// The parts of [`HairSystems::PinRoots`]: `Track`, `FollowScalp`, `ChooseDetail` and `Pin` chained,
-/// `Colliders` beside them.
+/// `Colliders` beside them, `Preload` after both.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairPinSystems {
     /// Every head's pose at this step is recorded.
@@ -74,12 +74,16 @@ pub enum HairPinSystems {
     Pin,
     /// Colliders' poses are recorded and each head's set gathered ([`crate::collision`]).
     Colliders,
+    /// Rest shapes waiting for a gravity preload are preloaded, from the pinned strands and their
+    /// colliders. (After it, with the `gpu` feature, the strands the GPU steps are chosen, before anything
+    /// adds to their loads.)
+    Preload,
 }
 
 /// The parts of [`HairSystems::Step`], chained in this order.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum HairStepSystems {
-    /// Rest shapes waiting for a gravity preload are preloaded, then every strand due is stepped.
+    /// Every strand due is stepped (on the CPU; with the `gpu` feature, the GPU's step is ordered).
     Integrate,
     /// Follower hairs are placed along their stepped guides ([`crate::followers`]).
     Follow,

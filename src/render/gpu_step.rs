@@ -332,15 +332,16 @@ impl Plugin for HairGpuPlugin {
             .init_resource::<GpuSystemsClock>()
             .insert_resource(GpuReadBackReceiver(Mutex::new(receiver)))
             .add_systems(PreUpdate, apply_read_backs)
-            // The strands are chosen once their roots are pinned and before anything adds to their loads, so
-            // that a strand arriving on the GPU meets the GPU's wind and grid alone from its first step there
-            // (the CPU's leave `SteppedElsewhere` strands out), and is not stepped on the CPU as well.
+            // The strands are chosen once their roots are pinned and their rest shapes preloaded, before
+            // anything adds to their loads: a strand goes to the GPU from the state it was preloaded in (the
+            // CPU never steps it), and meets the GPU's wind and grid alone from its first step there (the
+            // CPU's leave `SteppedElsewhere` strands out).
             .add_systems(
                 self.schedule,
                 (start_clock, choose_gpu_strands, stop_clock)
                     .chain()
                     .in_set(HairSystems::PinRoots)
-                    .after(HairPinSystems::Pin),
+                    .after(HairPinSystems::Preload),
             )
             .add_systems(
                 self.schedule,
@@ -408,9 +409,11 @@ fn stop_clock(mut clock: ResMut<GpuSystemsClock>, mut status: ResMut<HairGpuStat
     }
 }
 
-/// Looks the strands over when they may have changed and uploads the set the GPU can step: rooted, 3 to
-/// [`gpu_max_nodes`] nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat, not handed back after
-/// failing on the GPU. Marks them [`SteppedElsewhere`], and unmarks the others.
+/// Looks the strands over when they may have changed (or some could not go at the last look: not preloaded
+/// yet, folded, quarantined) and uploads the set the GPU can step: rooted or free, 3 to [`gpu_max_nodes`]
+/// nodes, preloaded, not folded within [`GPU_FOLD_GAP`] of flat (unless already on the GPU), not
+/// quarantined, not handed back after failing on the GPU. Marks them [`SteppedElsewhere`], and unmarks the
+/// others.
 #[allow(clippy::too_many_arguments)]
 fn choose_gpu_strands(
     mut commands: Commands,
@@ -435,7 +438,7 @@ fn choose_gpu_strands(
     queue.dirty = false;
     let mut chosen: Vec<(Entity, Entity, &SimulatedStrand)> = Vec::new();
     if settings.enabled && !queue.unavailable {
-        for (entity, strand, strand_of, _) in &strands {
+        for (entity, strand, strand_of, on_gpu) in &strands {
             let nodes = strand.rod().node_count();
             // Rooted, with its root edge clamped where the head holds it (a strand of a head carried since it
             // was spawned has not been pinned yet: it waits for its first step on the CPU's side); or free,
@@ -454,13 +457,16 @@ fn choose_gpu_strands(
                 // unusable state back in the rest pose (a fault resets a strand on the GPU to the state
                 // it was uploaded in, so that must be one a step can start from).
                 queue.dirty = true;
-            } else if rooted
-                && (3..=most).contains(&nodes)
-                && !strand.is_quarantined()
-                && strand.rod().sharpest_turn().1 < PI - GPU_FOLD_GAP
-                && !queue.handed_back.contains(&entity)
-            {
-                chosen.push((head, entity, strand));
+            } else if rooted && (3..=most).contains(&nodes) && !queue.handed_back.contains(&entity) {
+                // A strand on the CPU that is folded (a tip pushed onto the face) or quarantined now is looked
+                // over again at the next fixed step, until it can go. (One on the GPU stays there: a fold
+                // that fails it there is the GPU's faults' to hand back.)
+                let folded = !on_gpu && strand.rod().sharpest_turn().1 >= PI - GPU_FOLD_GAP;
+                if folded || strand.is_quarantined() {
+                    queue.dirty = true;
+                } else {
+                    chosen.push((head, entity, strand));
+                }
             }
         }
     }

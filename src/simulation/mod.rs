@@ -213,6 +213,13 @@ impl Plugin for HairSimulationPlugin {
         .configure_sets(schedule, HairPinSystems::Colliders.in_set(HairSystems::PinRoots))
         .configure_sets(
             schedule,
+            HairPinSystems::Preload
+                .in_set(HairSystems::PinRoots)
+                .after(HairPinSystems::Pin)
+                .after(HairPinSystems::Colliders),
+        )
+        .configure_sets(
+            schedule,
             (HairStepSystems::Integrate, HairStepSystems::Follow).chain().in_set(HairSystems::Step),
         )
         .add_systems(
@@ -225,7 +232,8 @@ impl Plugin for HairSimulationPlugin {
                 (step::check_settings, step::open_step).chain().in_set(HairPrepareSystems::Budget),
                 head::track_heads.in_set(HairPinSystems::Track),
                 step::pin_roots.in_set(HairPinSystems::Pin),
-                (step::preload_rest_shapes, step::step_strands).chain().in_set(HairStepSystems::Integrate),
+                step::preload_rest_shapes.in_set(HairPinSystems::Preload),
+                step::step_strands.in_set(HairStepSystems::Integrate),
             ),
         );
     }
