@@ -833,6 +833,16 @@ fn project_lengths(iterations: u32) {
     }
 }
 
+// The most projection iterations to single precision's resolution: the step's limit, in proportion to the
+// edges past 64. Each iteration solves the lengths' linearisation exactly, but in `f32` the longer the
+// chain, the worse its tridiagonal system's condition (as the square of the edges) and the more iterations
+// it takes: soft strands let go horizontal were over-strained at 16 iterations from 96 edges on (96, 128,
+// 200 and 256 edges of 2 to 5 mm), and not at 16 per 64 edges. The iterations stop earlier wherever the
+// lengths are resolved or the error stalls.
+fn projection_limit() -> u32 {
+    return max(params.projection_iterations, (params.projection_iterations * edge_count() + 63u) / 64u);
+}
+
 // Exact per-edge projections, root to tip and back, by lane 0 on `shared_x` (the fallback of a
 // projection iteration that did not reduce the error; each edge depends on the last).
 fn gauss_seidel_sweep() {
@@ -1987,7 +1997,7 @@ fn step(
         // stretch (½ turn², up to 5e-3) to ~1e-5. After the last, as exact as single precision resolves.
         // (No projection before another iteration saves 0.4 iterations a strand-step on the shaken head
         // but leaves a held strand 7 % further from the CPU's: `tests/gpu/step.rs`.)
-        project_lengths(select(1u, params.projection_iterations, last));
+        project_lengths(select(1u, projection_limit(), last));
 
         refresh_frames();
     }
@@ -2003,7 +2013,7 @@ fn step(
             if !push_out(round == 0u) {
                 break;
             }
-            project_lengths(params.projection_iterations);
+            project_lengths(projection_limit());
         }
         let strained = largest_strain().x;
         if !(strained <= params.strain_bound) {
