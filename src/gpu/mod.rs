@@ -18,9 +18,7 @@
 //! so a free strand takes one node fewer, [`max_free_gpu_nodes`]), their state in its registers: strands of up to 32 edges (a
 //! game's guides) are stepped by workgroups of 32 lanes, one warp, longer ones (up to 64 edges,
 //! [`MAX_GPU_NODES`] nodes) by workgroups of 64, and where the device has the workgroup memory (desktop
-//! GPUs do) strands of up to 128 edges ([`MAX_WIDE_GPU_NODES`]) by workgroups of 128, and where it has a
-//! ninth storage buffer a stage strands of up to 256 edges ([`MAX_LONG_GPU_NODES`]) by workgroups of 256,
-//! their band in a storage buffer ([`gpu_max_nodes`]);
+//! GPUs do) strands of up to 128 edges ([`MAX_WIDE_GPU_NODES`]) by workgroups of 128 ([`gpu_max_nodes`]);
 //! the pipelines are built from one shader (its `LANES` constant) and dispatched in one pass. The banded
 //! Newton system (half-bandwidth 10, up to 259 unknowns at 64 lanes, 515 at 128) lives in workgroup
 //! memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU guarantees; 30.7 kB at 128; at 256 lanes
@@ -85,7 +83,6 @@ pub(crate) use step::root_held;
 pub use step::{
     GPU_CONTACT_ROUNDS, GPU_FOLD_GAP, GPU_NEWTON_ITERATIONS, GpuFault, GpuHairCadence, GpuHeadStep, GpuReadBack,
     GpuStepError, GpuStepPipelines, GpuStepTimings, GpuStrandInput, GpuStrandSolver, GpuStrandStates, GpuStrandStatus,
-    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, MAX_LONG_GPU_NODES, MAX_WIDE_GPU_NODES,
-    SINGLE_PRECISION_STRAIN, STEP_SHADER, STRETCH_RATIO, gpu_max_nodes, gpu_step_support, headless_device,
-    max_free_gpu_nodes,
+    GpuStrandUpload, GpuStrandWork, MAX_GPU_NODES, MAX_GPU_SPAN, MAX_WIDE_GPU_NODES, SINGLE_PRECISION_STRAIN,
+    STEP_SHADER, STRETCH_RATIO, gpu_max_nodes, gpu_step_support, headless_device, max_free_gpu_nodes,
 };

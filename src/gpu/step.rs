@@ -22,13 +22,8 @@ const MAX_GROUPS: u32 = 65_535;
 /// Lanes of the step's pipelines (`LANES` in `step.wgsl`): one workgroup steps a strand, lane `i` owning
 /// edge `i`; strands of up to 32 edges (a game's guides) go to workgroups of 32 lanes, one warp, those of
 /// up to 64 to workgroups of 64, longer ones to workgroups of 128 where the device has the workgroup
-/// memory for them, and to workgroups of 256 (the last, [`LONG_LANES`]) where it has a ninth storage
-/// buffer a stage for their band ([`gpu_max_nodes`]).
-const STEP_LANES: [usize; 4] = [32, 64, 128, LONG_LANES];
-/// Lanes of the pipeline whose band and right-hand side are in a storage buffer (`long_step_source`), not
-/// in workgroup memory: at 256 lanes the band of 1 027 unknowns takes 45 kB, more than any device's
-/// workgroup memory, while the nodes' arrays take 13.4 kB.
-const LONG_LANES: usize = 256;
+/// memory for them ([`gpu_max_nodes`]).
+const STEP_LANES: [usize; 3] = [32, 64, 128];
 /// The most nodes a strand stepped on the GPU may have on every device that can run the step: 64 edges,
 /// one per lane of the 64-lane pipeline, the band of up to 259 unknowns in 15.5 kB of workgroup memory
 /// (WebGPU guarantees 16 kB).
@@ -37,10 +32,6 @@ pub const MAX_GPU_NODES: usize = 65;
 /// 128 invocations a workgroup (desktop and console GPUs have 32 kB or more): 128 edges, one per lane of
 /// the 128-lane pipeline ([`gpu_max_nodes`]).
 pub const MAX_WIDE_GPU_NODES: usize = 129;
-/// The most nodes a strand stepped on the GPU may have on a device that also has 9 storage buffers a
-/// shader stage and 256 invocations a workgroup (desktop GPUs, and software Vulkan): 256 edges, one per
-/// lane of the 256-lane pipeline, whose band is in a storage buffer ([`gpu_max_nodes`]).
-pub const MAX_LONG_GPU_NODES: usize = LONG_LANES + 1;
 /// The top bit of a strand's head word (`FREE_STRAND` in `step.wgsl`): the strand is free (its root not
 /// held on its head; the head a frame it is stepped in).
 const FREE_STRAND: u32 = 0x8000_0000;
@@ -100,8 +91,7 @@ pub enum GpuStepError {
     #[error("the GPU cannot run the strand step: it lacks {0}")]
     Unsupported(String),
     /// A strand with more nodes than the device's widest workgroup has lanes ([`gpu_max_nodes`]: at
-    /// least [`MAX_GPU_NODES`], at most [`MAX_LONG_GPU_NODES`]; one fewer for a free strand), or fewer than
-    /// three.
+    /// least [`MAX_GPU_NODES`], at most [`MAX_WIDE_GPU_NODES`]), or fewer than three.
     #[error("strand {strand} has {nodes} nodes; the GPU step takes 3 to {most} on this device")]
     NodeCount {
         /// The strand's index in the input.
@@ -522,13 +512,11 @@ pub fn headless_device() -> Result<(wgpu::Device, wgpu::Queue, wgpu::AdapterInfo
     .map_err(|error| GpuStepError::NoDevice(error.to_string()))?;
     let info = adapter.get_info();
     let mut limits = wgpu::Limits::default();
-    // The adapter's storage buffers and workgroup memory, for the 128- and 256-lane pipelines where it has
-    // room (as Bevy asks for the adapter's limits).
-    let adapter_limits = adapter.limits();
-    limits.max_storage_buffers_per_shader_stage =
-        limits.max_storage_buffers_per_shader_stage.max(adapter_limits.max_storage_buffers_per_shader_stage.min(9));
+    limits.max_storage_buffers_per_shader_stage = limits.max_storage_buffers_per_shader_stage.max(8);
+    // The adapter's workgroup memory, for the 128-lane pipeline where it has room (as Bevy asks for the
+    // adapter's limits).
     limits.max_compute_workgroup_storage_size =
-        limits.max_compute_workgroup_storage_size.max(adapter_limits.max_compute_workgroup_storage_size);
+        limits.max_compute_workgroup_storage_size.max(adapter.limits().max_compute_workgroup_storage_size);
     let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
     let (device, queue) = bevy::tasks::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("hair strand step"),
@@ -551,8 +539,6 @@ pub struct GpuStrandSolver {
     /// steps).
     bind_groups: Vec<wgpu::BindGroup>,
     params: Vec<wgpu::Buffer>,
-    /// The band and right-hand side of each strand of the 256-lane pipeline's list, a slot each.
-    scratch: wgpu::Buffer,
     state: wgpu::Buffer,
     status: wgpu::Buffer,
     heads: wgpu::Buffer,
@@ -612,10 +598,8 @@ const STEP_TIMESTAMPS: u32 = 3;
 /// its first upload and never again.
 pub struct GpuStepPipelines {
     layout: wgpu::BindGroupLayout,
-    /// The layout of the 256-lane pipeline: [`GpuStepPipelines::layout`]'s and the band's storage buffer.
-    long_layout: Option<wgpu::BindGroupLayout>,
-    /// The step with 32 lanes a workgroup, with 64, and with 128 and 256 where the device can
-    /// ([`STEP_LANES`], [`gpu_max_nodes`]).
+    /// The step with 32 lanes a workgroup, with 64, and with 128 where the device can ([`STEP_LANES`],
+    /// [`gpu_max_nodes`]).
     steps: Vec<wgpu::ComputePipeline>,
     gather: Gather,
     grid: GridPipelines,
@@ -633,16 +617,6 @@ impl GpuStepPipelines {
             source: wgpu::ShaderSource::Wgsl(STEP_SHADER.into()),
         });
         let limits = device.limits();
-        let long_layout = lanes_fit(&limits, LONG_LANES).then(|| {
-            let read_only = [read_only.as_slice(), &[false]].concat();
-            compute_layout(device, "hair strand step, band in storage", Some(PARAMS_BYTES), &read_only)
-        });
-        let long_module = long_layout.as_ref().map(|_| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("hair strand step, band in storage"),
-                source: wgpu::ShaderSource::Wgsl(long_step_source().into()),
-            })
-        });
         let steps = STEP_LANES
             .iter()
             .filter(|&&lanes| lanes_fit(&limits, lanes))
@@ -651,15 +625,10 @@ impl GpuStepPipelines {
                 // The step writes every workgroup value before it reads it.
                 let options =
                     wgpu::PipelineCompilationOptions { constants: &constants, zero_initialize_workgroup_memory: false };
-                match (&long_module, &long_layout) {
-                    (Some(module), Some(layout)) if lanes == LONG_LANES => {
-                        pipeline_of_module(device, "hair strand step", module, "step", layout, &options)
-                    }
-                    _ => pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options),
-                }
+                pipeline_of_module(device, "hair strand step", &module, "step", &layout, &options)
             })
             .collect();
-        Arc::new(Self { layout, long_layout, steps, gather: Gather::new(device), grid: GridPipelines::new(device) })
+        Arc::new(Self { layout, steps, gather: Gather::new(device), grid: GridPipelines::new(device) })
     }
 
     /// The most nodes a strand stepped with these pipelines may have ([`gpu_max_nodes`] of their device).
@@ -668,62 +637,23 @@ impl GpuStepPipelines {
     }
 }
 
-/// The floats of the band and right-hand side of up to `4 lanes + 3` unknowns, the band 11 floats wide.
-const fn band_floats(lanes: usize) -> usize {
-    let unknowns = 4 * lanes + 3;
-    unknowns * 11 + unknowns
-}
-
-/// The workgroup memory the step's pipeline of `lanes` lanes uses, bytes: the band and right-hand side
-/// (but for [`LONG_LANES`], whose band is in a storage buffer), and four arrays over the nodes
-/// (`step.wgsl`).
+/// The workgroup memory the step's pipeline of `lanes` lanes uses, bytes: the band and right-hand side of
+/// up to `4 lanes + 3` unknowns, 11 floats wide, and four arrays over the nodes (`step.wgsl`).
 const fn step_workgroup_bytes(lanes: usize) -> usize {
-    let band = if lanes == LONG_LANES { 0 } else { 4 * band_floats(lanes) };
-    band + (lanes + 1) * (16 + 4 + 16 + 16) + 8
+    let unknowns = 4 * lanes + 3;
+    4 * (unknowns * 11 + unknowns) + (lanes + 1) * (16 + 4 + 16 + 16) + 8
 }
 
-/// Whether a device with `limits` can run the step's pipeline of `lanes` lanes (the 256-lane one only where
-/// it can run the 128-lane one too, and has a ninth storage buffer a stage for the band).
+/// Whether a device with `limits` can run the step's pipeline of `lanes` lanes.
 fn lanes_fit(limits: &wgpu::Limits, lanes: usize) -> bool {
-    let fits = |lanes: usize| {
-        step_workgroup_bytes(lanes) <= limits.max_compute_workgroup_storage_size as usize
-            && lanes <= limits.max_compute_invocations_per_workgroup as usize
-            && lanes <= limits.max_compute_workgroup_size_x as usize
-    };
-    fits(lanes) && (lanes != LONG_LANES || (fits(STEP_LANES[2]) && limits.max_storage_buffers_per_shader_stage >= 9))
-}
-
-/// The step's shader for [`LONG_LANES`]: its band and right-hand side in a storage buffer (binding 9, a
-/// slot for each workgroup of the dispatch) instead of workgroup memory, and every barrier one for storage
-/// memory too. The same text otherwise, so that the two cannot drift apart.
-fn long_step_source() -> String {
-    let replacements = [
-        (
-            "var<workgroup> band: array<f32, BAND_FLOATS>;",
-            "@group(0) @binding(9) var<storage, read_write> scratch: array<f32>;\nvar<private> band_base: u32;\nvar<private> rhs_base: u32;",
-        ),
-        ("var<workgroup> rhs: array<f32, MAX_DOFS>;", ""),
-        ("band[", "scratch[band_base + "),
-        ("rhs[", "scratch[rhs_base + "),
-        ("workgroupBarrier();", "storageBarrier();\n    workgroupBarrier();"),
-        (
-            "    lane = local;\n",
-            "    lane = local;\n    band_base = listed * (BAND_FLOATS + MAX_DOFS);\n    rhs_base = band_base + BAND_FLOATS;\n",
-        ),
-    ];
-    let mut source = STEP_SHADER.to_string();
-    for (from, to) in replacements {
-        debug_assert!(source.contains(from), "step.wgsl has no `{from}`");
-        source = source.replace(from, to);
-    }
-    source
+    step_workgroup_bytes(lanes) <= limits.max_compute_workgroup_storage_size as usize
+        && lanes <= limits.max_compute_invocations_per_workgroup as usize
+        && lanes <= limits.max_compute_workgroup_size_x as usize
 }
 
 /// The most nodes a strand stepped on the GPU may have on a device with `limits` (that can run the step,
-/// [`gpu_step_support`]): [`MAX_LONG_GPU_NODES`] where the device also has 9 storage buffers a stage and
-/// 256 invocations a workgroup (desktop GPUs; the band then in a storage buffer), [`MAX_WIDE_GPU_NODES`]
-/// where it has the workgroup memory and invocations for workgroups of 128 lanes (30.7 kB),
-/// [`MAX_GPU_NODES`] otherwise.
+/// [`gpu_step_support`]): [`MAX_WIDE_GPU_NODES`] where the device has the workgroup memory and invocations
+/// for workgroups of 128 lanes (30.7 kB, as desktop GPUs have), [`MAX_GPU_NODES`] otherwise.
 pub fn gpu_max_nodes(limits: &wgpu::Limits) -> usize {
     STEP_LANES.iter().filter(|&&lanes| lanes_fit(limits, lanes)).max().map_or(MAX_GPU_NODES, |&lanes| lanes + 1)
 }
@@ -820,7 +750,7 @@ impl GpuStrandUpload {
             let Some(root_held) = root_held(strand.rod) else {
                 return Err(GpuStepError::Unrooted { strand: index });
             };
-            let most = if root_held { MAX_LONG_GPU_NODES } else { max_free_gpu_nodes(MAX_LONG_GPU_NODES) };
+            let most = if root_held { MAX_WIDE_GPU_NODES } else { max_free_gpu_nodes(MAX_WIDE_GPU_NODES) };
             if !(3..=most).contains(&nodes) {
                 return Err(GpuStepError::NodeCount { strand: index, nodes, most });
             }
@@ -1017,14 +947,6 @@ impl GpuStrandSolver {
             &vec![0_u8; 16 * COLLIDER_ROWS * collider_capacity],
             wgpu::BufferUsages::COPY_DST,
         );
-        // A slot of band and right-hand side for each strand of the 256-lane list (a float where there is none).
-        let long_strands = strands.list_lengths[STEP_LANES.len() - 1];
-        let scratch = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("hair step band"),
-            size: 4 * (long_strands * band_floats(LONG_LANES)).max(1) as u64,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
         let params: Vec<wgpu::Buffer> = (0..pipelines.steps.len())
             .map(|_| {
                 device.create_buffer(&wgpu::BufferDescriptor {
@@ -1040,13 +962,11 @@ impl GpuStrandSolver {
             pipelines,
             &params,
             [&strand_words, &strand_floats, &rest, &state, &heads, &colliders, &status, &work],
-            &scratch,
         );
         Ok(Self {
             pipelines: pipelines.clone(),
             bind_groups,
             params,
-            scratch,
             state,
             status,
             heads,
@@ -1144,7 +1064,6 @@ impl GpuStrandSolver {
                 &self.status,
                 &self.work,
             ],
-            &self.scratch,
         );
     }
 
@@ -1670,27 +1589,18 @@ impl GpuStrandSolver {
 }
 
 /// The step's bind groups, one per pipeline of [`STEP_LANES`]: its parameters, then `buffers` (strand words,
-/// floats, rest shape, state, heads, colliders, status, work counters), and for the 256-lane pipeline
-/// `scratch`, its bands.
+/// floats, rest shape, state, heads, colliders, status, work counters).
 fn step_bind_groups(
     device: &wgpu::Device,
     pipelines: &GpuStepPipelines,
     params: &[wgpu::Buffer],
     buffers: [&wgpu::Buffer; 8],
-    scratch: &wgpu::Buffer,
 ) -> Vec<wgpu::BindGroup> {
     params
         .iter()
-        .enumerate()
-        .map(|(class, params)| {
-            let mut all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
-            match &pipelines.long_layout {
-                Some(layout) if STEP_LANES[class] == LONG_LANES => {
-                    all.push(scratch);
-                    bind_whole_buffers(device, "hair strand step", layout, &all)
-                }
-                _ => bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all),
-            }
+        .map(|params| {
+            let all: Vec<&wgpu::Buffer> = std::iter::once(params).chain(buffers).collect();
+            bind_whole_buffers(device, "hair strand step", &pipelines.layout, &all)
         })
         .collect()
 }

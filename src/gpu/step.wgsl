@@ -836,8 +836,8 @@ fn project_lengths(iterations: u32) {
 // The most projection iterations to single precision's resolution: the step's limit, in proportion to the
 // edges past 64. Each iteration solves the lengths' linearisation exactly, but in `f32` the longer the
 // chain, the worse its tridiagonal system's condition (as the square of the edges) and the more iterations
-// it takes: soft strands let go horizontal were over-strained at 16 iterations from 96 edges on (96, 128,
-// 200 and 256 edges of 2 to 5 mm), and not at 16 per 64 edges. The iterations stop earlier wherever the
+// it takes: soft strands let go horizontal were over-strained at 16 iterations from 96 edges on (96 and 128
+// edges of 2 mm; 200 and 256 too, on a wider pipeline tried), and not at 16 per 64 edges. The iterations stop earlier wherever the
 // lengths are resolved or the error stalls.
 fn projection_limit() -> u32 {
     return max(params.projection_iterations, (params.projection_iterations * edge_count() + 63u) / 64u);

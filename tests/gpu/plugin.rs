@@ -840,7 +840,7 @@ fn a_strand_stiffened_to_hold_stands_on_the_gpu_as_on_the_cpu() {
 fn a_head_with_strands_on_both_sides_meets_on_one_grid() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
     const STEPS: usize = 20;
-    let long_edges = bevy_hair_sim::gpu::MAX_LONG_GPU_NODES + 10;
+    let long_edges = bevy_hair_sim::gpu::MAX_WIDE_GPU_NODES + 10;
     // (nodes of the long strands, of the guides; the CPU's and the GPU's densest volume fractions)
     let run = |gpu: bool, with_groom: bool| {
         let mut app = app(gpu);
