@@ -21,8 +21,7 @@
 //! GPUs do) strands of up to 128 edges ([`MAX_WIDE_GPU_NODES`]) by workgroups of 128 ([`gpu_max_nodes`]);
 //! the pipelines are built from one shader (its `LANES` constant) and dispatched in one pass. The banded
 //! Newton system (half-bandwidth 10, up to 259 unknowns at 64 lanes, 515 at 128) lives in workgroup
-//! memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU guarantees; 30.7 kB at 128; at 256 lanes
-//! its 1 027 unknowns take 45 kB, and live in a storage buffer, a slot per workgroup): each lane
+//! memory (8 kB at 32 lanes, 15.5 kB at 64, of the 16 kB WebGPU guarantees; 30.7 kB at 128): each lane
 //! assembles its vertex's bending and twisting (three passes, so that vertices sharing unknowns never add
 //! at once) and its node's inertia, drag, stretching, hold and contact rows;
 //! the `L D Lᵀ` factorisation goes column by column, the 55 entries of each column's trailing update made by

@@ -63,8 +63,11 @@ use crate::wind::{HairWind, HairWindSource};
 /// with no [`StrandOf`]) with one node fewer ([`max_free_gpu_nodes`]), once
 /// its gravity preload is done and its state is one a step can start from, without two edges folded
 /// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
-/// [`SteppedElsewhere`], so the CPU step leaves it; the others (longer strands, folded strands) stay on the
-/// CPU. Free strands are stepped in the world's frame (single precision resolves 0.1 µm within a metre of
+/// [`SteppedElsewhere`], so the CPU step leaves it; the others stay on the CPU (longer strands; a folded or
+/// quarantined one until it unfolds or its quarantine ends, looked over again each step). The strands are
+/// chosen once their rest shapes are preloaded ([`HairPinSystems::Preload`]), before anything adds to
+/// their loads: a strand goes to the GPU from the state it was preloaded in, and meets the GPU's wind and
+/// grid alone from its first step there. Free strands are stepped in the world's frame (single precision resolves 0.1 µm within a metre of
 /// the origin, 60 µm at a kilometre), meet the shared colliders (those of no head) as on the CPU, are on no
 /// hair–hair grid (as on the CPU), and are read back every step while any is on the GPU (no head's mesh
 /// draws them: a game reads their components). A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
