@@ -786,10 +786,10 @@ impl GpuStrandUpload {
         let mut words = vec![[0_u32; 4]; padded];
         // The dispatch lists (`w` of the words): the strands by the narrowest pipeline they fit, narrowest
         // first.
-        let class = |s: usize| {
-            let lanes = lanes_needed(strands[s].rod.node_count(), held[s]);
-            STEP_LANES.iter().position(|&pipeline| lanes <= pipeline).unwrap_or(STEP_LANES.len() - 1)
-        };
+        let lanes: Vec<usize> =
+            strands.iter().zip(&held).map(|(strand, &held)| lanes_needed(strand.rod.node_count(), held)).collect();
+        let class =
+            |s: usize| STEP_LANES.iter().position(|&pipeline| lanes[s] <= pipeline).unwrap_or(STEP_LANES.len() - 1);
         let mut list_lengths = [0; STEP_LANES.len()];
         (0..strand_count).for_each(|s| list_lengths[class(s)] += 1);
         let lists: Vec<usize> =
@@ -876,7 +876,7 @@ impl GpuStrandUpload {
             state,
             layout: Arc::new(StrandLayout {
                 node_counts: strands.iter().map(|s| s.rod.node_count()).collect(),
-                lanes: strands.iter().zip(&held).map(|(s, &held)| lanes_needed(s.rod.node_count(), held)).collect(),
+                lanes,
                 first_nodes,
                 total_nodes: total,
                 list_lengths,

@@ -447,13 +447,17 @@ fn choose_gpu_strands(
             // was spawned has not been pinned yet: it waits for its first step on the CPU's side); or free,
             // with no head and nothing held (stepped in the world's frame, `FREE_STRANDS`).
             let held = root_held(strand.rod());
-            let (head, most) = match strand_of {
-                Some(&StrandOf(head)) => (head, queue.max_nodes),
-                None => (FREE_STRANDS, max_free_gpu_nodes(queue.max_nodes)),
-            };
-            let rooted = match strand_of {
-                Some(&StrandOf(head)) => strand.root_anchor().is_some() && held == Some(true) && heads.contains(head),
-                None => strand.root_anchor().is_none() && held == Some(false),
+            let (head, most, rooted) = match strand_of {
+                Some(&StrandOf(head)) => (
+                    head,
+                    queue.max_nodes,
+                    strand.root_anchor().is_some() && held == Some(true) && heads.contains(head),
+                ),
+                None => (
+                    FREE_STRANDS,
+                    max_free_gpu_nodes(queue.max_nodes),
+                    strand.root_anchor().is_none() && held == Some(false),
+                ),
             };
             if strand.preload_pending() || strand.rod().unusable_state().is_some() {
                 // Looked over again until the preload is done, or until the CPU's step has put the
