@@ -833,14 +833,17 @@ fn project_lengths(iterations: u32) {
     }
 }
 
-// The most projection iterations to single precision's resolution: the step's limit, in proportion to the
-// edges past 64. Each iteration solves the lengths' linearisation exactly, but in `f32` the longer the
-// chain, the worse its tridiagonal system's condition (as the square of the edges) and the more iterations
-// it takes: soft strands let go horizontal were over-strained at 16 iterations from 96 edges on (96 and 128
-// edges of 2 mm; 200 and 256 too, on a wider pipeline tried), and not at 16 per 64 edges. The iterations stop earlier wherever the
-// lengths are resolved or the error stalls.
+// The most projection iterations to single precision's resolution: the step's limit, and past 64 edges in
+// proportion to the square of the edges (as the condition of the lengths' tridiagonal system). Each
+// iteration solves the lengths' linearisation exactly, but in `f32` the longer the chain, the worse that
+// system's condition and the more iterations it takes. Soft strands let go horizontal were over-strained
+// at 16 iterations from 96 edges on (96, 128, 200 and 256 edges of 2 to 5 mm); 128 edges of 2.3 mm blown
+// sideways by a 1.6 m/s wind needed 48 iterations over a step's two projections, and were over-strained
+// at a limit of 32 (16 per 64 edges). The iterations stop earlier wherever the lengths are resolved or the
+// error stalls.
 fn projection_limit() -> u32 {
-    return max(params.projection_iterations, (params.projection_iterations * edge_count() + 63u) / 64u);
+    let edges = edge_count();
+    return max(params.projection_iterations, (params.projection_iterations * edges * edges + 4095u) / 4096u);
 }
 
 // Exact per-edge projections, root to tip and back, by lane 0 on `shared_x` (the fallback of a
