@@ -762,8 +762,9 @@ fn project_lengths(iterations: u32) {
             movable = k > 1e-6 * free_k && k > 0.0;
             if movable {
                 // The slight excess keeps the system definite where edges fold onto one line. Each
-                // iteration leaves that excess times the system's condition (as the edges squared) of
-                // the smoothest error: 0.16 for 128 edges, 0.65 for 256. (The CPU's 1e-6, tried, took
+                // iteration leaves that excess times the system's condition (as the edges squared: 2.3e4
+                // for a straight chain of 128 edges, 6.9e4 for 256) of the smoothest error: 0.23 and
+                // 0.69 of it. (The CPU's 1e-6, tried, took
                 // the wind-blown 128 edges of `tests/gpu/step.rs` from 18.6 projection iterations a step
                 // to 17.2, but left a node of the character's hair 1.25 mm inside its face, against
                 // 0.17 mm: three strands' contact given up where two were.)
@@ -832,7 +833,8 @@ fn project_lengths(iterations: u32) {
                 work_more.z += 1u;
                 // (Not where an edge is strained past half the step's bound: short edges far from the
                 // head's origin resolve coarsely, and `STALL_EXCESS` of their resolution can pass the
-                // bound: 256 edges of 1.6 mm stopped there at 3.1e-3, and failed the step.)
+                // bound: 256 edges of 1.6 mm, on a 256-lane pipeline tried, stopped there at 3.1e-3 and
+                // failed the step.)
                 if projected <= STALL_EXCESS && largest_over_lanes(edge_strain()) <= 0.5 * params.strain_bound {
                     return;
                 }
