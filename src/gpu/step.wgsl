@@ -764,10 +764,10 @@ fn project_lengths(iterations: u32) {
                 // The slight excess keeps the system definite where edges fold onto one line. Each
                 // iteration leaves that excess times the system's condition (as the edges squared: 2.3e4
                 // for a straight chain of 128 edges, 6.9e4 for 256) of the smoothest error: 0.23 and
-                // 0.69 of it. (The CPU's 1e-6, tried, took
-                // the wind-blown 128 edges of `tests/gpu/step.rs` from 18.6 projection iterations a step
-                // to 17.2, but left a node of the character's hair 1.25 mm inside its face, against
-                // 0.17 mm: three strands' contact given up where two were.)
+                // 0.69 of it. (The CPU's 1e-6, tried, took the wind-blown 128 edges of
+                // `tests/gpu/step.rs` from 18.6 projection iterations a step to 17.2, but left a node of
+                // the character's hair 1.25 mm inside its face, against 0.17 mm: three strands' contact
+                // given up where two were.)
                 b = k * (1.0 + 1e-5);
                 d = dot(edge, edge) / goal - goal;
             }

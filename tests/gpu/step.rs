@@ -971,6 +971,35 @@ fn a_free_strand_unbends_about_its_centre_of_mass_as_on_the_cpu() {
     assert!(gpu_rms <= 2.0 * cpu_rms + momentum_bound, "GPU {gpu_rms:e} m vs CPU {cpu_rms:e} m from converged");
 }
 
+/// Human hair through `nodes`, its root edge clamped on a still head at `head` (in a uniform `wind`, if
+/// any), stepped 30 times on the GPU: asserts that no step fails (`case` names the strand), and returns the
+/// solver and the largest strain.
+fn fall_without_a_fault(
+    (device, queue): (&wgpu::Device, &wgpu::Queue),
+    nodes: &[DVec3],
+    head: DVec3,
+    wind: Option<DVec3>,
+    case: &str,
+) -> (GpuStrandSolver, f32) {
+    let mut rod = Rod::new(nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
+    rod.clamp_root_in_place();
+    let input =
+        GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None };
+    let mut gpu = GpuStrandSolver::new(device, &[input], &[(DQuat::IDENTITY, head)]).unwrap();
+    if let Some(wind) = wind {
+        gpu.set_air(&bevy_hair_sim::rod::AirSnapshot { uniform: wind, ..Default::default() }).unwrap();
+    }
+    let params = StepParams::default();
+    let mut strain = 0.0_f32;
+    for step in 1..=30 {
+        gpu.step(device, queue, &params, &[still_head(head)]).unwrap();
+        let status = gpu.read_back(device, queue).status[0];
+        assert!(status.fault.is_none(), "{case}, step {step}: {status:?}");
+        strain = strain.max(status.max_strain);
+    }
+    (gpu, strain)
+}
+
 /// Soft strands (human hair) of 80 to 128 edges, 2 to 2.3 mm long, let go horizontal from a clamped root:
 /// 30 steps of their fall (the tension near the root the largest) without a fault, where the device takes
 /// them. With the projection's limit of 16 iterations for every strand, those of 96 edges and more were
@@ -987,19 +1016,8 @@ fn long_soft_strands_let_go_horizontal_fall_without_a_fault() {
         }
         let root = DVec3::new(1.0, 1.7, 0.0);
         let nodes: Vec<DVec3> = straight_nodes(length, edges, DVec3::Z).into_iter().map(|p| p + root).collect();
-        let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
-        rod.clamp_root_in_place();
-        let input =
-            GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None };
-        let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, root)]).unwrap();
-        let params = StepParams::default();
-        let mut strain = 0.0_f32;
-        for step in 1..=30 {
-            gpu.step(&device, &queue, &params, &[still_head(root)]).unwrap();
-            let status = gpu.read_back(&device, &queue).status[0];
-            assert!(status.fault.is_none(), "{edges} edges of {length} m, step {step}: {status:?}");
-            strain = strain.max(status.max_strain);
-        }
+        let case = format!("{edges} edges of {length} m");
+        let (gpu, strain) = fall_without_a_fault((&device, &queue), &nodes, root, None, &case);
         let tip = gpu.read_back(&device, &queue).positions[0][edges];
         println!(
             "{edges} edges of {length} m: no fault in 30 steps, largest strain {strain:.2e}, tip fell {:.3} m",
@@ -1027,22 +1045,9 @@ fn a_long_soft_strand_blown_sideways_falls_without_a_fault() {
     let nodes: Vec<DVec3> = (0..=edges)
         .map(|k| (head + bevy::math::Vec3::new(0.0, 0.1, k as f32 * (0.3 / edges as f32))).as_dvec3())
         .collect();
-    let mut rod = Rod::new(&nodes, DVec3::Y, RodMaterial::human_hair()).unwrap();
-    rod.clamp_root_in_place();
-    let input =
-        GpuStrandInput { rod: &rod, head: 0, thickness: 1e-4, groomed: None, hairs: 1.0, groomed_fractions: None };
-    let head = head.as_dvec3();
-    let mut gpu = GpuStrandSolver::new(&device, &[input], &[(DQuat::IDENTITY, head)]).unwrap();
     let wind = DVec3::new(1.5, 0.0, 0.5);
-    gpu.set_air(&bevy_hair_sim::rod::AirSnapshot { uniform: wind, ..Default::default() }).unwrap();
-    let params = StepParams::default();
-    let mut strain = 0.0_f32;
-    for step in 1..=30 {
-        gpu.step(&device, &queue, &params, &[still_head(head)]).unwrap();
-        let status = gpu.read_back(&device, &queue).status[0];
-        assert!(status.fault.is_none(), "step {step}: {status:?}");
-        strain = strain.max(status.max_strain);
-    }
+    let (gpu, strain) =
+        fall_without_a_fault((&device, &queue), &nodes, head.as_dvec3(), Some(wind), "128 edges in the wind");
     let work = gpu.read_work(&device, &queue)[0];
     let tip = gpu.read_back(&device, &queue).positions[0][edges] - nodes[edges];
     println!(
