@@ -5,8 +5,11 @@
 //!
 //! Baking (Bridson's `makelevelset3`, as in Batty's SDFGen): exact point–triangle distances in a band
 //! of [`EXACT_BAND_CELLS`] cells around each triangle, spread to the rest of the grid by sweeping each
-//! sample's nearest triangle to its neighbours, and the sign from the parity of crossings along rows of
-//! samples in X, Y and Z (inside where at least two of the three agree, which forgives small holes).
+//! sample's nearest triangle to its neighbours, and the sign from the winding number along rows of
+//! samples in X, Y and Z (inside where at least two of the three agree, which forgives small holes). The
+//! winding number counts a crossing into the mesh +1 and out of it −1 (by the triangle's facing): a face
+//! with ears, eyes or a nose as closed shells of their own, overlapping it, is inside wherever any shell
+//! is, as it is drawn (the parity of crossings would call the overlaps outside).
 
 use bevy::math::DVec3;
 use bevy::reflect::TypePath;
@@ -297,15 +300,17 @@ impl<'a> Baker<'a> {
         }
     }
 
-    /// Whether each sample is inside: odd crossings of the mesh before it along rows in X, Y and Z, by a
-    /// majority of the three.
+    /// Whether each sample is inside: a winding number other than zero along rows in X, Y and Z (each
+    /// crossing before it counted +1 where the triangle faces back along the row, into the mesh, and −1
+    /// where it faces along it), by a majority of the three. Shells wound inside out count −1 and are
+    /// inside all the same.
     fn inside(&self) -> Vec<bool> {
         let mut votes = vec![0_u8; self.distance.len()];
         for axis in 0..3 {
             let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
             let (count, count_u, count_v) = (self.counts[axis], self.counts[u], self.counts[v]);
-            // Crossings per row, at the first sample past each crossing.
-            let mut crossings = vec![0_u8; self.distance.len()];
+            // Signed crossings per row, at the first sample past each crossing.
+            let mut crossings = vec![0_i16; self.distance.len()];
             let row_index = |along: usize, iu: usize, iv: usize| {
                 let mut cell = [0; 3];
                 cell[axis] = along;
@@ -316,6 +321,9 @@ impl<'a> Baker<'a> {
             for triangle in 0..self.triangles.len() as u32 {
                 let corners = self.corners(triangle);
                 let flat = corners.map(|corner| [corner[u], corner[v]]);
+                // The triangle's normal along the row is its flat area's sign (u, v, axis right-handed):
+                // facing back along the row, the row enters the mesh through it.
+                let into = if orient(flat[0], flat[1], flat[2]) < 0.0 { 1 } else { -1 };
                 let (low, high) =
                     (corners[0].min(corners[1]).min(corners[2]), corners[0].max(corners[1]).max(corners[2]));
                 for iv in self.sample_range(low, high, v) {
@@ -330,18 +338,18 @@ impl<'a> Baker<'a> {
                         let first_past = ((along - self.min[axis]) / self.cell).floor() as isize + 1;
                         if (0..count as isize).contains(&first_past) {
                             let index = row_index(first_past as usize, iu, iv);
-                            crossings[index] = crossings[index].wrapping_add(1);
+                            crossings[index] = crossings[index].saturating_add(into);
                         }
                     }
                 }
             }
             for iv in 0..count_v {
                 for iu in 0..count_u {
-                    let mut odd = false;
+                    let mut winding = 0_i32;
                     for along in 0..count {
                         let index = row_index(along, iu, iv);
-                        odd ^= crossings[index] & 1 == 1;
-                        votes[index] += u8::from(odd);
+                        winding += i32::from(crossings[index]);
+                        votes[index] += u8::from(winding != 0);
                     }
                 }
             }
@@ -598,6 +606,48 @@ pub(crate) mod tests {
             DistanceField::bake(&positions, &triangles, 1e-5),
             Err(DistanceFieldError::TooManySamples { .. })
         ));
+    }
+
+    #[test]
+    fn shells_that_overlap_are_inside_where_any_of_them_is() {
+        // A 10 cm ball with a 3 cm ball sunk halfway into its side (an ear), and behind it a box wound
+        // inside out: every point inside any of them is inside, by more than a cell's error. (A shell wound
+        // inside out that overlaps one wound right cancels it there, as the parity of crossings would.)
+        let (mut positions, mut triangles) = uv_sphere(0.1, 48);
+        let (ear, ear_triangles) = uv_sphere(0.03, 24);
+        let (block, block_triangles) = box_mesh(DVec3::new(0.02, 0.02, 0.012));
+        for (shell, shell_triangles, centre, inside_out) in [
+            (ear, ear_triangles, DVec3::new(0.1, 0.0, 0.0), false),
+            (block, block_triangles, DVec3::new(0.0, 0.0, -0.125), true),
+        ] {
+            let first = positions.len() as u32;
+            positions.extend(shell.iter().map(|&corner| corner + centre));
+            triangles.extend(shell_triangles.iter().map(|&[a, b, c]| {
+                if inside_out { [first + a, first + c, first + b] } else { [first + a, first + b, first + c] }
+            }));
+        }
+        let field = DistanceField::bake(&positions, &triangles, 0.004).unwrap();
+        let facets = 0.1 * (1.0 - (std::f64::consts::PI / 48.0).cos());
+        let (mut overlaps, mut in_blocks, mut worst_overlap) = (0, 0, f64::INFINITY);
+        for point in probes(0.14, 20_000) {
+            let in_ball = 0.1 - point.length();
+            let in_ear = 0.03 - point.distance(DVec3::new(0.1, 0.0, 0.0));
+            let q = (point - DVec3::new(0.0, 0.0, -0.125)).abs() - DVec3::new(0.02, 0.02, 0.012);
+            let in_block = -q.max_element();
+            let depth = in_ball.max(in_ear).max(in_block);
+            if depth > facets + field.cell_size() {
+                let (distance, _) = field.distance_and_gradient(point);
+                assert!(distance < 0.0, "{point}, {depth} m inside: {distance}");
+                in_blocks += usize::from(in_block > 0.0);
+                if in_ball > 0.0 && in_ear > 0.0 {
+                    overlaps += 1;
+                    worst_overlap = worst_overlap.min(-distance);
+                }
+            }
+        }
+        // The overlap was probed (with the parity of crossings, it baked as outside), and the box.
+        assert!(overlaps > 20 && in_blocks > 5, "{overlaps} probes in the overlap, {in_blocks} in the box");
+        assert!(worst_overlap > 0.0);
     }
 
     #[test]
