@@ -236,8 +236,8 @@ fn spawn_stage(
     let (eye, target) = match (options.fox, options.front) {
         (true, true) => (Vec3::new(0.45, 0.8, 1.1), Vec3::new(0.0, 0.6, 0.4)),
         (true, false) => (Vec3::new(-0.45, 1.05, -0.55), Vec3::new(0.0, 0.6, 0.4)),
-        (false, true) => (Vec3::new(0.5, 1.75, 0.75), Vec3::new(0.0, 1.55, 0.0)),
-        (false, false) => (Vec3::new(-0.45, 1.75, -0.8), Vec3::new(0.0, 1.5, 0.0)),
+        (false, true) => (Vec3::new(0.3, 1.72, 0.55), Vec3::new(0.0, 1.6, 0.0)),
+        (false, false) => (Vec3::new(-0.3, 1.74, -0.6), Vec3::new(0.0, 1.57, 0.0)),
     };
     commands.spawn((Camera3d::default(), Transform::from_translation(eye).looking_at(target, Vec3::Y)));
     commands.spawn((

@@ -59,23 +59,25 @@
 //! shadowed strands ([`render`]); without it, as gizmo lines ([`debug`](mod@debug)).
 //!
 //! **On a glTF character**, put [`HairOnCharacter`](scalp::HairOnCharacter) on the scene's root: once the
-//! scene has spawned it finds the head joint by name (and a scalp mesh and face, if named), fits the
-//! groom's skull to the joint's skinned vertices and grows the groom there, turned onto the joint's own
-//! axes (read off its bind pose: glTF models stand `+Y` up facing `+Z`) and sized in metres whatever the
-//! character's scale (`examples/gltf_character.rs`; the fit takes
-//! in whatever the head joint skins, so an animal's snout and ears make it a size too large):
+//! scene has spawned it finds the head joint, the scalp mesh and the face by name, fits the groom's skull
+//! to the joint's skinned vertices, grows the groom on the scalp turned onto the joint's own axes (read
+//! off its bind pose: glTF models stand `+Y` up facing `+Z`) and sized in metres whatever the character's
+//! scale, binds every root to its scalp triangle, and bakes the face into a collider. The crate's own
+//! humanoid, `assets/models/Mannequin.glb`, takes nothing measured by hand (`examples/gltf_character.rs`;
+//! the fit takes in whatever the head joint skins, so an animal's snout and ears make it a size too large):
 //!
 //! ```no_run
 //! # use bevy::prelude::*;
 //! # use bevy_hair_sim::prelude::*;
-//! fn spawn_fox(mut commands: Commands, assets: Res<AssetServer>) {
-//!     let mane = HairGroom { style: HairStyle::Short, ..default() };
+//! fn spawn_character(mut commands: Commands, assets: Res<AssetServer>) {
 //!     commands.spawn((
-//!         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("models/Fox.glb"))),
+//!         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset("models/Mannequin.glb"))),
 //!         Transform::from_scale(Vec3::splat(0.01)), // modelled in centimetres
-//!         HairOnCharacter::new("b_Head_05", CharacterHair::Groom(mane))
+//!         HairOnCharacter::new("Head", CharacterHair::Groom(HairGroom::default()))
 //!             .with_gltf_head_axes()
-//!             .with_scalp_fitted_to_head(),
+//!             .with_scalp_fitted_to_head()
+//!             .with_scalp_mesh("Scalp")
+//!             .with_collider_meshes(["Face"]),
 //!     ));
 //! }
 //! ```

@@ -220,7 +220,7 @@ def face():
     mesh = Mesh()
 
     ellipsoid(mesh, SKULL_CENTRE, SKULL, head_weights, segments=48, rings=32)
-    ellipsoid(mesh, (0.0, 158.6, 3.4), (5.3, 5.0, 5.6), head_weights, segments=32, rings=20)
+    ellipsoid(mesh, (0.0, 158.6, 2.6), (5.0, 4.8, 5.3), head_weights, segments=32, rings=20)
     ellipsoid(mesh, (0.0, 163.8, 9.4), (1.1, 2.4, 1.5), head_weights, segments=12, rings=8,
               rotation=quat_axis_angle((1, 0, 0), -0.3))
     for side in (-1.0, 1.0):

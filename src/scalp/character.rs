@@ -47,7 +47,7 @@ use crate::simulation::HairHead;
 /// # }
 /// ```
 ///
-/// `examples/gltf_character.rs` puts a mane on Bevy's animated fox this way.
+/// `examples/gltf_character.rs` puts hair on the crate's glTF mannequin this way (`assets/models/Mannequin.glb`).
 #[derive(Component, Reflect, Debug, Clone, PartialEq)]
 #[reflect(Component, Debug, Clone, PartialEq)]
 pub struct HairOnCharacter {
