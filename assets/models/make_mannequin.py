@@ -392,7 +392,8 @@ def build():
         return len(materials) - 1
 
     skin_tone = material("Skin", (0.78, 0.58, 0.47), 0.7)
-    scalp_tone = material("ScalpSkin", (0.6, 0.44, 0.35), 0.8)
+    # The scalp is the face's skin: where the hair thins out at the hairline, no cap edge shows.
+    scalp_tone = material("ScalpSkin", (0.78, 0.58, 0.47), 0.75)
     eye_tone = material("Eye", (0.08, 0.06, 0.05), 0.3)
     wood = material("Wood", (0.62, 0.5, 0.38), 0.6)
 
