@@ -22,32 +22,46 @@ const FOX: &str = "models/Fox.glb";
 /// 6e-8 m; the joint's matrix applied in `f32` here, a few ulps).
 const ROOT_TOLERANCE: f32 = 1e-5;
 
-#[test]
-fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
-    let _renderer = hair_sim_support::renderer::one_at_a_time();
+/// A headless app with the renderer, stepping the hair on the CPU (the GPU's step is on by default where
+/// the adapter can run it) with `settings`, one fixed step of 1/60 s per update.
+fn app_on_the_cpu(settings: HairSettings) -> App {
     let mut app = App::new();
-    // The CPU's step (the GPU's is on by default where the adapter can run it).
     app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
         .insert_resource(HairGpuSettings { enabled: false, ..default() })
+        .insert_resource(settings)
         .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
         .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
     crate::finish_adding_plugins(&mut app);
+    app
+}
 
+/// Spawns the glTF scene at `path` (modelled in centimetres) at a scale of 0.01 with `hair` on it; returns
+/// its root and a graph playing its clip `clip`.
+fn spawn_in_centimetres(
+    app: &mut App,
+    path: &'static str,
+    clip: usize,
+    hair: HairOnCharacter,
+) -> (Entity, Handle<AnimationGraph>, AnimationNodeIndex) {
     let assets = app.world().resource::<AssetServer>().clone();
-    let (graph, walk) = AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(1).from_asset(FOX)));
+    let (graph, index) = AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(clip).from_asset(path)));
     let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
+    let scene = WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(path)));
+    let root = app.world_mut().spawn((scene, Transform::from_scale(Vec3::splat(0.01)), hair)).id();
+    (root, graph, index)
+}
+
+#[test]
+fn hair_on_the_shipped_gltf_fox_stays_on_its_head_joint_through_its_walk() {
+    let _renderer = hair_sim_support::renderer::one_at_a_time();
+    let mut app = app_on_the_cpu(HairSettings::default());
+
     let groom =
         HairGroom { strand_count: 100, followers_per_guide: 2, segments: 12, style: HairStyle::Short, ..default() };
-    let fox = app
-        .world_mut()
-        .spawn((
-            WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(FOX))),
-            Transform::from_scale(Vec3::splat(0.01)),
-            HairOnCharacter::new("b_Head_05", CharacterHair::Groom(groom))
-                .with_gltf_head_axes()
-                .with_scalp_fitted_to_head(),
-        ))
-        .id();
+    let hair = HairOnCharacter::new("b_Head_05", CharacterHair::Groom(groom))
+        .with_gltf_head_axes()
+        .with_scalp_fitted_to_head();
+    let (fox, graph, walk) = spawn_in_centimetres(&mut app, FOX, 1, hair);
 
     // Loaded (on the asset server's threads), spawned, the hair attached and grown.
     let mut head = None;
@@ -149,32 +163,16 @@ fn skinned_point(binding: &ScalpRootBinding, joints: &[DMat4]) -> DVec3 {
 #[test]
 fn hair_on_the_shipped_gltf_mannequin_grows_on_its_scalp_with_no_numbers_given_and_stays_on_it() {
     let _renderer = hair_sim_support::renderer::one_at_a_time();
-    let mut app = App::new();
-    app.add_plugins((crate::headless_renderer(), HairPlugins::default()))
-        .insert_resource(HairGpuSettings { enabled: false, ..default() })
-        .insert_resource(HairSettings::styled())
-        .insert_resource(Time::<Fixed>::from_seconds(1.0 / 60.0))
-        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)));
-    crate::finish_adding_plugins(&mut app);
+    let mut app = app_on_the_cpu(HairSettings::styled());
 
     // As the crate guide puts hair on a glTF character: names, and nothing measured by hand.
-    let assets = app.world().resource::<AssetServer>().clone();
-    let (graph, look_around) =
-        AnimationGraph::from_clip(assets.load(GltfAssetLabel::Animation(2).from_asset(MANNEQUIN)));
-    let graph = app.world_mut().resource_mut::<Assets<AnimationGraph>>().add(graph);
     let groom = HairGroom { strand_count: 150, followers_per_guide: 2, ..default() };
-    let character = app
-        .world_mut()
-        .spawn((
-            WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(MANNEQUIN))),
-            Transform::from_scale(Vec3::splat(0.01)),
-            HairOnCharacter::new("Head", CharacterHair::Groom(groom))
-                .with_gltf_head_axes()
-                .with_scalp_fitted_to_head()
-                .with_scalp_mesh("Scalp")
-                .with_collider_meshes(["Face"]),
-        ))
-        .id();
+    let hair = HairOnCharacter::new("Head", CharacterHair::Groom(groom))
+        .with_gltf_head_axes()
+        .with_scalp_fitted_to_head()
+        .with_scalp_mesh("Scalp")
+        .with_collider_meshes(["Face"]);
+    let (character, graph, look_around) = spawn_in_centimetres(&mut app, MANNEQUIN, 2, hair);
     let mut head = None;
     for _ in 0..2000 {
         app.update();
