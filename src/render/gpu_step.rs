@@ -58,23 +58,24 @@ use crate::wind::{HairWind, HairWindSource};
 /// ```
 ///
 /// **Which strands.** Every built strand rooted on a [`HairHead`] with 3 to [`gpu_max_nodes`] nodes
-/// ([`MAX_GPU_NODES`], 65, on every device; [`MAX_WIDE_GPU_NODES`](crate::gpu::MAX_WIDE_GPU_NODES), 129, where the device has the
-/// workgroup memory, as desktop GPUs do), and every free strand (a [`HairStrand`](crate::simulation::HairStrand)
-/// with no [`StrandOf`]) with one node fewer ([`max_free_gpu_nodes`]), once
-/// its gravity preload is done and its state is one a step can start from, without two edges folded
-/// within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot step). Such a strand gets
-/// [`SteppedElsewhere`], so the CPU step leaves it; the others stay on the CPU (longer strands; a folded or
-/// quarantined one until it unfolds or its quarantine ends, looked over again each step). The strands are
-/// chosen once their rest shapes are preloaded ([`HairPinSystems::Preload`]), before anything adds to
-/// their loads: a strand goes to the GPU from the state it was preloaded in, and meets the GPU's wind and
-/// grid alone from its first step there. Free strands are stepped in the world's frame (single precision resolves 0.1 µm within a metre of
-/// the origin, 60 µm at a kilometre), meet the shared colliders (those of no head) as on the CPU, are on no
-/// hair–hair grid (as on the CPU), and are read back every step while any is on the GPU (no head's mesh
-/// draws them: a game reads their components). A head whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's
-/// state directly (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head
-/// with some on the CPU is drawn from the components. Adding or removing strands uploads the set again,
-/// each from its last read-back state; writing a GPU strand's rod or components from outside has no
-/// effect (the GPU's state is the truth, and the next read-back overwrites them).
+/// ([`MAX_GPU_NODES`], 65, on every device; [`MAX_WIDE_GPU_NODES`](crate::gpu::MAX_WIDE_GPU_NODES), 129,
+/// where the device has the workgroup memory, as desktop GPUs do), and every free strand (a
+/// [`HairStrand`](crate::simulation::HairStrand) with no [`StrandOf`]) with one node fewer
+/// ([`max_free_gpu_nodes`]), once its gravity preload is done and its state is one a step can start from,
+/// without two edges folded within [`GPU_FOLD_GAP`] of flat onto each other (which single precision cannot
+/// step). Such a strand gets [`SteppedElsewhere`], so the CPU step leaves it; the others stay on the CPU
+/// (longer strands; a folded or quarantined one until it unfolds or its quarantine ends, looked over again
+/// each step). The strands are chosen once their rest shapes are preloaded ([`HairPinSystems::Preload`]),
+/// before anything adds to their loads: a strand goes to the GPU from the state it was preloaded in, and
+/// meets the GPU's wind and grid alone from its first step there. Free strands are stepped in the world's
+/// frame (single precision resolves 0.1 µm within a metre of the origin, 60 µm at a kilometre), meet the
+/// shared colliders (those of no head) as on the CPU, are on no hair–hair grid (as on the CPU), and are read
+/// back every step while any is on the GPU (no head's mesh draws them: a game reads their components). A head
+/// whose guides are all on the GPU has its followers placed and its hair drawn from the GPU's state directly
+/// (the hair mesh is then not frustum-culled: its bounds are not known on the CPU); a head with some on the
+/// CPU is drawn from the components. Adding or removing strands uploads the set again, each from its last
+/// read-back state; writing a GPU strand's rod or components from outside has no effect (the GPU's state is
+/// the truth, and the next read-back overwrites them).
 ///
 /// **What the GPU meets.** Each head's colliders, its own and the shared ones, of every shape: spheres,
 /// capsules, ellipsoids (at their closest point), planes, boxes (rounded or not) and meshes (their baked

@@ -23,10 +23,11 @@ use crate::simulation::HairHead;
 /// `<mesh name>.<material name>`; the first primitive is taken). Until every name is found, the search is
 /// tried again each frame; [`HairOnCharacterStatus`] says how it stands.
 ///
-/// A rig's head joint has axes of its own: a procedural groom turns onto them, read off the rig's bind
-/// pose by glTF's convention that a model stands `+Y` up and faces `+Z`
-/// ([`HairOnCharacter::with_gltf_head_axes`]), or given by hand ([`HairOnCharacter::with_head_axes`]). The groom's lengths are metres whatever the character's scale (a
-/// character modelled in centimetres and spawned at 0.01 wears the same hair as one modelled in metres).
+/// A rig's head joint has axes of its own: a procedural groom turns onto them, read off the rig's bind pose
+/// by glTF's convention that a model stands `+Y` up and faces `+Z`
+/// ([`HairOnCharacter::with_gltf_head_axes`]), or given by hand ([`HairOnCharacter::with_head_axes`]). The
+/// groom's lengths are metres whatever the character's scale (a character modelled in centimetres and spawned
+/// at 0.01 wears the same hair as one modelled in metres).
 ///
 /// A skinned collider mesh is baked in the head joint's space (through the joint's inverse bind pose)
 /// and follows that joint rigidly: a face and ears do; a body that bends away from the head is better
