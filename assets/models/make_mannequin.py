@@ -183,9 +183,8 @@ def ellipsoid(mesh, centre, semi_axes, weights, segments=32, rings=20, rotation=
                 mesh.triangle(a, d, c)
 
 
-def limb(mesh, start, end, radius, joint, flat=1.0):
-    """An ellipsoid from `start` to `end` (cm) of `radius`, carried rigidly by `joint`; `flat` squeezes it
-    front to back."""
+def limb(mesh, start, end, radius, joint):
+    """An ellipsoid from `start` to `end` (cm) of `radius`, carried rigidly by `joint`."""
     axis = sub(end, start)
     length = math.sqrt(dot(axis, axis))
     direction = scale(axis, 1.0 / length)
@@ -196,7 +195,7 @@ def limb(mesh, start, end, radius, joint, flat=1.0):
     else:
         rotation = quat_axis_angle(turn, math.acos(max(-1.0, min(1.0, direction[1]))))
     centre = scale(add(start, end), 0.5)
-    ellipsoid(mesh, centre, (radius, length / 2.0 + radius * 0.35, radius * flat), lambda _: {joint: 1.0},
+    ellipsoid(mesh, centre, (radius, length / 2.0 + radius * 0.35, radius), lambda _: {joint: 1.0},
               segments=20, rings=14, rotation=rotation)
 
 

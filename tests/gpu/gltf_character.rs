@@ -240,6 +240,7 @@ fn hair_on_the_shipped_gltf_mannequin_grows_on_its_scalp_with_no_numbers_given_a
         app.update();
         // From world to the model's centimetres at the bind pose, through the head joint.
         let to_model = joints[head_index].inverse();
+        let joint_place = app.world().get::<GlobalTransform>(head).unwrap().translation();
         for &strand in &strands {
             assert!(app.world().get::<StrandRejected>(strand).is_none(), "strand {strand} rejected");
             let binding = app.world().get::<ScalpRootBinding>(strand).expect("every root bound to the scalp");
@@ -251,7 +252,7 @@ fn hair_on_the_shipped_gltf_mannequin_grows_on_its_scalp_with_no_numbers_given_a
                 let radial = ((model - MANNEQUIN_SKULL_CENTRE) / MANNEQUIN_SKULL).length();
                 let along = (model - MANNEQUIN_SKULL_CENTRE).length() / radial.max(1e-6);
                 deepest = deepest.max((1.0 - radial) * along * 0.01);
-                farthest = farthest.max(node.distance(app.world().get::<GlobalTransform>(head).unwrap().translation()));
+                farthest = farthest.max(node.distance(joint_place));
             }
         }
         joints = joint_matrices(&app);
